@@ -1,0 +1,34 @@
+within ToggleLSM;
+model LinearSynchronousMotor "Flat single-sided PMLSM: thrust from the magnetic-charge field model, eqs. (1)-(16), and a first-order current loop"
+  constant Real pi = 3.141592653589793;
+  parameter Real tau(unit = "m") = 0.1143 "Pole pitch";
+  parameter Real P_m = 2 "Number of permanent-magnet poles";
+  parameter Real B_r(unit = "T") = 0.86 "Remanent flux density of the magnets";
+  parameter Real L_m(unit = "m") = 0.00635 "Height of the permanent-magnet poles";
+  parameter Real alpha = 0.67 "Pole width over pole pitch, eq. (13)";
+  parameter Real K_C = 1 "Carter's coefficient";
+  parameter Real G(unit = "m") = 0.002 "Air gap between the magnet poles and the stator";
+  parameter Real L_A(unit = "m") = 0.1016 "Width of the poles along z";
+  parameter Real K_w1 = 0.955 "Total winding factor";
+  parameter Real gamma0(unit = "rad") = 1.5707963267948966 "Current load angle";
+  parameter Real W = 96 "Series turns per phase";
+  parameter Real p = 1 "Number of poles of the stator winding";
+  parameter Real mu0(unit = "H/m") = 1.25663706212e-06 "Permeability of free space (cancels in K_f)";
+  parameter Real K(unit = "rad/s") = 350 "Current-loop bandwidth (assumed meaning of the paper's K = 350)";
+  parameter Boolean idealCurrentLoop = false "true: i_q follows i_q* instantly; false: di_q/dt = K (i_q* - i_q)";
+  parameter Real g0(unit = "m") = L_m + G "Effective gap, eq. (2)";
+  parameter Real F1_per_A(unit = "1") = 6 * sqrt(2) / (K_C * pi) * (K_w1 * W / p) "Fundamental MMF per ampere of phase current, F_1 / I, eq. (2)";
+  parameter Real Bx_per_A(unit = "T/A") = mu0 * pi / tau * F1_per_A * sinh(pi / tau * L_m) / sinh(pi / tau * (G + L_m)) "Air-gap flux density per ampere at y = G, eq. (14)";
+  parameter Real sigma_m(unit = "A/m") = B_r / mu0 "Surface density of magnetic charge, eq. (15)";
+  parameter Real K_f(unit = "N/A") = 2 * tau / pi * sigma_m * P_m * L_A * Bx_per_A * sin(alpha * pi / 2) * sin(gamma0) "Thrust constant, eq. (16): F_C = K_f i_q";
+  input Real iq_ref(unit = "A") "Current command i_q*";
+  Real i_lag(unit = "A", start = 0.0, fixed = true) "Output of the first-order current loop";
+  Real i_q(unit = "A") "q-axis current";
+  Real F_C(unit = "N") "Thrust, eq. (16); acts on the mover along -x";
+  Flange flange "Mover, connected to slider C";
+equation
+  der(i_lag) = K * (iq_ref - i_lag);
+  i_q = if idealCurrentLoop then iq_ref else i_lag;
+  F_C = K_f * i_q;
+  flange.f = F_C;
+end LinearSynchronousMotor;

@@ -1,0 +1,83 @@
+within ToggleLSM;
+model Plant "PMLSM-driven toggle mechanism with joint Coulomb friction: the plant FMU and its interface contract"
+  // Parameters of the contract
+  parameter Real m_B(unit = "kg") = 4.43 "Mass of slider B (nominal 4.43 kg; the paper's variation case is 8.86 kg)";
+  parameter Real mu = 0.2 "Coefficient of dry friction in the joints, eq. (17); 0 switches friction off";
+  parameter Boolean idealCurrentLoop = false "true: i_q = i_q* (ideal current loop); false: di_q/dt = K (i_q* - i_q)";
+  parameter Real K(unit = "rad/s") = 350 "Current-loop bandwidth (assumed meaning of the paper's K = 350)";
+  parameter Real x_B0(unit = "m") = 0.2329 "Initial position of slider B (at rest)";
+  // Inputs of the contract
+  input Real iq_ref(unit = "A") "Current command i_q* of the drive";
+  input Real F_E(unit = "N") "External force on slider B; >= 0 resists the forward stroke";
+
+  LinearSynchronousMotor motor(K = K, idealCurrentLoop = idealCurrentLoop) "PMLSM, eqs. (1)-(16)";
+  ToggleMechanism mechanism(m_B = m_B, mu = mu, x_B0 = x_B0) "Toggle mechanism, eqs. (17)-(18)";
+  LoadForce load "External force on slider B";
+
+  // Outputs of the contract
+  output Real x_B(unit = "m") "Position of slider B";
+  output Real v_B(unit = "m/s") "Velocity of slider B";
+  output Real a_B(unit = "m/s2") "Acceleration of slider B";
+  output Real theta1(unit = "rad") "Angle of the lever arm O-A";
+  output Real theta2(unit = "rad") "Angle of link A-B";
+  output Real theta5(unit = "rad") "Angle of link D-C";
+  output Real omega1(unit = "rad/s") "Angular velocity of the lever";
+  output Real x_C(unit = "m") "Position of slider C (the mover)";
+  output Real v_C(unit = "m/s") "Velocity of slider C";
+  output Real i_q(unit = "A") "q-axis current";
+  output Real F_C(unit = "N") "Thrust of the PMLSM, eq. (16), acting on slider C along -x";
+  output Real K_f(unit = "N/A") "Thrust constant of eq. (16)";
+  output Real lambda1(unit = "N") "Lagrange multiplier of the slider B constraint";
+  output Real lambda2(unit = "N") "Lagrange multiplier of the slider C constraint";
+  output Real N12(unit = "N") "Normal force at joint (1,2)";
+  output Real N23(unit = "N") "Normal force at joint (2,3)";
+  output Real N34(unit = "N") "Normal force at joint (3,4)";
+  output Real N25(unit = "N") "Normal force at joint (2,5)";
+  output Real N56(unit = "N") "Normal force at joint (5,6)";
+  output Real Ff12(unit = "N") "Friction force at joint (1,2)";
+  output Real Ff23(unit = "N") "Friction force at joint (2,3)";
+  output Real Ff34(unit = "N") "Friction force at joint (3,4)";
+  output Real Ff25(unit = "N") "Friction force at joint (2,5)";
+  output Real Ff56(unit = "N") "Friction force at joint (5,6)";
+  output Real E_in(unit = "J") "Work done by the thrust since t = 0";
+  output Real E_fric(unit = "J") "Energy taken by joint friction since t = 0 (signed, eq. (17))";
+  output Real E_load(unit = "J") "Work done against F_E since t = 0";
+  output Real E_mech(unit = "J") "Kinetic plus potential energy of the mechanism";
+  output Real Phi1(unit = "m") "Constraint residual of slider B";
+  output Real Phi2(unit = "m") "Constraint residual of slider C";
+equation
+  motor.iq_ref = iq_ref;
+  load.F_E = F_E;
+  connect(motor.flange, mechanism.flange_C);
+  connect(load.flange, mechanism.flange_B);
+  x_B = mechanism.x_B;
+  v_B = mechanism.v_B;
+  a_B = mechanism.a_B;
+  theta1 = mechanism.theta1;
+  theta2 = mechanism.theta2;
+  theta5 = mechanism.theta5;
+  omega1 = mechanism.omega1;
+  x_C = mechanism.x_C;
+  v_C = mechanism.v_C;
+  i_q = motor.i_q;
+  F_C = motor.F_C;
+  K_f = motor.K_f;
+  lambda1 = mechanism.lambda1;
+  lambda2 = mechanism.lambda2;
+  N12 = mechanism.N12;
+  N23 = mechanism.N23;
+  N34 = mechanism.N34;
+  N25 = mechanism.N25;
+  N56 = mechanism.N56;
+  Ff12 = mechanism.Ff12;
+  Ff23 = mechanism.Ff23;
+  Ff34 = mechanism.Ff34;
+  Ff25 = mechanism.Ff25;
+  Ff56 = mechanism.Ff56;
+  E_in = mechanism.E_in;
+  E_fric = mechanism.E_fric;
+  E_load = mechanism.E_load;
+  E_mech = mechanism.E_mech;
+  Phi1 = mechanism.Phi1;
+  Phi2 = mechanism.Phi2;
+end Plant;

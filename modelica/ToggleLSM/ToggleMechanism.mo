@@ -1,0 +1,227 @@
+within ToggleLSM;
+model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrange-multiplier DAE of eqs. (17)-(18) at acceleration level"
+  /* Coordinates q = (theta1, theta2, theta5): lever 2, link 3 (A-B) and link 5 (D-C); one degree
+     of freedom, two loop closures
+       Phi1 = r1 sin(theta1) + r3 sin(theta2) - f            (slider B on its guide y = f)
+       Phi2 = h - r4 sin(theta1 + phi) - r5 sin(theta5)      (slider C on its guide y = h).
+     Eq. (18), M qdd + (Phi_q' + Q_f') lambda = Q and Phi_q qdd = gamma, is written body by body
+     as virtual work: each generalized equation sums m a_G . dp_G/dq_j + J alpha dtheta/dq_j
+     over the bodies, gravity on links 3 and 5, the flange forces on the sliders and the
+     constraint and friction columns. The constraints enter at acceleration level
+     (Phi'' = Phi_q qdd - gamma) with Baumgarte terms that vanish on the constraint manifold and
+     pull numerical drift back to it. Q_f' is eq. (17) exactly as the paper writes it: the
+     friction multiplies lambda, not |lambda|. */
+  constant Real pi = 3.141592653589793;
+  // Geometry (assumed, see shared/spec/mechanism.md)
+  parameter Real r1(unit = "m") = 0.10 "Lever arm O-A (assumed)";
+  parameter Real r3(unit = "m") = 0.27 "Length of link A-B (assumed)";
+  parameter Real r4(unit = "m") = 0.10 "Lever arm O-D (assumed)";
+  parameter Real r5(unit = "m") = 0.27 "Length of link D-C (assumed)";
+  parameter Real f(unit = "m") = 0.0 "Height of the guide of slider B (assumed)";
+  parameter Real h(unit = "m") = 0.10 "Height of the guide of slider C (assumed)";
+  parameter Real phi(unit = "rad") = 2.8972465583105871 "Angle between the lever arms O-A and O-D, 166 deg (assumed)";
+  // Inertia (assumed)
+  parameter Real m2(unit = "kg") = 0.8 "Mass of the lever, centre of mass at the pivot O (assumed)";
+  parameter Real J2(unit = "kg.m2") = 0.003 "Moment of inertia of the lever about O (assumed)";
+  parameter Real m3(unit = "kg") = 0.3 "Mass of link A-B, a uniform rod (assumed)";
+  parameter Real J3(unit = "kg.m2") = m3 * r3 ^ 2 / 12 "Moment of inertia of link A-B about its centre";
+  parameter Real m_B(unit = "kg") = 4.43 "Mass of slider B (nominal)";
+  parameter Real m5(unit = "kg") = 0.3 "Mass of link D-C, a uniform rod (assumed)";
+  parameter Real J5(unit = "kg.m2") = m5 * r5 ^ 2 / 12 "Moment of inertia of link D-C about its centre";
+  parameter Real m_C(unit = "kg") = 1.5 "Mass of slider C, the PMLSM mover (assumed)";
+  parameter Real g(unit = "m/s2") = 9.81 "Gravitational acceleration, along -y";
+  parameter Real mu = 0.2 "Coefficient of dry friction in the joints, eq. (17); 0: no friction";
+  parameter Real baumgarte(unit = "1/s") = 20 "Rate of the constraint stabilisation; 0 integrates Phi_q qdd = gamma unmodified";
+  // Initial configuration: at rest, theta1 from eq. (26), theta2 and theta5 from the constraints
+  parameter Real x_B0(unit = "m") = 0.2329 "Initial position of slider B";
+  parameter Real theta1_0(unit = "rad") = asin((x_B0 ^ 2 + r1 ^ 2 + f ^ 2 - r3 ^ 2) / (2 * r1 * sqrt(x_B0 ^ 2 + f ^ 2))) - asin(x_B0 / sqrt(x_B0 ^ 2 + f ^ 2)) "Initial lever angle, eq. (26)";
+  parameter Real theta2_0(unit = "rad") = asin((f - r1 * sin(theta1_0)) / r3) "Initial angle of link A-B, from Phi1 = 0";
+  parameter Real theta5_0(unit = "rad") = asin((h - r4 * sin(theta1_0 + phi)) / r5) "Initial angle of link D-C, from Phi2 = 0";
+
+  Flange flange_B "Slider B (output slider)";
+  Flange flange_C "Slider C (driven by the PMLSM mover)";
+
+  Real theta1(unit = "rad", start = theta1_0, fixed = true) "Angle of the lever arm O-A";
+  Real theta2(unit = "rad", start = theta2_0, fixed = true) "Angle of link A-B";
+  Real theta5(unit = "rad", start = theta5_0, fixed = true) "Angle of link D-C";
+  Real omega1(unit = "rad/s", start = 0.0, fixed = true) "Angular velocity of the lever";
+  Real omega2(unit = "rad/s", start = 0.0, fixed = true) "Angular velocity of link A-B";
+  Real omega5(unit = "rad/s", start = 0.0, fixed = true) "Angular velocity of link D-C";
+  Real alpha1(unit = "rad/s2") "Angular acceleration of the lever";
+  Real alpha2(unit = "rad/s2") "Angular acceleration of link A-B";
+  Real alpha5(unit = "rad/s2") "Angular acceleration of link D-C";
+  Real lambda1(unit = "N") "Lagrange multiplier of Phi1 (slider B guide)";
+  Real lambda2(unit = "N") "Lagrange multiplier of Phi2 (slider C guide)";
+  discrete Real sgn1(start = 0.0) "sgn(omega1), latched at its zero crossings";
+  discrete Real sgn2(start = 0.0) "sgn(omega2), latched at its zero crossings";
+  discrete Real sgn5(start = 0.0) "sgn(omega5), latched at its zero crossings";
+
+  Real x_B(unit = "m") "Position of slider B";
+  Real v_B(unit = "m/s") "Velocity of slider B";
+  Real a_B(unit = "m/s2") "Acceleration of slider B";
+  Real x_C(unit = "m") "Position of slider C";
+  Real v_C(unit = "m/s") "Velocity of slider C";
+  Real a_C(unit = "m/s2") "Acceleration of slider C";
+  Real Phi1(unit = "m") "Constraint residual of slider B";
+  Real Phi2(unit = "m") "Constraint residual of slider C";
+  Real dPhi1(unit = "m/s") "Time derivative of Phi1";
+  Real dPhi2(unit = "m/s") "Time derivative of Phi2";
+  Real aAx(unit = "m/s2");
+  Real aAy(unit = "m/s2");
+  Real aDx(unit = "m/s2");
+  Real aDy(unit = "m/s2");
+  Real aG3x(unit = "m/s2") "Acceleration of the centre of link A-B";
+  Real aG3y(unit = "m/s2");
+  Real aG5x(unit = "m/s2") "Acceleration of the centre of link D-C";
+  Real aG5y(unit = "m/s2");
+  Real aBy(unit = "m/s2") "Vertical acceleration of point B (zero on the constraint)";
+  Real aCy(unit = "m/s2") "Vertical acceleration of point C (zero on the constraint)";
+  Real vG3x(unit = "m/s");
+  Real vG3y(unit = "m/s");
+  Real vG5x(unit = "m/s");
+  Real vG5y(unit = "m/s");
+  Real tau1_f(unit = "N.m") "Generalized friction force on theta1, row theta1 of Q_f' lambda";
+  Real tau2_f(unit = "N.m") "Generalized friction force on theta2, row theta2 of Q_f' lambda";
+  Real tau5_f(unit = "N.m") "Generalized friction force on theta5, row theta5 of Q_f' lambda";
+  // Pin forces, from the Newton-Euler equations of sliders B, C and links 3, 5 with the solved
+  // accelerations; the paper's friction torques act from ground on the bodies of their rows.
+  Real F34x(unit = "N") "Force of link 3 on slider B at joint (3,4), x";
+  Real F34y(unit = "N") "Force of link 3 on slider B at joint (3,4), y";
+  Real F23x(unit = "N") "Force of the lever on link 3 at joint (2,3), x";
+  Real F23y(unit = "N") "Force of the lever on link 3 at joint (2,3), y";
+  Real F56x(unit = "N") "Force of link 5 on slider C at joint (5,6), x";
+  Real F56y(unit = "N") "Force of link 5 on slider C at joint (5,6), y";
+  Real F25x(unit = "N") "Force of the lever on link 5 at joint (2,5), x";
+  Real F25y(unit = "N") "Force of the lever on link 5 at joint (2,5), y";
+  Real F12x(unit = "N") "Force of the ground on the lever at joint (1,2), x";
+  Real F12y(unit = "N") "Force of the ground on the lever at joint (1,2), y";
+  Real N12(unit = "N") "Normal (pin) force at joint (1,2)";
+  Real N23(unit = "N") "Normal (pin) force at joint (2,3)";
+  Real N34(unit = "N") "Normal (pin) force at joint (3,4)";
+  Real N25(unit = "N") "Normal (pin) force at joint (2,5)";
+  Real N56(unit = "N") "Normal (pin) force at joint (5,6)";
+  Real Ff12(unit = "N") "Friction force at joint (1,2), mu N12";
+  Real Ff23(unit = "N") "Friction force at joint (2,3), mu N23";
+  Real Ff34(unit = "N") "Friction force at joint (3,4), mu N34";
+  Real Ff25(unit = "N") "Friction force at joint (2,5), mu N25";
+  Real Ff56(unit = "N") "Friction force at joint (5,6), mu N56";
+  Real P_in(unit = "W") "Power delivered at flange C (the thrust)";
+  Real P_load(unit = "W") "Power delivered against the load at flange B";
+  Real P_fric(unit = "W") "Power of the joint friction of eq. (17), q_dot' Q_f' lambda (signed)";
+  Real E_in(unit = "J", start = 0.0, fixed = true) "Work done by the thrust";
+  Real E_load(unit = "J", start = 0.0, fixed = true) "Work done against the external force F_E";
+  Real E_fric(unit = "J", start = 0.0, fixed = true) "Energy taken by the joint friction of eq. (17) (signed)";
+  Real E_mech(unit = "J") "Kinetic plus potential energy of the mechanism";
+equation
+  der(theta1) = omega1;
+  der(theta2) = omega2;
+  der(theta5) = omega5;
+  der(omega1) = alpha1;
+  der(omega2) = alpha2;
+  der(omega5) = alpha5;
+
+  // Friction signs of eq. (17), sgn(0) = 0 until the first crossing
+  when omega1 > 0 then
+    sgn1 = 1.0;
+  elsewhen omega1 < 0 then
+    sgn1 = -1.0;
+  end when;
+  when omega2 > 0 then
+    sgn2 = 1.0;
+  elsewhen omega2 < 0 then
+    sgn2 = -1.0;
+  end when;
+  when omega5 > 0 then
+    sgn5 = 1.0;
+  elsewhen omega5 < 0 then
+    sgn5 = -1.0;
+  end when;
+
+  // Positions and velocities
+  x_B = r1 * cos(theta1) + r3 * cos(theta2);
+  x_C = r4 * cos(theta1 + phi) + r5 * cos(theta5);
+  v_B = -r1 * sin(theta1) * omega1 - r3 * sin(theta2) * omega2;
+  v_C = -r4 * sin(theta1 + phi) * omega1 - r5 * sin(theta5) * omega5;
+  vG3x = -r1 * sin(theta1) * omega1 - 0.5 * r3 * sin(theta2) * omega2;
+  vG3y = r1 * cos(theta1) * omega1 + 0.5 * r3 * cos(theta2) * omega2;
+  vG5x = -r4 * sin(theta1 + phi) * omega1 - 0.5 * r5 * sin(theta5) * omega5;
+  vG5y = r4 * cos(theta1 + phi) * omega1 + 0.5 * r5 * cos(theta5) * omega5;
+  flange_B.s = x_B;
+  flange_C.s = x_C;
+  Phi1 = r1 * sin(theta1) + r3 * sin(theta2) - f;
+  Phi2 = h - r4 * sin(theta1 + phi) - r5 * sin(theta5);
+  dPhi1 = r1 * cos(theta1) * omega1 + r3 * cos(theta2) * omega2;
+  dPhi2 = -r4 * cos(theta1 + phi) * omega1 - r5 * cos(theta5) * omega5;
+
+  // Accelerations of the points, linear in alpha
+  aAx = -r1 * (sin(theta1) * alpha1 + cos(theta1) * omega1 ^ 2);
+  aAy = r1 * (cos(theta1) * alpha1 - sin(theta1) * omega1 ^ 2);
+  aDx = -r4 * (sin(theta1 + phi) * alpha1 + cos(theta1 + phi) * omega1 ^ 2);
+  aDy = r4 * (cos(theta1 + phi) * alpha1 - sin(theta1 + phi) * omega1 ^ 2);
+  aG3x = aAx - 0.5 * r3 * (sin(theta2) * alpha2 + cos(theta2) * omega2 ^ 2);
+  aG3y = aAy + 0.5 * r3 * (cos(theta2) * alpha2 - sin(theta2) * omega2 ^ 2);
+  a_B = aAx - r3 * (sin(theta2) * alpha2 + cos(theta2) * omega2 ^ 2);
+  aBy = aAy + r3 * (cos(theta2) * alpha2 - sin(theta2) * omega2 ^ 2);
+  aG5x = aDx - 0.5 * r5 * (sin(theta5) * alpha5 + cos(theta5) * omega5 ^ 2);
+  aG5y = aDy + 0.5 * r5 * (cos(theta5) * alpha5 - sin(theta5) * omega5 ^ 2);
+  a_C = aDx - r5 * (sin(theta5) * alpha5 + cos(theta5) * omega5 ^ 2);
+  aCy = aDy + r5 * (cos(theta5) * alpha5 - sin(theta5) * omega5 ^ 2);
+
+  // Rows of Q_f' lambda, eq. (17)
+  tau1_f = mu * sgn1 * (-r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2);
+  tau2_f = -mu * sgn2 * r3 * sin(theta2) * lambda1;
+  tau5_f = mu * sgn5 * r5 * sin(theta5) * lambda2;
+
+  // Eq. (18), generalized equation of theta1
+  J2 * alpha1 + m3 * (-aG3x * r1 * sin(theta1) + aG3y * r1 * cos(theta1)) - m_B * a_B * r1 * sin(theta1)
+    + m5 * (-aG5x * r4 * sin(theta1 + phi) + aG5y * r4 * cos(theta1 + phi)) - m_C * a_C * r4 * sin(theta1 + phi)
+    + m3 * g * r1 * cos(theta1) + m5 * g * r4 * cos(theta1 + phi)
+    - flange_B.f * (-r1 * sin(theta1)) - flange_C.f * (-r4 * sin(theta1 + phi))
+    + r1 * cos(theta1) * lambda1 - r4 * cos(theta1 + phi) * lambda2 + tau1_f = 0;
+  // ... of theta2
+  J3 * alpha2 + m3 * 0.5 * r3 * (-aG3x * sin(theta2) + aG3y * cos(theta2)) - m_B * a_B * r3 * sin(theta2)
+    + m3 * g * 0.5 * r3 * cos(theta2) - flange_B.f * (-r3 * sin(theta2))
+    + r3 * cos(theta2) * lambda1 + tau2_f = 0;
+  // ... of theta5
+  J5 * alpha5 + m5 * 0.5 * r5 * (-aG5x * sin(theta5) + aG5y * cos(theta5)) - m_C * a_C * r5 * sin(theta5)
+    + m5 * g * 0.5 * r5 * cos(theta5) - flange_C.f * (-r5 * sin(theta5))
+    - r5 * cos(theta5) * lambda2 + tau5_f = 0;
+  // Phi_q qdd = gamma, with Baumgarte stabilisation (Phi'' + 2 b Phi' + b^2 Phi = 0)
+  aBy + 2 * baumgarte * dPhi1 + baumgarte ^ 2 * Phi1 = 0;
+  -aCy + 2 * baumgarte * dPhi2 + baumgarte ^ 2 * Phi2 = 0;
+
+  // Pin forces (Newton-Euler of sliders B, C and links 3, 5)
+  F34x = m_B * a_B - flange_B.f;
+  r3 * cos(theta2) * F34y = r3 * sin(theta2) * F34x - 0.5 * r3 * cos(theta2) * m3 * g - tau2_f - J3 * alpha2
+    - 0.5 * r3 * m3 * (cos(theta2) * aG3y - sin(theta2) * aG3x);
+  F23x = m3 * aG3x + F34x;
+  F23y = m3 * aG3y + F34y + m3 * g;
+  F56x = m_C * a_C - flange_C.f;
+  r5 * cos(theta5) * F56y = r5 * sin(theta5) * F56x - 0.5 * r5 * cos(theta5) * m5 * g - tau5_f - J5 * alpha5
+    - 0.5 * r5 * m5 * (cos(theta5) * aG5y - sin(theta5) * aG5x);
+  F25x = m5 * aG5x + F56x;
+  F25y = m5 * aG5y + F56y + m5 * g;
+  F12x = F23x + F25x;
+  F12y = F23y + F25y + m2 * g;
+  N12 = sqrt(F12x ^ 2 + F12y ^ 2);
+  N23 = sqrt(F23x ^ 2 + F23y ^ 2);
+  N34 = sqrt(F34x ^ 2 + F34y ^ 2);
+  N25 = sqrt(F25x ^ 2 + F25y ^ 2);
+  N56 = sqrt(F56x ^ 2 + F56y ^ 2);
+  Ff12 = mu * N12;
+  Ff23 = mu * N23;
+  Ff34 = mu * N34;
+  Ff25 = mu * N25;
+  Ff56 = mu * N56;
+
+  // Energy bookkeeping: E_in = (E_mech - E_mech(0)) + E_fric + E_load
+  P_in = flange_C.f * v_C;
+  P_load = -flange_B.f * v_B;
+  P_fric = omega1 * tau1_f + omega2 * tau2_f + omega5 * tau5_f;
+  der(E_in) = P_in;
+  der(E_load) = P_load;
+  der(E_fric) = P_fric;
+  E_mech = 0.5 * J2 * omega1 ^ 2 + 0.5 * m3 * (vG3x ^ 2 + vG3y ^ 2) + 0.5 * J3 * omega2 ^ 2 + 0.5 * m_B * v_B ^ 2
+    + 0.5 * m5 * (vG5x ^ 2 + vG5y ^ 2) + 0.5 * J5 * omega5 ^ 2 + 0.5 * m_C * v_C ^ 2
+    + m3 * g * (r1 * sin(theta1) + 0.5 * r3 * sin(theta2)) + m5 * g * (r4 * sin(theta1 + phi) + 0.5 * r5 * sin(theta5));
+end ToggleMechanism;

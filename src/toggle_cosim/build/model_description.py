@@ -1,0 +1,153 @@
+"""modelDescription.xml for a compiled model, FMI 2.0 Co-Simulation (and FMI 3.0).
+
+Written from `GeneratedModel`: every variable with its causality, variability, initial,
+unit, description and, where the standard allows one, start value; the unit definitions;
+and the model structure. The shell's own solver settings are appended as parameters after
+the model's variables (their value references follow the model's, as `shell/solver.h` says).
+"""
+
+from __future__ import annotations
+
+import datetime
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+from toggle_cosim.build.compile import GeneratedModel, ModelVariable
+from toggle_cosim.build.units import base_exponents
+
+
+@dataclass(frozen=True)
+class ShellSetting:
+    """A setting of the FMU's integrator, exposed as a tunable parameter."""
+
+    name: str
+    start: float
+    unit: str
+    description: str
+
+
+SHELL_SETTINGS = (
+    ShellSetting("solver.relTol", 1e-8, "1", "Relative tolerance of the FMU's Dormand-Prince 5(4) integrator"),
+    ShellSetting("solver.absTol", 1e-10, "1", "Absolute tolerance of the FMU's integrator"),
+    ShellSetting("solver.maxStep", 0.0, "s", "Largest internal step of the FMU's integrator; 0: no bound"),
+)
+
+
+def _number(value: float) -> str:
+    return repr(float(value))
+
+
+def _fmi2_attributes(variable: ModelVariable) -> dict[str, str]:
+    """causality / variability / initial for FMI 2.0, from the variable's kind."""
+    if variable.kind == "parameter":
+        return {"causality": "parameter", "variability": "fixed", "initial": "exact"}
+    if variable.kind == "calculated":
+        return {"causality": "calculatedParameter", "variability": "fixed", "initial": "calculated"}
+    if variable.kind == "constant":
+        return {"causality": "local", "variability": "constant", "initial": "exact"}
+    if variable.kind == "input":
+        return {"causality": "input", "variability": "continuous"}
+    causality = "output" if variable.causality == "output" else "local"
+    variability = "discrete" if variable.discrete else "continuous"
+    return {"causality": causality, "variability": variability, "initial": "calculated"}
+
+
+def _units(model: GeneratedModel) -> list[str]:
+    found = {v.unit for v in model.variables if v.unit} | {s.unit for s in SHELL_SETTINGS}
+    return sorted(found)
+
+
+def _add_unit_definitions(root: ET.Element, units: list[str]) -> None:
+    definitions = ET.SubElement(root, "UnitDefinitions")
+    for unit in units:
+        element = ET.SubElement(definitions, "Unit", name=unit)
+        ET.SubElement(element, "BaseUnit", {k: str(v) for k, v in base_exponents(unit).items()})
+
+
+def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: str) -> str:
+    """The FMI 2.0 Co-Simulation modelDescription.xml text."""
+    root = ET.Element(
+        "fmiModelDescription",
+        fmiVersion="2.0",
+        modelName=model.name,
+        guid=model.guid,
+        description=model.description,
+        generationTool=tool,
+        generationDateAndTime=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        variableNamingConvention="structured",
+        numberOfEventIndicators=str(model.event_count),
+    )
+    ET.SubElement(
+        root,
+        "CoSimulation",
+        modelIdentifier=model_identifier,
+        canHandleVariableCommunicationStepSize="true",
+        canInterpolateInputs="false",
+        maxOutputDerivativeOrder="0",
+        canRunAsynchronuously="false",
+        canBeInstantiatedOnlyOncePerProcess="false",
+        canNotUseMemoryManagementFunctions="false",
+        canGetAndSetFMUstate="true",
+        canSerializeFMUstate="true",
+        providesDirectionalDerivative="false",
+    )
+    _add_unit_definitions(root, _units(model))
+    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime="1.5", tolerance="1e-08", stepSize="0.0005")
+    variables = ET.SubElement(root, "ModelVariables")
+    outputs: list[int] = []
+    initial_unknowns: list[int] = []
+    for index, variable in enumerate(model.variables, start=1):
+        attributes = _fmi2_attributes(variable)
+        element = ET.SubElement(
+            variables,
+            "ScalarVariable",
+            name=variable.name,
+            valueReference=str(variable.value_reference),
+            description=variable.description,
+            **attributes,
+        )
+        if not variable.description:
+            del element.attrib["description"]
+        has_start = attributes.get("initial") == "exact" or attributes["causality"] == "input"
+        if variable.kind == "state" and variable.start is not None:
+            # A literal start of a state is reported, not settable: initial = calculated
+            # forbids a start attribute, so it goes into the description instead.
+            element.set("description", f"{variable.description} (starts at {variable.start:g})".strip())
+        if variable.base_type == "Boolean":
+            typed = ET.SubElement(element, "Boolean")
+            if has_start:
+                typed.set("start", "true" if variable.start else "false")
+        else:
+            typed = ET.SubElement(element, "Real")
+            if variable.unit:
+                typed.set("unit", variable.unit)
+            if has_start:
+                typed.set("start", _number(variable.start if variable.start is not None else 0.0))
+        if attributes["causality"] == "output":
+            outputs.append(index)
+            initial_unknowns.append(index)
+        elif attributes["causality"] == "calculatedParameter":
+            initial_unknowns.append(index)
+    for offset, setting in enumerate(SHELL_SETTINGS):
+        element = ET.SubElement(
+            variables,
+            "ScalarVariable",
+            name=setting.name,
+            valueReference=str(len(model.variables) + offset),
+            description=setting.description,
+            causality="parameter",
+            variability="tunable",
+            initial="exact",
+        )
+        ET.SubElement(element, "Real", unit=setting.unit, start=_number(setting.start))
+    structure = ET.SubElement(root, "ModelStructure")
+    if outputs:
+        section = ET.SubElement(structure, "Outputs")
+        for index in outputs:
+            ET.SubElement(section, "Unknown", index=str(index))
+    if initial_unknowns:
+        section = ET.SubElement(structure, "InitialUnknowns")
+        for index in initial_unknowns:
+            ET.SubElement(section, "Unknown", index=str(index))
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
