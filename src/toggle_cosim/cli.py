@@ -1,0 +1,203 @@
+"""Command line: `toggle-cosim build | run | plot | paper`.
+
+The only module that knows about files, exit codes and progress display. Exit status:
+0 success, 1 a run or comparison failed, 2 bad input (nothing is written then).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import click
+
+from toggle_cosim import __version__
+
+DEFAULT_SOURCE = Path("modelica/ToggleLSM")
+DEFAULT_MODEL = "ToggleLSM.Plant"
+DEFAULT_FMU = Path("fmus/ToggleLSM.fmu")
+DEFAULT_OUT = Path("out")
+PAPER_SCENARIOS = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
+
+
+class InputError(click.ClickException):
+    """Bad input: one line on stderr, exit status 2."""
+
+    exit_code = 2
+
+    def show(self, file=None) -> None:  # noqa: ANN001 - click's signature
+        click.echo(f"error: {self.message}", err=True)
+
+
+class RunFailed(click.ClickException):
+    exit_code = 1
+
+    def show(self, file=None) -> None:  # noqa: ANN001
+        click.echo(f"failed: {self.message}", err=True)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="toggle-cosim")
+def main() -> None:
+    """Co-simulation of the PMLSM-driven toggle mechanism (Fung, Wu and Chen 2001)."""
+
+
+def _build(source: Path, model: str, output: Path) -> None:
+    from toggle_cosim.build import FMUBuildError, ModelCompileError, build_fmu
+
+    try:
+        report = build_fmu(source, model, output)
+    except (ModelCompileError, FMUBuildError) as error:
+        raise InputError(str(error).splitlines()[0]) from error
+    click.echo(
+        f"built {report.fmu.path} ({report.fmu.size_bytes / 1024:.0f} KiB, GUID {report.fmu.guid}): "
+        f"{report.variables} variables, {report.states} states, {report.event_indicators} event indicators; "
+        f"compile {report.compile_seconds:.1f} s, C build and zip {report.package_seconds:.1f} s"
+    )
+
+
+@main.command()
+@click.option("--source", type=click.Path(path_type=Path), default=DEFAULT_SOURCE, show_default=True,
+              help="Modelica package directory (or a .mo file).")
+@click.option("--model", default=DEFAULT_MODEL, show_default=True, help="Class to compile.")
+@click.option("--output", "-o", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True,
+              help="FMU file to write.")
+def build(source: Path, model: str, output: Path) -> None:
+    """Compile the Modelica source into an FMI 2.0 Co-Simulation FMU."""
+    _build(source, model, output)
+
+
+def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
+    from toggle_cosim.plant import ContractError, check_plant
+    from toggle_cosim.scenario import ScenarioError, load_scenario
+
+    runs = []
+    for path in scenarios:
+        try:
+            runs.extend(load_scenario(path))
+        except ScenarioError as error:
+            raise InputError(str(error)) from error
+    plants = {}
+    for run in runs:
+        chosen = fmu if fmu is not None else run.fmu
+        if chosen is None:
+            raise InputError(f"{run.source}: no fmu: key and no --fmu option (name the plant FMU)")
+        chosen = chosen.resolve()
+        if chosen not in plants:
+            try:
+                plants[chosen] = check_plant(chosen)
+            except ContractError as error:
+                raise InputError(str(error)) from error
+    return [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+
+
+def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
+    from toggle_cosim.traces import write_csv, write_json
+
+    folder = out / outcome.run.scenario / (outcome.run.variant or "run")
+    write_csv(folder / "trace.csv", outcome.trace)
+    write_json(folder / "run.json", outcome.record)
+    return folder
+
+
+def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
+    from toggle_cosim.master import simulate
+
+    outcomes = []
+    for number, (run, plant) in enumerate(pairs, start=1):
+        label = f"[{number}/{len(pairs)}] {run.label}"
+        if quiet or not sys.stderr.isatty():
+            outcome = simulate(run, plant)
+        else:
+            with click.progressbar(length=1000, label=label, file=sys.stderr) as bar:
+                done = [0]
+
+                def progress(fraction: float, bar=bar, done=done) -> None:  # noqa: ANN001
+                    step = int(fraction * 1000) - done[0]
+                    if step > 0:
+                        bar.update(step)
+                        done[0] += step
+
+                outcome = simulate(run, plant, progress)
+        folder = _write_outcome(outcome, out)
+        s = outcome.summary
+        status = "complete" if outcome.complete else f"INCOMPLETE ({outcome.reason})"
+        detail = (
+            f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
+            f"T_h {s.hitting_time_s:.4f} s" if s else "no summary"
+        )
+        click.echo(f"{label}: {status}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
+        outcomes.append(outcome)
+    return outcomes
+
+
+@main.command()
+@click.argument("scenarios", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the scenarios' fmu: key).")
+@click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True, help="Output folder.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
+def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool) -> None:
+    """Run scenario files; write trace.csv and run.json per run under OUT/<scenario>/<variant>/."""
+    pairs = _load_runs(scenarios, fmu)
+    outcomes = _execute(pairs, out, quiet)
+    failed = [o.run.label for o in outcomes if not o.complete]
+    if failed:
+        raise RunFailed(f"{len(failed)} run(s) incomplete: {', '.join(failed)}")
+
+
+def _plot_scenario(folder: Path, output: Path | None) -> Path:
+    from toggle_cosim.plots import nine_panel_figure
+    from toggle_cosim.traces import read_csv
+
+    runs = sorted(p for p in folder.iterdir() if (p / "trace.csv").is_file()) if folder.is_dir() else []
+    if not runs:
+        raise InputError(f"{folder}: no run results here (expected <variant>/trace.csv; run 'toggle-cosim run' first)")
+    traces, target, title = {}, None, folder.name
+    for run_dir in runs:
+        try:
+            traces[run_dir.name] = read_csv(run_dir / "trace.csv")
+            record = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError) as error:
+            raise InputError(f"{run_dir}: unreadable results ({error})") from error
+        target = record["resolved"]["stroke"]["x_target"]
+        title = f"{record['scenario']}: {record['description']}"
+    return nine_panel_figure(traces, title, output or folder / "figure.png", target)
+
+
+@main.command()
+@click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--output", "-o", type=click.Path(path_type=Path), default=None,
+              help="PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
+def plot(results: tuple[Path, ...], output: Path | None) -> None:
+    """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
+    if output is not None and len(results) > 1:
+        raise InputError("--output names one file, so give one RESULTS folder with it")
+    for folder in results:
+        click.echo(f"wrote {_plot_scenario(folder, output)}")
+
+
+@main.command()
+@click.option("--scenarios", type=click.Path(path_type=Path), default=Path("scenarios"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True)
+@click.option("--fmu", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True)
+@click.option("--skip-build", is_flag=True, help="Use the existing FMU.")
+def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
+    """The main job: build the FMU, run the paper's six runs, write traces, figures and a summary."""
+    from toggle_cosim.report import write_summary
+
+    started = time.perf_counter()
+    if not skip_build:
+        _build(DEFAULT_SOURCE, DEFAULT_MODEL, fmu)
+    files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
+    pairs = _load_runs(files, fmu)
+    outcomes = _execute(pairs, out, quiet=False)
+    for name in PAPER_SCENARIOS:
+        click.echo(f"wrote {_plot_scenario(out / name, None)}")
+    summary = write_summary(outcomes, out / "summary.md")
+    click.echo(f"wrote {summary}; total {time.perf_counter() - started:.1f} s")
+    failed = [o.run.label for o in outcomes if not o.complete]
+    if failed:
+        raise RunFailed(f"{len(failed)} run(s) incomplete: {', '.join(failed)}")

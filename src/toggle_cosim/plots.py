@@ -1,0 +1,56 @@
+"""The paper's nine-panel figure (Figs. 4-6) from run traces, friction and no friction overlaid."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from toggle_cosim.traces import Trace  # noqa: E402
+
+PANELS = (
+    ("(a) position of slider B", "x_B", "x_B [m]"),
+    ("(b) control input i_q*", "iq_ref", "i_q* [A]"),
+    ("(c) Lagrange multiplier λ1", "lambda1", "λ1 [N]"),
+    ("(d) Lagrange multiplier λ2", "lambda2", "λ2 [N]"),
+    ("(e) joint (2,3)", "23", "force [N]"),
+    ("(f) joint (3,4)", "34", "force [N]"),
+    ("(g) joint (2,5)", "25", "force [N]"),
+    ("(h) joint (5,6)", "56", "force [N]"),
+    ("(i) joint (1,2)", "12", "force [N]"),
+)
+_STYLES = ("-", "--", ":", "-.")
+
+
+def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, target: float | None = None) -> Path:
+    """Draw the nine panels for each labelled trace and save a PNG (atomically) to `output`."""
+    figure, axes = plt.subplots(3, 3, figsize=(14, 10.5), constrained_layout=True)
+    for ax, (label, key, ylabel) in zip(axes.flat, PANELS, strict=True):
+        for number, (name, trace) in enumerate(traces.items()):
+            style = _STYLES[number % len(_STYLES)]
+            t = trace.time
+            if key.isdigit():
+                ax.plot(t, trace.column(f"N{key}"), style, color="C0", label=f"normal, {name}")
+                if trace.column(f"Ff{key}").any():
+                    ax.plot(t, trace.column(f"Ff{key}"), style, color="C3", label=f"friction, {name}")
+            else:
+                ax.plot(t, trace.column(key), style, color=f"C{number}", label=name)
+        if key == "x_B" and target is not None:
+            ax.axhline(target, color="0.6", linewidth=0.8, label="target x_B*")
+        ax.set_title(label)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    figure.suptitle(title)
+    output = Path(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    partial = output.with_name(f".{output.stem}.partial.png")
+    figure.savefig(partial, dpi=110)
+    plt.close(figure)
+    partial.replace(output)
+    return output

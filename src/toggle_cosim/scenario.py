@@ -1,0 +1,316 @@
+"""Scenario files (YAML) -> validated, typed runs.
+
+A scenario holds one experiment and its variants (typically with and without joint friction).
+Every key is checked against a JSON Schema; the first problem becomes one `ScenarioError`
+line that names the file, the key and what is allowed. Physical limits that a schema cannot
+say (a target beyond the toggle position) are checked after it.
+
+    name: fig4_nominal
+    description: Nominal case of Fig. 4
+    fmu: ../fmus/ToggleLSM.fmu          # relative to this file; --fmu overrides it
+    t_end: 1.5                          # s
+    T_s: 0.0005                         # s, controller sample time
+    stroke: {x_start: 0.2329, x_target: 0.3199}
+    plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, current_loop: first_order, parameters: {}}
+    controller: {objective: x_B, gains: {C: 5, Q: 4, P: 50, delta: 0.25, beta: 65}}
+    variants:
+      friction: {plant: {mu: 0.2}}
+      no_friction: {plant: {mu: 0.0}}
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import jsonschema
+import yaml
+
+from toggle_cosim.parameters import ControllerGains, MechanismParameters
+
+_NUMBER = {"type": "number"}
+_POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+
+_PLANT = {
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "F_E": {"type": "number", "minimum": -10000, "maximum": 10000,
+                "description": "external force on slider B in N, >= 0 resists the stroke"},
+        "m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
+        "mu": {"type": "number", "minimum": 0, "maximum": 1},
+        "current_loop": {"enum": ["first_order", "ideal"]},
+        "K": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6},
+        "parameters": {
+            "type": "object",
+            "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_.\[\]]*$"},
+            "additionalProperties": {"type": ["number", "boolean"]},
+        },
+    },
+}
+_GAINS = {
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "C": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},
+        "Q": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6},
+        "P": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6},
+        "delta": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e3},
+        "beta": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6},
+    },
+}
+_CONTROLLER = {
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "objective": {"enum": ["x_B", "theta1"]},
+        "gains": _GAINS,
+        "nominal_m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
+    },
+}
+_STROKE = {
+    "type": "object",
+    "additionalProperties": False,
+    "required": ["x_start", "x_target"],
+    "properties": {"x_start": _POSITIVE, "x_target": _POSITIVE},
+}
+_OVERRIDE = {
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "description": {"type": "string"},
+        "t_end": {"type": "number", "exclusiveMinimum": 0, "maximum": 100},
+        "T_s": {"type": "number", "minimum": 1e-6, "maximum": 0.1},
+        "stroke": {**_STROKE, "required": []},
+        "plant": _PLANT,
+        "controller": _CONTROLLER,
+    },
+}
+SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "type": "object",
+    "additionalProperties": False,
+    "required": ["name", "t_end", "T_s", "stroke"],
+    "properties": {
+        "name": {"type": "string", "pattern": r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"},
+        "description": {"type": "string"},
+        "fmu": {"type": "string", "minLength": 1},
+        "t_end": _OVERRIDE["properties"]["t_end"],
+        "T_s": _OVERRIDE["properties"]["T_s"],
+        "stroke": _STROKE,
+        "plant": _PLANT,
+        "controller": _CONTROLLER,
+        "variants": {
+            "type": "object",
+            "minProperties": 1,
+            "propertyNames": {"pattern": r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"},
+            "additionalProperties": _OVERRIDE,
+        },
+    },
+}
+
+
+class ScenarioError(Exception):
+    """A scenario file that cannot be used; str() is the one-line message for the user."""
+
+
+@dataclass(frozen=True)
+class PlantSettings:
+    """What the master sets on the plant FMU before initialisation (and holds as inputs)."""
+
+    F_E: float = 0.0
+    m_B: float = 4.43
+    mu: float = 0.2
+    current_loop: Literal["first_order", "ideal"] = "first_order"
+    K: float | None = None
+    parameters: Mapping[str, float | bool] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ControllerSettings:
+    objective: Literal["x_B", "theta1"] = "x_B"
+    gains: ControllerGains = field(default_factory=ControllerGains)
+    nominal_m_B: float = 4.43
+
+
+@dataclass(frozen=True)
+class Run:
+    """One co-simulation: a scenario with one variant applied."""
+
+    scenario: str
+    variant: str | None
+    source: Path | None
+    description: str
+    fmu: Path | None
+    t_end: float
+    T_s: float
+    x_start: float
+    x_target: float
+    plant: PlantSettings
+    controller: ControllerSettings
+    resolved: Mapping[str, Any]
+
+    @property
+    def label(self) -> str:
+        return self.scenario if self.variant is None else f"{self.scenario}/{self.variant}"
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.t_end / self.T_s))
+
+
+def _key(path: Any) -> str:
+    return ".".join(str(part) for part in path) or "(top level)"
+
+
+def _schema_message(error: jsonschema.ValidationError) -> str:
+    key = _key(error.absolute_path)
+    if error.validator == "additionalProperties":
+        extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
+        allowed = ", ".join(sorted(error.schema.get("properties", {}))) or "none"
+        where = f"{key}." if error.absolute_path else ""
+        return f"unknown key {where}{extra[0]} (allowed here: {allowed})"
+    if error.validator == "required":
+        return f"missing key: {error.message}"
+    if error.validator in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
+        relation = {"minimum": ">=", "exclusiveMinimum": ">", "maximum": "<=", "exclusiveMaximum": "<"}
+        return f"key {key}: {error.instance!r} is out of range (must be {relation[error.validator]} {error.validator_value})"
+    if error.validator == "type":
+        return f"key {key}: {error.instance!r} is not of type {error.validator_value} (write a {error.validator_value})"
+    if error.validator == "enum":
+        return f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
+    return f"key {key}: {error.message}"
+
+
+def _reject_non_finite(node: Any, path: tuple[Any, ...] = ()) -> None:
+    if isinstance(node, float) and not math.isfinite(node):
+        raise ScenarioError(f"key {_key(path)}: {node!r} is not a finite number")
+    if isinstance(node, dict):
+        for k, v in node.items():
+            _reject_non_finite(v, (*path, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            _reject_non_finite(v, (*path, i))
+
+
+def validate_document(document: Any) -> None:
+    """Check a parsed scenario against the schema and the physical limits (raises ScenarioError)."""
+    if not isinstance(document, dict):
+        raise ScenarioError("the file must hold a YAML mapping of scenario keys (name, t_end, T_s, stroke, ...)")
+    _reject_non_finite(document)
+    validator = jsonschema.Draft202012Validator(SCHEMA)
+    errors = sorted(validator.iter_errors(document), key=lambda e: (len(e.absolute_path), _key(e.absolute_path)))
+    if errors:
+        raise ScenarioError(_schema_message(errors[0]))
+
+
+def _merge(base: dict[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+    merged = copy.deepcopy(base)
+    for key, value in override.items():
+        if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
+            merged[key] = _merge(merged[key], value)
+        else:
+            merged[key] = copy.deepcopy(value)
+    return merged
+
+
+def toggle_limit(geometry: MechanismParameters) -> float:
+    """x_B at the toggle position (links O-A and A-B aligned): the stroke's upper bound."""
+    return math.sqrt((geometry.r1 + geometry.r3) ** 2 - geometry.f**2)
+
+
+def _reach_limit(geometry: MechanismParameters) -> float:
+    """Smallest x_B the linkage reaches (links folded), the stroke's lower bound."""
+    return math.sqrt(max((geometry.r3 - geometry.r1) ** 2 - geometry.f**2, 0.0))
+
+
+def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
+    stroke = document["stroke"]
+    geometry = MechanismParameters()
+    upper, lower = toggle_limit(geometry), _reach_limit(geometry)
+    for key in ("x_start", "x_target"):
+        value = stroke[key]
+        if not lower < value < upper:
+            where = f"stroke.{key}" + (f" (variant {variant})" if variant else "")
+            raise ScenarioError(
+                f"key {where}: {value} m is outside the reach of the linkage (must lie between {lower:.4f} m and"
+                f" the toggle position {upper:.4f} m)"
+            )
+    t_end, T_s = float(document["t_end"]), float(document["T_s"])
+    if T_s > t_end:
+        raise ScenarioError(f"key T_s: {T_s} s is longer than t_end = {t_end} s (make T_s < t_end)")
+    if abs(round(t_end / T_s) * T_s - t_end) > 1e-9 * t_end:
+        raise ScenarioError(f"key t_end: {t_end} s is not a whole number of samples T_s = {T_s} s")
+    plant_doc = document.get("plant", {})
+    controller_doc = document.get("controller", {})
+    plant = PlantSettings(
+        F_E=float(plant_doc.get("F_E", 0.0)),
+        m_B=float(plant_doc.get("m_B", 4.43)),
+        mu=float(plant_doc.get("mu", 0.2)),
+        current_loop=plant_doc.get("current_loop", "first_order"),
+        K=float(plant_doc["K"]) if "K" in plant_doc else None,
+        parameters=dict(plant_doc.get("parameters", {})),
+    )
+    controller = ControllerSettings(
+        objective=controller_doc.get("objective", "x_B"),
+        gains=ControllerGains(**{k: float(v) for k, v in controller_doc.get("gains", {}).items()}),
+        nominal_m_B=float(controller_doc.get("nominal_m_B", 4.43)),
+    )
+    fmu = document.get("fmu")
+    fmu_path = None
+    if fmu is not None:
+        fmu_path = Path(fmu) if source is None or Path(fmu).is_absolute() else (source.parent / fmu)
+    return Run(
+        scenario=document["name"],
+        variant=variant,
+        source=source,
+        description=document.get("description", ""),
+        fmu=fmu_path,
+        t_end=t_end,
+        T_s=T_s,
+        x_start=float(stroke["x_start"]),
+        x_target=float(stroke["x_target"]),
+        plant=plant,
+        controller=controller,
+        resolved={k: v for k, v in document.items() if k != "variants"},
+    )
+
+
+def runs_from_document(document: Any, source: Path | None = None) -> list[Run]:
+    """Every run a scenario document defines: one per variant, or one if it has none."""
+    validate_document(document)
+    variants = document.get("variants")
+    if not variants:
+        return [_build_run(document, None, source)]
+    base = {k: v for k, v in document.items() if k != "variants"}
+    return [_build_run(_merge(base, override), name, source) for name, override in variants.items()]
+
+
+def load_scenario(path: Path) -> list[Run]:
+    """Read and validate a scenario file. Raises ScenarioError with 'FILE: problem'."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as error:
+        raise ScenarioError(f"{path}: cannot read the scenario file ({error.strerror or error})") from error
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ScenarioError(f"{path}: not UTF-8 text (byte {error.start}); save the scenario as UTF-8 YAML") from error
+    try:
+        document = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(error, "problem", None) or "malformed YAML"
+        raise ScenarioError(f"{path}: YAML syntax error{where}: {problem}") from error
+    if document is None:
+        raise ScenarioError(f"{path}: the file is empty (a scenario needs name, t_end, T_s and stroke)")
+    try:
+        return runs_from_document(document, path)
+    except ScenarioError as error:
+        raise ScenarioError(f"{path}: {error}") from error
