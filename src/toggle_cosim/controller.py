@@ -1,0 +1,172 @@
+"""Discrete two-phase variable-structure controller, eqs. (19)-(25) of the paper.
+
+Switching function S = C e + ė with e = x* − x (constant target, so ė = −ẋ). The nominal plant
+ẍ = f + G u + d with u = i_q* is the controller's own model of the mechanism (μ = 0, F_E = 0,
+nominal masses, ideal current loop, d = 0); it never sees the true plant's parameters.
+
+* Reaching phase (r = 1 while t − t0 < T_h), eq. (23):
+  u_r = G⁻¹ (C ė + P S + Q sgn(S) − f − d), which imposes Ṡ = −Q sgn(S) − P S, eq. (19).
+* Sliding phase (r = 0 afterwards), eq. (24): u_s = G⁻¹ (C ė + β S/(|S| + δ) − f − d).
+* Hitting time, eq. (21): T_h = (1/P) ln(P |S(t0)|/Q + 1), with S(t0) from the first sample.
+* u = r u_r + (1 − r) u_s, eq. (25).
+
+The controller is discrete: the co-simulation master calls :meth:`VSCController.step` at each
+sample with the measured (x_B, v_B) and holds u until the next sample.
+
+Objectives: "x_B" (default; the paper's section 4: "regulate the position of slider B") and
+"theta1" (the lever angle, as eq. (26) hints): e = θ1* − θ1, with θ1, ω1 computed from the
+measured (x_B, v_B) by the nominal kinematics and θ1* from the slider target by eq. (26).
+In both cases ``target`` is the slider-B target position x_B* [m].
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+from .mechanism import (
+    nominal_fG,
+    nominal_fG_theta1,
+    theta1_from_xB,
+    theta1_state_from_slider,
+)
+from .motor import thrust_constant
+from .parameters import ControllerGains, MechanismParameters, MotorParameters
+
+__all__ = ["VSCController", "ControllerState", "ControlOutput", "hitting_time"]
+
+Objective = Literal["x_B", "theta1"]
+Phase = Literal["reaching", "sliding"]
+
+
+def _sgn(x: float) -> float:
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+def hitting_time(S0: float, gains: ControllerGains) -> float:
+    """Hitting time of the reaching law Ṡ = −Q sgn(S) − P S, eq. (21):
+    T_h = (1/P) ln(P |S(t0)|/Q + 1)."""
+    return math.log(gains.P * abs(S0) / gains.Q + 1.0) / gains.P
+
+
+@dataclass(frozen=True)
+class ControllerState:
+    """What the controller remembers from :meth:`VSCController.start`.
+
+    Attributes:
+        t0: time of the first sample [s].
+        S0: S(t0), the switching function at the first sample (m/s or rad/s).
+        T_h: hitting time of eq. (21), measured from t0 [s].
+    """
+
+    t0: float
+    S0: float
+    T_h: float
+
+
+@dataclass(frozen=True)
+class ControlOutput:
+    """Diagnostics of one controller sample.
+
+    Attributes:
+        S: switching function S = C e + ė.
+        phase: "reaching" (r = 1, eq. (23)) or "sliding" (r = 0, eq. (24)).
+        u: control input i_q* [A], eq. (25).
+        e: tracking error e = x* − x (m, or rad for the θ1 objective).
+        edot: its rate ė = −ẋ.
+        f: drift of the nominal model (m/s² or rad/s²).
+        G: input gain of the nominal model (m/s² per A or rad/s² per A).
+    """
+
+    S: float
+    phase: Phase
+    u: float
+    e: float
+    edot: float
+    f: float
+    G: float
+
+
+@dataclass(frozen=True)
+class VSCController:
+    """Two-phase VSC of eqs. (19)-(25) on a nominal model of the mechanism.
+
+    Attributes:
+        gains: C, Q, P, δ, β of eqs. (19)-(24).
+        nominal: the controller's nominal mechanism (its ``mu`` is ignored: the nominal model has
+            no friction); the plant may differ (m_B, F_E, μ): that is the robustness test.
+        K_f: the controller's thrust constant [N/A], u = i_q* → F_C = K_f u (default: eq. (16)
+            with the paper's motor parameters).
+        target: slider-B target position x_B* [m] (also for the θ1 objective, via eq. (26)).
+        objective: "x_B" (default) or "theta1".
+    """
+
+    gains: ControllerGains = field(default_factory=ControllerGains)
+    nominal: MechanismParameters = field(default_factory=lambda: MechanismParameters(mu=0.0))
+    K_f: float = field(default_factory=lambda: thrust_constant(MotorParameters()))
+    target: float = 0.3199
+    objective: Objective = "x_B"
+
+    def __post_init__(self) -> None:
+        if self.objective not in ("x_B", "theta1"):
+            raise ValueError(f"objective: must be 'x_B' or 'theta1', got {self.objective!r}")
+        if not (self.K_f > 0 and math.isfinite(self.K_f)):
+            raise ValueError(f"K_f: must be positive and finite, got {self.K_f!r}")
+        theta1_from_xB(self.target, self.nominal)  # raises ValueError if out of reach
+
+    @property
+    def target_theta1(self) -> float:
+        """θ1* from the slider target by eq. (26), with the nominal geometry [rad]."""
+        return theta1_from_xB(self.target, self.nominal)
+
+    def _error(self, x_B: float, v_B: float) -> tuple[float, float, float, float]:
+        """(e, ė, f, G) for the objective, from the measured slider position and velocity."""
+        if self.objective == "x_B":
+            f, G = nominal_fG(x_B, v_B, self.nominal, self.K_f)
+            return self.target - x_B, -v_B, f, G
+        theta1, omega1 = theta1_state_from_slider(x_B, v_B, self.nominal)
+        f, G = nominal_fG_theta1(theta1, omega1, self.nominal, self.K_f)
+        return self.target_theta1 - theta1, -omega1, f, G
+
+    def switching_function(self, x_B: float, v_B: float) -> float:
+        """S = C e + ė for the measured state."""
+        e, edot, _, _ = self._error(x_B, v_B)
+        return self.gains.C * e + edot
+
+    def start(self, t0: float, measurement: Sequence[float]) -> ControllerState:
+        """Initialise at the first sample: S(t0) and the hitting time T_h of eq. (21).
+
+        Args:
+            t0: time of the first sample [s].
+            measurement: (x_B, v_B) measured at t0 [m, m/s].
+        """
+        x_B, v_B = float(measurement[0]), float(measurement[1])
+        S0 = self.switching_function(x_B, v_B)
+        return ControllerState(t0=float(t0), S0=S0, T_h=hitting_time(S0, self.gains))
+
+    def phase(self, state: ControllerState, t: float) -> Phase:
+        """r of eq. (25): "reaching" while t − t0 < T_h, "sliding" afterwards."""
+        return "reaching" if t - state.t0 < state.T_h else "sliding"
+
+    def step(self, state: ControllerState, t: float, x_B: float, v_B: float) -> tuple[float, ControlOutput]:
+        """Control input u = i_q* [A] for the sample at time t, eqs. (23)-(25) with d = 0.
+
+        Args:
+            state: from :meth:`start`.
+            t: sample time [s].
+            x_B, v_B: measured slider-B position [m] and velocity [m/s].
+
+        Returns:
+            (u, diagnostics).
+        """
+        gn = self.gains
+        e, edot, f, G = self._error(x_B, v_B)
+        S = gn.C * e + edot
+        phase = self.phase(state, t)
+        if phase == "reaching":
+            u = (gn.C * edot + gn.P * S + gn.Q * _sgn(S) - f) / G  # eq. (23)
+        else:
+            u = (gn.C * edot + gn.beta * S / (abs(S) + gn.delta) - f) / G  # eq. (24)
+        return u, ControlOutput(S=S, phase=phase, u=u, e=e, edot=edot, f=f, G=G)

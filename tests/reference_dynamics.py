@@ -1,0 +1,224 @@
+"""Independent reference evaluation of eq. (18) of Fung, Wu & Chen (2001) for the toggle mechanism.
+
+Self-contained (numpy only; does NOT import toggle_cosim) so that it can check both
+``toggle_cosim.mechanism`` and the Modelica/FMU plant.
+
+It is built differently from ``toggle_cosim.mechanism``:
+
+* every material point (centres of mass of links 3 and 5, sliders B and C) is described as a
+  generic sum of rotating vectors, p(q) = Σ_k L_k (cos ψ_k, sin ψ_k) with ψ_k = a_k·q + c_k;
+  its Jacobian J_p = Σ_k L_k (−sin ψ_k, cos ψ_k) a_kᵀ and the velocity-product term
+  J̇_p q̇ = −Σ_k L_k (cos ψ_k, sin ψ_k) (a_k·q̇)² follow mechanically;
+* M = Σ m J_pᵀ W J_p + Σ J_body a aᵀ (W selects x only for the sliders),
+  N = Σ m J_pᵀ W J̇_p q̇, generalized gravity and applied forces = Σ J_pᵀ F_p;
+* the constraints are Φ1 = y_B − f, Φ2 = h − y_C, so Φ_q and γ come from the y-rows of the
+  slider Jacobians, and the friction matrix of eq. (17) from their x-rows:
+  Q_fᵀ = μ diag(sgn) [∂x_B/∂q, −∂x_C/∂q];
+* eq. (18) is solved by the Schur complement on the multipliers, not as one 5×5 system;
+* the pin forces solve all the bodies' Newton–Euler equations at once (11 equations, 10
+  unknowns, moments about each body's centre of mass) by least squares, and report the
+  residual of that over-determined system.
+
+API (plain floats and a dict with keys r1 r3 r4 r5 f h phi m2 J2 m3 m5 mB mC g mu; J3 and J5 are
+m3 r3²/12 and m5 r5²/12 unless the dict provides them):
+
+    reference_accelerations(q, qd, F_C, F_E, params, sgn=None) -> (qdd, lam)
+    reference_joint_forces(q, qd, F_C, F_E, params, sgn=None) -> dict
+    reference_energy(q, qd, params) -> dict(T, V, E)
+    reference_powers(q, qd, F_C, F_E, params, sgn=None) -> dict(P_in, P_load, P_fric)
+
+Conventions: q = (θ1, θ2, θ5), qd = (ω1, ω2, ω5); F_C ≥ 0 is the thrust on slider C along −x,
+F_E the external force on slider B along −x; sgn defaults to np.sign(qd) (sgn(0) = 0).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+Terms = list[tuple[float, np.ndarray, float]]
+
+_E1 = np.array([1.0, 0.0, 0.0])
+_E2 = np.array([0.0, 1.0, 0.0])
+_E5 = np.array([0.0, 0.0, 1.0])
+
+
+def _inertia(params: Mapping[str, float]) -> tuple[float, float]:
+    J3 = params.get("J3", params["m3"] * params["r3"] ** 2 / 12.0)
+    J5 = params.get("J5", params["m5"] * params["r5"] ** 2 / 12.0)
+    return float(J3), float(J5)
+
+
+def _points(params: Mapping[str, float]) -> dict[str, Terms]:
+    r1, r3, r4, r5, phi = (params[k] for k in ("r1", "r3", "r4", "r5", "phi"))
+    return {
+        "A": [(r1, _E1, 0.0)],
+        "D": [(r4, _E1, phi)],
+        "G3": [(r1, _E1, 0.0), (0.5 * r3, _E2, 0.0)],
+        "B": [(r1, _E1, 0.0), (r3, _E2, 0.0)],
+        "G5": [(r4, _E1, phi), (0.5 * r5, _E5, 0.0)],
+        "C": [(r4, _E1, phi), (r5, _E5, 0.0)],
+    }
+
+
+def _pos(terms: Terms, q: np.ndarray) -> np.ndarray:
+    out = np.zeros(2)
+    for L, a, c in terms:
+        psi = a @ q + c
+        out += L * np.array([np.cos(psi), np.sin(psi)])
+    return out
+
+
+def _jac(terms: Terms, q: np.ndarray) -> np.ndarray:
+    out = np.zeros((2, 3))
+    for L, a, c in terms:
+        psi = a @ q + c
+        out += L * np.outer([-np.sin(psi), np.cos(psi)], a)
+    return out
+
+
+def _jdot_qd(terms: Terms, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    out = np.zeros(2)
+    for L, a, c in terms:
+        psi = a @ q + c
+        out -= L * np.array([np.cos(psi), np.sin(psi)]) * (a @ qd) ** 2
+    return out
+
+
+def _model(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
+           params: Mapping[str, float], sgn: Sequence[float] | None) -> dict[str, Any]:
+    q = np.asarray(q, dtype=float)
+    qd = np.asarray(qd, dtype=float)
+    s = np.sign(qd) if sgn is None else np.asarray(sgn, dtype=float)
+    pts = _points(params)
+    J = {k: _jac(v, q) for k, v in pts.items()}
+    Jdq = {k: _jdot_qd(v, q, qd) for k, v in pts.items()}
+    J3, J5 = _inertia(params)
+    Wx = np.diag([1.0, 0.0])
+    I2 = np.eye(2)
+    # (mass, point, weighting): links with full planar translation, sliders along x only
+    translating = [(params["m3"], "G3", I2), (params["mB"], "B", Wx), (params["m5"], "G5", I2), (params["mC"], "C", Wx)]
+    rotating = [(params["J2"], _E1), (J3, _E2), (J5, _E5)]
+    M = np.zeros((3, 3))
+    N = np.zeros(3)
+    for m, k, W in translating:
+        M += m * J[k].T @ W @ J[k]
+        N += m * J[k].T @ W @ Jdq[k]
+    for Jb, a in rotating:
+        M += Jb * np.outer(a, a)
+    g = params["g"]
+    Q = -N
+    Q += J["G3"].T @ np.array([0.0, -params["m3"] * g])
+    Q += J["G5"].T @ np.array([0.0, -params["m5"] * g])
+    Q += J["B"].T @ np.array([-F_E, 0.0])
+    Q += J["C"].T @ np.array([-F_C, 0.0])
+    Phi_q = np.vstack([J["B"][1], -J["C"][1]])
+    gam = np.array([-Jdq["B"][1], Jdq["C"][1]])
+    QfT = params["mu"] * (s[:, None] * np.column_stack([J["B"][0], -J["C"][0]]))
+    return dict(q=q, qd=qd, s=s, pts=pts, J=J, Jdq=Jdq, M=M, Q=Q, Phi_q=Phi_q, gamma=gam, QfT=QfT, J3=J3, J5=J5)
+
+
+def reference_accelerations(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
+                            params: Mapping[str, float], sgn: Sequence[float] | None = None
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """(q̈, λ) of eq. (18): M q̈ + (Φ_qᵀ + Q_fᵀ) λ = Q, Φ_q q̈ = γ, by the Schur complement."""
+    d = _model(q, qd, F_C, F_E, params, sgn)
+    M, Q, Phi_q, gam = d["M"], d["Q"], d["Phi_q"], d["gamma"]
+    AT = Phi_q.T + d["QfT"]
+    Minv_AT = np.linalg.solve(M, AT)
+    Minv_Q = np.linalg.solve(M, Q)
+    lam = np.linalg.solve(Phi_q @ Minv_AT, Phi_q @ Minv_Q - gam)
+    qdd = Minv_Q - Minv_AT @ lam
+    return qdd, lam
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> float:
+    return float(u[0] * v[1] - u[1] * v[0])
+
+
+def reference_joint_forces(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
+                           params: Mapping[str, float], sgn: Sequence[float] | None = None
+                           ) -> dict[str, Any]:
+    """Pin forces from all Newton–Euler equations at once.
+
+    Unknowns: F12 (ground on lever at O), F23 (lever on link 3 at A), F34 (link 3 on slider B),
+    F25 (lever on link 5 at D), F56 (link 5 on slider C), each (x, y). Equations: lever force (2)
+    and moment about O (1), link 3 force (2) and moment about G3 (1), slider B along x (1), link 5
+    force (2) and moment about G5 (1), slider C along x (1). The rows of −Q_fᵀλ act as torques
+    from ground on the lever, link 3 and link 5. Slider weights are carried by the guides.
+
+    Returns a dict with keys "F12", "F23", "F34", "F25", "F56" (arrays), "normal" (dict of norms),
+    "friction" (μ × norms), "qdd", "lam" and "residual" (max abs residual of the 11 equations, N or N m).
+    """
+    d = _model(q, qd, F_C, F_E, params, sgn)
+    qdd, lam = reference_accelerations(q, qd, F_C, F_E, params, sgn)
+    qv = d["q"]
+    pts = {k: _pos(v, qv) for k, v in d["pts"].items()}
+    acc = {k: d["J"][k] @ qdd + d["Jdq"][k] for k in d["pts"]}
+    tau = -d["QfT"] @ lam
+    g = params["g"]
+    m2, m3, m5, mB, mC = (params[k] for k in ("m2", "m3", "m5", "mB", "mC"))
+    idx = {"F12": 0, "F23": 2, "F34": 4, "F25": 6, "F56": 8}
+    A = np.zeros((11, 10))
+    b = np.zeros(11)
+
+    def force(row: int, name: str, sign: float) -> None:
+        A[row, idx[name]] += sign
+        A[row + 1, idx[name] + 1] += sign
+
+    def moment(row: int, r: np.ndarray, name: str, sign: float) -> None:
+        # r × (sign F) = sign (r_x F_y − r_y F_x)
+        A[row, idx[name]] += -sign * r[1]
+        A[row, idx[name] + 1] += sign * r[0]
+
+    O = np.zeros(2)
+    # Lever: 0 = F12 − F23 − F25 − (0, m2 g);  J2 θ̈1 = A×(−F23) + D×(−F25) + τ1
+    force(0, "F12", 1.0); force(0, "F23", -1.0); force(0, "F25", -1.0)
+    b[0:2] = [0.0, m2 * g]
+    moment(2, pts["A"] - O, "F23", -1.0); moment(2, pts["D"] - O, "F25", -1.0)
+    b[2] = params["J2"] * qdd[0] - tau[0]
+    # Link 3: m3 a_G3 = F23 − F34 − (0, m3 g);  J3 θ̈2 = (A−G3)×F23 + (B−G3)×(−F34) + τ2
+    force(3, "F23", 1.0); force(3, "F34", -1.0)
+    b[3:5] = m3 * acc["G3"] + np.array([0.0, m3 * g])
+    moment(5, pts["A"] - pts["G3"], "F23", 1.0); moment(5, pts["B"] - pts["G3"], "F34", -1.0)
+    b[5] = d["J3"] * qdd[1] - tau[1]
+    # Slider B (x): mB a_Bx = F34x − F_E
+    A[6, idx["F34"]] = 1.0
+    b[6] = mB * acc["B"][0] + F_E
+    # Link 5: m5 a_G5 = F25 − F56 − (0, m5 g);  J5 θ̈5 = (D−G5)×F25 + (C−G5)×(−F56) + τ5
+    force(7, "F25", 1.0); force(7, "F56", -1.0)
+    b[7:9] = m5 * acc["G5"] + np.array([0.0, m5 * g])
+    moment(9, pts["D"] - pts["G5"], "F25", 1.0); moment(9, pts["C"] - pts["G5"], "F56", -1.0)
+    b[9] = d["J5"] * qdd[2] - tau[2]
+    # Slider C (x): mC a_Cx = F56x − F_C
+    A[10, idx["F56"]] = 1.0
+    b[10] = mC * acc["C"][0] + F_C
+
+    x, *_ = np.linalg.lstsq(A, b, rcond=None)
+    residual = float(np.max(np.abs(A @ x - b)))
+    out: dict[str, Any] = {name: x[i:i + 2].copy() for name, i in idx.items()}
+    out["normal"] = {name[1:]: float(np.linalg.norm(out[name])) for name in idx}
+    out["friction"] = {k: params["mu"] * v for k, v in out["normal"].items()}
+    out["qdd"], out["lam"], out["residual"] = qdd, lam, residual
+    return out
+
+
+def reference_energy(q: Sequence[float], qd: Sequence[float], params: Mapping[str, float]) -> dict[str, float]:
+    """T = ½ q̇ᵀ M q̇ (reference M), V = g (m3 y_G3 + m5 y_G5), E = T + V."""
+    d = _model(q, qd, 0.0, 0.0, params, np.zeros(3))
+    qdv = d["qd"]
+    T = 0.5 * float(qdv @ d["M"] @ qdv)
+    V = params["g"] * (params["m3"] * _pos(d["pts"]["G3"], d["q"])[1] + params["m5"] * _pos(d["pts"]["G5"], d["q"])[1])
+    return {"T": T, "V": float(V), "E": T + float(V)}
+
+
+def reference_powers(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
+                     params: Mapping[str, float], sgn: Sequence[float] | None = None) -> dict[str, float]:
+    """P_in = −F_C ẋ_C (thrust power), P_load = F_E ẋ_B, P_fric = q̇ᵀ Q_fᵀ λ (signed)."""
+    d = _model(q, qd, F_C, F_E, params, sgn)
+    _, lam = reference_accelerations(q, qd, F_C, F_E, params, sgn)
+    v_B = float(d["J"]["B"][0] @ d["qd"])
+    v_C = float(d["J"]["C"][0] @ d["qd"])
+    return {"P_in": -F_C * v_C, "P_load": F_E * v_B, "P_fric": float(d["qd"] @ d["QfT"] @ lam)}
