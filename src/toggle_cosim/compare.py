@@ -1,0 +1,766 @@
+"""Compare a result trace against a stored reference trace with a funnel (tube) in time and value.
+
+This is the check csv-compare (FMI cross-check) and BuildingsPy (regression tests) run in CI:
+around every sample of the reference a rectangle is drawn, ``±half_width`` in time and
+``±half_height`` in value; the funnel is the envelope of those rectangles, built by the funnel
+library of LBNL through `pyfunnel.compareAndReport`. A result sample outside the funnel has the
+error ``max(0, y - upper) - min(0, y - lower)`` (the distance to the funnel, in the variable's
+units); a variable passes when that error is 0 at every sample of the result.
+
+Tolerances (per variable, `Tolerance`):
+
+* value: ``half_height = max(atol, rtol * (max - min of the reference variable))`` -- the range
+  relative tolerance of csv-compare, with an absolute floor for variables that are constant in
+  the reference (range 0);
+* time: ``half_width = ttol * (StopTime - StartTime)`` of the reference -- **relative to the time
+  span**, so one tolerance file fits a 1.5 s stroke and a 60 s endurance run alike.
+
+Defaults (`DEFAULT_TOLERANCE`): ``rtol = 2e-3`` is csv-compare's tolerance as the FMI cross-check
+importers report it (ToleranceY = 2e-3 of the range); ``ttol = 1e-3`` of the span (1.5 ms for a
+1.5 s run, three controller samples at T_s = 0.5 ms: a switching event that moves by a sample or
+two passes, a lag does not); ``atol = 1e-9`` only keeps a constant variable from having a
+zero-height tube while staying far below anything physical in m, A, N or V (csv-compare uses a
+2e-15 minimum tube, which rounding in another build can exceed).
+
+Files: traces are CSV in the FMI cross-check layout (header of quoted names, "time" first, one
+row per sample, time strictly increasing); a stored reference is ``<name>_ref.csv`` plus the
+cross-check options file ``<name>_ref.opt`` (``StartTime, StopTime, StepSize, RelTol`` lines).
+Every problem with an input raises `CompareInputError` whose message is one line naming the file,
+the problem and the fix; `run_compare` turns it into ``error: ...`` on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import math
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toggle_cosim.traces import Trace, atomic_write, write_csv
+
+__all__ = [
+    "DEFAULT_TOLERANCE",
+    "CompareInputError",
+    "ComparisonResult",
+    "Envelope",
+    "Tolerance",
+    "VariableResult",
+    "compare_traces",
+    "format_table",
+    "load_tolerances",
+    "read_options",
+    "read_reference",
+    "read_trace",
+    "run_compare",
+    "write_reference",
+    "write_report",
+]
+
+
+class CompareInputError(Exception):
+    """Bad input to a comparison; the message is one line: file, problem, fix."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(" ".join(str(message).split()))
+
+
+# ----------------------------------------------------------------------------- tolerances
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """Funnel size for one variable.
+
+    atol: absolute value tolerance, in the variable's units.
+    rtol: value tolerance relative to the variable's range (max - min) in the reference.
+    ttol: time tolerance relative to the reference's time span (StopTime - StartTime).
+    The tube half-height is max(atol, rtol * range); its half-width is ttol * span.
+    """
+
+    atol: float
+    rtol: float
+    ttol: float
+
+    def __post_init__(self) -> None:
+        for name in ("atol", "rtol", "ttol"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise ValueError(f"Tolerance.{name} must be a finite number >= 0, not {value!r}")
+        for name in ("rtol", "ttol"):
+            if getattr(self, name) > 1:
+                raise ValueError(f"Tolerance.{name} is relative and must be <= 1, not {getattr(self, name)!r}")
+
+    def half_height(self, reference_values: np.ndarray) -> float:
+        span = float(np.max(reference_values) - np.min(reference_values))
+        return max(float(self.atol), float(self.rtol) * span)
+
+    def half_width(self, reference_time: np.ndarray) -> float:
+        return float(self.ttol) * float(reference_time[-1] - reference_time[0])
+
+
+DEFAULT_TOLERANCE = Tolerance(atol=1e-9, rtol=2e-3, ttol=1e-3)
+
+
+# ----------------------------------------------------------------------------- results
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """The funnel of one variable: its edges as the funnel library built them, and at the result's samples."""
+
+    lower_time: np.ndarray
+    lower: np.ndarray
+    upper_time: np.ndarray
+    upper: np.ndarray
+    time: np.ndarray  # the result's samples
+    result: np.ndarray
+    lower_at_result: np.ndarray
+    upper_at_result: np.ndarray
+    error: np.ndarray  # distance of each result sample to the funnel (0 inside), from the funnel library
+
+
+@dataclass(frozen=True)
+class VariableResult:
+    name: str
+    passed: bool
+    max_error: float  # largest distance of a result sample outside the funnel, 0 if all inside
+    time_of_max_error: float | None  # first time the largest error occurs; None when it is 0
+    tolerance: Tolerance
+    half_height: float  # tube half-height in value, in the variable's units
+    half_width: float  # tube half-width in time, s
+    envelope: Envelope | None = field(default=None, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class ComparisonResult:
+    variables: tuple[VariableResult, ...]
+    passed: bool
+
+    @property
+    def failed(self) -> tuple[str, ...]:
+        return tuple(v.name for v in self.variables if not v.passed)
+
+    def __getitem__(self, name: str) -> VariableResult:
+        for variable in self.variables:
+            if variable.name == name:
+                return variable
+        raise KeyError(name)
+
+
+# ----------------------------------------------------------------------------- reading traces
+
+
+def _float_or_none(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def read_trace(path: Path | str) -> Trace:
+    """Read a cross-check CSV strictly; any defect raises CompareInputError naming the file and the fix."""
+    path = Path(path)
+    if not path.exists():
+        raise CompareInputError(f"{path}: no such file; check the path (traces are written by `toggle-cosim run`)")
+    if path.is_dir():
+        raise CompareInputError(f"{path}: is a directory, not a CSV file; give the trace's .csv file")
+    try:
+        raw = path.read_bytes()
+    except OSError as error:
+        raise CompareInputError(f"{path}: cannot be read ({error.strerror}); check its permissions") from error
+    if b"\x00" in raw:
+        raise CompareInputError(
+            f'{path}: is a binary file, not a CSV; give a CSV with a header of quoted names, "time" first'
+        )
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        bad = raw[error.start]
+        raise CompareInputError(
+            f"{path}: is not UTF-8 text (byte 0x{bad:02x} at offset {error.start}); re-save it as UTF-8"
+        ) from error
+
+    reader = csv.reader(io.StringIO(text, newline=""), skipinitialspace=True)
+    rows: list[list[str]] = []
+    lines: list[int] = []
+    try:
+        for row in reader:
+            if not row or all(not cell.strip() for cell in row):
+                continue  # blank line
+            rows.append([cell.strip() for cell in row])
+            lines.append(reader.line_num)
+    except csv.Error as error:
+        raise CompareInputError(
+            f"{path}: is not a valid CSV (line {reader.line_num}: {error}); fix the quoting"
+        ) from error
+
+    if not rows:
+        raise CompareInputError(
+            f'{path}: is empty; a trace needs a header of quoted names ("time" first) and one row per sample'
+        )
+    names = tuple(rows[0])
+    if len(names) == 1:
+        separator = next((s for s in (";", "\t", "|") if s in names[0]), None)
+        if separator is not None:
+            raise CompareInputError(
+                f"{path}: is separated by {separator!r}, not commas; the cross-check layout uses commas"
+            )
+        raise CompareInputError(
+            f'{path}: has a single column ({names[0][:40]!r}), so it is not a trace CSV; expected "time" and variables'
+        )
+    if all(_float_or_none(name) is not None for name in names):
+        raise CompareInputError(
+            f'{path}: has no header (line {lines[0]} is numbers); add a first line of quoted names, "time" first'
+        )
+    empty = [i + 1 for i, name in enumerate(names) if not name]
+    if empty:
+        raise CompareInputError(f"{path}: header column {empty[0]} has no name; name every column")
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise CompareInputError(f"{path}: column {name!r} appears twice in the header; keep one")
+        seen.add(name)
+    if names[0] != "time":
+        if "time" in names:
+            raise CompareInputError(
+                f'{path}: "time" is column {names.index("time") + 1}; it must be the first column'
+            )
+        near = next((n for n in names if n.lower() == "time"), None)
+        if near is not None:
+            raise CompareInputError(f'{path}: no "time" column (found {near!r}); rename it to "time", lowercase')
+        shown = ",".join(names[:4]) + (",..." if len(names) > 4 else "")
+        raise CompareInputError(f'{path}: no "time" column (header is {shown}); the first column must be "time"')
+
+    body = rows[1:]
+    if not body:
+        raise CompareInputError(f"{path}: has a header but no data rows (empty trace); write at least two samples")
+    for row, line in zip(body, lines[1:], strict=True):
+        if len(row) != len(names):
+            raise CompareInputError(
+                f"{path}: line {line} has {len(row)} values but the header has {len(names)} columns; "
+                "every row needs one value per column"
+            )
+    try:
+        data = np.array(body, dtype=float)
+    except ValueError:
+        data = None
+    if data is None or not np.all(np.isfinite(data)):
+        for row, line in zip(body, lines[1:], strict=True):
+            for name, cell in zip(names, row, strict=True):
+                value = _float_or_none(cell)
+                if value is None:
+                    raise CompareInputError(
+                        f"{path}: line {line}, column {name!r}: {cell[:30]!r} is not a number; "
+                        "write plain numbers (booleans as 0 and 1)"
+                    )
+                if not math.isfinite(value):
+                    raise CompareInputError(
+                        f"{path}: line {line}, column {name!r}: {cell!r} is not finite; the run diverged or wrote a gap"
+                    )
+    assert data is not None
+    if data.shape[0] < 2:
+        raise CompareInputError(f"{path}: has a single sample; a trace needs at least two to span a time interval")
+    steps = np.diff(data[:, 0])
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise CompareInputError(
+            f"{path}: time is not strictly increasing at line {lines[1 + i]} "
+            f"(t = {data[i, 0]:.17g} after {data[i - 1, 0]:.17g}); drop repeated or out-of-order rows"
+        )
+    return Trace(names, data)
+
+
+def _check_trace(trace: Trace, label: str) -> None:
+    """The checks of `read_trace` for a Trace built in memory."""
+    data = np.asarray(trace.data)
+    if data.ndim != 2 or data.shape[1] != len(trace.names):
+        raise CompareInputError(f"{label}: data has shape {data.shape} but there are {len(trace.names)} names")
+    if not trace.names or trace.names[0] != "time":
+        raise CompareInputError(f'{label}: the first column must be "time", not {trace.names[:1]}')
+    if len(set(trace.names)) != len(trace.names):
+        raise CompareInputError(f"{label}: column names repeat; keep one of each")
+    if data.shape[0] < 2:
+        raise CompareInputError(f"{label}: has {data.shape[0]} samples (empty trace); need at least two")
+    if not np.all(np.isfinite(data)):
+        row, column = (int(k) for k in np.argwhere(~np.isfinite(data))[0])
+        raise CompareInputError(f"{label}: row {row + 1}, column {trace.names[column]!r} is not finite")
+    steps = np.diff(data[:, 0])
+    if np.any(steps <= 0):
+        i = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise CompareInputError(f"{label}: time is not strictly increasing at row {i + 1} (t = {data[i, 0]:.17g})")
+
+
+# ----------------------------------------------------------------------------- the comparison
+
+
+def _funnel(
+    t_ref: np.ndarray, y_ref: np.ndarray, t_res: np.ndarray, y_res: np.ndarray, half_width: float,
+    half_height: float, workdir: str, name: str,
+) -> Envelope:
+    import pyfunnel
+
+    log = io.StringIO()
+    with contextlib.redirect_stdout(log):  # pyfunnel prints its warnings
+        status = pyfunnel.compareAndReport(
+            xReference=t_ref.tolist(), yReference=y_ref.tolist(), xTest=t_res.tolist(), yTest=y_res.tolist(),
+            outputDirectory=workdir, atolx=half_width, atoly=half_height, ltolx=0.0, ltoly=0.0, rtolx=0.0, rtoly=0.0,
+        )
+    if status != 0:
+        detail = " ".join(log.getvalue().split()) or f"status {status}"
+        raise CompareInputError(f"variable {name!r}: the funnel library could not compare it ({detail})")
+
+    def load(file: str) -> tuple[np.ndarray, np.ndarray]:
+        table = np.loadtxt(os.path.join(workdir, file), delimiter=",", skiprows=1, ndmin=2)
+        return table[:, 0], table[:, 1]
+
+    lower_t, lower = load("lowerBound.csv")
+    upper_t, upper = load("upperBound.csv")
+    error_t, error = load("errors.csv")
+    if error.shape != y_res.shape:  # one error per result sample, at the result's times
+        raise CompareInputError(
+            f"variable {name!r}: the funnel library returned {error.size} errors for {y_res.size} samples"
+        )
+    return Envelope(
+        lower_time=lower_t, lower=lower, upper_time=upper_t, upper=upper, time=t_res.copy(), result=y_res.copy(),
+        lower_at_result=np.interp(t_res, lower_t, lower), upper_at_result=np.interp(t_res, upper_t, upper),
+        error=error,
+    )
+
+
+def _align_span(t_res: np.ndarray, t_ref: np.ndarray, result_label: str, reference_label: str) -> np.ndarray:
+    """Both traces must start and stop together (the funnel library requires it); snap rounding differences."""
+    span = float(t_ref[-1] - t_ref[0])
+    slack = 1e-9 * max(span, abs(float(t_ref[-1])), 1e-300)
+    t = t_res.copy()
+    for index, word in ((0, "starts"), (-1, "ends")):
+        if abs(float(t[index] - t_ref[index])) > slack:
+            raise CompareInputError(
+                f"{result_label}: time {word} at {t[index]:.17g} s but the reference {reference_label} {word} at "
+                f"{t_ref[index]:.17g} s; rerun over the reference's time span"
+            )
+        t[index] = t_ref[index]
+    if np.any(np.diff(t) <= 0):
+        raise CompareInputError(
+            f"{result_label}: time is not strictly increasing at its ends once aligned to the reference"
+        )
+    return t
+
+
+def compare_traces(
+    result: Trace,
+    reference: Trace,
+    tolerances: Mapping[str, Tolerance],
+    default: Tolerance,
+    variables: Sequence[str] | None = None,
+    *,
+    result_label: str = "result",
+    reference_label: str = "reference",
+    tolerances_label: str = "tolerances",
+) -> ComparisonResult:
+    """Funnel-compare `result` against `reference`, variable by variable.
+
+    variables: the names to compare (default: every column of the reference but time). A name
+    of `tolerances` that the reference lacks is an error (a typo would silently fall back to the
+    default). The labels name the inputs in error messages (run_compare passes the file paths).
+    """
+    _check_trace(reference, reference_label)
+    _check_trace(result, result_label)
+    if variables is None:
+        selected = [name for name in reference.names[1:]]
+    else:
+        selected = list(dict.fromkeys(variables))
+        unknown = [name for name in selected if name == "time" or name not in reference.names]
+        if unknown:
+            raise CompareInputError(f"{reference_label}: has no variable {', '.join(map(repr, unknown))} to compare")
+    if not selected:
+        raise CompareInputError(f'{reference_label}: has no variables besides "time"; nothing to compare')
+    missing = [name for name in selected if name not in result.names]
+    if missing:
+        shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+        raise CompareInputError(
+            f"{result_label}: lacks {len(missing)} variable(s) of the reference: {shown}; write them to the result"
+        )
+    strangers = [name for name in tolerances if name not in reference.names[1:]]
+    if strangers:
+        raise CompareInputError(
+            f"{tolerances_label}: key {strangers[0]!r} is not a variable of the reference {reference_label}; "
+            "fix the name or remove the entry"
+        )
+
+    t_ref = np.asarray(reference.time, dtype=float)
+    t_res = _align_span(np.asarray(result.time, dtype=float), t_ref, result_label, reference_label)
+    outcomes = []
+    with tempfile.TemporaryDirectory(prefix="toggle-cosim-funnel-") as workdir:
+        for name in selected:
+            tolerance = tolerances.get(name, default)
+            y_ref = np.asarray(reference.column(name), dtype=float)
+            y_res = np.asarray(result.column(name), dtype=float)
+            half_height = tolerance.half_height(y_ref)
+            half_width = tolerance.half_width(t_ref)
+            envelope = _funnel(t_ref, y_ref, t_res, y_res, half_width, half_height, workdir, name)
+            worst = int(np.argmax(envelope.error))
+            max_error = float(envelope.error[worst])
+            outcomes.append(VariableResult(
+                name=name, passed=max_error <= 0.0, max_error=max(max_error, 0.0),
+                time_of_max_error=float(envelope.time[worst]) if max_error > 0 else None,
+                tolerance=tolerance, half_height=half_height, half_width=half_width, envelope=envelope,
+            ))
+    return ComparisonResult(variables=tuple(outcomes), passed=all(v.passed for v in outcomes))
+
+
+# ----------------------------------------------------------------------------- terminal table
+
+
+def format_table(result: ComparisonResult) -> str:
+    """One line per variable: name, max error, time of the max error, PASS/FAIL; a header and a total line."""
+    width = max([len("variable"), *(len(v.name) for v in result.variables)])
+    lines = [f"{'variable':<{width}}  {'max error':>10}  {'at t [s]':>12}  result"]
+    for v in result.variables:
+        when = "-" if v.time_of_max_error is None else f"{v.time_of_max_error:.6g}"
+        lines.append(f"{v.name:<{width}}  {v.max_error:>10.3e}  {when:>12}  {'PASS' if v.passed else 'FAIL'}")
+    failed = len(result.failed)
+    lines.append(f"{len(result.variables)} variables: {len(result.variables) - failed} passed, {failed} failed")
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- report files
+
+
+def _file_stem(name: str, taken: set[str]) -> str:
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "variable"
+    candidate, number = stem, 2
+    while candidate.lower() in taken:
+        candidate, number = f"{stem}_{number}", number + 1
+    taken.add(candidate.lower())
+    return candidate
+
+
+def _plot(variable: VariableResult, reference: Trace, path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    envelope = variable.envelope
+    assert envelope is not None
+    figure = Figure(figsize=(10, 6.5), layout="constrained")
+    FigureCanvasAgg(figure)
+    top, bottom = figure.subplots(2, 1, sharex=True, height_ratios=(3, 1.4))
+    grid = np.union1d(envelope.lower_time, envelope.upper_time)
+    top.fill_between(grid, np.interp(grid, envelope.lower_time, envelope.lower),
+                     np.interp(grid, envelope.upper_time, envelope.upper), color="C0", alpha=0.18, linewidth=0,
+                     label=f"funnel (±{variable.half_height:.3g}, ±{variable.half_width:.3g} s)")
+    top.plot(envelope.lower_time, envelope.lower, color="C0", linewidth=0.6)
+    top.plot(envelope.upper_time, envelope.upper, color="C0", linewidth=0.6)
+    top.plot(reference.time, reference.column(variable.name), color="k", linewidth=1.0, label="reference")
+    top.plot(envelope.time, envelope.result, color="C3", linewidth=1.0, linestyle="--", label="result")
+    outside = envelope.error > 0
+    top.plot(envelope.time[outside], envelope.result[outside], "o", color="C3", markersize=2.5,
+             label="result outside the funnel")
+    top.set_ylabel(variable.name)
+    top.grid(True, alpha=0.3)
+    top.legend(fontsize=8, loc="best")
+    bottom.plot(envelope.time, envelope.error, color="C3", linewidth=1.0)
+    if variable.time_of_max_error is not None:
+        bottom.plot([variable.time_of_max_error], [variable.max_error], "v", color="k", markersize=6)
+    bottom.set_ylabel("error")
+    bottom.set_xlabel("time [s]")
+    bottom.grid(True, alpha=0.3)
+    when = "-" if variable.time_of_max_error is None else f"{variable.time_of_max_error:.6g} s"
+    figure.suptitle(f"{variable.name}: FAIL, max error {variable.max_error:.3e} at t = {when}")
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+    os.close(handle)
+    try:
+        figure.savefig(temporary, format="png", dpi=100)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def write_report(
+    result: ComparisonResult, out_dir: Path | str, result_trace: Trace, reference_trace: Trace
+) -> list[Path]:
+    """Write the comparison to `out_dir`; return the files written.
+
+    summary.csv: one row per variable (pass/fail, max error and its time, tube size, tolerances).
+    For each FAILING variable: <name>_funnel.csv (time, result, reference interpolated at the
+    result's times, lower and upper funnel edges at those times, error) and <name>_funnel.png
+    (reference, funnel, result; error below). Every file is written under a temporary name and
+    renamed into place.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+
+    def summary(stream: Any) -> None:
+        writer = csv.writer(stream, lineterminator="\n")
+        writer.writerow(["variable", "passed", "max_error", "time_of_max_error", "half_height", "half_width",
+                         "atol", "rtol", "ttol"])
+        for v in result.variables:
+            writer.writerow([v.name, int(v.passed), repr(v.max_error),
+                             "" if v.time_of_max_error is None else repr(v.time_of_max_error),
+                             repr(v.half_height), repr(v.half_width),
+                             repr(v.tolerance.atol), repr(v.tolerance.rtol), repr(v.tolerance.ttol)])
+
+    atomic_write(out / "summary.csv", summary)
+    written.append(out / "summary.csv")
+    taken: set[str] = {"summary"}
+    for v in result.variables:
+        if v.passed:
+            continue
+        envelope = v.envelope
+        if envelope is None:
+            raise ValueError(f"{v.name}: the comparison kept no envelope; compare with compare_traces")
+        stem = _file_stem(v.name, taken)
+        reference_at = np.interp(envelope.time, reference_trace.time, reference_trace.column(v.name))
+        table = Trace(("time", "result", "reference", "lower", "upper", "error"), np.column_stack(
+            [envelope.time, envelope.result, reference_at, envelope.lower_at_result, envelope.upper_at_result,
+             envelope.error]))
+        write_csv(out / f"{stem}_funnel.csv", table)
+        _plot(v, reference_trace, out / f"{stem}_funnel.png")
+        written += [out / f"{stem}_funnel.csv", out / f"{stem}_funnel.png"]
+    return written
+
+
+# ----------------------------------------------------------------------------- tolerance files
+
+_ENTRY_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "atol": {"type": "number", "minimum": 0},
+        "rtol": {"type": "number", "minimum": 0, "maximum": 1},
+        "ttol": {"type": "number", "minimum": 0, "maximum": 1},
+    },
+    "additionalProperties": False,
+}
+TOLERANCE_SCHEMA = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "toggle-cosim compare tolerances: {variable: {atol, rtol, ttol}}, optional default entry",
+    "type": "object",
+    "propertyNames": {"minLength": 1},
+    "additionalProperties": _ENTRY_SCHEMA,
+}
+_FIX = "each entry is a mapping of atol (>= 0), rtol and ttol (0 to 1)"
+
+
+def _coerce_numbers(document: Any) -> Any:
+    """PyYAML reads `1e-3` (no dot) as a string; take such strings as the numbers they spell."""
+    if not isinstance(document, dict):
+        return document
+    coerced = {}
+    for key, entry in document.items():
+        if isinstance(entry, dict):
+            entry = {k: (float(v) if isinstance(v, str) and _float_or_none(v) is not None
+                         and math.isfinite(float(v)) else v) for k, v in entry.items()}
+        coerced[key] = entry
+    return coerced
+
+
+def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
+    """Read a YAML tolerance file: ``{variable: {atol:, rtol:, ttol:}}`` with an optional ``default:`` entry.
+
+    Keys left out of an entry come from the `default` entry, and those left out of `default`
+    from DEFAULT_TOLERANCE. Returns (default, {variable: tolerance}).
+    """
+    import jsonschema
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        what = "is a directory" if path.is_dir() else "no such file"
+        raise CompareInputError(f"{path}: {what}; give the YAML tolerance file")
+    try:
+        document = yaml.safe_load(path.read_text(encoding="utf-8-sig"))
+    except UnicodeDecodeError as error:
+        raise CompareInputError(f"{path}: is not UTF-8 text (offset {error.start}); re-save it as UTF-8") from error
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f"line {mark.line + 1}: " if mark is not None else ""
+        problem = getattr(error, "problem", None) or str(error)
+        raise CompareInputError(f"{path}: is not valid YAML ({where}{problem}); fix the syntax") from error
+    except OSError as error:
+        raise CompareInputError(f"{path}: cannot be read ({error.strerror})") from error
+    if document is None:
+        raise CompareInputError(
+            f"{path}: is empty; write {{variable: {{atol:, rtol:, ttol:}}}} entries or drop the option"
+        )
+    if not isinstance(document, dict):
+        raise CompareInputError(
+            f"{path}: must be a mapping of variable names to tolerances, not a {type(document).__name__}"
+        )
+    for key in document:
+        if not isinstance(key, str):
+            raise CompareInputError(f"{path}: key {key!r} is not a variable name; quote it")
+    document = _coerce_numbers(document)
+    validator = jsonschema.Draft202012Validator(TOLERANCE_SCHEMA)
+    error = jsonschema.exceptions.best_match(validator.iter_errors(document))
+    if error is not None:
+        key = ".".join(str(part) for part in error.absolute_path) or "(top level)"
+        raise CompareInputError(f"{path}: key {key!r}: {error.message}; {_FIX}")
+
+    base = {"atol": DEFAULT_TOLERANCE.atol, "rtol": DEFAULT_TOLERANCE.rtol, "ttol": DEFAULT_TOLERANCE.ttol}
+    base.update(document.get("default", {}))
+    default = Tolerance(**base)
+    per_variable = {name: Tolerance(**{**base, **entry}) for name, entry in document.items() if name != "default"}
+    return default, per_variable
+
+
+# ----------------------------------------------------------------------------- reference files (FMI cross-check)
+
+_REQUIRED_OPTIONS = ("StartTime", "StopTime", "StepSize", "RelTol")
+_NUMERIC_OPTIONS = (*_REQUIRED_OPTIONS, "AbsTol", "OutputIntervalLength")
+
+
+def _reference_paths(path_stem: Path | str) -> tuple[Path, Path]:
+    stem = str(path_stem)
+    for suffix in ("_ref.csv", "_ref.opt"):
+        if stem.endswith(suffix):
+            stem = stem[: -len(suffix)]
+    return Path(f"{stem}_ref.csv"), Path(f"{stem}_ref.opt")
+
+
+def _time_matches(a: float, b: float, span: float) -> bool:
+    return abs(a - b) <= 1e-9 * max(abs(span), abs(a), abs(b), 1e-300)
+
+
+def write_reference(trace: Trace, path_stem: Path | str, start: float, stop: float, step: float,
+                    reltol: float) -> tuple[Path, Path]:
+    """Store `trace` as a cross-check reference: <stem>_ref.csv and <stem>_ref.opt.
+
+    path_stem is <folder>/<name> (a trailing _ref.csv or _ref.opt is dropped). step is the step
+    size in s (0 for a variable-step solver); reltol the solver's relative tolerance. The trace
+    must run from `start` to `stop`, as the cross-check rules require.
+    """
+    _check_trace(trace, "trace")
+    if not (math.isfinite(start) and math.isfinite(stop) and stop > start):
+        raise ValueError(f"StopTime ({stop}) must be after StartTime ({start})")
+    if not (math.isfinite(step) and step >= 0 and math.isfinite(reltol) and reltol >= 0):
+        raise ValueError(f"StepSize ({step}) and RelTol ({reltol}) must be finite and >= 0")
+    if not (_time_matches(trace.time[0], start, stop - start) and _time_matches(trace.time[-1], stop, stop - start)):
+        raise ValueError(f"the trace runs from {trace.time[0]} to {trace.time[-1]} s, not from StartTime {start} "
+                         f"to StopTime {stop} s")
+    csv_path, opt_path = _reference_paths(path_stem)
+    write_csv(csv_path, trace)
+    lines = [f"StartTime, {float(start)!r}", f"StopTime, {float(stop)!r}", f"StepSize, {float(step)!r}",
+             f"RelTol, {float(reltol)!r}"]
+    atomic_write(opt_path, lambda stream: stream.write("\n".join(lines) + "\n"))
+    return csv_path, opt_path
+
+
+def read_options(path: Path | str) -> dict[str, float | str]:
+    """Read a cross-check options file (``Name, value`` lines; ``//`` comments allowed)."""
+    path = Path(path)
+    if not path.is_file():
+        raise CompareInputError(
+            f"{path}: no such file; a reference needs its options file beside it "
+            "(StartTime, StopTime, StepSize, RelTol)"
+        )
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise CompareInputError(f"{path}: is not UTF-8 text (offset {error.start}); re-save it as UTF-8") from error
+    options: dict[str, float | str] = {}
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.split("//", 1)[0].strip()
+        if not line:
+            continue
+        key, comma, value = (part.strip() for part in line.partition(","))
+        if not comma or not key or not value:
+            raise CompareInputError(f"{path}: line {number} is not 'Name, value' ({line[:40]!r}); fix or remove it")
+        if key in options:
+            raise CompareInputError(f"{path}: line {number}: {key} is given twice; keep one")
+        if key in _NUMERIC_OPTIONS:
+            number_value = _float_or_none(value)
+            if number_value is None or not math.isfinite(number_value):
+                raise CompareInputError(f"{path}: line {number}: {key} is {value!r}, not a number; write a number")
+            options[key] = number_value
+        else:
+            options[key] = value
+    missing = [key for key in _REQUIRED_OPTIONS if key not in options]
+    if missing:
+        raise CompareInputError(f"{path}: lacks {', '.join(missing)}; add a '{missing[0]}, <value>' line")
+    if not float(options["StopTime"]) > float(options["StartTime"]):
+        raise CompareInputError(f"{path}: StopTime {options['StopTime']} is not after StartTime {options['StartTime']}")
+    for key in ("StepSize", "RelTol"):
+        if float(options[key]) < 0:
+            raise CompareInputError(f"{path}: {key} is negative; it must be >= 0 (StepSize 0 means variable step)")
+    return options
+
+
+def _check_span(trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path) -> None:
+    start, stop = float(options["StartTime"]), float(options["StopTime"])
+    for value, target, word in ((trace.time[0], start, "StartTime"), (trace.time[-1], stop, "StopTime")):
+        if not _time_matches(float(value), target, stop - start):
+            edge = "starts" if word == "StartTime" else "ends"
+            raise CompareInputError(
+                f"{label}: time {edge} at {value:.17g} s but {opt_path} gives {word} {target:.17g} s; "
+                "run over the reference's time span"
+            )
+
+
+def read_reference(path_stem: Path | str) -> tuple[Trace, dict[str, float | str]]:
+    """Read <stem>_ref.csv and <stem>_ref.opt; the trace must run from StartTime to StopTime."""
+    csv_path, opt_path = _reference_paths(path_stem)
+    trace = read_trace(csv_path)
+    options = read_options(opt_path)
+    _check_span(trace, options, str(csv_path), opt_path)
+    return trace, options
+
+
+# ----------------------------------------------------------------------------- command
+
+
+def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_path: Path | str | None = None,
+                out_dir: Path | str | None = None) -> int:
+    """`toggle-cosim compare RESULT REFERENCE [--tolerances FILE] [--out DIR]`: return the exit status.
+
+    Prints the table to stdout; returns 0 if every variable passes, 1 if any fails, 2 on bad
+    input (one line ``error: ...`` on stderr, and nothing written). When REFERENCE is a
+    ``<name>_ref.csv`` with a ``<name>_ref.opt`` beside it, the result must also run from its
+    StartTime to its StopTime. With `out_dir`, the report of `write_report` is written there.
+    """
+    try:
+        reference_path = Path(reference_path)
+        result_path = Path(result_path)
+        if out_dir is not None and Path(out_dir).exists() and not Path(out_dir).is_dir():
+            raise CompareInputError(f"{out_dir}: exists and is not a directory; give a folder for the report")
+        reference = read_trace(reference_path)
+        _, opt_path = _reference_paths(reference_path)
+        options = None
+        if reference_path.name.endswith("_ref.csv") and opt_path.exists():
+            options = read_options(opt_path)
+            _check_span(reference, options, str(reference_path), opt_path)
+        result = read_trace(result_path)
+        if options is not None:
+            _check_span(result, options, str(result_path), opt_path)
+        if tolerance_path is not None:
+            default, tolerances = load_tolerances(tolerance_path)
+        else:
+            default, tolerances = DEFAULT_TOLERANCE, {}
+        comparison = compare_traces(
+            result, reference, tolerances, default, result_label=str(result_path),
+            reference_label=str(reference_path), tolerances_label=str(tolerance_path),
+        )
+    except CompareInputError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(format_table(comparison))
+    if out_dir is not None:
+        try:
+            written = write_report(comparison, Path(out_dir), result, reference)
+        except OSError as error:
+            reason = error.strerror or error
+            print(f"error: {out_dir}: cannot write the report ({reason}); check the folder", file=sys.stderr)
+            return 2
+        print(f"report: {len(written)} files in {out_dir}")
+    return 0 if comparison.passed else 1
