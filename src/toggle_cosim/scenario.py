@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import copy
 import math
+import re
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,7 +49,7 @@ _PLANT = {
         "K": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6},
         "parameters": {
             "type": "object",
-            "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_.\[\]]*$"},
+            "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_.\[\]]*\Z"},
             "additionalProperties": {"type": ["number", "boolean"]},
         },
     },
@@ -96,9 +98,9 @@ SCHEMA: dict[str, Any] = {
     "additionalProperties": False,
     "required": ["name", "t_end", "T_s", "stroke"],
     "properties": {
-        "name": {"type": "string", "pattern": r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"},
+        "name": {"type": "string", "pattern": r"^[A-Za-z0-9_][A-Za-z0-9_.-]*\Z"},
         "description": {"type": "string"},
-        "fmu": {"type": "string", "minLength": 1},
+        "fmu": {"type": "string", "minLength": 1, "pattern": r"^[^\x00]*\Z"},  # no NUL: not a path
         "t_end": _OVERRIDE["properties"]["t_end"],
         "T_s": _OVERRIDE["properties"]["T_s"],
         "stroke": _STROKE,
@@ -107,7 +109,7 @@ SCHEMA: dict[str, Any] = {
         "variants": {
             "type": "object",
             "minProperties": 1,
-            "propertyNames": {"pattern": r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"},
+            "propertyNames": {"type": "string", "pattern": r"^[A-Za-z0-9_][A-Za-z0-9_.-]*\Z"},
             "additionalProperties": _OVERRIDE,
         },
     },
@@ -163,14 +165,19 @@ class Run:
         return int(round(self.t_end / self.T_s))
 
 
+def _part(part: Any) -> str:
+    """A key as the message shows it: plain if it is a printable string, else its repr (one line)."""
+    return part if isinstance(part, str) and part.isprintable() and part else repr(part)
+
+
 def _key(path: Any) -> str:
-    return ".".join(str(part) for part in path) or "(top level)"
+    return ".".join(_part(part) for part in path) or "(top level)"
 
 
 def _schema_message(error: jsonschema.ValidationError) -> str:
     key = _key(error.absolute_path)
     if error.validator == "additionalProperties":
-        extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
+        extra = sorted(map(_part, set(error.instance) - set(error.schema.get("properties", {}))))
         allowed = ", ".join(sorted(error.schema.get("properties", {}))) or "none"
         where = f"{key}." if error.absolute_path else ""
         return f"unknown key {where}{extra[0]} (allowed here: {allowed})"
@@ -186,15 +193,45 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
     return f"key {key}: {error.message}"
 
 
-def _reject_non_finite(node: Any, path: tuple[Any, ...] = ()) -> None:
-    if isinstance(node, float) and not math.isfinite(node):
-        raise ScenarioError(f"key {_key(path)}: {node!r} is not a finite number")
-    if isinstance(node, dict):
-        for k, v in node.items():
-            _reject_non_finite(v, (*path, k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            _reject_non_finite(v, (*path, i))
+_MAX_VALUES = 100_000  # a scenario holds a few dozen; YAML aliases can expand a 1 KB file to billions
+
+
+def _reject_non_finite(document: Any) -> None:
+    """Reject NaN, infinities and integers beyond float range (as values or keys), self-containing YAML
+    aliases and alias bombs, before the schema (whose messages repr the values) sees them."""
+    seen = 0
+    open_containers: set[int] = set()
+
+    def check_number(value: Any, path: tuple[Any, ...], what: str) -> None:
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ScenarioError(f"key {_key(path)}: {what}{value!r} is not a finite number")
+        if isinstance(value, int) and not isinstance(value, bool) and abs(value) > sys.float_info.max:
+            raise ScenarioError(
+                f"key {_key(path)}: {what}an integer of {value.bit_length()} bits is too large"
+                f" (numbers must be finite, at most {sys.float_info.max:.1e} in size)"
+            )
+
+    def visit(node: Any, path: tuple[Any, ...]) -> None:
+        nonlocal seen
+        seen += 1
+        if seen > _MAX_VALUES:
+            raise ScenarioError(f"key {_key(path)}: the file holds more than {_MAX_VALUES} values (YAML aliases expanded)")
+        check_number(node, path, "")
+        if not isinstance(node, (dict, list)):
+            return
+        if id(node) in open_containers:
+            raise ScenarioError(f"key {_key(path)}: a YAML alias inside the value it names (recursive data is not allowed)")
+        open_containers.add(id(node))
+        if isinstance(node, dict):
+            for k, v in node.items():
+                check_number(k, path, "the key ")
+                visit(v, (*path, k))
+        else:
+            for i, v in enumerate(node):
+                visit(v, (*path, i))
+        open_containers.discard(id(node))
+
+    visit(document, ())
 
 
 def validate_document(document: Any) -> None:
@@ -290,6 +327,12 @@ def runs_from_document(document: Any, source: Path | None = None) -> list[Run]:
     return [_build_run(_merge(base, override), name, source) for name, override in variants.items()]
 
 
+def _line_column(text: str, position: int) -> tuple[int, int]:
+    """1-based line and column of a character offset, counting line breaks as PyYAML does."""
+    lines = re.split("\r\n|[\n\r\x85\u2028\u2029]", text[:position])
+    return len(lines), len(lines[-1]) + 1
+
+
 def load_scenario(path: Path) -> list[Run]:
     """Read and validate a scenario file. Raises ScenarioError with 'FILE: problem'."""
     path = Path(path)
@@ -303,11 +346,24 @@ def load_scenario(path: Path) -> list[Run]:
         raise ScenarioError(f"{path}: not UTF-8 text (byte {error.start}); save the scenario as UTF-8 YAML") from error
     try:
         document = yaml.safe_load(text)
+    except yaml.reader.ReaderError as error:  # a control character: it has a position, not a mark
+        line, column = _line_column(text, error.position)
+        raise ScenarioError(
+            f"{path}: YAML syntax error at line {line}, column {column}: unacceptable character"
+            f" #x{error.character:04x} ({error.reason})"
+        ) from error
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(error, "problem", None) or "malformed YAML"
+        problem = " ".join(str(getattr(error, "problem", None) or "malformed YAML").split())
         raise ScenarioError(f"{path}: YAML syntax error{where}: {problem}") from error
+    except RecursionError as error:
+        raise ScenarioError(f"{path}: YAML nested too deeply (a scenario needs a few levels)") from error
+    except Exception as error:  # noqa: BLE001 - PyYAML's constructors raise plain Python errors too:
+        # ValueError ("!!int abc", an integer of more than 4300 digits), KeyError ("!!bool maybe"),
+        # IndexError ('!!int ""'), AttributeError ("!!timestamp abc"), ...
+        reason = " ".join(f"{type(error).__name__}: {error}".split())
+        raise ScenarioError(f"{path}: YAML value that cannot be converted ({reason})") from error
     if document is None:
         raise ScenarioError(f"{path}: the file is empty (a scenario needs name, t_end, T_s and stroke)")
     try:
