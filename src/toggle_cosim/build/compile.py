@@ -136,6 +136,18 @@ def _start_function(emitter: Emitter, system_parameters: tuple[FlatVariable, ...
     return lines
 
 
+def _defaults_function(variables: list[ModelVariable]) -> list[str]:
+    """p at the values the source declares, for every slot a user may set."""
+    lines = ["void md_defaults(double *p) {"]
+    for variable in variables:
+        if variable.kind in ("parameter", "input") and variable.start is not None:
+            lines.append(f"    p[{variable.par_slot}] = {_c_number(variable.start)};  /* {variable.name} */")
+    if len(lines) == 1:
+        lines.append("    (void)p;")
+    lines.append("}")
+    return lines
+
+
 def _parameter_function(parameters: tuple[FlatVariable, ...], calculated: set[str], order: list[FlatVariable]) -> list[str]:
     symbols = {v.name: f"p[{slot}]" for slot, v in enumerate(parameters)}
     slots = {v.name: slot for slot, v in enumerate(parameters)}
@@ -252,6 +264,8 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         "    md_direction_, md_latch_,",
         f"    {n}, md_kind_, md_obs_, md_par_, md_names_",
         "};",
+        "",
+        *_defaults_function(variables),
         "",
         *_parameter_function(parameters, calculated, emitter.ordered()),
         "",

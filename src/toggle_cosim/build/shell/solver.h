@@ -1,0 +1,184 @@
+/* The model-independent core of the FMU shell: one simulation instance of a generated model
+ * (see md_model.h) and everything that advances it -- an adaptive Dormand-Prince 5(4)
+ * integrator with dense output, state-event location and event iteration, and copy /
+ * serialisation of the whole instance state.
+ *
+ * Nothing here knows about FMI: fmi2.c (and later an FMI 3.0 shell) wraps it. Nothing here
+ * knows which model it runs either: everything model-specific comes through MD_INFO and the
+ * generated functions. There is no global mutable state; instances are independent.
+ *
+ * Errors: functions that can fail return MD_FAIL and leave a one-line explanation in
+ * md_solver_message(). The simulation state is then left at the last good point.
+ */
+#ifndef MD_SOLVER_H
+#define MD_SOLVER_H
+
+#include <stddef.h>
+#include "md_model.h"
+
+/* ---------------------------------------------------------------------------------------
+ * Solver settings
+ *
+ * Three of them are exposed by the FMU as Real parameters with value references
+ * MD_INFO.nvars + MD_SETTING_* (after the model's own variables). The Python
+ * modelDescription generator mirrors this table: keep the names, defaults and order in sync.
+ * The other two are compile-time defaults (override with -D...).
+ * ------------------------------------------------------------------------------------- */
+
+#define MD_SHELL_NREAL 3
+
+enum {
+    MD_SETTING_RELTOL = 0,  /* "solver.relTol"  default 1e-8,  valid (0, 0.1]            */
+    MD_SETTING_ABSTOL = 1,  /* "solver.absTol"  default 1e-10, valid > 0                 */
+    MD_SETTING_MAXSTEP = 2  /* "solver.maxStep" default 0 (unbounded), s, valid >= 0      */
+};
+
+typedef struct {
+    const char *name;
+    double start;
+    const char *unit;
+    const char *description;
+} md_setting;
+
+/* [MD_SHELL_NREAL] names, defaults, units and descriptions, in value-reference order. */
+extern const md_setting MD_SHELL_SETTINGS[MD_SHELL_NREAL];
+
+#ifndef MD_MAX_EVENTS_PER_STEP
+#define MD_MAX_EVENTS_PER_STEP 10000L  /* Zeno / chattering guard, events per doStep */
+#endif
+#ifndef MD_MAX_STEPS
+#define MD_MAX_STEPS 1000000L          /* internal steps (accepted + rejected) per doStep */
+#endif
+#ifndef MD_MAX_EVENT_ITERATIONS
+#define MD_MAX_EVENT_ITERATIONS 20     /* event-iteration rounds at one instant */
+#endif
+
+#define MD_MESSAGE_SIZE 512
+
+/* ---------------------------------------------------------------------------------------
+ * Host services: memory and logging, supplied by the FMI layer.
+ * ------------------------------------------------------------------------------------- */
+
+/* The solver does not log its failures: it returns MD_FAIL and the FMI layer reports
+   md_solver_message() with the status it returns (FMI category logStatusError). */
+typedef enum {
+    MD_LOG_EVENTS = 0,  /* one line per event: time, indicator, kind */
+    MD_LOG_ALL = 1      /* chatty diagnostics: step statistics per communication step */
+} md_log_category;
+
+typedef struct {
+    void *(*allocate)(void *env, size_t nobj, size_t size); /* zero-filled, like calloc */
+    void (*release)(void *env, void *ptr);
+    /* May be NULL. The message is complete text (not a format string). */
+    void (*log)(void *env, md_log_category category, const char *message);
+    /* Asked before a message is formatted, so a disabled category costs nothing. May be NULL
+       (then everything is formatted and handed to log). */
+    int (*log_enabled)(void *env, md_log_category category);
+    void *env;
+} md_host;
+
+typedef enum { MD_OK = 0, MD_FAIL = 1 } md_status;
+
+/* ---------------------------------------------------------------------------------------
+ * The instance. Fields are public for the FMI layers; only the solver writes them, except
+ * p (parameters and inputs), which the FMI layer writes through md_solver_set_parameter.
+ * ------------------------------------------------------------------------------------- */
+
+typedef struct {
+    double rel_tol;
+    double abs_tol;
+    double max_step;          /* 0 = unbounded */
+    long max_events_per_step; /* MD_MAX_EVENTS_PER_STEP */
+    long max_steps;           /* MD_MAX_STEPS */
+} md_settings;
+
+typedef struct {
+    unsigned long steps;      /* accepted internal steps */
+    unsigned long rejected;   /* rejected internal steps (error test or non-finite) */
+    unsigned long rhs_calls;
+    unsigned long events;     /* transition() calls */
+} md_counters;
+
+typedef struct md_solver {
+    const md_info *info;
+    md_host host;
+
+    /* ---- simulation state: all of it is copied by md_solver_save / md_solver_restore ---- */
+    md_settings settings;
+    double t;
+    double *y;      /* [ny] */
+    double *p;      /* [np] */
+    double *w;      /* [nw] */
+    double *obs;    /* [nobs] observe() output at (t, y), refreshed after every change */
+    double *z;      /* [nz] indicators at (t, y) */
+    unsigned char *cond; /* [nz] z_k > 0 as last acted upon (latched condition) */
+    double h_next;  /* proposed next internal step (0: none yet, use the heuristic) */
+    int fsal_valid; /* k1 holds rhs(t, y) */
+    double *k1;     /* [ny] first-same-as-last derivative */
+    md_counters count;
+
+    /* ---- scratch, not part of the state ---- */
+    double *k;      /* [7*ny] stages; k1 above is stage 0's storage */
+    double *ynew, *ytmp, *yerr, *ydense, *rcont; /* [ny] each, rcont [5*ny] */
+    double *zl, *zr, *zm; /* [nz] root-finder brackets */
+    double *obs_tmp;      /* [nobs] */
+    int *fired;           /* [nz] */
+    char message[MD_MESSAGE_SIZE];
+} md_solver;
+
+/* Create an instance: p at the model's declared values (md_defaults), settings at their
+ * defaults, t = 0, y and w zero. NULL if memory is short. */
+md_solver *md_solver_new(const md_info *info, const md_host *host);
+void md_solver_free(md_solver *s);
+
+/* Back to the state md_solver_new left (FMI reset). */
+void md_solver_reset(md_solver *s);
+
+/* Settings by index MD_SETTING_*; MD_FAIL (with message) for an invalid value. */
+md_status md_solver_set_setting(md_solver *s, int index, double value);
+double md_solver_get_setting(const md_solver *s, int index);
+
+/* Write p[slot] = value. If restart is nonzero and the value differs from the present one
+ * (an input changed during the run), the integrator is restarted at the next advance. The
+ * caller refreshes obs (md_solver_observe) once it has set everything it is setting. */
+void md_solver_set_parameter(md_solver *s, int slot, double value, int restart);
+
+/* Initialisation, in two halves:
+ *   md_solver_start:      t = t0, md_parameters(p), md_start(p, y, w) (y and w zeroed
+ *                         first), observe. Call again whenever a parameter changes before
+ *                         initialize, so that start values that depend on parameters follow.
+ *   md_solver_initialize: indicators at (t, y); set the latch slots and the conditions from
+ *                         them, without firing any `when` branch; observe. */
+md_status md_solver_start(md_solver *s, double t0);
+md_status md_solver_initialize(md_solver *s);
+
+/* Refresh obs at (t, y). MD_FAIL if an observed value is not finite (obs then keeps its
+ * previous contents). */
+md_status md_solver_observe(md_solver *s);
+
+/* Integrate from s->t to t_end (>= s->t), handling state events on the way, landing exactly
+ * on t_end, and refresh obs. On MD_FAIL, s->t is the last good point. */
+md_status md_solver_advance(md_solver *s, double t_end);
+
+const char *md_solver_message(const md_solver *s);
+
+/* ---------------------------------------------------------------------------------------
+ * State copy and serialisation.
+ *
+ * A state is a flat byte buffer of fixed size for a given model: a header (magic number,
+ * format version, hash of MD_INFO.guid, the array sizes, a payload checksum) and the
+ * payload (settings, t, step size, FSAL derivative, y, p, w, obs, z, conditions, counters,
+ * and an int `tag` the caller can use for its own mode). The same buffer serves as the
+ * in-memory copy (get/set FMU state) and as the serialised form, so both are bit-exact.
+ * A buffer for another model, of the wrong size, or with a damaged payload is refused.
+ * ------------------------------------------------------------------------------------- */
+
+size_t md_solver_state_size(const md_info *info);
+/* Write the whole state into buf (size must be md_solver_state_size). */
+md_status md_solver_save(md_solver *s, int tag, void *buf, size_t size);
+/* Check a buffer without touching the state; on success *tag (if not NULL) is its tag. */
+md_status md_solver_check(md_solver *s, const void *buf, size_t size, int *tag);
+/* Check, then restore the state from buf. Nothing changes on MD_FAIL. */
+md_status md_solver_restore(md_solver *s, const void *buf, size_t size, int *tag);
+
+#endif

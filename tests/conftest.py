@@ -1,0 +1,25 @@
+"""Shared fixtures: the plant FMU, built once per test session from the Modelica source."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # reference_dynamics.py beside the tests
+
+
+@pytest.fixture(scope="session")
+def plant_build(tmp_path_factory: pytest.TempPathFactory):
+    """Build fmus/ToggleLSM.fmu's twin from modelica/ToggleLSM into a temporary folder."""
+    from toggle_cosim.build import build_fmu
+
+    output = tmp_path_factory.mktemp("fmu") / "ToggleLSM.fmu"
+    return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant", output)
+
+
+@pytest.fixture(scope="session")
+def plant_fmu(plant_build) -> Path:
+    return plant_build.fmu.path
