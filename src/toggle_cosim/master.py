@@ -28,12 +28,11 @@ from toggle_cosim.controller import VSCController
 from toggle_cosim.fmu_io import PlantFMU
 from toggle_cosim.motor import thrust_constant
 from toggle_cosim.parameters import MechanismParameters, MotorParameters
-from toggle_cosim.plant import OUTPUTS, PlantInterface
+from toggle_cosim.plant import PlantInterface
 from toggle_cosim.scenario import Run
 from toggle_cosim.summary import RunSummary, summarize
 from toggle_cosim.traces import Trace
 
-RECORDED_OUTPUTS = tuple(OUTPUTS)
 CONTROL_COLUMNS = ("iq_ref", "F_E", "S", "phase", "e")
 PHASES = {"reaching": 0.0, "sliding": 1.0}
 
@@ -105,7 +104,7 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
     started = clock.perf_counter()
     controller = make_controller(run)
     n = run.steps
-    outputs = list(RECORDED_OUTPUTS)
+    outputs = list(plant.recorded_outputs)
     names = ("time", *outputs, *CONTROL_COLUMNS)
     data = np.full((n + 1, len(names)), np.nan)
     n_out = len(outputs)

@@ -7,6 +7,7 @@ Any FMU that provides these variables (names, causality and units) can be the pl
            force at joints (1,2) (2,3) (3,4) (2,5) (5,6) as N12.. and Ff12.., and the
            energies E_in E_fric E_load E_mech
 * parameters m_B (kg), mu (1); optional: idealCurrentLoop (Boolean), K (rad/s), x_B0 (m)
+* optional outputs, recorded when present: a_B, omega1, v_C, Phi1, Phi2
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ OUTPUTS = {
     **{f"Ff{j}": "N" for j in JOINTS},
     "E_in": "J", "E_fric": "J", "E_load": "J", "E_mech": "J",
 }
+OPTIONAL_OUTPUTS = {"a_B": "m/s2", "omega1": "rad/s", "v_C": "m/s", "Phi1": "m", "Phi2": "m"}
 PARAMETERS = {"m_B": "kg", "mu": None}
 OPTIONAL_PARAMETERS = {"idealCurrentLoop": None, "K": "rad/s", "x_B0": "m"}
 
@@ -45,6 +47,11 @@ class PlantInterface:
     fmi_version: str
     references: dict[str, int]
     types: dict[str, str]
+
+    @property
+    def recorded_outputs(self) -> tuple[str, ...]:
+        """The contract's outputs, then the optional ones this FMU has."""
+        return (*OUTPUTS, *(name for name in OPTIONAL_OUTPUTS if name in self.references))
 
     @property
     def guid(self) -> str:
@@ -114,6 +121,8 @@ def check_plant(path: Path) -> PlantInterface:
         require(name, ("input",), unit)
     for name, unit in OUTPUTS.items():
         require(name, ("output",), unit)
+    for name, unit in OPTIONAL_OUTPUTS.items():
+        require(name, ("output",), unit, optional=True)
     for name, unit in PARAMETERS.items():
         require(name, ("parameter",), unit)
     for name, unit in OPTIONAL_PARAMETERS.items():

@@ -34,9 +34,9 @@ def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, tar
             style = _STYLES[number % len(_STYLES)]
             t = trace.time
             if key.isdigit():
-                ax.plot(t, trace.column(f"N{key}"), style, color="C0", label=f"normal, {name}")
+                ax.plot(t, trace.column(f"N{key}"), style, color="C0", label=f"normal force ({name})")
                 if trace.column(f"Ff{key}").any():
-                    ax.plot(t, trace.column(f"Ff{key}"), style, color="C3", label=f"friction, {name}")
+                    ax.plot(t, trace.column(f"Ff{key}"), style, color="C3", label=f"friction force ({name})")
             else:
                 ax.plot(t, trace.column(key), style, color=f"C{number}", label=name)
         if key == "x_B" and target is not None:
