@@ -23,3 +23,12 @@ def plant_build(tmp_path_factory: pytest.TempPathFactory):
 @pytest.fixture(scope="session")
 def plant_fmu(plant_build) -> Path:
     return plant_build.fmu.path
+
+
+@pytest.fixture(scope="session")
+def no_gravity_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The second plant, built from the variant ToggleLSM.PlantNoGravity of the same source."""
+    from toggle_cosim.build import build_fmu
+
+    output = tmp_path_factory.mktemp("fmu-nog") / "ToggleLSM_NoGravity.fmu"
+    return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.PlantNoGravity", output).fmu.path

@@ -20,7 +20,14 @@ DEFAULT_SOURCE = Path("modelica/ToggleLSM")
 DEFAULT_MODEL = "ToggleLSM.Plant"
 DEFAULT_FMU = Path("fmus/ToggleLSM.fmu")
 DEFAULT_OUT = Path("out")
+DEFAULT_REFERENCES = Path("scenarios/references")
 PAPER_SCENARIOS = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
+# What `toggle-cosim build` writes when no --model is given: every shipped plant.
+DEFAULT_BUILDS = (
+    (DEFAULT_MODEL, DEFAULT_FMU),
+    ("ToggleLSM.PlantNoGravity", Path("fmus/ToggleLSM_NoGravity.fmu")),
+)
+SHIPPED_SCENARIOS = (*PAPER_SCENARIOS, "swap_no_gravity")
 
 
 class InputError(click.ClickException):
@@ -62,12 +69,18 @@ def _build(source: Path, model: str, output: Path) -> None:
 @main.command()
 @click.option("--source", type=click.Path(path_type=Path), default=DEFAULT_SOURCE, show_default=True,
               help="Modelica package directory (or a .mo file).")
-@click.option("--model", default=DEFAULT_MODEL, show_default=True, help="Class to compile.")
-@click.option("--output", "-o", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True,
-              help="FMU file to write.")
-def build(source: Path, model: str, output: Path) -> None:
-    """Compile the Modelica source into an FMI 2.0 Co-Simulation FMU."""
-    _build(source, model, output)
+@click.option("--model", default=None, help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first).")
+@click.option("--output", "-o", type=click.Path(path_type=Path), default=None,
+              help=f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).")
+def build(source: Path, model: str | None, output: Path | None) -> None:
+    """Compile the Modelica source into FMI 2.0 Co-Simulation FMUs."""
+    if model is None and output is not None:
+        model = DEFAULT_MODEL
+    if model is None:
+        for name, path in DEFAULT_BUILDS:
+            _build(source, name, path)
+        return
+    _build(source, model, output or Path("fmus") / f"{model.split('.')[-1]}.fmu")
 
 
 def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
@@ -191,6 +204,8 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
     started = time.perf_counter()
     if not skip_build:
         _build(DEFAULT_SOURCE, DEFAULT_MODEL, fmu)
+        for name, path in DEFAULT_BUILDS[1:]:
+            _build(DEFAULT_SOURCE, name, path)
     files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
     pairs = _load_runs(files, fmu)
     outcomes = _execute(pairs, out, quiet=False)
@@ -201,3 +216,50 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
     failed = [o.run.label for o in outcomes if not o.complete]
     if failed:
         raise RunFailed(f"{len(failed)} run(s) incomplete: {', '.join(failed)}")
+
+
+@main.command()
+@click.argument("result", type=click.Path(path_type=Path))
+@click.argument("reference", type=click.Path(path_type=Path))
+@click.option("--tolerances", type=click.Path(path_type=Path), default=None,
+              help="YAML: {variable: {atol, rtol, ttol}, default: {...}}.")
+@click.option("--out", type=click.Path(path_type=Path), default=None,
+              help="Folder for the envelopes and plots of failing variables.")
+def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | None) -> None:
+    """Compare RESULT with REFERENCE (CSV traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
+    from toggle_cosim.compare import run_compare
+
+    sys.exit(run_compare(result, reference, tolerances, out))
+
+
+@main.command()
+@click.argument("scenarios", nargs=-1, type=click.Path(path_type=Path))
+@click.option("--update", is_flag=True, help="Rewrite the stored references from fresh runs (review the diff!).")
+@click.option("--folder", type=click.Path(path_type=Path), default=DEFAULT_REFERENCES, show_default=True)
+@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU for every scenario.")
+def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Path | None) -> None:
+    """Check the shipped runs against their stored reference traces (or --update them)."""
+    from toggle_cosim import references as refs
+    from toggle_cosim.compare import CompareInputError, format_table
+    from toggle_cosim.master import simulate
+
+    files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
+    pairs = _load_runs(files, fmu)
+    failures: list[str] = []
+    for run, plant in pairs:
+        outcome = simulate(run, plant)
+        if not outcome.complete:
+            raise RunFailed(f"{run.label}: {outcome.reason}")
+        if update:
+            click.echo(f"{run.label}: wrote {refs.store(outcome, folder)}")
+            continue
+        try:
+            checked = refs.check(outcome, folder)
+        except CompareInputError as error:
+            raise InputError(str(error)) from error
+        click.echo(f"{run.label}: {'pass' if checked.comparison.passed else 'FAIL'}")
+        if not checked.comparison.passed:
+            click.echo(format_table(checked.comparison))
+        failures += checked.failures
+    if failures:
+        raise RunFailed("; ".join(failures))
