@@ -52,9 +52,32 @@ def main() -> None:
     """Co-simulation of the PMLSM-driven toggle mechanism (Fung, Wu and Chen 2001)."""
 
 
+def project_root() -> Path:
+    """The project this command runs in: the nearest folder up from here with a pyproject.toml."""
+    here = Path.cwd().resolve()
+    for folder in (here, *here.parents):
+        if (folder / "pyproject.toml").is_file():
+            return folder
+    return here
+
+
+def _inside_project(path: Path, what: str, option: str) -> Path:
+    """`path`, resolved, if it lies inside the project; else a one-line refusal."""
+    root = project_root()
+    resolved = path.resolve()
+    if not resolved.is_relative_to(root):
+        raise InputError(f"{path}: the {what} lies outside the project {root}; the build only reads and writes "
+                         f"inside it (give a path under it with {option})")
+    return resolved
+
+
 def _build(source: Path, model: str, output: Path) -> None:
     from toggle_cosim.build import FMUBuildError, ModelCompileError, build_fmu
 
+    source = _inside_project(source, "Modelica source", "--source")
+    output = _inside_project(output, "FMU output", "--output")
+    if output.suffix != ".fmu":
+        raise InputError(f"{output}: an FMU file name must end in .fmu (fix --output)")
     try:
         report = build_fmu(source, model, output)
     except (ModelCompileError, FMUBuildError) as error:
