@@ -119,7 +119,14 @@ def test_shipped_scenario_loads_into_friction_and_no_friction(stem: str) -> None
 
 
 def test_shipped_scenarios_are_all_tested() -> None:
-    assert {p.stem for p in SCENARIOS.glob("*.yaml")} == set(SHIPPED)
+    assert {p.stem for p in SCENARIOS.glob("fig*.yaml")} == set(SHIPPED)
+
+
+def test_the_swap_scenario_names_the_second_plant() -> None:
+    (run,) = load_scenario(SCENARIOS / "swap_no_gravity.yaml")
+    assert run.variant is None and run.label == "swap_no_gravity"
+    assert run.fmu is not None and run.fmu.resolve() == (ROOT / "fmus" / "ToggleLSM_NoGravity.fmu").resolve()
+    assert (run.plant.mu, run.plant.F_E, run.plant.m_B) == (0.2, 0.0, 4.43)
 
 
 def test_stroke_lies_inside_the_reach() -> None:
