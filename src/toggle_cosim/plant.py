@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import platform
 import zipfile
+from xml.etree import ElementTree
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,16 +80,25 @@ def check_plant(path: Path) -> PlantInterface:
         raise ContractError(f"{path}: no such FMU file (build it with 'toggle-cosim build' or fix the fmu: key)")
     if not zipfile.is_zipfile(path):
         raise ContractError(f"{path}: not an FMU (not a zip archive)")
-    with zipfile.ZipFile(path) as archive:
-        names = set(archive.namelist())
-    if "modelDescription.xml" not in names:
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = set(archive.namelist())
+            description = archive.read("modelDescription.xml") if "modelDescription.xml" in names else None
+    except (zipfile.BadZipFile, OSError) as error:
+        raise ContractError(f"{path}: not an FMU (damaged zip archive: {error})") from error
+    if description is None:
         raise ContractError(f"{path}: not an FMU (no modelDescription.xml in the archive)")
     try:
-        md = read_model_description(str(path), validate=False)
-    except Exception as error:  # fmpy raises several kinds for a broken description
+        version = ElementTree.fromstring(description).get("fmiVersion")
+    except ElementTree.ParseError as error:
         raise ContractError(f"{path}: unreadable modelDescription.xml ({error})") from error
-    if md.fmiVersion not in ("2.0", "3.0"):
-        raise ContractError(f"{path}: FMI version {md.fmiVersion} is not supported (use an FMI 2.0 or 3.0 FMU)")
+    if version not in ("2.0", "3.0"):
+        raise ContractError(f"{path}: FMI version {version} is not supported (use an FMI 2.0 or 3.0 FMU)")
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as error:  # noqa: BLE001 - fmpy raises several kinds for a broken description
+        message = " ".join(str(error).split())
+        raise ContractError(f"{path}: unreadable modelDescription.xml ({message})") from error
     if md.coSimulation is None:
         raise ContractError(f"{path}: the FMU does not support Co-Simulation (export it as a Co-Simulation FMU)")
     identifier = md.coSimulation.modelIdentifier
