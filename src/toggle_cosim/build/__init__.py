@@ -1,4 +1,4 @@
-"""Modelica source -> FMI Co-Simulation FMU. `build_fmu` is the one entry point.
+"""Modelica source -> FMI 2.0 or 3.0 Co-Simulation FMU. `build_fmu` is the one entry point.
 
     source (package dir) --source.py--> IR --compile.py--> C + tables
         --model_description.py--> modelDescription.xml --package.py--> .fmu
@@ -12,9 +12,9 @@ from pathlib import Path
 
 from toggle_cosim import __version__
 from toggle_cosim.build.compile import ModelCompileError, compile_model
-from toggle_cosim.build.package import BuiltFMU, FMUBuildError, write_fmu
+from toggle_cosim.build.package import FMI_VERSIONS, BuiltFMU, FMUBuildError, write_fmu
 
-__all__ = ["BuildReport", "FMUBuildError", "ModelCompileError", "build_fmu"]
+__all__ = ["FMI_VERSIONS", "BuildReport", "FMUBuildError", "ModelCompileError", "build_fmu"]
 
 
 @dataclass(frozen=True)
@@ -27,12 +27,15 @@ class BuildReport:
     event_indicators: int
 
 
-def build_fmu(source: Path, model: str, output: Path) -> BuildReport:
-    """Compile `model` from the Modelica `source` into the FMU `output`."""
+def build_fmu(source: Path, model: str, output: Path, fmi_version: str = "2.0") -> BuildReport:
+    """Compile `model` from the Modelica `source` into the FMU `output`, an FMI 2.0 or FMI 3.0
+    (`fmi_version="3.0"`) Co-Simulation FMU."""
     started = time.perf_counter()
     generated = compile_model(Path(source), model)
     compiled = time.perf_counter()
-    fmu = write_fmu(generated, Path(output), tool=f"toggle-cosim {__version__} (modelica 0.0.205)")
+    fmu = write_fmu(
+        generated, Path(output), tool=f"toggle-cosim {__version__} (modelica 0.0.205)", fmi_version=fmi_version
+    )
     finished = time.perf_counter()
     return BuildReport(
         fmu=fmu,

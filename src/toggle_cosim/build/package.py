@@ -1,8 +1,13 @@
-"""Compile the generated C with the generic shell and zip it into an FMU.
+"""Compile the generated C with the generic shell and zip it into an FMU (FMI 2.0 or 3.0).
 
 The C compiler runs in a fresh temporary directory on exactly two kinds of file: the C this
 package generated from the Modelica source, and the shell sources shipped inside this package
-(`shell/`). The FMU carries the same sources under `sources/`, so it can be rebuilt.
+(`shell/`). The FMU carries the same sources under `sources/`, so it can be rebuilt (an FMI 3.0
+FMU also says how, in `sources/buildDescription.xml`).
+
+The two FMI versions share the solver core (`shell/solver.c`) and differ only in the FMI layer
+(`shell/fmi2.c` or `shell/fmi3.c`), the binaries folder name and the XML written next to it;
+`FMI_VERSIONS` holds those differences.
 """
 
 from __future__ import annotations
@@ -12,8 +17,11 @@ import platform
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
+import xml.etree.ElementTree as ET
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -21,9 +29,9 @@ from pathlib import Path
 import fmpy
 
 from toggle_cosim.build.compile import GeneratedModel
-from toggle_cosim.build.model_description import fmi2_model_description
+from toggle_cosim.build.model_description import fmi2_model_description, fmi3_model_description
 
-SHELL_FILES = ("md_model.h", "solver.h", "solver.c", "fmi2.c")
+CORE_FILES = ("md_model.h", "solver.h", "solver.c")
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall")
 
 
@@ -37,6 +45,7 @@ class BuiltFMU:
     guid: str
     model_identifier: str
     size_bytes: int
+    fmi_version: str = "2.0"
 
 
 def platform_folder() -> str:
@@ -46,6 +55,28 @@ def platform_folder() -> str:
         raise FMUBuildError(f"unsupported platform {platform.system()}")
     bits = "64" if platform.architecture()[0] == "64bit" else "32"
     return f"{system}{bits}"
+
+
+def platform_tuple() -> str:
+    """The FMI 3.0 name of this platform's binaries folder, `<arch>-<os>` such as `x86_64-linux`
+    (FMI 3.0, "Structure of the ZIP file"), for the interpreter's own bitness (the library is
+    loaded into this process)."""
+    system = {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(platform.system())
+    if system is None:
+        raise FMUBuildError(f"unsupported platform {platform.system()}")
+    machine = platform.machine().lower()
+    bits64 = sys.maxsize > 2**32
+    if machine in {"x86_64", "amd64", "x64", "i386", "i486", "i586", "i686", "x86"}:
+        architecture = "x86_64" if bits64 else "x86"
+    elif machine in {"aarch64", "arm64", "armv8l", "armv8b"}:
+        architecture = "aarch64" if bits64 else "aarch32"
+    elif machine.startswith("arm"):
+        architecture = "aarch32"
+    elif machine in {"ppc64", "ppc64le"}:
+        architecture = "ppc64"
+    else:
+        raise FMUBuildError(f"unsupported architecture {platform.machine()}")
+    return f"{architecture}-{system}"
 
 
 def shared_library_suffix() -> str:
@@ -71,31 +102,72 @@ def _compiler() -> str:
     raise FMUBuildError("no C compiler found (set CC or install gcc)")
 
 
-def write_fmu(model: GeneratedModel, output: Path, tool: str) -> BuiltFMU:
-    """Compile `model` and write the FMU to `output` (atomically: a temporary name, then rename)."""
+def fmi3_build_description(model_identifier: str, source_files: tuple[str, ...]) -> str:
+    """sources/buildDescription.xml (FMI 3.0, "Build Configurations"): the C files to compile
+    into the binary, all in `sources/` (the headers they include sit beside them; the FMI
+    headers are the importer's), C99, linked with the C math library. No `platform`
+    attribute: the sources are portable, so this is the fallback configuration for any."""
+    root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
+    configuration = ET.SubElement(root, "BuildConfiguration", modelIdentifier=model_identifier)
+    file_set = ET.SubElement(configuration, "SourceFileSet", language="C99")
+    for name in source_files:
+        ET.SubElement(file_set, "SourceFile", name=name)
+    ET.SubElement(configuration, "Library", name="m", external="true",
+                  description="the C math library (libm)")
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+@dataclass(frozen=True)
+class FMIVersion:
+    """What differs between the FMI versions this package can write."""
+
+    interface: str  # the shell's FMI layer, compiled with solver.c and model.c
+    binaries_folder: Callable[[], str]
+    model_description: Callable[[GeneratedModel, str, str], str]
+    build_description: Callable[[str, tuple[str, ...]], str] | None
+
+
+FMI_VERSIONS = {
+    "2.0": FMIVersion("fmi2.c", platform_folder, fmi2_model_description, None),
+    "3.0": FMIVersion("fmi3.c", platform_tuple, fmi3_model_description, fmi3_build_description),
+}
+
+
+def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str = "2.0") -> BuiltFMU:
+    """Compile `model` and write the FMU for `fmi_version` ("2.0" or "3.0") to `output`
+    (atomically: a temporary name, then rename)."""
+    version = FMI_VERSIONS.get(fmi_version)
+    if version is None:
+        raise FMUBuildError(f"unsupported FMI version {fmi_version!r} (choose from {', '.join(FMI_VERSIONS)})")
     output = Path(output)
     identifier = model_identifier_for(output)
+    compiled = ("solver.c", version.interface, "model.c")
     with tempfile.TemporaryDirectory(prefix="toggle-cosim-build-") as scratch:
         work = Path(scratch)
         sources = work / "sources"
         sources.mkdir()
         shell = resources.files("toggle_cosim.build") / "shell"
-        for name in SHELL_FILES:
+        for name in (*CORE_FILES, version.interface):
             (sources / name).write_text(shell.joinpath(name).read_text(encoding="utf-8"), encoding="utf-8")
         (sources / "model.c").write_text(model.c_source, encoding="utf-8")
-        binary_dir = work / "binaries" / platform_folder()
+        if version.build_description is not None:
+            (sources / "buildDescription.xml").write_text(
+                version.build_description(identifier, compiled), encoding="utf-8"
+            )
+        binary_dir = work / "binaries" / version.binaries_folder()
         binary_dir.mkdir(parents=True)
         binary = binary_dir / f"{identifier}{shared_library_suffix()}"
         command = [
             _compiler(), *CFLAGS, f"-I{sources}", f"-I{_fmi_headers()}",
-            *(str(sources / n) for n in ("solver.c", "fmi2.c", "model.c")),
+            *(str(sources / n) for n in compiled),
             "-o", str(binary), "-lm",
         ]
         result = subprocess.run(command, capture_output=True, text=True, check=False)
         if result.returncode != 0:
             raise FMUBuildError(f"C compiler failed for {model.name}:\n{result.stderr.strip()[:4000]}")
         (work / "modelDescription.xml").write_text(
-            fmi2_model_description(model, identifier, tool), encoding="utf-8"
+            version.model_description(model, identifier, tool), encoding="utf-8"
         )
         output.parent.mkdir(parents=True, exist_ok=True)
         partial = output.with_name(f".{output.name}.partial")
@@ -104,4 +176,4 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str) -> BuiltFMU:
                 if file.is_file():
                     archive.write(file, file.relative_to(work).as_posix())
         os.replace(partial, output)
-    return BuiltFMU(output, model.guid, identifier, output.stat().st_size)
+    return BuiltFMU(output, model.guid, identifier, output.stat().st_size, fmi_version)
