@@ -524,3 +524,19 @@ def test_simulate_fmu_runs_it_like_the_fmi2_build(plant3_fmu: Path, plant_fmu: P
     assert result3["x_B"][-1] - result3["x_B"][0] > 0.005
     for name in ("time", "x_B", "E_in", "lambda1"):
         assert np.array_equal(result3[name], result2[name]), name
+
+
+def test_fmi3_plant_under_the_master_matches_the_stored_reference(plant3_fmu: Path) -> None:
+    """The FMI 3.0 build, run by the same master and controller as the FMI 2.0 one, stays in
+    the funnel of the reference trace recorded with the FMI 2.0 build."""
+    from toggle_cosim import references
+    from toggle_cosim.master import simulate
+    from toggle_cosim.plant import check_plant
+    from toggle_cosim.scenario import load_scenario
+
+    for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):
+        outcome = simulate(run, check_plant(plant3_fmu))
+        assert outcome.complete, outcome.reason
+        assert outcome.record["fmu"]["fmi_version"] == "3.0"
+        checked = references.check(outcome, ROOT / "scenarios" / "references")
+        assert checked.comparison.passed, checked.failures
