@@ -290,3 +290,16 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
         failures += checked.failures
     if failures:
         raise RunFailed("; ".join(failures))
+
+
+@main.command()
+@click.argument("sweep_file", type=click.Path(path_type=Path))
+@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool).")
+@click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
+@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
+@click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
+def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Path | None, retry_failed: bool) -> None:
+    """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
+    from toggle_cosim.sweep import run_sweep
+
+    sys.exit(run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed))

@@ -1,0 +1,264 @@
+"""Parameter sweeps: cases, the results table, failures, resuming after a kill, Dask = local pool."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+import yaml
+
+from toggle_cosim.sweep import METRICS, execute_sweep, load_sweep, read_results, run_sweep
+
+ROOT = Path(__file__).resolve().parent.parent
+
+BASE = {
+    "name": "small",
+    "description": "Fig. 4 stroke and gains, shortened",
+    "t_end": 0.3,
+    "T_s": 0.0005,
+    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+    "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2, "current_loop": "first_order"},
+    "controller": {"objective": "x_B", "nominal_m_B": 4.43, "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
+}
+AXES_8 = {
+    "plant.F_E": {"values": [0, 50]},
+    "plant.m_B": {"linspace": [4.43, 8.86, 2]},
+    "plant.mu": {"values": [0.0, 0.2]},
+}
+
+
+def write_sweep(folder: Path, axes: dict, base: dict | None = None, **extra) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "base.yaml").write_text(yaml.safe_dump(base or BASE, sort_keys=False), encoding="utf-8")
+    document = {"base": "base.yaml", "axes": axes, "output": "out", **extra}
+    path = folder / "sweep.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def pool_run(tmp_path_factory, plant_fmu):
+    """The 8-case sweep on the local process pool (the reference for the other tests)."""
+    path = write_sweep(tmp_path_factory.mktemp("pool"), AXES_8, heatmap={"x": "plant.F_E", "y": "plant.m_B"})
+    sweep = load_sweep(path)
+    result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
+    return sweep, result, read_results(sweep.output)
+
+
+def test_table_has_one_row_per_case_with_its_parameters(pool_run):
+    sweep, result, table = pool_run
+    assert (result.total, result.skipped, result.ran, result.failed) == (8, 0, 8, 0)
+    assert len(table) == 8 and table["case_id"].is_unique
+    assert list(table["case"]) == list(range(8))
+    expected = {(F_E, m_B, mu) for F_E in (0.0, 50.0) for m_B in (4.43, 8.86) for mu in (0.0, 0.2)}
+    assert set(zip(table["plant.F_E"], table["plant.m_B"], table["plant.mu"], strict=True)) == expected
+    assert (table["status"] == "ok").all() and table["reason"].isna().all()
+    assert (table["t_end"] == 0.3).all() and (table["T_s"] == 0.0005).all()
+    for column in ("final_error_m", "overshoot_percent", "peak_iq_ref_A", "E_in_J", "E_fric_J", "fric_share_start"):
+        assert table[column].notna().all(), column
+    assert (table.loc[table["plant.mu"] == 0.0, "E_fric_J"] == 0.0).all()
+    assert (table.loc[table["plant.mu"] == 0.2, "E_fric_J"] > 0.0).all()
+    # more load, more current
+    heavy = table[(table["plant.F_E"] == 50.0)]["peak_iq_ref_A"].min()
+    assert heavy > table[(table["plant.F_E"] == 0.0)]["peak_iq_ref_A"].max()
+    assert not list((sweep.output / "parts").glob("*.parquet"))  # consolidated
+
+
+def test_heat_maps_exist_one_per_other_axis_value(pool_run):
+    sweep, result, _ = pool_run
+    names = sorted(p.name for p in result.figures)
+    assert names == ["heatmap_plant.mu=0.2.png", "heatmap_plant.mu=0.png"]
+    for figure in result.figures:
+        assert figure.is_file() and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_rerun_skips_everything_and_ids_are_stable(pool_run, plant_fmu):
+    sweep, _, table = pool_run
+    again = load_sweep(sweep.path)
+    assert [c.case_id for c in again.cases] == list(table["case_id"])
+    result = execute_sweep(again, fmu=plant_fmu, workers=2, progress=False)
+    assert (result.skipped, result.ran) == (8, 0)
+    assert read_results(sweep.output).equals(table)
+
+
+def test_failed_case_is_recorded_and_the_sweep_goes_on(tmp_path, plant_fmu, capsys):
+    axes = {"plant.parameters.mechanism.r3": {"values": [0.27, 0.05]}, "plant.F_E": {"values": [0, 50]}}
+    path = write_sweep(tmp_path, axes)
+    assert run_sweep(path, None, 2, plant_fmu, progress=False) == 1
+    table = read_results(tmp_path / "out")
+    assert len(table) == 4
+    bad = table[table["plant.parameters.mechanism.r3"] == 0.05]
+    good = table[table["plant.parameters.mechanism.r3"] == 0.27]
+    assert (bad["status"] == "failed").all() and (good["status"] == "ok").all()
+    for reason in bad["reason"]:
+        assert "fmi2EnterInitializationMode" in reason and "not finite" in reason  # with the FMU's own log line
+    assert bad["final_error_m"].isna().all() and good["final_error_m"].notna().all()
+    out = capsys.readouterr().out
+    assert "table: 2 ok, 2 failed, 0 not run, of 4 cases" in out
+
+
+@pytest.mark.parametrize(
+    ("axes", "extra", "message"),
+    [
+        ({"plant.F_X": {"values": [1]}}, {}, "axis plant.F_X: unknown scenario key 'F_X' under plant"),
+        ({"plant.mu": {"values": [0.2, 1.5]}}, {}, "case 1 (plant.mu=1.5): key plant.mu: 1.5 is out of range"),
+        ({"plant.mu": {"values": [0.2]}, "plant.F_E": {"values": [0, 1]}}, {"mode": "zip"}, "mode zip: every axis needs the same number"),
+        ({"plant.mu": {"values": [0.2, 0.2]}}, {}, "cases 0 and 1 are the same co-simulation"),
+        ({"plant.mu": {"linspace": [0, 1]}}, {}, "key axes.plant.mu.linspace"),
+        ({"plant.mu": {"values": [0.2]}}, {"heatmap": {"x": "plant.mu", "y": "T_s"}}, "key heatmap.y: 'T_s' is not an axis"),
+        ({"plant.parameters.nothing": {"values": [1.0]}}, {}, "the plant FMU has no variable 'nothing'"),
+        ({"controller.gains": {"values": [1.0]}}, {}, "a group of keys"),
+    ],
+)
+def test_bad_sweep_is_one_error_line_and_runs_nothing(tmp_path, plant_fmu, capsys, axes, extra, message):
+    path = write_sweep(tmp_path, axes, **extra)
+    assert run_sweep(path, None, 1, plant_fmu, progress=False) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {path}: ") and message in err[0], err
+    assert not (tmp_path / "out").exists()  # bad input writes nothing
+
+
+def test_random_axis_is_seeded_and_grid_and_zip_count_cases(tmp_path):
+    axes = {"plant.F_E": {"random": {"low": 0, "high": 150, "n": 3, "seed": 7}}, "plant.m_B": {"values": [4.43, 5, 6]}}
+    grid = load_sweep(write_sweep(tmp_path / "g", axes))
+    zipped = load_sweep(write_sweep(tmp_path / "z", axes, mode="zip"))
+    assert len(grid.cases) == 9 and len(zipped.cases) == 3
+    assert grid.axes["plant.F_E"] == zipped.axes["plant.F_E"] == list(np.random.default_rng(7).uniform(0, 150, 3))
+    assert [c.values for c in zipped.cases] == [
+        {"plant.F_E": f, "plant.m_B": m} for f, m in zip(zipped.axes["plant.F_E"], [4.43, 5, 6], strict=True)
+    ]
+    # 5 and 5.0 are the same case
+    again = load_sweep(write_sweep(tmp_path / "g2", {**axes, "plant.m_B": {"values": [4.43, 5.0, 6.0]}}))
+    assert [c.case_id for c in again.cases] == [c.case_id for c in grid.cases]
+
+
+def test_shipped_sweep_is_valid():
+    sweep = load_sweep(ROOT / "scenarios" / "sweep_FE_mB.yaml")
+    assert sweep.axes["plant.F_E"][0] == 0.0 and sweep.axes["plant.F_E"][-1] == 150.0
+    assert sweep.axes["plant.m_B"][0] == 4.43 and sweep.axes["plant.m_B"][-1] == 8.86
+    assert {c.parameters["plant.mu"] for c in sweep.cases} == {0.0, 0.2}
+    assert sweep.heatmap == ("plant.F_E", "plant.m_B")
+
+
+def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
+    base = {**BASE, "t_end": 1.5}  # ~0.1 s a case, one worker: the kill lands midway
+    axes = {"plant.F_E": {"linspace": [0, 150, 8]}, "plant.m_B": {"values": [4.43, 8.86]}, "plant.mu": {"values": [0.0, 0.2]}}
+    path = write_sweep(tmp_path, axes, base)
+    parts = tmp_path / "out" / "parts"
+    code = f"import sys; from toggle_cosim.sweep import main; sys.exit(main([{str(path)!r}, '--workers', '1', '--fmu', {str(plant_fmu)!r}]))"
+    process = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               start_new_session=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(list(parts.glob("*.parquet"))) < 5:
+        time.sleep(0.005)
+    os.killpg(process.pid, signal.SIGKILL)  # the sweep and its pool worker, no clean-up
+    process.communicate()
+    existing = {p.stem: pq.read_table(p).to_pylist()[0] for p in parts.glob("*.parquet")}
+    assert 5 <= len(existing) < 32, f"{len(existing)} parts when killed"
+    assert not (tmp_path / "out" / "results.parquet").exists()
+
+    sweep = load_sweep(path)
+    result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
+    assert result.skipped == len(existing)
+    assert result.ran == 32 - len(existing)
+    table = read_results(sweep.output)
+    assert len(table) == 32 and set(table["case_id"]) == {c.case_id for c in sweep.cases}
+    assert (table["status"] == "ok").all()
+    for row in table.itertuples():  # the cases finished before the kill were not run again
+        if row.case_id in existing:
+            assert row.wall_s == existing[row.case_id]["wall_s"]
+            assert row.final_error_m == existing[row.case_id]["final_error_m"]
+
+
+def test_a_worker_process_that_dies_is_survived(tmp_path, plant_fmu):
+    psutil = pytest.importorskip("psutil")
+    base = {**BASE, "t_end": 1.5}
+    path = write_sweep(tmp_path, {"plant.F_E": {"linspace": [0, 150, 12]}}, base)
+    sweep = load_sweep(path)
+    parts = sweep.output / "parts"
+    killed = []
+
+    def kill_a_worker() -> None:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and len(list(parts.glob("*.parquet"))) < 3:
+            time.sleep(0.005)
+        for child in psutil.Process().children(recursive=True):
+            with_spawn = any("spawn_main" in part for part in child.cmdline())
+            if with_spawn and not any("resource_tracker" in part for part in child.cmdline()):
+                child.kill()
+                killed.append(child.pid)
+                return
+
+    killer = threading.Thread(target=kill_a_worker)
+    killer.start()
+    result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
+    killer.join()
+    assert killed, "no pool worker to kill"
+    table = read_results(sweep.output)
+    assert len(table) == 12 and result.ran == 12
+    assert (table["status"] == "ok").all()  # the cases in flight ran again in a new pool
+
+
+def test_dask_local_cluster_gives_the_same_table_as_the_pool(pool_run, tmp_path, plant_fmu):
+    distributed = pytest.importorskip("distributed")
+    sweep, _, reference = pool_run
+    dask_sweep = load_sweep(sweep.path, output=tmp_path / "dask")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        result = execute_sweep(dask_sweep, fmu=plant_fmu, scheduler=cluster.scheduler_address, progress=False)
+    assert (result.ran, result.failed) == (8, 0)
+    table = read_results(tmp_path / "dask")
+    assert list(table["case_id"]) == list(reference["case_id"])
+    parameters = ["case", "variant", *sweep.parameter_columns, "status", "fmu_sha256"]
+    pd.testing.assert_frame_equal(table[parameters], reference[parameters])
+    for column in (*METRICS, "samples"):
+        np.testing.assert_allclose(table[column].to_numpy(float), reference[column].to_numpy(float),
+                                   rtol=0, atol=1e-12, equal_nan=True, err_msg=column)
+    assert sorted(p.name for p in result.figures) == ["heatmap_plant.mu=0.2.png", "heatmap_plant.mu=0.png"]
+
+
+def test_unreachable_scheduler_is_bad_input(tmp_path, plant_fmu, capsys):
+    dask = pytest.importorskip("dask")
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0]}})
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        assert run_sweep(path, "tcp://127.0.0.1:9", None, plant_fmu, progress=False) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("error: cannot connect to the Dask scheduler at tcp://127.0.0.1:9")
+    assert not (tmp_path / "out").exists()  # bad input writes nothing
+
+
+def test_module_docstring_example_is_a_valid_sweep(tmp_path):
+    import toggle_cosim.sweep as module
+
+    example = textwrap.dedent(module.__doc__.split("\n\n")[1])
+    document = yaml.safe_load(example)
+    document["base"] = str(ROOT / "scenarios" / "fig4_nominal.yaml")
+    document["output"] = str(tmp_path / "out")
+    path = tmp_path / "doc.yaml"
+    path.write_text(yaml.safe_dump(document), encoding="utf-8")
+    sweep = load_sweep(path)
+    assert len(sweep.cases) == 2 * 16 * 3 * 5 * 2
+
+
+def test_a_worker_without_the_fmu_file_uses_the_bytes_sent_along(tmp_path, plant_fmu):
+    from toggle_cosim.sweep import _resolve_fmu, _sha256
+
+    sha = _sha256(plant_fmu)
+    data = plant_fmu.read_bytes()
+    assert _resolve_fmu(str(plant_fmu), sha, data) == plant_fmu
+    elsewhere = _resolve_fmu(str(tmp_path / "missing.fmu"), sha, data)
+    assert elsewhere != plant_fmu and elsewhere.read_bytes() == data
+    stale = tmp_path / "stale.fmu"
+    stale.write_bytes(b"not this plant")
+    assert _resolve_fmu(str(stale), sha, data) == elsewhere
+    with pytest.raises(FileNotFoundError, match="is not on this machine: .*stale.fmu has SHA-256"):
+        _resolve_fmu(str(stale), sha, None)
