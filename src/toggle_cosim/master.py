@@ -4,13 +4,19 @@
     set inputs, doStep -> terminate, free
 
 The loop allocates nothing per step: value references are resolved once, the trace is a
-preallocated array, and the FMU calls go straight to its C functions (`fmu_io`). The FMU is
-freed on every exit path. A plant fault (an error status, non-finite outputs) ends the run
-early: the trace up to the fault is kept and the run is marked incomplete with the reason.
+preallocated array, and the FMU calls go straight to its C functions (`fmu_io`). The first
+sample (which starts the controller) runs in Python; the rest run in C (`fmu_io.CompiledLoop`,
+the same controller transcribed and checked bit for bit against `VSCController.step` before
+each run), in one call, or in stretches between progress reports. Without a C compiler, for
+a controller the compiled loop does not implement, or from a sample it hands back (non-finite
+outputs, a controller fault), the loop runs in Python with the same result. The FMU is freed
+on every exit path. A plant fault (an error status, non-finite outputs) ends the run early:
+the trace up to the fault is kept and the run is marked incomplete with the reason.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import platform
@@ -23,9 +29,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.controller import VSCController
-from toggle_cosim.fmu_io import PlantFMU
+from toggle_cosim.fmu_io import FMI_FAILED, HAND_BACK, CompiledLoop, PlantFMU
 from toggle_cosim.motor import thrust_constant
 from toggle_cosim.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant import PlantInterface
@@ -59,14 +66,21 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _versions() -> dict[str, str]:
+@functools.cache
+def _installed_versions() -> tuple[tuple[str, str], ...]:
+    """Looked up once per process: importlib.metadata reads and parses every package's METADATA
+    file on each call (~13 ms for these six, more than a paper run's whole loop)."""
     found = {"python": sys.version.split()[0], "platform": platform.platform()}
     for name in ("toggle-cosim", "fmpy", "numpy", "scipy", "pandas", "modelica"):
         try:
             found[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             found[name] = "not installed"
-    return found
+    return tuple(found.items())
+
+
+def _versions() -> dict[str, str]:
+    return dict(_installed_versions())  # a fresh dict for every record
 
 
 def make_controller(run: Run) -> VSCController:
@@ -99,6 +113,64 @@ def _plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | 
     return settings
 
 
+def _compiled_law(controller: VSCController, state: Any) -> dict[str, float] | None:
+    """The controller as `fmu_io.CompiledLoop` takes it, or None for a controller it does not
+    implement (then the loop runs in Python)."""
+    if type(controller) is not VSCController or controller.objective not in ("x_B", "theta1"):
+        return None
+    p, gains = controller.nominal, controller.gains
+    if p.f != 0.0:  # the compiled nominal model takes math.hypot(x_B, f) as |x_B|, exact only for f = 0
+        return None
+    law = {
+        "objective": 0.0 if controller.objective == "x_B" else 1.0,
+        "target": controller.target if controller.objective == "x_B" else controller.target_theta1,
+        "C": gains.C, "Q": gains.Q, "P": gains.P, "delta": gains.delta, "beta": gains.beta,
+        "K_f": controller.K_f, "t0": state.t0, "T_h": state.T_h,
+        **{name: getattr(p, name) for name in ("r1", "r3", "r4", "r5", "f", "h", "phi", "m3", "m5", "mB", "mC", "J2", "g")},
+    }
+    exact = all(isinstance(v, float) or (type(v) is int and abs(v) < 2**53) for v in law.values())
+    return law if exact and all(math.isfinite(v) for v in law.values()) else None
+
+
+def _same(a: float, b: float) -> bool:
+    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
+
+
+_AGREED: dict[tuple, bool] = {}  # the verdict of _compiled_agrees per controller law and stroke
+
+
+def _compiled_agrees(loop: CompiledLoop, controller: VSCController, state: Any, run: Run,
+                     law: dict[str, float]) -> bool:
+    """Whether the compiled controller gives bit for bit what `VSCController.step` gives, at
+    samples across the stroke, at rest and moving both ways, in both phases: a guard against
+    the C transcription and controller.py drifting apart (the loop then runs in Python).
+    Checked once per process for each controller law and stroke."""
+    key = (tuple(law.items()), run.x_start, run.x_target)
+    if key not in _AGREED:
+        _AGREED[key] = _check_compiled(loop, controller, state, run)
+    return _AGREED[key]
+
+
+def _check_compiled(loop: CompiledLoop, controller: VSCController, state: Any, run: Run) -> bool:
+    span = run.x_target - run.x_start
+    for x_B in (run.x_start, run.x_start + 0.3 * span, run.x_start + 0.8 * span, run.x_target):
+        for v_B in (-0.35, 0.0, 0.2, 0.9):
+            for t in (state.t0, state.t0 + state.T_h, state.t0 + state.T_h + 0.5):
+                try:
+                    u, control = controller.step(state, t, x_B, v_B)
+                    expected = (u, control.S, PHASES[control.phase], control.e)
+                    if not all(math.isfinite(v) for v in expected):
+                        expected = None
+                except (ArithmeticError, ValueError):
+                    expected = None
+                got = loop.control(t, x_B, v_B)
+                if (expected is None) != (got is None):
+                    return False
+                if expected is not None and not all(_same(a, b) for a, b in zip(expected, got)):
+                    return False
+    return True
+
+
 def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None) -> RunOutcome:
     """Run one scenario variant against `plant`. Never raises for a plant fault: see RunOutcome."""
     started = clock.perf_counter()
@@ -123,29 +195,60 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         fmu.enter_initialization()
         fmu.write_inputs((0.0, F_E))
         fmu.exit_initialization()
-        T_s = run.T_s
+        T_s, t_end = run.T_s, run.t_end
         every = max(n // 100, 1)
+        read_outputs, write_inputs, do_step = fmu.read_outputs, fmu.write_inputs, fmu.do_step
+        control_step, isfinite = controller.step, math.isfinite
+
+        def python_steps(k0: int, k_end: int, read_first: bool = True) -> int:
+            """Samples k0 .. k_end - 1 in Python; the next sample, or -1 when the outputs went
+            non-finite (`reason` says so). A plant error raises. With read_first False the
+            outputs of sample k0 are in the trace already (read by the compiled loop)."""
+            nonlocal rows, state, reason
+            for k in range(k0, k_end):
+                t = k * T_s
+                row = data[k]
+                row[0] = t
+                if read_first or k != k0:
+                    read_outputs(row[1 : 1 + n_out])
+                x_B, v_B = row[i_x], row[i_v]
+                if not (isfinite(x_B) and isfinite(v_B)):
+                    reason = f"plant outputs became non-finite at t = {t:.6g} s"
+                    return -1
+                if state is None:
+                    state = controller.start(t, (x_B, v_B))
+                u, control = control_step(state, t, x_B, v_B)
+                row[col_u : col_u + 5] = (u, F_E, control.S, PHASES[control.phase], control.e)
+                rows = k + 1
+                if k == n:
+                    return k + 1
+                write_inputs((u, F_E))
+                do_step(t, T_s)
+                if progress is not None and k % every == 0:
+                    progress(t / t_end)
+            return k_end
+
         loop_started = clock.perf_counter()
-        for k in range(n + 1):
-            t = k * T_s
-            row = data[k]
-            row[0] = t
-            fmu.read_outputs(row[1 : 1 + n_out])
-            x_B, v_B = row[i_x], row[i_v]
-            if not (math.isfinite(x_B) and math.isfinite(v_B)):
-                reason = f"plant outputs became non-finite at t = {t:.6g} s"
+        k = python_steps(0, 1)  # the first sample starts the controller (S0, T_h)
+        compiled = None
+        if k == 1 and n > 0 and (law := _compiled_law(controller, state)) is not None:
+            compiled = fmu.compiled_loop(data, n_out, i_x, i_v, col_u, n, T_s, F_E, law)
+            if compiled is not None and not _compiled_agrees(compiled, controller, state, run, law):
+                compiled = None
+        while compiled is not None and 0 < k <= n:
+            # in C: up to the next sample that reports progress, or to the end
+            end = n + 1 if progress is None else min(k + (every - k % every) % every + 1, n + 1)
+            code, k = compiled.run(k, end)
+            if code == FMI_FAILED:  # reading sample k failed, or setting/stepping after recording it
+                rows = k if compiled.fault_function == fmu._get_name else k + 1
+                raise FMICallException(function=compiled.fault_function, status=compiled.fault_status)
+            rows = k
+            if code == HAND_BACK:  # a sample the Python decides (non-finite outputs, a controller fault)
                 break
-            if state is None:
-                state = controller.start(t, (x_B, v_B))
-            u, control = controller.step(state, t, x_B, v_B)
-            row[col_u : col_u + 5] = (u, F_E, control.S, PHASES[control.phase], control.e)
-            rows = k + 1
-            if k == n:
-                break
-            fmu.write_inputs((u, F_E))
-            fmu.do_step(t, T_s)
-            if progress is not None and k % every == 0:
-                progress(t / run.t_end)
+            if progress is not None and k - 1 < n and (k - 1) % every == 0:
+                progress((k - 1) * T_s / t_end)
+        if 0 < k <= n:  # the Python loop: no compiled loop, or from the sample it handed back (read already)
+            python_steps(k, n + 1, read_first=compiled is None)
         loop_finished = clock.perf_counter()
     except Exception as error:  # noqa: BLE001 - any plant failure ends the run cleanly
         loop_finished = clock.perf_counter()
