@@ -31,7 +31,6 @@ from fmpy.fmi2 import FMU2Slave  # noqa: E402
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64, fmi3FMUState, fmi3ValueReference  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-from toggle_cosim.build.model_description import time_value_reference  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 HEADERS = Path(fmpy.__file__).parent / "c-code"

@@ -23,7 +23,7 @@ import platform
 import sys
 import time as clock
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -32,7 +32,8 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.controller import VSCController
-from toggle_cosim.fmu_io import FMI_FAILED, HAND_BACK, CompiledLoop, PlantFMU
+from toggle_cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop
+from toggle_cosim.fmu_io import PlantFMU
 from toggle_cosim.motor import thrust_constant
 from toggle_cosim.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant import PlantInterface

@@ -95,10 +95,12 @@ def _fmi_headers() -> Path:
     return Path(fmpy.__file__).parent / "c-code"
 
 
-def _compiler() -> str:
+def find_c_compiler() -> str:
+    """The C compiler to use: $CC, else cc, gcc or clang, as a full path."""
     for name in (os.environ.get("CC", ""), "cc", "gcc", "clang"):
-        if name and shutil.which(name):
-            return name
+        found = shutil.which(name) if name else None
+        if found:
+            return found
     raise FMUBuildError("no C compiler found (set CC or install gcc)")
 
 
@@ -159,7 +161,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         binary_dir.mkdir(parents=True)
         binary = binary_dir / f"{identifier}{shared_library_suffix()}"
         command = [
-            _compiler(), *CFLAGS, f"-I{sources}", f"-I{_fmi_headers()}",
+            find_c_compiler(), *CFLAGS, f"-I{sources}", f"-I{_fmi_headers()}",
             *(str(sources / n) for n in compiled),
             "-o", str(binary), "-lm",
         ]
