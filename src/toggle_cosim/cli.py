@@ -7,7 +7,9 @@ The only module that knows about files, exit codes and progress display. Exit st
 from __future__ import annotations
 
 import json
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -46,10 +48,17 @@ class RunFailed(click.ClickException):
         click.echo(f"failed: {self.message}", err=True)
 
 
+def _terminate_as_interrupt(signum: int, frame: object) -> None:
+    """SIGTERM ends a run the way Ctrl-C does: the run in progress is written as incomplete."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="toggle-cosim")
 def main() -> None:
     """Co-simulation of the PMLSM-driven toggle mechanism (Fung, Wu and Chen 2001)."""
+    if threading.current_thread() is threading.main_thread():  # signal handlers live in the main thread
+        signal.signal(signal.SIGTERM, _terminate_as_interrupt)
 
 
 def project_root() -> Path:
@@ -171,6 +180,9 @@ def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
         )
         click.echo(f"{label}: {status}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
         outcomes.append(outcome)
+        if outcome.interrupted:
+            click.echo(f"interrupted: {label} written as incomplete; {len(pairs) - number} run(s) not started", err=True)
+            sys.exit(130)
     return outcomes
 
 
@@ -303,3 +315,7 @@ def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Pat
     from toggle_cosim.sweep import run_sweep
 
     sys.exit(run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed))
+
+
+if __name__ == "__main__":
+    main()

@@ -71,6 +71,7 @@ class PlantFMU:
             self._step_outputs = (ctypes.byref(self._event), ctypes.byref(self._terminate),
                                   ctypes.byref(self._early), ctypes.byref(self._last_time))
         self._component = None
+        self._saved = None  # the checkpoint, an fmi2FMUstate / fmi3FMUState
 
     def _c_function(self, name: str):  # noqa: ANN202 - a ctypes function pointer
         """The FMU's C function as fmpy loaded it (argument and result types set), or the
@@ -107,6 +108,32 @@ class PlantFMU:
             self.fmu.setReal(vr, [float(value)]) if not self.is_fmi3 else self.fmu.setFloat64(vr, [float(value)])
         else:
             raise TypeError(f"variable {name!r} is of type {kind}; only Real/Float64 and Boolean can be set")
+
+    # -- checkpoints (FMI "get/set FMU state") ------------------------------------------------
+    @property
+    def can_save_state(self) -> bool:
+        return bool(self.plant.model_description.coSimulation.canGetAndSetFMUstate)
+
+    def save_state(self) -> None:
+        """Keep the FMU's whole state as the checkpoint (one state, updated in place)."""
+        if self.is_fmi3:
+            if self._saved is None:
+                self._saved = self.fmu.getFMUState()
+            else:
+                self.fmu.fmi3GetFMUState(self._component, ctypes.byref(self._saved))
+        elif self._saved is None:
+            self._saved = self.fmu.getFMUstate()
+        else:
+            self.fmu.fmi2GetFMUstate(self._component, ctypes.byref(self._saved))
+
+    def restore_state(self) -> None:
+        """Put the FMU back to the checkpoint (also out of an error state)."""
+        if self._saved is None:
+            raise RuntimeError("no checkpoint to restore")
+        if self.is_fmi3:
+            self.fmu.setFMUState(self._saved)
+        else:
+            self.fmu.setFMUstate(self._saved)
 
     def close(self) -> None:
         """Terminate and free the instance, whatever state it is in, and delete the unzipped copy."""

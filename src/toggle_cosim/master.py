@@ -42,6 +42,21 @@ from toggle_cosim.summary import RunSummary, summarize
 from toggle_cosim.traces import Trace
 
 CONTROL_COLUMNS = ("iq_ref", "F_E", "S", "phase", "e")
+CHECKPOINT_SAMPLES = 200  # the FMU state is saved every this many samples (where it can be)
+RETRY_SUBSTEPS = 10  # a failed step is retried from the checkpoint in this many smaller steps
+RETRIED_STATUSES = (2, 3)  # discard, error; fatal is not retried (the FMU is beyond recovery)
+
+
+class _StepFailed(Exception):
+    """doStep failed at sample k (after sample k was recorded)."""
+
+    def __init__(self, k: int, error: FMICallException) -> None:
+        super().__init__(str(error))
+        self.k, self.error = k, error
+
+
+class _RetryFailed(Exception):
+    """The retry from the checkpoint failed as well; the message tells both failures."""
 PHASES = {"reaching": 0.0, "sliding": 1.0}
 
 
@@ -57,6 +72,7 @@ class RunOutcome:
     loop_seconds: float
     summary: RunSummary | None
     record: dict[str, Any] = field(default_factory=dict)
+    interrupted: bool = False  # stopped by SIGINT/SIGTERM: the caller should stop too
 
 
 def file_sha256(path: Path) -> str:
@@ -188,6 +204,8 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
     reason: str | None = None
     F_E = run.plant.F_E
     state = None
+    retries: list[dict[str, Any]] = []
+    interrupted = False
     loop_started = loop_finished = clock.perf_counter()
     try:
         fmu.instantiate(0.0, run.t_end)
@@ -224,7 +242,10 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
                 if k == n:
                     return k + 1
                 write_inputs((u, F_E))
-                do_step(t, T_s)
+                try:
+                    do_step(t, T_s)
+                except FMICallException as error:
+                    raise _StepFailed(k, error) from None
                 if progress is not None and k % every == 0:
                     progress(t / t_end)
             return k_end
@@ -236,24 +257,68 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
             compiled = fmu.compiled_loop(data, n_out, i_x, i_v, col_u, n, T_s, F_E, law)
             if compiled is not None and not _compiled_agrees(compiled, controller, state, run, law):
                 compiled = None
-        while compiled is not None and 0 < k <= n:
-            # in C: up to the next sample that reports progress, or to the end
-            end = n + 1 if progress is None else min(k + (every - k % every) % every + 1, n + 1)
-            code, k = compiled.run(k, end)
-            if code == FMI_FAILED:  # reading sample k failed, or setting/stepping after recording it
-                rows = k if compiled.fault_function == fmu._get_name else k + 1
-                raise FMICallException(function=compiled.fault_function, status=compiled.fault_status)
-            rows = k
-            if code == HAND_BACK:  # a sample the Python decides (non-finite outputs, a controller fault)
-                break
-            if progress is not None and k - 1 < n and (k - 1) % every == 0:
-                progress((k - 1) * T_s / t_end)
-        if 0 < k <= n:  # the Python loop: no compiled loop, or from the sample it handed back (read already)
-            python_steps(k, n + 1, read_first=compiled is None)
+
+        def stretch(k: int, stop: int) -> int:
+            """Samples k .. stop - 1, in C where it can, else in Python; the next sample or -1."""
+            nonlocal rows, compiled
+            while compiled is not None and k < stop:
+                # in C: up to the next sample that reports progress, or to the end of the stretch
+                end = stop if progress is None else min(k + (every - k % every) % every + 1, stop)
+                code, k = compiled.run(k, end)
+                if code == FMI_FAILED:  # reading sample k failed, or setting/stepping after recording it
+                    rows = k if compiled.fault_function == fmu._get_name else k + 1
+                    error = FMICallException(function=compiled.fault_function, status=compiled.fault_status)
+                    if compiled.fault_function == fmu._step_name:
+                        raise _StepFailed(k, error)
+                    raise error
+                rows = k
+                if code == HAND_BACK:  # a sample the Python decides (non-finite outputs, a controller fault)
+                    compiled = None
+                    return python_steps(k, stop, read_first=False) if k <= n else k
+                if progress is not None and k - 1 < n and (k - 1) % every == 0:
+                    progress((k - 1) * T_s / t_end)
+            return python_steps(k, stop) if 0 < k < stop else k
+
+        def retry(checkpoint: int, failed: int, error: FMICallException) -> None:
+            """Back to the checkpoint, the recorded inputs replayed up to the failed sample, and
+            its step again in RETRY_SUBSTEPS smaller steps; raises if that fails too."""
+            try:
+                fmu.restore_state()
+                for j in range(checkpoint, failed):
+                    write_inputs((data[j, col_u], data[j, col_u + 1]))
+                    do_step(j * T_s, T_s)
+                write_inputs((data[failed, col_u], data[failed, col_u + 1]))
+                h = T_s / RETRY_SUBSTEPS
+                for m in range(RETRY_SUBSTEPS):
+                    do_step(failed * T_s + m * h, h)
+            except FMICallException as again:
+                raise _RetryFailed(
+                    f"{error} Retried from the checkpoint at t = {checkpoint * T_s:.6g} s in {RETRY_SUBSTEPS} "
+                    f"substeps: {again}"
+                ) from again
+
+        saving = fmu.can_save_state
+        while 0 < k <= n:
+            stop = min(k + CHECKPOINT_SAMPLES, n + 1)
+            if saving:
+                fmu.save_state()
+            checkpoint = k
+            try:
+                k = stretch(k, stop)
+            except _StepFailed as failure:
+                if not saving or failure.error.status not in RETRIED_STATUSES:
+                    raise failure.error from None
+                retry(checkpoint, failure.k, failure.error)
+                retries.append({"t": failure.k * T_s, "error": str(failure.error)})
+                k = failure.k + 1
         loop_finished = clock.perf_counter()
+    except KeyboardInterrupt:
+        loop_finished = clock.perf_counter()
+        interrupted = True
+        reason = f"interrupted (SIGINT or SIGTERM) at t = {max(rows - 1, 0) * run.T_s:.6g} s"
     except Exception as error:  # noqa: BLE001 - any plant failure ends the run cleanly
         loop_finished = clock.perf_counter()
-        reason = f"plant FMU failed at t = {rows * run.T_s:.6g} s: {error}"
+        reason = f"plant FMU failed at t = {max(rows - 1, 0) * run.T_s:.6g} s: {error}"
     finally:
         fmu.close()
     trace = Trace(names, data[:rows].copy())
@@ -276,10 +341,11 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         "status": "complete" if complete else "incomplete",
         "reason": reason,
         "samples": rows,
+        "retries": retries,
         "wall_time_s": wall,
         "loop_time_s": loop_finished - loop_started,
         "real_time_factor": (rows - 1) * run.T_s / max(loop_finished - loop_started, 1e-12),
         "summary": summary.as_dict() if summary else None,
         "versions": _versions(),
     }
-    return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record)
+    return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)

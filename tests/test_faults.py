@@ -1,0 +1,172 @@
+"""Plant faults and interruptions: the master stops cleanly, frees the FMU, keeps the trace up to
+the fault (marked incomplete, with the reason), and first retries a failed step from a saved
+state where the FMU can save it. Result files are never left truncated."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from fmpy.fmi1 import FMICallException
+
+from toggle_cosim import fmu_io, master
+from toggle_cosim.build import build_fmu
+from toggle_cosim.plant import check_plant
+from toggle_cosim.scenario import runs_from_document
+from toggle_cosim.traces import read_csv
+
+ROOT = Path(__file__).resolve().parent.parent
+FAULT_MODEL = '''within ToggleLSM;
+model PlantWithFault "Test only: the plant, with a derivative that is not finite after t_fault"
+  extends Plant;
+  parameter Real t_fault(unit = "s") = 0.2 "Time after which the model has no finite derivative";
+  Real clock(start = 0.0, fixed = true) "Integrates 1/sqrt(t_fault - time), NaN past t_fault";
+equation
+  der(clock) = 1 / sqrt(t_fault - time);
+end PlantWithFault;
+'''
+
+
+@pytest.fixture(scope="module")
+def fault_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A fault-injecting plant built from a variant of the Modelica source (a copy of the package
+    with one more class), so the fault travels the same build and shell as the real plant."""
+    folder = tmp_path_factory.mktemp("faulty")
+    package = folder / "ToggleLSM"
+    shutil.copytree(ROOT / "modelica" / "ToggleLSM", package)
+    (package / "PlantWithFault.mo").write_text(FAULT_MODEL)
+    return build_fmu(package, "ToggleLSM.PlantWithFault", folder / "Faulty.fmu").fmu.path
+
+
+def _nominal(**plant: object):
+    document = yaml.safe_load((ROOT / "scenarios" / "fig4_nominal.yaml").read_text())
+    document.pop("variants")
+    document["t_end"] = 0.5
+    document["plant"].update(plant)
+    return runs_from_document(document)[0]
+
+
+def _count_frees(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    freed: list[int] = []
+    original = fmu_io.PlantFMU.close
+
+    def close(self: fmu_io.PlantFMU) -> None:
+        original(self)
+        freed.append(1)
+
+    monkeypatch.setattr(fmu_io.PlantFMU, "close", close)
+    return freed
+
+
+def test_an_fmu_fault_ends_the_run_cleanly_after_a_retry(fault_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The Modelica fault at t = 0.2 s: doStep returns an error, the master retries the step from
+    its checkpoint in smaller steps (in vain), frees the FMU and keeps the trace up to 0.2 s."""
+    freed = _count_frees(monkeypatch)
+    outcome = master.simulate(_nominal(), check_plant(fault_fmu))
+    assert not outcome.complete and freed == [1]
+    assert "fmi2DoStep failed with status 3" in outcome.reason
+    assert "Retried from the checkpoint" in outcome.reason
+    time_column = outcome.trace.time
+    assert time_column[-1] == pytest.approx(0.1995, abs=1e-9)  # the last sample before t_fault = 0.2 s
+    assert np.all(np.isfinite(outcome.trace.data))
+    assert outcome.record["status"] == "incomplete" and outcome.record["samples"] == len(time_column)
+
+
+@pytest.mark.parametrize("status, retried", [(2, True), (3, True), (4, False)])
+def test_each_error_status_of_a_step(plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, status: int, retried: bool) -> None:
+    """A mock failure of one doStep at t = 0.1 s with Discard (2), Error (3) or Fatal (4): Discard
+    and Error are retried from the saved state and the run completes with the same trace as an
+    undisturbed run; Fatal is not retried and ends the run, trace kept up to the fault."""
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")  # the Python loop, whose do_step we can intercept
+    plant = check_plant(plant_fmu)
+    clean = master.simulate(_nominal(), plant)
+    freed = _count_frees(monkeypatch)
+    original = fmu_io.PlantFMU.do_step
+    failed: list[float] = []
+
+    def do_step(self: fmu_io.PlantFMU, t: float, h: float) -> None:
+        if abs(t - 0.1) < 1e-12 and h == 0.0005 and not failed:
+            failed.append(t)
+            raise FMICallException(function="fmi2DoStep", status=status)
+        original(self, t, h)
+
+    monkeypatch.setattr(fmu_io.PlantFMU, "do_step", do_step)
+    outcome = master.simulate(_nominal(), plant)
+    assert failed == [pytest.approx(0.1)] and freed == [1]
+    if retried:
+        assert outcome.complete, outcome.reason
+        assert outcome.record["retries"] == [{"t": pytest.approx(0.1), "error": f"fmi2DoStep failed with status {status} "
+                                              f"({['ok', 'warning', 'discard', 'error', 'fatal'][status]})."}]
+        assert np.max(np.abs(outcome.trace.column("x_B") - clean.trace.column("x_B"))) < 1e-9
+    else:
+        assert not outcome.complete and "status 4 (fatal)" in outcome.reason
+        assert outcome.trace.time[-1] == pytest.approx(0.1)
+        assert outcome.record["retries"] == []
+
+
+def test_non_finite_outputs_end_the_run(plant_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+    original = fmu_io.PlantFMU.read_outputs
+    calls = [0]
+
+    def read_outputs(self: fmu_io.PlantFMU, into: np.ndarray) -> None:
+        original(self, into)
+        calls[0] += 1
+        if calls[0] > 300:
+            into[:] = np.nan
+
+    monkeypatch.setattr(fmu_io.PlantFMU, "read_outputs", read_outputs)
+    freed = _count_frees(monkeypatch)
+    outcome = master.simulate(_nominal(), check_plant(plant_fmu))
+    assert not outcome.complete and freed == [1]
+    assert outcome.reason == "plant outputs became non-finite at t = 0.15 s"
+    assert len(outcome.trace.time) == 300 and np.all(np.isfinite(outcome.trace.data))
+
+
+def test_sigterm_writes_a_complete_file_marked_incomplete(plant_fmu: Path, tmp_path: Path) -> None:
+    """Killing a long run with SIGTERM: exit 130, the trace up to the signal is a whole CSV, and
+    run.json says incomplete and why; no temporary file is left behind."""
+    document = yaml.safe_load((ROOT / "scenarios" / "fig4_nominal.yaml").read_text())
+    document.pop("variants")
+    document["t_end"] = 90.0
+    document["plant"]["parameters"] = {"solver.maxStep": 1e-5}  # slow the FMU down: about 2 simulated s per second
+    scenario = tmp_path / "long.yaml"
+    scenario.write_text(yaml.safe_dump(document))
+    out = tmp_path / "out"
+    env = {**os.environ, "TOGGLE_COSIM_KERNEL": "0"}  # the Python loop, which sees the signal at every sample
+    process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.cli", "run", str(scenario), "--fmu", str(plant_fmu),
+                                "--out", str(out), "-q"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(2.5)
+    process.send_signal(signal.SIGTERM)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, (stdout, stderr)
+    record = json.loads((out / "fig4_nominal" / "run" / "run.json").read_text())
+    assert record["status"] == "incomplete" and record["reason"].startswith("interrupted")
+    trace = read_csv(out / "fig4_nominal" / "run" / "trace.csv")
+    assert 0 < trace.data.shape[0] < 180001 and trace.data.shape[0] == record["samples"]
+    assert np.all(np.isfinite(trace.data))
+    assert not list(out.rglob("*.partial"))
+
+
+def test_sigkill_leaves_no_truncated_csv(plant_fmu: Path, tmp_path: Path) -> None:
+    """SIGKILL cannot be caught: what is left is either nothing or whole files, never a
+    truncated CSV under the final name (files are written under a temporary name first)."""
+    out = tmp_path / "out"
+    runs = [str(ROOT / "scenarios" / f"{name}.yaml") for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")]
+    process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.cli", "run", *runs, "--fmu", str(plant_fmu),
+                                "--out", str(out), "-q"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(1.2)
+    process.kill()
+    process.wait(timeout=30)
+    for csv in out.rglob("trace.csv"):
+        trace = read_csv(csv)
+        assert trace.data.shape[0] == 3001
