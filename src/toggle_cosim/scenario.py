@@ -245,11 +245,12 @@ def validate_document(document: Any) -> None:
         raise ScenarioError(_schema_message(errors[0]))
 
 
-def _merge(base: dict[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+def merge_documents(base: dict[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+    """`base` with `override` applied key by key, nested mappings merged (a variant, a sweep case)."""
     merged = copy.deepcopy(base)
     for key, value in override.items():
         if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
-            merged[key] = _merge(merged[key], value)
+            merged[key] = merge_documents(merged[key], value)
         else:
             merged[key] = copy.deepcopy(value)
     return merged
@@ -324,7 +325,7 @@ def runs_from_document(document: Any, source: Path | None = None) -> list[Run]:
     if not variants:
         return [_build_run(document, None, source)]
     base = {k: v for k, v in document.items() if k != "variants"}
-    return [_build_run(_merge(base, override), name, source) for name, override in variants.items()]
+    return [_build_run(merge_documents(base, override), name, source) for name, override in variants.items()]
 
 
 def _line_column(text: str, position: int) -> tuple[int, int]:

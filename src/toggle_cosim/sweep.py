@@ -65,7 +65,7 @@ import numpy as np
 import yaml
 
 from toggle_cosim.scenario import SCHEMA as SCENARIO_SCHEMA
-from toggle_cosim.scenario import ScenarioError, load_scenario, runs_from_document
+from toggle_cosim.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
 from toggle_cosim.summary import RunSummary
 
 __all__ = [
@@ -261,16 +261,6 @@ def case_id(document: Mapping[str, Any], variant: str | None) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
-def _merge(base: dict[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
-    merged = copy.deepcopy(base)
-    for key, value in override.items():
-        if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
-            merged[key] = _merge(merged[key], value)
-        else:
-            merged[key] = copy.deepcopy(value)
-    return merged
-
-
 def _schema_message(error: jsonschema.ValidationError) -> str:
     key = ".".join(str(p) for p in error.absolute_path) or "(top level)"
     if error.validator == "additionalProperties":
@@ -377,7 +367,7 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
     cases: list[Case] = []
     seen: dict[str, int] = {}
     for variant in variants:
-        resolved = _merge(base_clean, variants_doc[variant]) if variant is not None else copy.deepcopy(base_clean)
+        resolved = merge_documents(base_clean, variants_doc[variant]) if variant is not None else copy.deepcopy(base_clean)
         for combo in combos:
             values = dict(zip(axes, combo, strict=True))
             case_doc = copy.deepcopy(resolved)
