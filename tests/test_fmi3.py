@@ -176,7 +176,7 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
     schema = etree.XMLSchema(etree.parse(str(Path(fmpy.__file__).parent / "schema" / "fmi3" / "fmi3BuildDescription.xsd")))
     document = etree.fromstring(build_description)
     assert schema.validate(document), schema.error_log
-    assert [f.get("name") for f in document.iter("SourceFile")] == ["solver.c", "fmi3.c", "model.c"]
+    assert [f.get("name") for f in document.iter("SourceFile")] == ["solver.c", "instance.c", "fmi3.c", "model.c"]
 
     md = read_model_description(str(plant3_fmu))
     assert md.fmiVersion == "3.0"

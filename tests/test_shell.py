@@ -396,7 +396,7 @@ def model_description(spec: Spec, guid: str) -> str:
       canGetAndSetFMUstate="true" canSerializeFMUstate="true"
       providesDirectionalDerivative="false" canInterpolateInputs="false"
       maxOutputDerivativeOrder="0" canNotUseMemoryManagementFunctions="false">
-    <SourceFiles><File name="solver.c"/><File name="fmi2.c"/><File name="model.c"/></SourceFiles>
+    <SourceFiles><File name="solver.c"/><File name="instance.c"/><File name="fmi2.c"/><File name="model.c"/></SourceFiles>
   </CoSimulation>
   <UnitDefinitions><Unit name="s"><BaseUnit s="1"/></Unit></UnitDefinitions>
   <LogCategories>
@@ -438,10 +438,10 @@ def _run(command: list[str]) -> None:
 
 @pytest.fixture(scope="session")
 def shell_objects(tmp_path_factory) -> list[Path]:
-    """solver.c and fmi2.c, compiled with the strict flags the shell promises to pass."""
+    """solver.c, instance.c and fmi2.c, compiled with the strict flags the shell promises to pass."""
     out = tmp_path_factory.mktemp("shell")
     objects = []
-    for name in ("solver", "fmi2"):
+    for name in ("solver", "instance", "fmi2"):
         obj = out / f"{name}.o"
         _run([CC, "-c", *STRICT, *COMMON, str(SHELL / f"{name}.c"), "-o", str(obj)])
         objects.append(obj)
@@ -474,7 +474,7 @@ def build(tmp_path_factory, shell_objects):
         with zipfile.ZipFile(fmu, "w") as zf:
             zf.writestr("modelDescription.xml", model_description(spec, guid))
             zf.write(library, f"binaries/{fmpy.platform}/{library.name}")
-            for source in ("md_model.h", "solver.h", "solver.c", "fmi2.c"):
+            for source in ("md_model.h", "solver.h", "solver.c", "instance.h", "instance.c", "fmi2.c"):
                 zf.write(SHELL / source, f"sources/{source}")
             zf.writestr("sources/model.c", model_c)
         unzipped = Path(fmpy.extract(str(fmu), str(work / "unzipped")))

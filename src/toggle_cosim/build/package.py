@@ -5,9 +5,12 @@ package generated from the Modelica source, and the shell sources shipped inside
 (`shell/`). The FMU carries the same sources under `sources/`, so it can be rebuilt (an FMI 3.0
 FMU also says how, in `sources/buildDescription.xml`).
 
-The two FMI versions share the solver core (`shell/solver.c`) and differ only in the FMI layer
-(`shell/fmi2.c` or `shell/fmi3.c`), the binaries folder name and the XML written next to it;
-`FMI_VERSIONS` holds those differences.
+The two FMI versions share the solver core (`shell/solver.c`) and the generic FMU shell
+(`shell/instance.c`: state machine, get/set, FMU states, logging), and differ only in the thin
+FMI layer (`shell/fmi2.c` or `shell/fmi3.c`), the binaries folder name and the XML written next
+to it; `FMI_VERSIONS` holds those differences. The layer #includes `instance.c`, so the
+translation units compiled are solver.c, the layer and model.c (all the buildDescription.xml
+lists); `instance.c` travels in `sources/` beside the headers.
 """
 
 from __future__ import annotations
@@ -31,7 +34,11 @@ import fmpy
 from toggle_cosim.build.compile import GeneratedModel
 from toggle_cosim.build.model_description import fmi2_model_description, fmi3_model_description
 
-CORE_FILES = ("md_model.h", "solver.h", "solver.c")
+# The shell files every FMU carries in sources/, whatever its FMI version.
+CORE_FILES = ("md_model.h", "solver.h", "solver.c", "instance.h", "instance.c")
+# The translation units compiled into every binary, besides the FMI layer and model.c
+# (instance.c is not one: each layer #includes it).
+CORE_UNITS = ("solver.c", "instance.c")
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall")
 
 
@@ -124,7 +131,7 @@ def fmi3_build_description(model_identifier: str, source_files: tuple[str, ...])
 class FMIVersion:
     """What differs between the FMI versions this package can write."""
 
-    interface: str  # the shell's FMI layer, compiled with solver.c and model.c
+    interface: str  # the shell's FMI layer, compiled with CORE_UNITS
     binaries_folder: Callable[[], str]
     model_description: Callable[[GeneratedModel, str, str], str]
     build_description: Callable[[str, tuple[str, ...]], str] | None
@@ -144,7 +151,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         raise FMUBuildError(f"unsupported FMI version {fmi_version!r} (choose from {', '.join(FMI_VERSIONS)})")
     output = Path(output)
     identifier = model_identifier_for(output)
-    compiled = ("solver.c", version.interface, "model.c")
+    compiled = (*CORE_UNITS, version.interface, "model.c")
     with tempfile.TemporaryDirectory(prefix="toggle-cosim-build-") as scratch:
         work = Path(scratch)
         sources = work / "sources"

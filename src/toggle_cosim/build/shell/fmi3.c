@@ -1,8 +1,8 @@
-/* FMI 3.0 Co-Simulation entry points for a generated model (md_model.h), on top of the
- * model-independent core in solver.c -- the same core fmi2.c wraps, so an FMI 3.0 build and
- * an FMI 2.0 build of one model compute the same numbers.
+/* FMI 3.0 Co-Simulation entry points for a generated model (md_model.h): a thin layer over
+ * the generic shell (instance.c) and the solver core (solver.c) -- the same ones fmi2.c
+ * wraps, so an FMI 3.0 build and an FMI 2.0 build of one model compute the same numbers.
  *
- References in quotes are section titles of the FMI 3.0 standard.
+ * References in quotes are section titles of the FMI 3.0 standard.
  *
  * Interface types: Co-Simulation only. The standard asks every function of fmi3Functions.h to
  * be present in the binary ("FMU Distribution"), so the Model Exchange and Scheduled Execution
@@ -18,7 +18,8 @@
  * independent variable `time` (read-only). All variables are scalars: nValues must equal
  * nValueReferences. There are no other types.
  *
- * State machine ("State Machine and Semantics", "State Machine for Co-Simulation"), what a Co-Simulation FMU without Event Mode needs:
+ * State machine ("State Machine and Semantics", "State Machine for Co-Simulation"), what a
+ * Co-Simulation FMU without Event Mode needs:
  * instantiated -> initialisationMode -> stepMode -> terminated, plus error and fatal.
  *   instantiated: fmi3Set for parameters, inputs and settings; fmi3Get returns start values
  *                 (parameters, inputs, settings, calculated parameters and constants
@@ -31,41 +32,48 @@
  * Misuse that does not damage the instance returns fmi3Error and leaves the state unchanged.
  * fmi3Fatal is sticky (reserved, as in fmi2.c).
  *
- * Logging ("Status Returned by Functions and Logging Mechanism"): error and fatal statuses are always reported through logMessage (if
- * it is not NULL); warnings under logStatusWarning and debug output under logEvents / logAll
- * only when enabled by loggingOn or fmi3SetDebugLogging. '#' in messages is escaped as "##"
- * (the standard uses #vr# to reference variables).
+ * Logging ("Status Returned by Functions and Logging Mechanism"): error and fatal statuses
+ * are always reported through logMessage (if it is not NULL); warnings under
+ * logStatusWarning and debug output under logEvents / logAll only when enabled by loggingOn
+ * or fmi3SetDebugLogging. '#' in messages is escaped as "##" (the standard uses #vr# to
+ * reference variables).
  *
  * Memory: FMI 3.0 has no memory callbacks; the shell uses calloc and free.
+ *
+ * What is FMI 3.0's own, and so lives here rather than in instance.c (the logic both
+ * standards share):
+ *   - every function of fmi3Functions.h, the unsupported ones included; no memory callbacks
+ *     (calloc and free); the logMessage callback with '#' escaped;
+ *   - log categories logEvents, logStatusWarning, logStatusError, logAll; errors are always
+ *     logged; with loggingOn false, nothing else is;
+ *   - fmi3EnterInitializationMode takes the experiment (start, stop time and tolerance);
+ *     variables can be read from instantiation on (start values); the solver settings are
+ *     tunable (settable in Step Mode too); the independent variable `time` (VR_TIME);
+ *   - the nValues arguments, the types this FMU has none of, and fmi3DoStep's output flags
+ *     (eventHandlingNeeded, terminateSimulation, earlyReturn: always false) and
+ *     lastSuccessfulTime.
  */
-#include <math.h>
-#include <stdarg.h>
-#include <stdint.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fmi3Functions.h"
-#include "md_model.h"
-#include "solver.h"
+#include "instance.h"
+#include "instance.h" /* the generic shell (instance.c), compiled as a unit of its own */
 
 /* ---------------------------------------------------------------------------------------
- * Instance
+ * Instance and layer description
  * ------------------------------------------------------------------------------------- */
 
-typedef enum {
-    ST_INSTANTIATED = 1 << 0,
-    ST_INIT = 1 << 1,
-    ST_STEP = 1 << 2,       /* Step Mode: ready for fmi3DoStep */
-    ST_TERMINATED = 1 << 3,
-    ST_ERROR = 1 << 4,
-    ST_FATAL = 1 << 5       /* reserved: nothing in this shell damages an instance beyond
-                               repair today (all failures are caught at the last good point) */
-} fmu_state;
+typedef struct {
+    md_instance base;               /* first: an fmi3Instance is also an md_instance * */
+    fmi3InstanceEnvironment env;
+    fmi3LogMessageCallback logger;  /* may be NULL: then nothing is logged */
+} Instance;
 
-#define ST_ANY (ST_INSTANTIATED | ST_INIT | ST_STEP | ST_TERMINATED | ST_ERROR)
-#define ST_READABLE (ST_INSTANTIATED | ST_INIT | ST_STEP | ST_TERMINATED | ST_ERROR)
-#define ST_SETTABLE (ST_INSTANTIATED | ST_INIT | ST_STEP)
+/* Variables can be read from instantiation on (start values). */
+#define ST_READABLE MD_MODE_ANY
 
 /* The independent variable's value reference: after the model's variables and the settings.
    model_description.py (fmi3_model_description) writes the same number. */
@@ -81,65 +89,16 @@ enum {
 };
 static const char *const LOG_NAMES[LOG_NCATEGORIES] = {
     "logEvents", "logStatusWarning", "logStatusError", "logAll"};
-#define LOG_BIT(category) (1u << (category))
-#define LOG_EVERYTHING (LOG_BIT(LOG_NCATEGORIES) - 1u)
 
-struct FmuState;
-
-typedef struct {
-    fmi3InstanceEnvironment env;
-    fmi3LogMessageCallback logger; /* may be NULL: then nothing is logged */
-    char *name;
-    struct FmuState *states;   /* FMU states not yet freed: fmi3FreeInstance frees them */
-    md_solver *solver;
-    fmu_state state;
-    unsigned log_mask;
-    double start_time;
-    double stop_time;
-    int stop_defined;
-    int rel_tol_set;      /* solver.relTol set explicitly: it wins over the tolerance argument */
-    int params_dirty;     /* a parameter changed in initialisation mode since md_solver_start */
-    char message[MD_MESSAGE_SIZE];
-} Instance;
-
-/* An FMU state ("Getting and Setting the Complete FMU State"): the solver's flat state buffer, tagged with the FMI mode.
- * Each instance keeps a list of the states it handed out, so that fmi3FreeInstance can free
- * what the importer did not (fmi3FreeInstance "frees all the allocated memory"). */
-#define FMU_STATE_MAGIC 0x33494D46u /* "FMI3" */
-typedef struct FmuState {
-    uint32_t magic;
-    void *owner;                  /* the Instance whose list holds it */
-    struct FmuState *prev, *next;
-    size_t size;
-    unsigned char data[]; /* md_solver_save() format */
-} FmuState;
-
-/* The solver state's tag: the FMI mode and two flags (the same bits as fmi2.c). */
-#define TAG_STATE_MASK 0xff
-#define TAG_DIRTY 0x100
-#define TAG_RELTOL_SET 0x200
-
-/* ---------------------------------------------------------------------------------------
- * Logging and status reporting
- * ------------------------------------------------------------------------------------- */
-
-static const char *state_name(fmu_state state) {
-    switch (state) {
-    case ST_INSTANTIATED: return "instantiated";
-    case ST_INIT: return "initialisation mode";
-    case ST_STEP: return "step mode";
-    case ST_TERMINATED: return "terminated";
-    case ST_ERROR: return "error";
-    case ST_FATAL: return "fatal";
-    default: return "?";
+static fmi3Status status_of(md_result result) {
+    switch (result) {
+    case MD_RESULT_OK: return fmi3OK;
+    case MD_RESULT_WARNING: return fmi3Warning;
+    case MD_RESULT_DISCARD: return fmi3Discard;
+    case MD_RESULT_ERROR: return fmi3Error;
+    case MD_RESULT_FATAL: return fmi3Fatal;
     }
-}
-
-/* Would a message of this status and category be passed to the logger? Errors always are. */
-static int log_enabled(const Instance *c, fmi3Status status, int category) {
-    if (c->logger == NULL) { return 0; }
-    if (status >= fmi3Error) { return 1; }
-    return (c->log_mask & (LOG_BIT(category) | LOG_BIT(LOG_ALL))) != 0;
+    return fmi3Fatal;
 }
 
 /* Copy text with '#' doubled ('#' is the escape character of logMessage). */
@@ -152,81 +111,42 @@ static void escape_hashes(const char *text, char *out, size_t size) {
     out[n] = '\0';
 }
 
-static void emit(const Instance *c, fmi3Status status, int category, const char *text) {
+static void log_message(const md_instance *m, md_result status, const char *category,
+                        const char *text) {
+    const Instance *c = (const Instance *)m;
     char escaped[2 * MD_MESSAGE_SIZE];
-    if (!log_enabled(c, status, category)) { return; }
     escape_hashes(text, escaped, sizeof escaped);
-    c->logger(c->env, status, LOG_NAMES[category], escaped);
+    c->logger(c->env, status_of(status), category, escaped);
 }
 
-static void logf_(const Instance *c, int category, const char *format, ...) {
-    char text[MD_MESSAGE_SIZE];
-    va_list args;
-    if (!log_enabled(c, fmi3OK, category)) { return; }
-    va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
-    va_end(args);
-    emit(c, fmi3OK, category, text);
-}
-
-/* Record a non-OK status with its explanation (kept in c->message), log it under
- * logStatusWarning or logStatusError, and return it. */
-static fmi3Status report(Instance *c, fmi3Status status, const char *format, ...) {
-    va_list args;
-    va_start(args, format);
-    vsnprintf(c->message, sizeof c->message, format, args);
-    va_end(args);
-    emit(c, status, status >= fmi3Error ? LOG_STATUS_ERROR : LOG_STATUS_WARNING, c->message);
-    return status;
-}
+static const md_layer FMI3 = {
+    .enter_initialization = "fmi3EnterInitializationMode",
+    .exit_initialization = "fmi3ExitInitializationMode",
+    .do_step = "fmi3DoStep",
+    .stop_time_source = "fmi3EnterInitializationMode",
+    .recovery = "fmi3Reset or fmi3SetFMUState",
+    .fmu_state = "FMUState",
+    .real_type = "Float64",
+    .parameter = "fixed parameter",
+    .settings_tunable = 1,
+    .has_time = 1,
+    .state_magic = 0x33494D46u, /* "FMI3" */
+    .categories = LOG_NAMES,
+    .ncategories = LOG_NCATEGORIES,
+    .category_of = {[MD_CATEGORY_EVENTS] = LOG_EVENTS, [MD_CATEGORY_WARNING] = LOG_STATUS_WARNING,
+                    [MD_CATEGORY_ERROR] = LOG_STATUS_ERROR, [MD_CATEGORY_ALL] = LOG_ALL},
+    .errors_always_logged = 1,
+    .quiet_log_mask = 0u, /* loggingOn enables every category; errors are reported regardless */
+    .log = log_message,
+};
 
 /* Gatekeeper at the top of every entry point. */
-static fmi3Status guard(Instance *c, const char *function, unsigned allowed) {
-    if (c == NULL) { return fmi3Error; }
-    if (c->state == ST_FATAL) { return fmi3Fatal; }
-    if ((c->state & allowed) == 0) {
-        if (c->state == ST_ERROR) {
-            return report(c, fmi3Error, "%s: not allowed after an error (%s); call fmi3Reset "
-                          "or fmi3SetFMUState", function, md_solver_message(c->solver));
-        }
-        return report(c, fmi3Error, "%s: not allowed in %s", function, state_name(c->state));
-    }
-    return fmi3OK;
-}
-
-#define GUARD(c, function, allowed)                                  \
-    do {                                                             \
-        fmi3Status guard_status = guard((c), (function), (allowed)); \
-        if (guard_status != fmi3OK) { return guard_status; }         \
-    } while (0)
+#define GUARD(m, function, allowed) MD_GUARD(m, function, allowed, status_of)
 
 /* A function this FMU does not provide (its capability flag is false, or it belongs to an
  * interface type other than Co-Simulation): fmi3Error with the reason, state unchanged. */
 static fmi3Status unsupported(fmi3Instance instance, const char *function, const char *why) {
-    Instance *c = instance;
-    GUARD(c, function, ST_ANY);
-    return report(c, fmi3Error, "%s: %s", function, why);
-}
-
-/* Solver host services */
-
-static void *host_allocate(void *env, size_t nobj, size_t size) {
-    (void)env;
-    return calloc(nobj, size);
-}
-
-static void host_release(void *env, void *ptr) {
-    (void)env;
-    free(ptr);
-}
-
-static int host_log_enabled(void *env, md_log_category category) {
-    return log_enabled((Instance *)env, fmi3OK,
-                       category == MD_LOG_EVENTS ? LOG_EVENTS : LOG_ALL);
-}
-
-static void host_log(void *env, md_log_category category, const char *message) {
-    emit((Instance *)env, fmi3OK, category == MD_LOG_EVENTS ? LOG_EVENTS : LOG_ALL, message);
+    return status_of(md_unsupported(instance, function, why));
 }
 
 /* ---------------------------------------------------------------------------------------
@@ -237,32 +157,10 @@ const char *fmi3GetVersion(void) { return fmi3Version; }
 
 fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn,
                                size_t nCategories, const fmi3String categories[]) {
-    Instance *c = instance;
-    fmi3Status status = fmi3OK;
-    GUARD(c, "fmi3SetDebugLogging", ST_ANY);
-    if (nCategories == 0) {
-        c->log_mask = loggingOn ? LOG_EVERYTHING : 0u;
-        return fmi3OK;
-    }
-    if (categories == NULL) {
-        return report(c, fmi3Error, "fmi3SetDebugLogging: categories is NULL");
-    }
-    for (size_t i = 0; i < nCategories; ++i) {
-        int found = -1;
-        for (int k = 0; k < LOG_NCATEGORIES; ++k) {
-            if (categories[i] != NULL && strcmp(categories[i], LOG_NAMES[k]) == 0) { found = k; }
-        }
-        if (found < 0) {
-            status = report(c, fmi3Warning, "fmi3SetDebugLogging: unknown log category \"%s\" "
-                            "ignored (known: logEvents, logStatusWarning, logStatusError, "
-                            "logAll)", categories[i] != NULL ? categories[i] : "(null)");
-        } else if (loggingOn) {
-            c->log_mask |= LOG_BIT(found);
-        } else {
-            c->log_mask &= ~LOG_BIT(found);
-        }
-    }
-    return status;
+    md_instance *m = instance;
+    GUARD(m, "fmi3SetDebugLogging", MD_MODE_ANY);
+    return status_of(md_set_debug_logging(m, "fmi3SetDebugLogging", loggingOn, nCategories,
+                                          categories));
 }
 
 /* ---------------------------------------------------------------------------------------
@@ -326,8 +224,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName,
                                          fmi3LogMessageCallback logMessage,
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
     Instance *c;
-    md_host host;
-    size_t length;
     char text[MD_MESSAGE_SIZE];
 
     (void)resourcePath;       /* the FMU has no resources */
@@ -361,7 +257,8 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName,
         return NULL;
     }
 
-    c = calloc(1, sizeof *c);
+    /* FMI 3.0 has no memory callbacks */
+    c = (Instance *)md_instance_new(&FMI3, sizeof *c, calloc, free, instanceName);
     if (c == NULL) {
         instantiate_error(logMessage, instanceEnvironment,
                           "fmi3InstantiateCoSimulation: out of memory");
@@ -369,49 +266,11 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName,
     }
     c->env = instanceEnvironment;
     c->logger = logMessage;
-    length = strlen(instanceName);
-    c->name = malloc(length + 1);
-    if (c->name != NULL) { memcpy(c->name, instanceName, length + 1); }
-    host.allocate = host_allocate;
-    host.release = host_release;
-    host.log = host_log;
-    host.log_enabled = host_log_enabled;
-    host.env = c;
-    c->solver = c->name != NULL ? md_solver_new(&MD_INFO, &host) : NULL;
-    if (c->solver == NULL) {
-        instantiate_error(logMessage, instanceEnvironment,
-                          "fmi3InstantiateCoSimulation: out of memory");
-        free(c->name);
-        free(c);
-        return NULL;
-    }
-    c->state = ST_INSTANTIATED;
-    /* loggingOn enables every category; errors are reported regardless. */
-    c->log_mask = loggingOn ? LOG_EVERYTHING : 0u;
-    c->start_time = 0.0;
-    c->stop_time = 0.0;
-    c->stop_defined = 0;
-    c->rel_tol_set = 0;
-    c->params_dirty = 0;
-    c->message[0] = '\0';
-    logf_(c, LOG_ALL, "instantiated %s: %d states, %d event indicators, %d variables",
-          MD_INFO.model_name, MD_INFO.ny, MD_INFO.nz, MD_INFO.nvars);
+    md_instance_start_logging(&c->base, logMessage != NULL, loggingOn);
     return c;
 }
 
-void fmi3FreeInstance(fmi3Instance instance) {
-    Instance *c = instance;
-    if (c == NULL) { return; }
-    while (c->states != NULL) {
-        FmuState *st = c->states;
-        c->states = st->next;
-        st->magic = 0;
-        free(st);
-    }
-    md_solver_free(c->solver);
-    free(c->name);
-    free(c);
-}
+void fmi3FreeInstance(fmi3Instance instance) { md_instance_free(instance); }
 
 /* ---------------------------------------------------------------------------------------
  * Initialisation, termination, reset
@@ -420,325 +279,117 @@ void fmi3FreeInstance(fmi3Instance instance) {
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
                                        fmi3Float64 tolerance, fmi3Float64 startTime,
                                        fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
-    Instance *c = instance;
-    fmi3Status status = fmi3OK;
-    GUARD(c, "fmi3EnterInitializationMode", ST_INSTANTIATED);
-    if (!isfinite(startTime)) {
-        return report(c, fmi3Error, "fmi3EnterInitializationMode: startTime %g is not finite",
-                      startTime);
-    }
-    if (stopTimeDefined && !(stopTime >= startTime && isfinite(stopTime))) {
-        return report(c, fmi3Error, "fmi3EnterInitializationMode: stopTime %g before "
-                      "startTime %g", stopTime, startTime);
-    }
-    /* fmi3EnterInitializationMode: for Co-Simulation, "usually as relative tolerance" */
-    if (toleranceDefined && !c->rel_tol_set) {
-        if (md_solver_set_setting(c->solver, MD_SETTING_RELTOL, tolerance) != MD_OK) {
-            status = report(c, fmi3Warning, "fmi3EnterInitializationMode: tolerance ignored: %s",
-                            md_solver_message(c->solver));
-        }
-    }
-    c->start_time = startTime;
-    c->stop_defined = stopTimeDefined != 0;
-    c->stop_time = stopTime;
-    if (md_solver_start(c->solver, startTime) != MD_OK) {
-        c->state = ST_ERROR;
-        return report(c, fmi3Error, "fmi3EnterInitializationMode: %s",
-                      md_solver_message(c->solver));
-    }
-    c->params_dirty = 0;
-    c->state = ST_INIT;
-    return status;
+    md_instance *m = instance;
+    md_result experiment, started;
+    GUARD(m, "fmi3EnterInitializationMode", MD_MODE_INSTANTIATED);
+    experiment = md_setup_experiment(m, "fmi3EnterInitializationMode", toleranceDefined,
+                                     tolerance, startTime, stopTimeDefined, stopTime);
+    if (experiment >= MD_RESULT_ERROR) { return status_of(experiment); }
+    started = md_enter_initialization(m, "fmi3EnterInitializationMode");
+    /* a Warning about the tolerance stands if the start succeeds */
+    return status_of(started != MD_RESULT_OK ? started : experiment);
 }
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
-    Instance *c = instance;
-    GUARD(c, "fmi3ExitInitializationMode", ST_INIT);
-    /* parameters set in initialisation mode: start values that depend on them follow */
-    if (c->params_dirty && md_solver_start(c->solver, c->start_time) != MD_OK) {
-        c->state = ST_ERROR;
-        return report(c, fmi3Error, "fmi3ExitInitializationMode: %s",
-                      md_solver_message(c->solver));
-    }
-    c->params_dirty = 0;
-    if (md_solver_initialize(c->solver) != MD_OK) {
-        c->state = ST_ERROR;
-        return report(c, fmi3Error, "fmi3ExitInitializationMode: %s",
-                      md_solver_message(c->solver));
-    }
-    c->state = ST_STEP; /* eventModeUsed is false: straight to Step Mode */
-    logf_(c, LOG_ALL, "initialised at t=%.17g s (relTol=%g, absTol=%g, maxStep=%g)",
-          c->solver->t, c->solver->settings.rel_tol, c->solver->settings.abs_tol,
-          c->solver->settings.max_step);
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3ExitInitializationMode", MD_MODE_INIT);
+    /* eventModeUsed is false: straight to Step Mode */
+    return status_of(md_exit_initialization(m, "fmi3ExitInitializationMode"));
 }
 
 fmi3Status fmi3Terminate(fmi3Instance instance) {
-    Instance *c = instance;
+    md_instance *m = instance;
     /* from error too: a master that tidies up after a failed step should not get a second
        error for it */
-    GUARD(c, "fmi3Terminate", ST_STEP | ST_ERROR);
-    c->state = ST_TERMINATED;
+    GUARD(m, "fmi3Terminate", MD_MODE_STEP | MD_MODE_ERROR);
+    m->mode = MD_MODE_TERMINATED;
     return fmi3OK;
 }
 
 fmi3Status fmi3Reset(fmi3Instance instance) {
-    Instance *c = instance;
-    GUARD(c, "fmi3Reset", ST_ANY);
-    md_solver_reset(c->solver);
-    c->state = ST_INSTANTIATED;
-    c->start_time = 0.0;
-    c->stop_time = 0.0;
-    c->stop_defined = 0;
-    c->rel_tol_set = 0;
-    c->params_dirty = 0;
-    c->message[0] = '\0';
+    md_instance *m = instance;
+    GUARD(m, "fmi3Reset", MD_MODE_ANY);
+    md_reset(m);
     return fmi3OK;
 }
 
 /* ---------------------------------------------------------------------------------------
- * Getting and setting variable values
+ * Getting and setting variable values. Which variable may be set when (md_set_values):
+ * parameters (fixed) before fmi3ExitInitializationMode; inputs and the tunable solver
+ * settings also in Step Mode ("State: Step Mode"); never calculated parameters, constants,
+ * computed variables or time.
  * ------------------------------------------------------------------------------------- */
 
-/* Every variable is a scalar: one value per value reference. */
-static fmi3Status check_arrays(Instance *c, const char *function, const void *vr, size_t nvr,
-                               const void *values, size_t nValues) {
-    if (nValues != nvr) {
-        return report(c, fmi3Error, "%s: nValues = %lu but nValueReferences = %lu (all "
-                      "variables of this FMU are scalars)", function, (unsigned long)nValues,
-                      (unsigned long)nvr);
-    }
-    if (nvr > 0 && (vr == NULL || values == NULL)) {
-        return report(c, fmi3Error, "%s: NULL array", function);
-    }
-    return fmi3OK;
-}
-
-static fmi3Status refresh_for_get(Instance *c, const fmi3ValueReference vr[], size_t nvr) {
-    if (c->state == ST_INIT && c->params_dirty) {
-        if (md_solver_start(c->solver, c->start_time) != MD_OK) {
-            return report(c, fmi3Error, "%s", md_solver_message(c->solver));
-        }
-        c->params_dirty = 0;
-    } else if (c->state == ST_INSTANTIATED) {
-        /* start values of calculated parameters and constants follow the parameters set so
-           far; md_parameters only writes their slots (md_solver_start runs it again) */
-        for (size_t i = 0; i < nvr; ++i) {
-            if (vr[i] < (fmi3ValueReference)MD_INFO.nvars
-                && MD_INFO.kind[vr[i]] == MD_CALCULATED) {
-                md_parameters(c->solver->p);
-                break;
-            }
-        }
-    }
-    return fmi3OK;
-}
-
-/* The value of variable r as a double (a solver setting or time only if float64). */
-static fmi3Status get_value(Instance *c, const char *function, fmi3ValueReference r,
-                            int float64, double *value) {
-    const md_info *info = &MD_INFO;
-    const fmi3ValueReference nvars = (fmi3ValueReference)info->nvars;
-    if (r < nvars) {
-        if (c->state == ST_INSTANTIATED) {
-            /* start values: only what lives in p has one before initialisation */
-            if (info->par_slot[r] < 0) {
-                return report(c, fmi3Error, "%s: %s has no value before "
-                              "fmi3EnterInitializationMode (it is calculated there)", function,
-                              info->names[r]);
-            }
-            *value = c->solver->p[info->par_slot[r]];
-        } else if (info->obs_slot[r] >= 0) {
-            *value = c->solver->obs[info->obs_slot[r]];
-        } else if (info->par_slot[r] >= 0) {
-            *value = c->solver->p[info->par_slot[r]];
-        } else {
-            return report(c, fmi3Error, "%s: variable %s has no value slot", function,
-                          info->names[r]);
-        }
-        return fmi3OK;
-    }
-    if (r < nvars + MD_SHELL_NREAL) {
-        if (!float64) {
-            return report(c, fmi3Error, "%s: %s is a Float64 variable", function,
-                          MD_SHELL_SETTINGS[r - nvars].name);
-        }
-        *value = md_solver_get_setting(c->solver, (int)(r - nvars));
-        return fmi3OK;
-    }
-    if (r == VR_TIME) {
-        if (!float64) {
-            return report(c, fmi3Error, "%s: time is a Float64 variable", function);
-        }
-        *value = c->solver->t;
-        return fmi3OK;
-    }
-    return report(c, fmi3Error, "%s: unknown value reference %u", function, r);
-}
-
-typedef double (*value_at)(const void *values, size_t i);
-static double float64_at(const void *values, size_t i) {
-    return ((const fmi3Float64 *)values)[i];
-}
 static double boolean_at(const void *values, size_t i) {
     return ((const fmi3Boolean *)values)[i] ? 1.0 : 0.0;
 }
 
-/* Set variables from values[i] read through `at` (boolean: the call was fmi3SetBoolean).
- * Everything is checked before anything is written, so that a refused call changes nothing.
- * Parameters (fixed): before fmi3ExitInitializationMode; inputs and the tunable solver
- * settings: also in Step Mode ("State: Step Mode"); never calculated parameters, constants,
- * computed variables or time. */
-static fmi3Status set_values(Instance *c, const char *function, const fmi3ValueReference vr[],
-                             size_t nvr, const void *values, size_t nValues, value_at at,
-                             int boolean) {
-    const md_info *info = &MD_INFO;
-    const fmi3ValueReference nvars = (fmi3ValueReference)info->nvars;
-    const int before_run = (c->state & (ST_INSTANTIATED | ST_INIT)) != 0;
-    int inputs = 0, parameters = 0;
-    md_settings saved;
-    if (check_arrays(c, function, vr, nvr, values, nValues) != fmi3OK) { return fmi3Error; }
-    for (size_t i = 0; i < nvr; ++i) {
-        fmi3ValueReference r = vr[i];
-        double value = at(values, i);
-        const char *name;
-        if (r < nvars) {
-            name = info->names[r];
-            if (info->kind[r] == MD_PARAMETER) {
-                if (!before_run) {
-                    return report(c, fmi3Error, "%s: variable %s is a fixed parameter: it can "
-                                  "only be set before fmi3ExitInitializationMode", function,
-                                  name);
-                }
-            } else if (info->kind[r] != MD_INPUT) {
-                return report(c, fmi3Error, "%s: variable %s is not settable", function, name);
-            }
-            if (info->par_slot[r] < 0) {
-                return report(c, fmi3Error, "%s: variable %s has no parameter slot", function,
-                              name);
-            }
-        } else if (r < nvars + MD_SHELL_NREAL) {
-            name = MD_SHELL_SETTINGS[r - nvars].name;
-            if (boolean) {
-                return report(c, fmi3Error, "%s: %s is a Float64 variable", function, name);
-            }
-        } else if (r == VR_TIME) {
-            return report(c, fmi3Error, "%s: time is the independent variable: only fmi3DoStep "
-                          "advances it", function);
-        } else {
-            return report(c, fmi3Error, "%s: unknown value reference %u", function, r);
-        }
-        if (!isfinite(value)) {
-            return report(c, fmi3Error, "%s: refusing the non-finite value %g for %s", function,
-                          value, name);
-        }
-    }
-    /* solver settings: range-checked by the solver; undo all of them if one is refused */
-    saved = c->solver->settings;
-    for (size_t i = 0; i < nvr; ++i) {
-        if (vr[i] >= nvars
-            && md_solver_set_setting(c->solver, (int)(vr[i] - nvars), at(values, i)) != MD_OK) {
-            c->solver->settings = saved;
-            return report(c, fmi3Error, "%s: %s", function, md_solver_message(c->solver));
-        }
-    }
-    for (size_t i = 0; i < nvr; ++i) {
-        fmi3ValueReference r = vr[i];
-        if (r >= nvars) {
-            if (r - nvars == MD_SETTING_RELTOL) { c->rel_tol_set = 1; }
-            continue;
-        }
-        /* an input changed mid-run restarts the integrator at the next step */
-        md_solver_set_parameter(c->solver, info->par_slot[r], at(values, i),
-                                c->state == ST_STEP);
-        if (info->kind[r] == MD_INPUT) { inputs = 1; } else { parameters = 1; }
-    }
-    if (parameters && c->state == ST_INIT) { c->params_dirty = 1; }
-    if (inputs && (c->state & (ST_INIT | ST_STEP)) && !c->params_dirty
-        && md_solver_observe(c->solver) != MD_OK) {
-        return report(c, fmi3Warning, "%s: outputs not updated: %s", function,
-                      md_solver_message(c->solver));
-    }
-    return fmi3OK;
+static void boolean_put(void *values, size_t i, double value) {
+    ((fmi3Boolean *)values)[i] = value != 0.0;
 }
 
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
-    Instance *c = instance;
-    GUARD(c, "fmi3GetFloat64", ST_READABLE);
-    if (check_arrays(c, "fmi3GetFloat64", valueReferences, nValueReferences, values,
-                     nValues) != fmi3OK
-        || refresh_for_get(c, valueReferences, nValueReferences) != fmi3OK) {
-        return fmi3Error;
-    }
-    for (size_t i = 0; i < nValueReferences; ++i) {
-        if (get_value(c, "fmi3GetFloat64", valueReferences[i], 1, &values[i]) != fmi3OK) {
-            return fmi3Error;
-        }
-    }
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3GetFloat64", ST_READABLE);
+    return status_of(md_get_values(m, "fmi3GetFloat64", valueReferences, nValueReferences,
+                                   values, nValues, md_real_put, 0));
 }
 
 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
-    Instance *c = instance;
-    GUARD(c, "fmi3GetBoolean", ST_READABLE);
-    if (check_arrays(c, "fmi3GetBoolean", valueReferences, nValueReferences, values,
-                     nValues) != fmi3OK
-        || refresh_for_get(c, valueReferences, nValueReferences) != fmi3OK) {
-        return fmi3Error;
-    }
-    for (size_t i = 0; i < nValueReferences; ++i) {
-        double v;
-        if (get_value(c, "fmi3GetBoolean", valueReferences[i], 0, &v) != fmi3OK) {
-            return fmi3Error;
-        }
-        values[i] = v != 0.0;
-    }
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3GetBoolean", ST_READABLE);
+    return status_of(md_get_values(m, "fmi3GetBoolean", valueReferences, nValueReferences,
+                                   values, nValues, boolean_put, 1));
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, const fmi3Float64 values[],
                           size_t nValues) {
-    Instance *c = instance;
-    GUARD(c, "fmi3SetFloat64", ST_SETTABLE);
-    return set_values(c, "fmi3SetFloat64", valueReferences, nValueReferences, values, nValues,
-                      float64_at, 0);
+    md_instance *m = instance;
+    GUARD(m, "fmi3SetFloat64", MD_MODE_SETTABLE);
+    return status_of(md_set_values(m, "fmi3SetFloat64", valueReferences, nValueReferences,
+                                   values, nValues, md_real_at, 0));
 }
 
 fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, const fmi3Boolean values[],
                           size_t nValues) {
-    Instance *c = instance;
-    GUARD(c, "fmi3SetBoolean", ST_SETTABLE);
-    return set_values(c, "fmi3SetBoolean", valueReferences, nValueReferences, values, nValues,
-                      boolean_at, 1);
+    md_instance *m = instance;
+    GUARD(m, "fmi3SetBoolean", MD_MODE_SETTABLE);
+    return status_of(md_set_values(m, "fmi3SetBoolean", valueReferences, nValueReferences,
+                                   values, nValues, boolean_at, 1));
 }
 
 /* The other variable types: this FMU has none. An empty request is fine; anything else names
  * the first value reference and what it is. */
 static fmi3Status no_such_type(fmi3Instance instance, const char *function, const char *type,
                                unsigned allowed, const fmi3ValueReference vr[], size_t nvr) {
-    Instance *c = instance;
+    md_instance *m = instance;
     const fmi3ValueReference nvars = (fmi3ValueReference)MD_INFO.nvars;
     fmi3ValueReference r;
-    GUARD(c, function, allowed);
+    GUARD(m, function, allowed);
     if (nvr == 0) { return fmi3OK; }
-    if (vr == NULL) { return report(c, fmi3Error, "%s: NULL array", function); }
+    if (vr == NULL) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "%s: NULL array", function));
+    }
     r = vr[0];
     if (r < nvars) {
-        return report(c, fmi3Error, "%s: %s is not a %s variable (this FMU has Float64 and "
-                      "Boolean variables only)", function, MD_INFO.names[r], type);
+        return status_of(md_report(m, MD_RESULT_ERROR, "%s: %s is not a %s variable (this FMU "
+                                   "has Float64 and Boolean variables only)", function,
+                                   MD_INFO.names[r], type));
     }
     if (r < nvars + MD_SHELL_NREAL) {
-        return report(c, fmi3Error, "%s: %s is a Float64 variable", function,
-                      MD_SHELL_SETTINGS[r - nvars].name);
+        return status_of(md_report(m, MD_RESULT_ERROR, "%s: %s is a Float64 variable", function,
+                                   MD_SHELL_SETTINGS[r - nvars].name));
     }
     if (r == VR_TIME) {
-        return report(c, fmi3Error, "%s: time is a Float64 variable", function);
+        return status_of(md_report(m, MD_RESULT_ERROR, "%s: time is a Float64 variable",
+                                   function));
     }
-    return report(c, fmi3Error, "%s: unknown value reference %u", function, r);
+    return status_of(md_report(m, MD_RESULT_ERROR, "%s: unknown value reference %u", function,
+                               r));
 }
 
 #define NO_GET(Type, CType)                                                                  \
@@ -753,8 +404,8 @@ static fmi3Status no_such_type(fmi3Instance instance, const char *function, cons
     fmi3Status fmi3Set##Type(fmi3Instance instance, const fmi3ValueReference valueReferences[], \
                              size_t nValueReferences, const CType values[], size_t nValues) { \
         (void)values; (void)nValues;                                                          \
-        return no_such_type(instance, "fmi3Set" #Type, #Type, ST_SETTABLE, valueReferences,   \
-                            nValueReferences);                                                \
+        return no_such_type(instance, "fmi3Set" #Type, #Type, MD_MODE_SETTABLE,               \
+                            valueReferences, nValueReferences);                               \
     }
 
 NO_GET(Float32, fmi3Float32)
@@ -791,164 +442,68 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueRe
                          size_t nValueReferences, const size_t valueSizes[],
                          const fmi3Binary values[], size_t nValues) {
     (void)valueSizes; (void)values; (void)nValues;
-    return no_such_type(instance, "fmi3SetBinary", "Binary", ST_SETTABLE, valueReferences,
+    return no_such_type(instance, "fmi3SetBinary", "Binary", MD_MODE_SETTABLE, valueReferences,
                         nValueReferences);
 }
 
 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                         size_t nValueReferences, fmi3Clock values[]) {
     (void)values;
-    return no_such_type(instance, "fmi3GetClock", "Clock", ST_ANY, valueReferences,
+    return no_such_type(instance, "fmi3GetClock", "Clock", MD_MODE_ANY, valueReferences,
                         nValueReferences);
 }
 
 fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                         size_t nValueReferences, const fmi3Clock values[]) {
     (void)values;
-    return no_such_type(instance, "fmi3SetClock", "Clock", ST_ANY, valueReferences,
+    return no_such_type(instance, "fmi3SetClock", "Clock", MD_MODE_ANY, valueReferences,
                         nValueReferences);
 }
 
 /* ---------------------------------------------------------------------------------------
- * FMU state. The in-memory copy and the serialised form are the same bytes.
+ * FMU state ("Getting and Setting the Complete FMU State"). The in-memory copy and the
+ * serialised form are the same bytes.
  * ------------------------------------------------------------------------------------- */
 
-static int tag_state_valid(int tag) {
-    int state = tag & TAG_STATE_MASK;
-    return state == ST_INSTANTIATED || state == ST_INIT || state == ST_STEP
-           || state == ST_TERMINATED || state == ST_ERROR;
-}
-
-/* The state *FMUState points to, to be overwritten, or a new one (linked into c->states). */
-static FmuState *state_object(Instance *c, fmi3FMUState *FMUState, size_t size) {
-    FmuState *st = *FMUState;
-    if (st != NULL && st->magic == FMU_STATE_MAGIC && st->owner == c && st->size == size) {
-        return st;
-    }
-    st = calloc(1, sizeof(FmuState) + size);
-    if (st == NULL) { return NULL; }
-    st->magic = FMU_STATE_MAGIC;
-    st->size = size;
-    st->owner = c;
-    st->prev = NULL;
-    st->next = c->states;
-    if (c->states != NULL) { c->states->prev = st; }
-    c->states = st;
-    /* A foreign pointer in *FMUState is not ours to free: just replace it. */
-    *FMUState = st;
-    return st;
-}
-
-static int is_state(const FmuState *st) { return st != NULL && st->magic == FMU_STATE_MAGIC; }
-
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
-    Instance *c = instance;
-    size_t size = md_solver_state_size(&MD_INFO);
-    FmuState *st;
-    int tag;
-    GUARD(c, "fmi3GetFMUState", ST_ANY);
-    if (FMUState == NULL) { return report(c, fmi3Error, "fmi3GetFMUState: FMUState is NULL"); }
-    st = state_object(c, FMUState, size);
-    if (st == NULL) { return report(c, fmi3Error, "fmi3GetFMUState: out of memory"); }
-    tag = (int)c->state | (c->params_dirty ? TAG_DIRTY : 0) | (c->rel_tol_set ? TAG_RELTOL_SET : 0);
-    if (md_solver_save(c->solver, tag, st->data, size) != MD_OK) {
-        return report(c, fmi3Error, "fmi3GetFMUState: %s", md_solver_message(c->solver));
-    }
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3GetFMUState", MD_MODE_ANY);
+    return status_of(md_get_state(m, "fmi3GetFMUState", FMUState));
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
-    Instance *c = instance;
-    const FmuState *st = FMUState;
-    int tag = 0;
-    GUARD(c, "fmi3SetFMUState", ST_ANY);
-    if (!is_state(st)) {
-        return report(c, fmi3Error, "fmi3SetFMUState: not an FMU state of this FMU");
-    }
-    if (md_solver_check(c->solver, st->data, st->size, &tag) != MD_OK) {
-        return report(c, fmi3Error, "fmi3SetFMUState: %s", md_solver_message(c->solver));
-    }
-    if (!tag_state_valid(tag)) {
-        return report(c, fmi3Error, "fmi3SetFMUState: the state is corrupted (mode)");
-    }
-    (void)md_solver_restore(c->solver, st->data, st->size, NULL);
-    c->state = (fmu_state)(tag & TAG_STATE_MASK);
-    c->params_dirty = (tag & TAG_DIRTY) != 0;
-    c->rel_tol_set = (tag & TAG_RELTOL_SET) != 0;
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3SetFMUState", MD_MODE_ANY);
+    return status_of(md_set_state(m, "fmi3SetFMUState", FMUState));
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
-    Instance *c = instance;
-    FmuState *st;
-    GUARD(c, "fmi3FreeFMUState", ST_ANY);
-    if (FMUState == NULL || *FMUState == NULL) { return fmi3OK; }
-    st = *FMUState;
-    if (!is_state(st)) {
-        return report(c, fmi3Error, "fmi3FreeFMUState: not an FMU state of this FMU");
-    }
-    if (st->prev != NULL) {
-        st->prev->next = st->next;
-    } else {
-        ((Instance *)st->owner)->states = st->next;
-    }
-    if (st->next != NULL) { st->next->prev = st->prev; }
-    st->magic = 0;
-    free(st);
-    *FMUState = NULL;
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3FreeFMUState", MD_MODE_ANY);
+    return status_of(md_free_state(m, "fmi3FreeFMUState", FMUState));
 }
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState,
                                       size_t *size) {
-    Instance *c = instance;
-    const FmuState *st = FMUState;
-    GUARD(c, "fmi3SerializedFMUStateSize", ST_ANY);
-    if (!is_state(st) || size == NULL) {
-        return report(c, fmi3Error, "fmi3SerializedFMUStateSize: not an FMU state of this FMU");
-    }
-    *size = st->size;
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3SerializedFMUStateSize", MD_MODE_ANY);
+    return status_of(md_serialized_state_size(m, "fmi3SerializedFMUStateSize", FMUState, size));
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState,
                                  fmi3Byte serializedState[], size_t size) {
-    Instance *c = instance;
-    const FmuState *st = FMUState;
-    GUARD(c, "fmi3SerializeFMUState", ST_ANY);
-    if (!is_state(st) || serializedState == NULL) {
-        return report(c, fmi3Error, "fmi3SerializeFMUState: not an FMU state of this FMU");
-    }
-    if (size != st->size) {
-        return report(c, fmi3Error, "fmi3SerializeFMUState: buffer of %lu bytes, %lu needed",
-                      (unsigned long)size, (unsigned long)st->size);
-    }
-    memcpy(serializedState, st->data, size);
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3SerializeFMUState", MD_MODE_ANY);
+    return status_of(md_serialize_state(m, "fmi3SerializeFMUState", FMUState, serializedState,
+                                        size));
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[],
                                    size_t size, fmi3FMUState *FMUState) {
-    Instance *c = instance;
-    FmuState *st;
-    int tag = 0;
-    GUARD(c, "fmi3DeserializeFMUState", ST_ANY);
-    if (FMUState == NULL) {
-        return report(c, fmi3Error, "fmi3DeserializeFMUState: FMUState is NULL");
-    }
-    if (serializedState == NULL
-        || md_solver_check(c->solver, serializedState, size, &tag) != MD_OK) {
-        return report(c, fmi3Error, "fmi3DeserializeFMUState: %s",
-                      serializedState == NULL ? "serializedState is NULL"
-                                              : md_solver_message(c->solver));
-    }
-    if (!tag_state_valid(tag)) {
-        return report(c, fmi3Error, "fmi3DeserializeFMUState: the state is corrupted (mode)");
-    }
-    st = state_object(c, FMUState, size);
-    if (st == NULL) { return report(c, fmi3Error, "fmi3DeserializeFMUState: out of memory"); }
-    memcpy(st->data, serializedState, size);
-    return fmi3OK;
+    md_instance *m = instance;
+    GUARD(m, "fmi3DeserializeFMUState", MD_MODE_ANY);
+    return status_of(md_deserialize_state(m, "fmi3DeserializeFMUState", serializedState, size,
+                                          FMUState));
 }
 
 /* ---------------------------------------------------------------------------------------
@@ -960,45 +515,23 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
                       fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                       fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
                       fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
-    Instance *c = instance;
-    md_solver *s;
-    double t_end, slack;
+    md_instance *m = instance;
+    md_result result;
     (void)noSetFMUStatePriorToCurrentPoint;
-    GUARD(c, "fmi3DoStep", ST_STEP);
+    GUARD(m, "fmi3DoStep", MD_MODE_STEP);
     if (eventHandlingNeeded == NULL || terminateSimulation == NULL || earlyReturn == NULL
         || lastSuccessfulTime == NULL) {
-        return report(c, fmi3Error, "fmi3DoStep: an output argument is NULL");
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi3DoStep: an output argument is "
+                                   "NULL"));
     }
-    s = c->solver;
     /* no Event Mode, no early return, never asks to stop: all three are always false */
     *eventHandlingNeeded = 0;
     *terminateSimulation = 0;
     *earlyReturn = 0;
-    *lastSuccessfulTime = s->t;
-    slack = 1e-9 * fmax(1.0, fabs(s->t));
-    if (!isfinite(currentCommunicationPoint) || fabs(currentCommunicationPoint - s->t) > slack) {
-        return report(c, fmi3Error, "fmi3DoStep: currentCommunicationPoint %.17g s is not the "
-                      "FMU's time %.17g s", currentCommunicationPoint, s->t);
-    }
-    if (!(communicationStepSize >= 0.0) || !isfinite(communicationStepSize)) {
-        return report(c, fmi3Error, "fmi3DoStep: communicationStepSize %g must be >= 0",
-                      communicationStepSize);
-    }
-    t_end = currentCommunicationPoint + communicationStepSize;
-    if (c->stop_defined && t_end > c->stop_time + 1e-9 * fmax(1.0, fabs(c->stop_time))) {
-        return report(c, fmi3Error, "fmi3DoStep: t=%.17g s is past the stopTime %.17g s given "
-                      "to fmi3EnterInitializationMode", t_end, c->stop_time);
-    }
-    s->t = currentCommunicationPoint; /* follow the importer's clock exactly */
-    if (md_solver_advance(s, t_end) != MD_OK) {
-        c->state = ST_ERROR;
-        /* outputs at the last good point, if they can be had */
-        (void)md_solver_observe(s);
-        *lastSuccessfulTime = s->t;
-        return report(c, fmi3Error, "fmi3DoStep: %s", md_solver_message(s));
-    }
-    *lastSuccessfulTime = s->t;
-    return fmi3OK;
+    result = md_do_step(m, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
+    /* where it got to: the end of the step, or the last good point if the step failed */
+    *lastSuccessfulTime = m->solver->t;
+    return status_of(result);
 }
 
 /* ---------------------------------------------------------------------------------------

@@ -1,6 +1,6 @@
 /* The interface between a generated model (model.c, written by toggle_cosim.build) and the
- * generic FMI shell (solver.c, fmi2.c, fmi3.c). Nothing in the shell knows which model it runs;
- * everything it needs to know is here.
+ * generic FMI shell (solver.c, instance.c, fmi2.c, fmi3.c). Nothing in the shell knows which
+ * model it runs; everything it needs to know is here.
  *
  * Arrays, as laid out by modelica.sim.cgen (modelica==0.0.205):
  *   y  continuous states, MD_INFO.ny of them

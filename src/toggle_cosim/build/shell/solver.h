@@ -3,9 +3,10 @@
  * integrator with dense output, state-event location and event iteration, and copy /
  * serialisation of the whole instance state.
  *
- * Nothing here knows about FMI: fmi2.c (and later an FMI 3.0 shell) wraps it. Nothing here
- * knows which model it runs either: everything model-specific comes through MD_INFO and the
- * generated functions. There is no global mutable state; instances are independent.
+ * Nothing here knows about FMI: instance.c (the generic FMU shell under fmi2.c and fmi3.c)
+ * wraps it. Nothing here knows which model it runs either: everything model-specific comes
+ * through MD_INFO and the generated functions. There is no global mutable state; instances
+ * are independent.
  *
  * Errors: functions that can fail return MD_FAIL and leave a one-line explanation in
  * md_solver_message(). The simulation state is then left at the last good point.
