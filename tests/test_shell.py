@@ -938,7 +938,7 @@ def test_misuse_is_refused_without_damage(build):
         with pytest.raises(FMICallException):
             call()
     assert "not allowed in instantiated" in slave.errors()
-    # solver settings: validated, readable, settable before the run only
+    # solver settings: validated, readable, tunable (settable before and during the run)
     for name, bad in (("solver.relTol", 0.5), ("solver.relTol", 0.0), ("solver.absTol", 0.0),
                       ("solver.maxStep", -1.0)):
         with pytest.raises(FMICallException):
@@ -952,12 +952,14 @@ def test_misuse_is_refused_without_damage(build):
             call()
     # not settable, not finite, unknown, not provided
     refused = {
-        "x": 0.3, "k2": 1.0, "y": 1.0, "k": 1.0, "solver.relTol": 1e-6,  # k: fixed when running
+        "x": 0.3, "k2": 1.0, "y": 1.0, "k": 1.0, "solver.relTol": 0.5,  # k: fixed when running
         "u": float("nan"),
     }
     for name, value in refused.items():
         with pytest.raises(FMICallException):
             slave.set(**{name: value})
+    slave.set(**{"solver.relTol": 1e-6})  # tunable: accepted in step mode
+    assert slave.get("solver.relTol") == [1e-6]
     assert "variable x is not settable" in slave.errors()
     assert "variable k2 is not settable" in slave.errors()
     assert "non-finite value nan for u" in slave.errors()

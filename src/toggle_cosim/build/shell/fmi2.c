@@ -27,7 +27,7 @@
  *     loggingOn false, logStatusError stays on;
  *   - fmi2SetupExperiment (start, stop time and tolerance come before initialisation mode);
  *     variables cannot be read before fmi2EnterInitializationMode; the solver settings are
- *     fixed parameters (not settable after initialisation);
+ *     tunable parameters, as in FMI 3.0;
  *   - Integer and String calls, status queries (sec. 4.2.3) and the last doStep status.
  */
 #include <stddef.h>
@@ -82,7 +82,7 @@ static const md_layer FMI2 = {
     .fmu_state = "FMUstate",
     .real_type = "Real",
     .parameter = "parameter",
-    .settings_tunable = 0,
+    .settings_tunable = 1, /* declared tunable in modelDescription.xml */
     .has_time = 0,
     .state_magic = 0x32494D46u, /* "FMI2" */
     .categories = LOG_NAMES,
