@@ -118,8 +118,9 @@ def _c_number(value: float | bool) -> str:
     return repr(float(value))
 
 
-def _start_function(emitter: Emitter, system_parameters: tuple[FlatVariable, ...], states: tuple[str, ...],
+def _start_function(system_parameters: tuple[FlatVariable, ...], states: tuple[str, ...],
                     discrete: list[tuple[int, ir.Expr | None]], flat: FlatModel, nw: int) -> list[str]:
+    """md_start: the start value of every state and discrete variable, as C over p."""
     symbols = {v.name: f"p[{slot}]" for slot, v in enumerate(system_parameters)}
     lines = [
         "void md_start(const double *p, double *y, double *w) {",
@@ -149,6 +150,7 @@ def _defaults_function(variables: list[ModelVariable]) -> list[str]:
 
 
 def _parameter_function(parameters: tuple[FlatVariable, ...], calculated: set[str], order: list[FlatVariable]) -> list[str]:
+    """md_parameters: every calculated parameter from its binding, in dependency order."""
     symbols = {v.name: f"p[{slot}]" for slot, v in enumerate(parameters)}
     slots = {v.name: slot for slot, v in enumerate(parameters)}
     lines = ["void md_parameters(double *p) {"]
@@ -269,7 +271,7 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         "",
         *_parameter_function(parameters, calculated, emitter.ordered()),
         "",
-        *_start_function(emitter, parameters, states, discrete, flat, nw),
+        *_start_function(parameters, states, discrete, flat, nw),
         "",
     ]
     header = [
