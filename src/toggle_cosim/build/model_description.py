@@ -66,19 +66,28 @@ def _add_unit_definitions(root: ET.Element, units: list[str]) -> None:
         ET.SubElement(element, "BaseUnit", {k: str(v) for k, v in base_exponents(unit).items()})
 
 
-def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: str) -> str:
-    """The FMI 2.0 Co-Simulation modelDescription.xml text."""
+def _description_root(model: GeneratedModel, tool: str, **version_specific: str) -> ET.Element:
+    """<fmiModelDescription> with the attributes both standards share, then the version's own."""
     root = ET.Element(
         "fmiModelDescription",
-        fmiVersion="2.0",
+        fmiVersion=version_specific.pop("fmiVersion"),
         modelName=model.name,
-        guid=model.guid,
+        **{k: version_specific.pop(k) for k in ("guid", "instantiationToken") if k in version_specific},
         description=model.description,
         generationTool=tool,
         generationDateAndTime=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         variableNamingConvention="structured",
-        numberOfEventIndicators=str(model.event_count),
+        **version_specific,
     )
+    if not model.description:
+        del root.attrib["description"]
+    return root
+
+
+def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: str) -> str:
+    """The FMI 2.0 Co-Simulation modelDescription.xml text."""
+    root = _description_root(model, tool, fmiVersion="2.0", guid=model.guid,
+                             numberOfEventIndicators=str(model.event_count))
     ET.SubElement(
         root,
         "CoSimulation",
@@ -190,18 +199,7 @@ def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: s
     plus `time` (causality independent) at `time_value_reference(model)`. The model
     structure lists outputs and initial unknowns by value reference.
     """
-    root = ET.Element(
-        "fmiModelDescription",
-        fmiVersion="3.0",
-        modelName=model.name,
-        instantiationToken=model.guid,
-        description=model.description,
-        generationTool=tool,
-        generationDateAndTime=datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        variableNamingConvention="structured",
-    )
-    if not model.description:
-        del root.attrib["description"]
+    root = _description_root(model, tool, fmiVersion="3.0", instantiationToken=model.guid)
     ET.SubElement(
         root,
         "CoSimulation",
