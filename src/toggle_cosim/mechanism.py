@@ -480,6 +480,24 @@ class JointForces:
         return {k: self.mu * v for k, v in self.normal().items()}
 
 
+def _rod_and_slider_pins(length: float, m_rod: float, J_rod: float, theta: float, alpha: float,
+                         a_centre: FloatArray, m_slider: float, a_slider: float, f_slider: float,
+                         torque: float, g: float) -> tuple[FloatArray, FloatArray]:
+    """Pin forces of a uniform rod (link 3 or 5) driving a slider (B or C) at its far end E.
+
+    Slider: F_x = m_slider a_slider − f_slider (force of the rod on the slider). Rod moment about
+    its near end P: J α + (G−P)×m a_G = (E−P)×(−F) + (G−P)×(0, −m g) + τ gives F_y. The rod's
+    near-end pin force (of the lever on the rod) is m a_G + F + (0, m g).
+    """
+    e = np.array([math.cos(theta), math.sin(theta)])
+    r_centre, r_end = 0.5 * length * e, length * e
+    F_x = m_slider * a_slider - f_slider
+    # (E−P)×(−F) = −(r_end_x F_y − r_end_y F_x)
+    moment = J_rod * alpha + _cross(r_centre, m_rod * a_centre) - _cross(r_centre, np.array([0.0, -m_rod * g])) - torque
+    F_end = np.array([F_x, (r_end[1] * F_x - moment) / r_end[0]])
+    return F_end, m_rod * a_centre + F_end + np.array([0.0, m_rod * g])
+
+
 def joint_forces(
     q: ArrayLike,
     qd: ArrayLike,
@@ -520,28 +538,8 @@ def joint_forces(
     aB = aA + _point_acc(p.r3, t2, w2, a2)
     aG5 = aD + _point_acc(0.5 * p.r5, t5, w5, a5)
     aC = aD + _point_acc(p.r5, t5, w5, a5)
-    e2 = np.array([math.cos(t2), math.sin(t2)])
-    e5 = np.array([math.cos(t5), math.sin(t5)])
-
-    # Link 3 + slider B
-    F34x = p.mB * aB[0] - f_B
-    rGA = 0.5 * p.r3 * e2
-    rBA = p.r3 * e2
-    # (B−A)×(−F34) = −(rBA_x F34y − rBA_y F34x)
-    rhs3 = p.J3 * a2 + _cross(rGA, p.m3 * aG3) - _cross(rGA, np.array([0.0, -p.m3 * p.g])) - tau[1]
-    F34y = (rBA[1] * F34x - rhs3) / rBA[0]
-    F34 = np.array([F34x, F34y])
-    F23 = p.m3 * aG3 + F34 + np.array([0.0, p.m3 * p.g])
-
-    # Link 5 + slider C
-    F56x = p.mC * aC[0] - f_C
-    rGD = 0.5 * p.r5 * e5
-    rCD = p.r5 * e5
-    rhs5 = p.J5 * a5 + _cross(rGD, p.m5 * aG5) - _cross(rGD, np.array([0.0, -p.m5 * p.g])) - tau[2]
-    F56y = (rCD[1] * F56x - rhs5) / rCD[0]
-    F56 = np.array([F56x, F56y])
-    F25 = p.m5 * aG5 + F56 + np.array([0.0, p.m5 * p.g])
-
+    F34, F23 = _rod_and_slider_pins(p.r3, p.m3, p.J3, t2, a2, aG3, p.mB, aB[0], f_B, tau[1], p.g)
+    F56, F25 = _rod_and_slider_pins(p.r5, p.m5, p.J5, t5, a5, aG5, p.mC, aC[0], f_C, tau[2], p.g)
     F12 = F23 + F25 + np.array([0.0, p.m2 * p.g])
     return JointForces(F12=F12, F23=F23, F34=F34, F25=F25, F56=F56, mu=p.mu)
 
