@@ -5,7 +5,9 @@ around every sample of the reference a rectangle is drawn, ``±half_width`` in t
 ``±half_height`` in value; the funnel is the envelope of those rectangles, built by the funnel
 library of LBNL through `pyfunnel.compareAndReport`. A result sample outside the funnel has the
 error ``max(0, y - upper) - min(0, y - lower)`` (the distance to the funnel, in the variable's
-units); a variable passes when that error is 0 at every sample of the result.
+units); a variable passes when that error is 0 at every check point: the result's own samples,
+or, when the result is sampled more densely than the reference, the reference's sample times
+(`toggle_cosim.analysis.sampling`), so the verdict does not depend on how either was sampled.
 
 Tolerances (per variable, `Tolerance`):
 
@@ -46,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points
 from toggle_cosim.traces import Trace, atomic_write, write_csv
 
 __all__ = [
@@ -122,7 +125,7 @@ class Envelope:
     lower: np.ndarray
     upper_time: np.ndarray
     upper: np.ndarray
-    time: np.ndarray  # the result's samples
+    time: np.ndarray  # the check points (toggle_cosim.analysis.sampling)
     result: np.ndarray
     lower_at_result: np.ndarray
     upper_at_result: np.ndarray
@@ -145,6 +148,7 @@ class VariableResult:
 class ComparisonResult:
     variables: tuple[VariableResult, ...]
     passed: bool
+    grid: str = RESULT_GRID  # where the funnel was checked (toggle_cosim.analysis.sampling)
 
     @property
     def failed(self) -> tuple[str, ...]:
@@ -338,25 +342,6 @@ def _funnel(
     )
 
 
-def _align_span(t_res: np.ndarray, t_ref: np.ndarray, result_label: str, reference_label: str) -> np.ndarray:
-    """Both traces must start and stop together (the funnel library requires it); snap rounding differences."""
-    span = float(t_ref[-1] - t_ref[0])
-    slack = 1e-9 * max(span, abs(float(t_ref[-1])), 1e-300)
-    t = t_res.copy()
-    for index, word in ((0, "starts"), (-1, "ends")):
-        if abs(float(t[index] - t_ref[index])) > slack:
-            raise CompareInputError(
-                f"{result_label}: time {word} at {t[index]:.17g} s but the reference {reference_label} {word} at "
-                f"{t_ref[index]:.17g} s; rerun over the reference's time span"
-            )
-        t[index] = t_ref[index]
-    if np.any(np.diff(t) <= 0):
-        raise CompareInputError(
-            f"{result_label}: time is not strictly increasing at its ends once aligned to the reference"
-        )
-    return t
-
-
 def compare_traces(
     result: Trace,
     reference: Trace,
@@ -399,16 +384,27 @@ def compare_traces(
         )
 
     t_ref = np.asarray(reference.time, dtype=float)
-    t_res = _align_span(np.asarray(result.time, dtype=float), t_ref, result_label, reference_label)
+    chosen = {name: tolerances.get(name, default) for name in selected}
+    sizes = {name: (chosen[name].half_height(np.asarray(reference.column(name), dtype=float)),
+                    chosen[name].half_width(t_ref)) for name in selected}
+    try:
+        points = check_points(np.asarray(result.time, dtype=float),
+                              np.column_stack([result.column(name) for name in selected]), t_ref,
+                              min(width for _, width in sizes.values()))
+    except SpanMismatch as error:
+        raise CompareInputError(
+            f"{result_label}: time {error.word} at {error.result_time:.17g} s but the reference {reference_label} "
+            f"{error.word} at {error.reference_time:.17g} s, more than the time tolerance "
+            f"({error.tolerance:.3g} s) apart; rerun over the reference's time span"
+        ) from None
     outcomes = []
     with tempfile.TemporaryDirectory(prefix="toggle-cosim-funnel-") as workdir:
-        for name in selected:
-            tolerance = tolerances.get(name, default)
+        for column, name in enumerate(selected):
+            tolerance = chosen[name]
             y_ref = np.asarray(reference.column(name), dtype=float)
-            y_res = np.asarray(result.column(name), dtype=float)
-            half_height = tolerance.half_height(y_ref)
-            half_width = tolerance.half_width(t_ref)
-            envelope = _funnel(t_ref, y_ref, t_res, y_res, half_width, half_height, workdir, name)
+            half_height, half_width = sizes[name]
+            envelope = _funnel(t_ref, y_ref, points.time, points.values[:, column], half_width, half_height,
+                               workdir, name)
             worst = int(np.argmax(envelope.error))
             max_error = float(envelope.error[worst])
             outcomes.append(VariableResult(
@@ -416,7 +412,7 @@ def compare_traces(
                 time_of_max_error=float(envelope.time[worst]) if max_error > 0 else None,
                 tolerance=tolerance, half_height=half_height, half_width=half_width, envelope=envelope,
             ))
-    return ComparisonResult(variables=tuple(outcomes), passed=all(v.passed for v in outcomes))
+    return ComparisonResult(variables=tuple(outcomes), passed=all(v.passed for v in outcomes), grid=points.grid)
 
 
 # ----------------------------------------------------------------------------- terminal table
@@ -697,10 +693,12 @@ def read_options(path: Path | str) -> dict[str, float | str]:
     return options
 
 
-def _check_span(trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path) -> None:
+def _check_span(trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path,
+                slack: float = 0.0) -> None:
+    """The trace must run from StartTime to StopTime, within `slack` seconds (the time tolerance)."""
     start, stop = float(options["StartTime"]), float(options["StopTime"])
     for value, target, word in ((trace.time[0], start, "StartTime"), (trace.time[-1], stop, "StopTime")):
-        if not _time_matches(float(value), target, stop - start):
+        if abs(float(value) - target) > slack and not _time_matches(float(value), target, stop - start):
             edge = "starts" if word == "StartTime" else "ends"
             raise CompareInputError(
                 f"{label}: time {edge} at {value:.17g} s but {opt_path} gives {word} {target:.17g} s; "
@@ -721,46 +719,8 @@ def read_reference(path_stem: Path | str) -> tuple[Trace, dict[str, float | str]
 
 
 def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_path: Path | str | None = None,
-                out_dir: Path | str | None = None) -> int:
-    """`toggle-cosim compare RESULT REFERENCE [--tolerances FILE] [--out DIR]`: return the exit status.
+                out_dir: Path | str | None = None, **reports: Any) -> int:
+    """`toggle-cosim compare`: see `toggle_cosim.analysis.compare_command.run_compare`."""
+    from toggle_cosim.analysis.compare_command import run_compare as command
 
-    Prints the table to stdout; returns 0 if every variable passes, 1 if any fails, 2 on bad
-    input (one line ``error: ...`` on stderr, and nothing written). When REFERENCE is a
-    ``<name>_ref.csv`` with a ``<name>_ref.opt`` beside it, the result must also run from its
-    StartTime to its StopTime. With `out_dir`, the report of `write_report` is written there.
-    """
-    try:
-        reference_path = Path(reference_path)
-        result_path = Path(result_path)
-        if out_dir is not None and Path(out_dir).exists() and not Path(out_dir).is_dir():
-            raise CompareInputError(f"{out_dir}: exists and is not a directory; give a folder for the report")
-        reference = read_trace(reference_path)
-        _, opt_path = _reference_paths(reference_path)
-        options = None
-        if reference_path.name.endswith("_ref.csv") and opt_path.exists():
-            options = read_options(opt_path)
-            _check_span(reference, options, str(reference_path), opt_path)
-        result = read_trace(result_path)
-        if options is not None:
-            _check_span(result, options, str(result_path), opt_path)
-        if tolerance_path is not None:
-            default, tolerances = load_tolerances(tolerance_path)
-        else:
-            default, tolerances = DEFAULT_TOLERANCE, {}
-        comparison = compare_traces(
-            result, reference, tolerances, default, result_label=str(result_path),
-            reference_label=str(reference_path), tolerances_label=str(tolerance_path),
-        )
-    except CompareInputError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    print(format_table(comparison))
-    if out_dir is not None:
-        try:
-            written = write_report(comparison, Path(out_dir), result, reference)
-        except OSError as error:
-            reason = error.strerror or error
-            print(f"error: {out_dir}: cannot write the report ({reason}); check the folder", file=sys.stderr)
-            return 2
-        print(f"report: {len(written)} files in {out_dir}")
-    return 0 if comparison.passed else 1
+    return command(result_path, reference_path, tolerance_path, out_dir, **reports)
