@@ -34,6 +34,7 @@ the problem and the fix; `run_compare` turns it into ``error: ...`` on stderr an
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import csv
 import io
 import math
@@ -48,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points
+from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
 from toggle_cosim.traces import Trace, atomic_write, write_csv
 
 __all__ = [
@@ -342,6 +343,23 @@ def _funnel(
     )
 
 
+def _between_samples(envelope: Envelope, low: np.ndarray, high: np.ndarray, ref_low: np.ndarray,
+                     ref_high: np.ndarray, half_height: float) -> Envelope:
+    """Widen the check where a check point falls between two samples of a trace (see
+    toggle_cosim.analysis.sampling): the result counts with every value between its neighbouring
+    samples, the funnel also holds the reference's neighbouring values ± the value tube."""
+    widened = (low != high) | np.isfinite(ref_low)
+    if not np.any(widened):
+        return envelope
+    lower = np.where(np.isfinite(ref_low), np.minimum(envelope.lower_at_result, ref_low - half_height),
+                     envelope.lower_at_result)
+    upper = np.where(np.isfinite(ref_high), np.maximum(envelope.upper_at_result, ref_high + half_height),
+                     envelope.upper_at_result)
+    error = np.maximum(0.0, np.maximum(low - upper, lower - high))
+    return dataclasses.replace(envelope, lower_at_result=lower, upper_at_result=upper,
+                               error=np.where(widened, error, envelope.error))
+
+
 def compare_traces(
     result: Trace,
     reference: Trace,
@@ -405,6 +423,8 @@ def compare_traces(
             half_height, half_width = sizes[name]
             envelope = _funnel(t_ref, y_ref, points.time, points.values[:, column], half_width, half_height,
                                workdir, name)
+            envelope = _between_samples(envelope, points.low[:, column], points.high[:, column],
+                                        *reference_range(points.time, t_ref, y_ref), half_height)
             worst = int(np.argmax(envelope.error))
             max_error = float(envelope.error[worst])
             outcomes.append(VariableResult(

@@ -19,6 +19,15 @@ A real change still fails: it moves the result away from the reference at the po
 show, whatever the ratio (the tests run ratios 3, 7 and 10 both ways across the reaching/sliding
 switch and the friction sign events, with μ raised from 0.2 to 0.25 and a gain raised by 5 %).
 
+Grids that do not coincide (say a result every 3.5 ms against a reference every 5 ms): a check
+point that is not a sample of a trace falls between two of its samples, and between them that
+trace may have taken any value from one sample's to the other's (a jump at an event can lie
+anywhere in the interval). So there, and only there, the trace counts with that whole interval:
+the result passes at such a point when some value between its two neighbouring samples lies in
+the funnel (`CheckPoints.low`/`high`), and the funnel there also holds the values between the
+reference's two neighbouring samples, ± the value tube (`reference_range`). At points that are
+samples of both traces (any decimated copy) nothing is widened.
+
 Time spans: the result may start or stop up to the time tolerance (the funnel's half-width)
 away from the reference. Result samples outside the reference's span are dropped and the
 result's value at the reference's first and last time is taken by interpolation, or held from
@@ -32,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["CheckPoints", "SpanMismatch", "check_points"]
+__all__ = ["CheckPoints", "SpanMismatch", "check_points", "reference_range"]
 
 RESULT_GRID = "result samples"
 REFERENCE_GRID = "reference samples"
@@ -53,6 +62,41 @@ class CheckPoints:
     time: np.ndarray
     values: np.ndarray  # shape (len(time), number of variables)
     grid: str  # RESULT_GRID or REFERENCE_GRID
+    low: np.ndarray  # the smallest value the result may take there (= values at its own samples)
+    high: np.ndarray  # the largest
+
+
+def _neighbours(times: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each of `times`: the indices of the samples of `grid` before and after it, and whether
+    it is a sample of `grid` (to rounding)."""
+    slack = _slack(grid)
+    right = np.clip(np.searchsorted(grid, times), 0, grid.size - 1)
+    left = np.clip(right - 1, 0, grid.size - 1)
+    exact = (np.abs(grid[right] - times) <= slack) | (np.abs(grid[left] - times) <= slack)
+    return left, right, exact
+
+
+def _range_between(times: np.ndarray, grid: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of the values a sampled signal may take at `times`: its value at its own
+    samples, anything between the two neighbouring samples elsewhere (held beyond its ends)."""
+    left, right, exact = _neighbours(times, grid)
+    inside = (times > grid[0]) & (times < grid[-1])
+    widen = (~exact & inside)[:, None]
+    exact_value = np.column_stack([np.interp(times, grid, y[:, j]) for j in range(y.shape[1])])
+    low = np.where(widen, np.minimum(y[left], y[right]), exact_value)
+    high = np.where(widen, np.maximum(y[left], y[right]), exact_value)
+    return low, high
+
+
+def reference_range(times: np.ndarray, t_ref: np.ndarray, y_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where a check point falls between two reference samples: the smallest and largest of the
+    two (NaN at the reference's own samples, where the funnel is not widened)."""
+    times = np.asarray(times, dtype=float)
+    y = np.asarray(y_ref, dtype=float).reshape(-1, 1)
+    low, high = _range_between(times, np.asarray(t_ref, dtype=float), y)
+    _, _, exact = _neighbours(times, np.asarray(t_ref, dtype=float))
+    keep = ~exact & (times > t_ref[0]) & (times < t_ref[-1])
+    return np.where(keep, low[:, 0], np.nan), np.where(keep, high[:, 0], np.nan)
 
 
 def _slack(t_ref: np.ndarray) -> float:
@@ -82,8 +126,9 @@ def check_points(t_res: np.ndarray, y_res: np.ndarray, t_ref: np.ndarray, span_t
 
     inside = (t_res > t_ref[0] + _slack(t_ref)) & (t_res < t_ref[-1] - _slack(t_ref))
     if np.count_nonzero(inside) + 2 > t_ref.size:  # the result is denser: look only where the reference looks
-        return CheckPoints(t_ref.copy(), at(t_ref), REFERENCE_GRID)
+        low, high = _range_between(t_ref, t_res, y_res)
+        return CheckPoints(t_ref.copy(), at(t_ref), REFERENCE_GRID, low, high)
     # the result's own samples, with its values at the reference's first and last time as end points
     time = np.concatenate([t_ref[:1], t_res[inside], t_ref[-1:]])
     values = np.vstack([at(t_ref[:1]), y_res[inside], at(t_ref[-1:])])
-    return CheckPoints(time, values, RESULT_GRID)
+    return CheckPoints(time, values, RESULT_GRID, values.copy(), values.copy())
