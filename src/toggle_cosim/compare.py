@@ -718,7 +718,7 @@ def _check_span(trace: Trace, options: Mapping[str, float | str], label: str, op
     """The trace must run from StartTime to StopTime, within `slack` seconds (the time tolerance)."""
     start, stop = float(options["StartTime"]), float(options["StopTime"])
     for value, target, word in ((trace.time[0], start, "StartTime"), (trace.time[-1], stop, "StopTime")):
-        if abs(float(value) - target) > slack and not _time_matches(float(value), target, stop - start):
+        if abs(float(value) - target) > slack * (1 + 1e-9) and not _time_matches(float(value), target, stop - start):
             edge = "starts" if word == "StartTime" else "ends"
             raise CompareInputError(
                 f"{label}: time {edge} at {value:.17g} s but {opt_path} gives {word} {target:.17g} s; "
