@@ -10,7 +10,6 @@ friction-carrying constraint force lambda1 and the load force F_C. A real change
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 from pathlib import Path
 

@@ -34,13 +34,12 @@ the problem and the fix; `run_compare` turns it into ``error: ...`` on stderr an
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import csv
+import dataclasses
 import io
 import math
 import os
 import re
-import sys
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field

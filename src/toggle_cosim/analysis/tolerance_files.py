@@ -22,7 +22,9 @@ def applicable_tolerance_files(reference: Path | str) -> list[Path]:
     """The tolerance files that apply to `reference` by place, the general one first."""
     folder = Path(reference).resolve().parent
     candidates = [folder.parent / TOLERANCE_FILE, folder / TOLERANCE_FILE]
-    return [path for path in dict.fromkeys(candidates) if path.is_file()]
+    here = Path.cwd().resolve()
+    return [path.relative_to(here) if path.is_relative_to(here) else path
+            for path in dict.fromkeys(candidates) if path.is_file()]
 
 
 def merged_tolerances(files: list[Path]) -> tuple[Tolerance, dict[str, Tolerance]]:
