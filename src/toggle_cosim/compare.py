@@ -25,9 +25,10 @@ zero-height tube while staying far below anything physical in m, A, N or V (csv-
 2e-15 minimum tube, which rounding in another build can exceed).
 
 Files: traces are CSV in the FMI cross-check layout (header of quoted names, "time" first, one
-row per sample, time strictly increasing); a stored reference is ``<name>_ref.csv`` plus the
-cross-check options file ``<name>_ref.opt`` (``StartTime, StopTime, StepSize, RelTol`` lines).
-Every problem with an input raises `CompareInputError` whose message is one line naming the file,
+row per sample, time strictly increasing; `toggle_cosim.analysis.csv_traces`) or Modelica MAT v4
+result files (`analysis.trace_formats`); a stored reference is ``<name>_ref.csv`` plus the
+cross-check options file ``<name>_ref.opt`` (``StartTime, StopTime, StepSize, RelTol`` lines;
+`analysis.reference_files`). Every problem with an input raises `CompareInputError` whose message is one line naming the file,
 the problem and the fix; `run_compare` turns it into ``error: ...`` on stderr and exit status 2.
 """
 
@@ -48,6 +49,8 @@ from typing import Any
 
 import numpy as np
 
+from toggle_cosim.analysis.csv_traces import CompareInputError, _check_trace, _float_or_none, read_trace
+from toggle_cosim.analysis.reference_files import read_options, read_reference, write_reference
 from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
 from toggle_cosim.traces import Trace, atomic_write, write_csv
 
@@ -68,13 +71,6 @@ __all__ = [
     "write_reference",
     "write_report",
 ]
-
-
-class CompareInputError(Exception):
-    """Bad input to a comparison; the message is one line: file, problem, fix."""
-
-    def __init__(self, message: str) -> None:
-        super().__init__(" ".join(str(message).split()))
 
 
 # ----------------------------------------------------------------------------- tolerances
@@ -159,150 +155,6 @@ class ComparisonResult:
             if variable.name == name:
                 return variable
         raise KeyError(name)
-
-
-# ----------------------------------------------------------------------------- reading traces
-
-
-def _float_or_none(text: str) -> float | None:
-    try:
-        return float(text)
-    except ValueError:
-        return None
-
-
-def read_trace(path: Path | str) -> Trace:
-    """Read a cross-check CSV strictly; any defect raises CompareInputError naming the file and the fix."""
-    path = Path(path)
-    if not path.exists():
-        raise CompareInputError(f"{path}: no such file; check the path (traces are written by `toggle-cosim run`)")
-    if path.is_dir():
-        raise CompareInputError(f"{path}: is a directory, not a CSV file; give the trace's .csv file")
-    try:
-        raw = path.read_bytes()
-    except OSError as error:
-        raise CompareInputError(f"{path}: cannot be read ({error.strerror}); check its permissions") from error
-    if b"\x00" in raw:
-        raise CompareInputError(
-            f'{path}: is a binary file, not a CSV; give a CSV with a header of quoted names, "time" first'
-        )
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        bad = raw[error.start]
-        raise CompareInputError(
-            f"{path}: is not UTF-8 text (byte 0x{bad:02x} at offset {error.start}); re-save it as UTF-8"
-        ) from error
-
-    reader = csv.reader(io.StringIO(text, newline=""), skipinitialspace=True)
-    rows: list[list[str]] = []
-    lines: list[int] = []
-    try:
-        for row in reader:
-            if not row or all(not cell.strip() for cell in row):
-                continue  # blank line
-            rows.append([cell.strip() for cell in row])
-            lines.append(reader.line_num)
-    except csv.Error as error:
-        raise CompareInputError(
-            f"{path}: is not a valid CSV (line {reader.line_num}: {error}); fix the quoting"
-        ) from error
-
-    if not rows:
-        raise CompareInputError(
-            f'{path}: is empty; a trace needs a header of quoted names ("time" first) and one row per sample'
-        )
-    names = tuple(rows[0])
-    if len(names) == 1:
-        separator = next((s for s in (";", "\t", "|") if s in names[0]), None)
-        if separator is not None:
-            raise CompareInputError(
-                f"{path}: is separated by {separator!r}, not commas; the cross-check layout uses commas"
-            )
-        raise CompareInputError(
-            f'{path}: has a single column ({names[0][:40]!r}), so it is not a trace CSV; expected "time" and variables'
-        )
-    if all(_float_or_none(name) is not None for name in names):
-        raise CompareInputError(
-            f'{path}: has no header (line {lines[0]} is numbers); add a first line of quoted names, "time" first'
-        )
-    empty = [i + 1 for i, name in enumerate(names) if not name]
-    if empty:
-        raise CompareInputError(f"{path}: header column {empty[0]} has no name; name every column")
-    seen: set[str] = set()
-    for name in names:
-        if name in seen:
-            raise CompareInputError(f"{path}: column {name!r} appears twice in the header; keep one")
-        seen.add(name)
-    if names[0] != "time":
-        if "time" in names:
-            raise CompareInputError(
-                f'{path}: "time" is column {names.index("time") + 1}; it must be the first column'
-            )
-        near = next((n for n in names if n.lower() == "time"), None)
-        if near is not None:
-            raise CompareInputError(f'{path}: no "time" column (found {near!r}); rename it to "time", lowercase')
-        shown = ",".join(names[:4]) + (",..." if len(names) > 4 else "")
-        raise CompareInputError(f'{path}: no "time" column (header is {shown}); the first column must be "time"')
-
-    body = rows[1:]
-    if not body:
-        raise CompareInputError(f"{path}: has a header but no data rows (empty trace); write at least two samples")
-    for row, line in zip(body, lines[1:], strict=True):
-        if len(row) != len(names):
-            raise CompareInputError(
-                f"{path}: line {line} has {len(row)} values but the header has {len(names)} columns; "
-                "every row needs one value per column"
-            )
-    try:
-        data = np.array(body, dtype=float)
-    except ValueError:
-        data = None
-    if data is None or not np.all(np.isfinite(data)):
-        for row, line in zip(body, lines[1:], strict=True):
-            for name, cell in zip(names, row, strict=True):
-                value = _float_or_none(cell)
-                if value is None:
-                    raise CompareInputError(
-                        f"{path}: line {line}, column {name!r}: {cell[:30]!r} is not a number; "
-                        "write plain numbers (booleans as 0 and 1)"
-                    )
-                if not math.isfinite(value):
-                    raise CompareInputError(
-                        f"{path}: line {line}, column {name!r}: {cell!r} is not finite; the run diverged or wrote a gap"
-                    )
-    assert data is not None
-    if data.shape[0] < 2:
-        raise CompareInputError(f"{path}: has a single sample; a trace needs at least two to span a time interval")
-    steps = np.diff(data[:, 0])
-    bad = np.flatnonzero(steps <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise CompareInputError(
-            f"{path}: time is not strictly increasing at line {lines[1 + i]} "
-            f"(t = {data[i, 0]:.17g} after {data[i - 1, 0]:.17g}); drop repeated or out-of-order rows"
-        )
-    return Trace(names, data)
-
-
-def _check_trace(trace: Trace, label: str) -> None:
-    """The checks of `read_trace` for a Trace built in memory."""
-    data = np.asarray(trace.data)
-    if data.ndim != 2 or data.shape[1] != len(trace.names):
-        raise CompareInputError(f"{label}: data has shape {data.shape} but there are {len(trace.names)} names")
-    if not trace.names or trace.names[0] != "time":
-        raise CompareInputError(f'{label}: the first column must be "time", not {trace.names[:1]}')
-    if len(set(trace.names)) != len(trace.names):
-        raise CompareInputError(f"{label}: column names repeat; keep one of each")
-    if data.shape[0] < 2:
-        raise CompareInputError(f"{label}: has {data.shape[0]} samples (empty trace); need at least two")
-    if not np.all(np.isfinite(data)):
-        row, column = (int(k) for k in np.argwhere(~np.isfinite(data))[0])
-        raise CompareInputError(f"{label}: row {row + 1}, column {trace.names[column]!r} is not finite")
-    steps = np.diff(data[:, 0])
-    if np.any(steps <= 0):
-        i = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise CompareInputError(f"{label}: time is not strictly increasing at row {i + 1} (t = {data[i, 0]:.17g})")
 
 
 # ----------------------------------------------------------------------------- the comparison
@@ -628,110 +480,6 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     default = Tolerance(**base)
     per_variable = {name: Tolerance(**{**base, **entry}) for name, entry in document.items() if name != "default"}
     return default, per_variable
-
-
-# ----------------------------------------------------------------------------- reference files (FMI cross-check)
-
-_REQUIRED_OPTIONS = ("StartTime", "StopTime", "StepSize", "RelTol")
-_NUMERIC_OPTIONS = (*_REQUIRED_OPTIONS, "AbsTol", "OutputIntervalLength")
-
-
-def _reference_paths(path_stem: Path | str) -> tuple[Path, Path]:
-    stem = str(path_stem)
-    for suffix in ("_ref.csv", "_ref.opt"):
-        if stem.endswith(suffix):
-            stem = stem[: -len(suffix)]
-    return Path(f"{stem}_ref.csv"), Path(f"{stem}_ref.opt")
-
-
-def _time_matches(a: float, b: float, span: float) -> bool:
-    return abs(a - b) <= 1e-9 * max(abs(span), abs(a), abs(b), 1e-300)
-
-
-def write_reference(trace: Trace, path_stem: Path | str, start: float, stop: float, step: float,
-                    reltol: float) -> tuple[Path, Path]:
-    """Store `trace` as a cross-check reference: <stem>_ref.csv and <stem>_ref.opt.
-
-    path_stem is <folder>/<name> (a trailing _ref.csv or _ref.opt is dropped). step is the step
-    size in s (0 for a variable-step solver); reltol the solver's relative tolerance. The trace
-    must run from `start` to `stop`, as the cross-check rules require.
-    """
-    _check_trace(trace, "trace")
-    if not (math.isfinite(start) and math.isfinite(stop) and stop > start):
-        raise ValueError(f"StopTime ({stop}) must be after StartTime ({start})")
-    if not (math.isfinite(step) and step >= 0 and math.isfinite(reltol) and reltol >= 0):
-        raise ValueError(f"StepSize ({step}) and RelTol ({reltol}) must be finite and >= 0")
-    if not (_time_matches(trace.time[0], start, stop - start) and _time_matches(trace.time[-1], stop, stop - start)):
-        raise ValueError(f"the trace runs from {trace.time[0]} to {trace.time[-1]} s, not from StartTime {start} "
-                         f"to StopTime {stop} s")
-    csv_path, opt_path = _reference_paths(path_stem)
-    write_csv(csv_path, trace)
-    lines = [f"StartTime, {float(start)!r}", f"StopTime, {float(stop)!r}", f"StepSize, {float(step)!r}",
-             f"RelTol, {float(reltol)!r}"]
-    atomic_write(opt_path, lambda stream: stream.write("\n".join(lines) + "\n"))
-    return csv_path, opt_path
-
-
-def read_options(path: Path | str) -> dict[str, float | str]:
-    """Read a cross-check options file (``Name, value`` lines; ``//`` comments allowed)."""
-    path = Path(path)
-    if not path.is_file():
-        raise CompareInputError(
-            f"{path}: no such file; a reference needs its options file beside it "
-            "(StartTime, StopTime, StepSize, RelTol)"
-        )
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as error:
-        raise CompareInputError(f"{path}: is not UTF-8 text (offset {error.start}); re-save it as UTF-8") from error
-    options: dict[str, float | str] = {}
-    for number, line in enumerate(text.splitlines(), start=1):
-        line = line.split("//", 1)[0].strip()
-        if not line:
-            continue
-        key, comma, value = (part.strip() for part in line.partition(","))
-        if not comma or not key or not value:
-            raise CompareInputError(f"{path}: line {number} is not 'Name, value' ({line[:40]!r}); fix or remove it")
-        if key in options:
-            raise CompareInputError(f"{path}: line {number}: {key} is given twice; keep one")
-        if key in _NUMERIC_OPTIONS:
-            number_value = _float_or_none(value)
-            if number_value is None or not math.isfinite(number_value):
-                raise CompareInputError(f"{path}: line {number}: {key} is {value!r}, not a number; write a number")
-            options[key] = number_value
-        else:
-            options[key] = value
-    missing = [key for key in _REQUIRED_OPTIONS if key not in options]
-    if missing:
-        raise CompareInputError(f"{path}: lacks {', '.join(missing)}; add a '{missing[0]}, <value>' line")
-    if not float(options["StopTime"]) > float(options["StartTime"]):
-        raise CompareInputError(f"{path}: StopTime {options['StopTime']} is not after StartTime {options['StartTime']}")
-    for key in ("StepSize", "RelTol"):
-        if float(options[key]) < 0:
-            raise CompareInputError(f"{path}: {key} is negative; it must be >= 0 (StepSize 0 means variable step)")
-    return options
-
-
-def _check_span(trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path,
-                slack: float = 0.0) -> None:
-    """The trace must run from StartTime to StopTime, within `slack` seconds (the time tolerance)."""
-    start, stop = float(options["StartTime"]), float(options["StopTime"])
-    for value, target, word in ((trace.time[0], start, "StartTime"), (trace.time[-1], stop, "StopTime")):
-        if abs(float(value) - target) > slack * (1 + 1e-9) and not _time_matches(float(value), target, stop - start):
-            edge = "starts" if word == "StartTime" else "ends"
-            raise CompareInputError(
-                f"{label}: time {edge} at {value:.17g} s but {opt_path} gives {word} {target:.17g} s; "
-                "run over the reference's time span"
-            )
-
-
-def read_reference(path_stem: Path | str) -> tuple[Trace, dict[str, float | str]]:
-    """Read <stem>_ref.csv and <stem>_ref.opt; the trace must run from StartTime to StopTime."""
-    csv_path, opt_path = _reference_paths(path_stem)
-    trace = read_trace(csv_path)
-    options = read_options(opt_path)
-    _check_span(trace, options, str(csv_path), opt_path)
-    return trace, options
 
 
 # ----------------------------------------------------------------------------- command

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim.compare import CompareInputError, read_trace
+from toggle_cosim.analysis.csv_traces import CompareInputError, read_trace
 from toggle_cosim.traces import Trace
 
 __all__ = ["read_any_trace", "read_mat_trace"]
