@@ -78,6 +78,10 @@ def test_compare_holds_a_csv_run_against_a_mat_reference_from_another_tool(tmp_p
     write_csv(tmp_path / "off.csv", Trace(("time", "x_B"), np.column_stack([fine, 1.01 * np.sin(2 * np.pi * fine / 1.5)])))
     assert run_compare(tmp_path / "off.csv", mat) == 1
     assert "x_B" in capsys.readouterr().out
+    # the other way round: the tool's file as RESULT, with more variables than our reference has
+    rich = write_modelica_mat(tmp_path / "rich_res.mat", T, {"x_B": x, "plant.der_x": np.cos(T)}, {"m_B": 4.43})
+    assert run_compare(rich, tmp_path / "trace.csv") == 0
+    assert capsys.readouterr().out.splitlines()[-2] == "1 variables: 1 passed, 0 failed"
 
 
 def test_a_file_that_is_not_a_modelica_result_is_one_line_of_bad_input(tmp_path, capsys):
