@@ -172,3 +172,19 @@ def test_a_real_change_fails_at_every_ratio(runs, ratio, direction, change):
         assert {"Ff12", "E_fric"} <= failed  # friction forces and energy scale with mu
     else:
         assert {"iq_ref", "S"} <= failed  # a steeper sliding line changes the command
+
+
+def test_the_readme_compare_command_passes_on_a_fresh_run_and_fails_a_changed_one(runs, tmp_path, capsys):
+    """`toggle-cosim compare out/fig4_nominal/friction/trace.csv scenarios/references/fig4_nominal/
+    friction_ref.csv`: the full-resolution run against the stored reference (every 10th sample),
+    with the shipped tolerances.yaml found beside the reference."""
+    from toggle_cosim.compare import run_compare
+    from toggle_cosim.traces import write_csv
+
+    reference = ROOT / "scenarios" / "references" / "fig4_nominal" / "friction_ref.csv"
+    write_csv(tmp_path / "fresh" / "trace.csv", runs["unchanged"])
+    assert run_compare(tmp_path / "fresh" / "trace.csv", reference) == 0
+    out = capsys.readouterr().out
+    assert "34 variables: 34 passed, 0 failed" in out and "checked at the reference samples" in out
+    write_csv(tmp_path / "changed" / "trace.csv", runs["mu 0.2 -> 0.25"])
+    assert run_compare(tmp_path / "changed" / "trace.csv", reference) == 1
