@@ -264,8 +264,8 @@ def test_result_over_another_time_span_is_bad_input(tmp_path, capsys):
     assert run_compare(res, ref) == 2
     err = capsys.readouterr().err
     assert err.splitlines() == [
-        f"error: {res}: time ends at 0.90000000000000002 s but the reference {ref} ends at 1 s; "
-        "rerun over the reference's time span"]
+        f"error: {res}: time ends at 0.90000000000000002 s but the reference {ref} ends at 1 s, "
+        "more than the time tolerance (0.001 s) apart; rerun over the reference's time span"]
 
 
 def test_report_dir_that_is_a_file_is_bad_input(files, capsys):

@@ -7,8 +7,10 @@ import dataclasses
 from pathlib import Path
 
 import pytest
+from junitparser import JUnitXml
 
 from toggle_cosim import references
+from toggle_cosim.analysis.reference_reports import write_reference_reports
 from toggle_cosim.master import simulate
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import load_scenario
@@ -33,17 +35,28 @@ def test_shipped_run_matches_its_reference(run, plant_fmu: Path, no_gravity_fmu:
     assert checked.comparison.passed, "moved beyond tolerance: " + "; ".join(checked.failures)
 
 
-def test_a_perturbed_model_parameter_fails_the_check_and_names_the_variables(plant_fmu: Path) -> None:
+def test_a_perturbed_model_parameter_fails_the_check_and_names_the_variables(plant_fmu: Path, tmp_path: Path) -> None:
     """Raising the friction coefficient from 0.2 to 0.25 in the plant (a model change the
-    controller does not know about) must move the nominal run outside its funnel."""
+    controller does not know about) must move the nominal run outside its funnel; the CI reports
+    of `toggle-cosim references` say so, one JUnit test case per variable."""
     run = next(r for r in load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml") if r.variant == "friction")
     perturbed = dataclasses.replace(run, plant=dataclasses.replace(run.plant, mu=0.25))
-    checked = references.check(simulate(perturbed, check_plant(plant_fmu)), FOLDER)
+    outcome = simulate(perturbed, check_plant(plant_fmu))
+    checked = references.check(outcome, FOLDER)
     assert not checked.comparison.passed
     failed = {v.name for v in checked.comparison.variables if not v.passed}
     assert {"Ff12", "E_fric"} <= failed  # friction forces and energy scale with mu
     assert "x_B" not in failed  # the controller keeps the position on course
     assert all(message.startswith("fig4_nominal/friction: ") for message in checked.failures)
+
+    junit, summary = write_reference_reports(
+        [(checked, outcome.trace, references.reference_stem(FOLDER, run))], tmp_path, tmp_path / "junit.xml",
+        tmp_path / "summary.md")
+    xml = JUnitXml.fromfile(str(junit))
+    assert (xml.tests, xml.failures) == (len(checked.comparison.variables), len(failed))
+    assert sorted(p.stem.removesuffix("_funnel") for p in (tmp_path / "fig4_nominal" / "friction").glob("*.png")) \
+        == sorted(failed)
+    assert "| fig4_nominal/friction | reference samples | 34 |" in summary.read_text()
 
 
 def test_the_swapped_plant_differs_from_the_original(plant_fmu: Path, no_gravity_fmu: Path) -> None:

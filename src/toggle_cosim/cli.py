@@ -261,14 +261,23 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
 @click.argument("result", type=click.Path(path_type=Path))
 @click.argument("reference", type=click.Path(path_type=Path))
 @click.option("--tolerances", type=click.Path(path_type=Path), default=None,
-              help="YAML: {variable: {atol, rtol, ttol}, default: {...}}.")
+              help="YAML: {variable: {atol, rtol, ttol}, default: {...}} (default: the tolerances.yaml files "
+                   "in the reference's folder and its parent).")
 @click.option("--out", type=click.Path(path_type=Path), default=None,
               help="Folder for the envelopes and plots of failing variables.")
-def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | None) -> None:
-    """Compare RESULT with REFERENCE (CSV traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
+@click.option("--junit", type=click.Path(path_type=Path), default=None,
+              help="Write a JUnit XML report: one test case per variable.")
+@click.option("--summary", type=click.Path(path_type=Path), default=None,
+              help="Write a Markdown table (for a CI job summary).")
+@click.option("--fail-on-solver-change", is_flag=True,
+              help="A change of the stored solver statistics fails (default: a warning).")
+def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | None, junit: Path | None,
+            summary: Path | None, fail_on_solver_change: bool) -> None:
+    """Compare RESULT with REFERENCE (CSV or Modelica .mat traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
     from toggle_cosim.compare import run_compare
 
-    sys.exit(run_compare(result, reference, tolerances, out))
+    sys.exit(run_compare(result, reference, tolerances, out, junit=junit, summary=summary,
+                         fail_on_solver_change=fail_on_solver_change))
 
 
 @main.command()
@@ -276,15 +285,30 @@ def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | 
 @click.option("--update", is_flag=True, help="Rewrite the stored references from fresh runs (review the diff!).")
 @click.option("--folder", type=click.Path(path_type=Path), default=DEFAULT_REFERENCES, show_default=True)
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU for every scenario.")
-def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Path | None) -> None:
+@click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT / "references", show_default=True,
+              help="Folder for the reports: junit.xml, summary.md, plots of failing variables.")
+@click.option("--junit", type=click.Path(path_type=Path), default=None, help="JUnit XML report (default: OUT/junit.xml).")
+@click.option("--summary", type=click.Path(path_type=Path), default=None,
+              help="Markdown summary (default: OUT/summary.md).")
+@click.option("--fail-on-solver-change", is_flag=True,
+              help="A change of the stored solver statistics fails (default: a warning).")
+def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Path | None, out: Path,
+               junit: Path | None, summary: Path | None, fail_on_solver_change: bool) -> None:
     """Check the shipped runs against their stored reference traces (or --update them)."""
+    from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim import references as refs
     from toggle_cosim.compare import CompareInputError, format_table
     from toggle_cosim.master import simulate
 
+    for path, what in ((junit, "JUnit report"), (summary, "Markdown summary")):
+        if path is not None and path.is_dir():
+            raise InputError(f"{path}: is a directory; give a file name for the {what}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     pairs = _load_runs(files, fmu)
     failures: list[str] = []
+    checks = []
     for run, plant in pairs:
         outcome = simulate(run, plant)
         if not outcome.complete:
@@ -294,12 +318,21 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
             continue
         try:
             checked = refs.check(outcome, folder)
-        except CompareInputError as error:
+        except (CompareInputError, ValueError) as error:
             raise InputError(str(error)) from error
         click.echo(f"{run.label}: {'pass' if checked.comparison.passed else 'FAIL'}")
         if not checked.comparison.passed:
             click.echo(format_table(checked.comparison))
+        for line in checked.solver_changes:
+            click.echo(f"{'FAIL' if fail_on_solver_change else 'warning'}: {line}")
         failures += checked.failures
+        if fail_on_solver_change:
+            failures += checked.solver_changes
+        checks.append((checked, outcome.trace, refs.reference_stem(folder, run)))
+    if not update:
+        written = write_reference_reports(checks, out, junit or out / "junit.xml", summary or out / "summary.md",
+                                          fail_on_solver_change)
+        click.echo(f"reports: {', '.join(str(path) for path in written)}")
     if failures:
         raise RunFailed("; ".join(failures))
 

@@ -5,7 +5,9 @@ around every sample of the reference a rectangle is drawn, ``±half_width`` in t
 ``±half_height`` in value; the funnel is the envelope of those rectangles, built by the funnel
 library of LBNL through `pyfunnel.compareAndReport`. A result sample outside the funnel has the
 error ``max(0, y - upper) - min(0, y - lower)`` (the distance to the funnel, in the variable's
-units); a variable passes when that error is 0 at every sample of the result.
+units); a variable passes when that error is 0 at every check point: the result's own samples,
+or, when the result is sampled more densely than the reference, the reference's sample times
+(`toggle_cosim.analysis.sampling`), so the verdict does not depend on how either was sampled.
 
 Tolerances (per variable, `Tolerance`):
 
@@ -23,9 +25,10 @@ zero-height tube while staying far below anything physical in m, A, N or V (csv-
 2e-15 minimum tube, which rounding in another build can exceed).
 
 Files: traces are CSV in the FMI cross-check layout (header of quoted names, "time" first, one
-row per sample, time strictly increasing); a stored reference is ``<name>_ref.csv`` plus the
-cross-check options file ``<name>_ref.opt`` (``StartTime, StopTime, StepSize, RelTol`` lines).
-Every problem with an input raises `CompareInputError` whose message is one line naming the file,
+row per sample, time strictly increasing; `toggle_cosim.analysis.csv_traces`) or Modelica MAT v4
+result files (`analysis.trace_formats`); a stored reference is ``<name>_ref.csv`` plus the
+cross-check options file ``<name>_ref.opt`` (``StartTime, StopTime, StepSize, RelTol`` lines;
+`analysis.reference_files`). Every problem with an input raises `CompareInputError` whose message is one line naming the file,
 the problem and the fix; `run_compare` turns it into ``error: ...`` on stderr and exit status 2.
 """
 
@@ -33,11 +36,11 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
 import io
 import math
 import os
 import re
-import sys
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -46,6 +49,9 @@ from typing import Any
 
 import numpy as np
 
+from toggle_cosim.analysis.csv_traces import CompareInputError, _check_trace, _float_or_none, read_trace
+from toggle_cosim.analysis.reference_files import read_options, read_reference, write_reference
+from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
 from toggle_cosim.traces import Trace, atomic_write, write_csv
 
 __all__ = [
@@ -65,13 +71,6 @@ __all__ = [
     "write_reference",
     "write_report",
 ]
-
-
-class CompareInputError(Exception):
-    """Bad input to a comparison; the message is one line: file, problem, fix."""
-
-    def __init__(self, message: str) -> None:
-        super().__init__(" ".join(str(message).split()))
 
 
 # ----------------------------------------------------------------------------- tolerances
@@ -122,7 +121,7 @@ class Envelope:
     lower: np.ndarray
     upper_time: np.ndarray
     upper: np.ndarray
-    time: np.ndarray  # the result's samples
+    time: np.ndarray  # the check points (toggle_cosim.analysis.sampling)
     result: np.ndarray
     lower_at_result: np.ndarray
     upper_at_result: np.ndarray
@@ -145,6 +144,7 @@ class VariableResult:
 class ComparisonResult:
     variables: tuple[VariableResult, ...]
     passed: bool
+    grid: str = RESULT_GRID  # where the funnel was checked (toggle_cosim.analysis.sampling)
 
     @property
     def failed(self) -> tuple[str, ...]:
@@ -155,150 +155,6 @@ class ComparisonResult:
             if variable.name == name:
                 return variable
         raise KeyError(name)
-
-
-# ----------------------------------------------------------------------------- reading traces
-
-
-def _float_or_none(text: str) -> float | None:
-    try:
-        return float(text)
-    except ValueError:
-        return None
-
-
-def read_trace(path: Path | str) -> Trace:
-    """Read a cross-check CSV strictly; any defect raises CompareInputError naming the file and the fix."""
-    path = Path(path)
-    if not path.exists():
-        raise CompareInputError(f"{path}: no such file; check the path (traces are written by `toggle-cosim run`)")
-    if path.is_dir():
-        raise CompareInputError(f"{path}: is a directory, not a CSV file; give the trace's .csv file")
-    try:
-        raw = path.read_bytes()
-    except OSError as error:
-        raise CompareInputError(f"{path}: cannot be read ({error.strerror}); check its permissions") from error
-    if b"\x00" in raw:
-        raise CompareInputError(
-            f'{path}: is a binary file, not a CSV; give a CSV with a header of quoted names, "time" first'
-        )
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        bad = raw[error.start]
-        raise CompareInputError(
-            f"{path}: is not UTF-8 text (byte 0x{bad:02x} at offset {error.start}); re-save it as UTF-8"
-        ) from error
-
-    reader = csv.reader(io.StringIO(text, newline=""), skipinitialspace=True)
-    rows: list[list[str]] = []
-    lines: list[int] = []
-    try:
-        for row in reader:
-            if not row or all(not cell.strip() for cell in row):
-                continue  # blank line
-            rows.append([cell.strip() for cell in row])
-            lines.append(reader.line_num)
-    except csv.Error as error:
-        raise CompareInputError(
-            f"{path}: is not a valid CSV (line {reader.line_num}: {error}); fix the quoting"
-        ) from error
-
-    if not rows:
-        raise CompareInputError(
-            f'{path}: is empty; a trace needs a header of quoted names ("time" first) and one row per sample'
-        )
-    names = tuple(rows[0])
-    if len(names) == 1:
-        separator = next((s for s in (";", "\t", "|") if s in names[0]), None)
-        if separator is not None:
-            raise CompareInputError(
-                f"{path}: is separated by {separator!r}, not commas; the cross-check layout uses commas"
-            )
-        raise CompareInputError(
-            f'{path}: has a single column ({names[0][:40]!r}), so it is not a trace CSV; expected "time" and variables'
-        )
-    if all(_float_or_none(name) is not None for name in names):
-        raise CompareInputError(
-            f'{path}: has no header (line {lines[0]} is numbers); add a first line of quoted names, "time" first'
-        )
-    empty = [i + 1 for i, name in enumerate(names) if not name]
-    if empty:
-        raise CompareInputError(f"{path}: header column {empty[0]} has no name; name every column")
-    seen: set[str] = set()
-    for name in names:
-        if name in seen:
-            raise CompareInputError(f"{path}: column {name!r} appears twice in the header; keep one")
-        seen.add(name)
-    if names[0] != "time":
-        if "time" in names:
-            raise CompareInputError(
-                f'{path}: "time" is column {names.index("time") + 1}; it must be the first column'
-            )
-        near = next((n for n in names if n.lower() == "time"), None)
-        if near is not None:
-            raise CompareInputError(f'{path}: no "time" column (found {near!r}); rename it to "time", lowercase')
-        shown = ",".join(names[:4]) + (",..." if len(names) > 4 else "")
-        raise CompareInputError(f'{path}: no "time" column (header is {shown}); the first column must be "time"')
-
-    body = rows[1:]
-    if not body:
-        raise CompareInputError(f"{path}: has a header but no data rows (empty trace); write at least two samples")
-    for row, line in zip(body, lines[1:], strict=True):
-        if len(row) != len(names):
-            raise CompareInputError(
-                f"{path}: line {line} has {len(row)} values but the header has {len(names)} columns; "
-                "every row needs one value per column"
-            )
-    try:
-        data = np.array(body, dtype=float)
-    except ValueError:
-        data = None
-    if data is None or not np.all(np.isfinite(data)):
-        for row, line in zip(body, lines[1:], strict=True):
-            for name, cell in zip(names, row, strict=True):
-                value = _float_or_none(cell)
-                if value is None:
-                    raise CompareInputError(
-                        f"{path}: line {line}, column {name!r}: {cell[:30]!r} is not a number; "
-                        "write plain numbers (booleans as 0 and 1)"
-                    )
-                if not math.isfinite(value):
-                    raise CompareInputError(
-                        f"{path}: line {line}, column {name!r}: {cell!r} is not finite; the run diverged or wrote a gap"
-                    )
-    assert data is not None
-    if data.shape[0] < 2:
-        raise CompareInputError(f"{path}: has a single sample; a trace needs at least two to span a time interval")
-    steps = np.diff(data[:, 0])
-    bad = np.flatnonzero(steps <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise CompareInputError(
-            f"{path}: time is not strictly increasing at line {lines[1 + i]} "
-            f"(t = {data[i, 0]:.17g} after {data[i - 1, 0]:.17g}); drop repeated or out-of-order rows"
-        )
-    return Trace(names, data)
-
-
-def _check_trace(trace: Trace, label: str) -> None:
-    """The checks of `read_trace` for a Trace built in memory."""
-    data = np.asarray(trace.data)
-    if data.ndim != 2 or data.shape[1] != len(trace.names):
-        raise CompareInputError(f"{label}: data has shape {data.shape} but there are {len(trace.names)} names")
-    if not trace.names or trace.names[0] != "time":
-        raise CompareInputError(f'{label}: the first column must be "time", not {trace.names[:1]}')
-    if len(set(trace.names)) != len(trace.names):
-        raise CompareInputError(f"{label}: column names repeat; keep one of each")
-    if data.shape[0] < 2:
-        raise CompareInputError(f"{label}: has {data.shape[0]} samples (empty trace); need at least two")
-    if not np.all(np.isfinite(data)):
-        row, column = (int(k) for k in np.argwhere(~np.isfinite(data))[0])
-        raise CompareInputError(f"{label}: row {row + 1}, column {trace.names[column]!r} is not finite")
-    steps = np.diff(data[:, 0])
-    if np.any(steps <= 0):
-        i = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise CompareInputError(f"{label}: time is not strictly increasing at row {i + 1} (t = {data[i, 0]:.17g})")
 
 
 # ----------------------------------------------------------------------------- the comparison
@@ -338,23 +194,21 @@ def _funnel(
     )
 
 
-def _align_span(t_res: np.ndarray, t_ref: np.ndarray, result_label: str, reference_label: str) -> np.ndarray:
-    """Both traces must start and stop together (the funnel library requires it); snap rounding differences."""
-    span = float(t_ref[-1] - t_ref[0])
-    slack = 1e-9 * max(span, abs(float(t_ref[-1])), 1e-300)
-    t = t_res.copy()
-    for index, word in ((0, "starts"), (-1, "ends")):
-        if abs(float(t[index] - t_ref[index])) > slack:
-            raise CompareInputError(
-                f"{result_label}: time {word} at {t[index]:.17g} s but the reference {reference_label} {word} at "
-                f"{t_ref[index]:.17g} s; rerun over the reference's time span"
-            )
-        t[index] = t_ref[index]
-    if np.any(np.diff(t) <= 0):
-        raise CompareInputError(
-            f"{result_label}: time is not strictly increasing at its ends once aligned to the reference"
-        )
-    return t
+def _between_samples(envelope: Envelope, low: np.ndarray, high: np.ndarray, ref_low: np.ndarray,
+                     ref_high: np.ndarray, half_height: float) -> Envelope:
+    """Widen the check where a check point falls between two samples of a trace (see
+    toggle_cosim.analysis.sampling): the result counts with every value between its neighbouring
+    samples, the funnel also holds the reference's neighbouring values ± the value tube."""
+    widened = (low != high) | np.isfinite(ref_low)
+    if not np.any(widened):
+        return envelope
+    lower = np.where(np.isfinite(ref_low), np.minimum(envelope.lower_at_result, ref_low - half_height),
+                     envelope.lower_at_result)
+    upper = np.where(np.isfinite(ref_high), np.maximum(envelope.upper_at_result, ref_high + half_height),
+                     envelope.upper_at_result)
+    error = np.maximum(0.0, np.maximum(low - upper, lower - high))
+    return dataclasses.replace(envelope, lower_at_result=lower, upper_at_result=upper,
+                               error=np.where(widened, error, envelope.error))
 
 
 def compare_traces(
@@ -399,16 +253,29 @@ def compare_traces(
         )
 
     t_ref = np.asarray(reference.time, dtype=float)
-    t_res = _align_span(np.asarray(result.time, dtype=float), t_ref, result_label, reference_label)
+    chosen = {name: tolerances.get(name, default) for name in selected}
+    sizes = {name: (chosen[name].half_height(np.asarray(reference.column(name), dtype=float)),
+                    chosen[name].half_width(t_ref)) for name in selected}
+    try:
+        points = check_points(np.asarray(result.time, dtype=float),
+                              np.column_stack([result.column(name) for name in selected]), t_ref,
+                              min(width for _, width in sizes.values()))
+    except SpanMismatch as error:
+        raise CompareInputError(
+            f"{result_label}: time {error.word} at {error.result_time:.17g} s but the reference {reference_label} "
+            f"{error.word} at {error.reference_time:.17g} s, more than the time tolerance "
+            f"({error.tolerance:.3g} s) apart; rerun over the reference's time span"
+        ) from None
     outcomes = []
     with tempfile.TemporaryDirectory(prefix="toggle-cosim-funnel-") as workdir:
-        for name in selected:
-            tolerance = tolerances.get(name, default)
+        for column, name in enumerate(selected):
+            tolerance = chosen[name]
             y_ref = np.asarray(reference.column(name), dtype=float)
-            y_res = np.asarray(result.column(name), dtype=float)
-            half_height = tolerance.half_height(y_ref)
-            half_width = tolerance.half_width(t_ref)
-            envelope = _funnel(t_ref, y_ref, t_res, y_res, half_width, half_height, workdir, name)
+            half_height, half_width = sizes[name]
+            envelope = _funnel(t_ref, y_ref, points.time, points.values[:, column], half_width, half_height,
+                               workdir, name)
+            envelope = _between_samples(envelope, points.low[:, column], points.high[:, column],
+                                        *reference_range(points.time, t_ref, y_ref), half_height)
             worst = int(np.argmax(envelope.error))
             max_error = float(envelope.error[worst])
             outcomes.append(VariableResult(
@@ -416,7 +283,7 @@ def compare_traces(
                 time_of_max_error=float(envelope.time[worst]) if max_error > 0 else None,
                 tolerance=tolerance, half_height=half_height, half_width=half_width, envelope=envelope,
             ))
-    return ComparisonResult(variables=tuple(outcomes), passed=all(v.passed for v in outcomes))
+    return ComparisonResult(variables=tuple(outcomes), passed=all(v.passed for v in outcomes), grid=points.grid)
 
 
 # ----------------------------------------------------------------------------- terminal table
@@ -615,152 +482,12 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     return default, per_variable
 
 
-# ----------------------------------------------------------------------------- reference files (FMI cross-check)
-
-_REQUIRED_OPTIONS = ("StartTime", "StopTime", "StepSize", "RelTol")
-_NUMERIC_OPTIONS = (*_REQUIRED_OPTIONS, "AbsTol", "OutputIntervalLength")
-
-
-def _reference_paths(path_stem: Path | str) -> tuple[Path, Path]:
-    stem = str(path_stem)
-    for suffix in ("_ref.csv", "_ref.opt"):
-        if stem.endswith(suffix):
-            stem = stem[: -len(suffix)]
-    return Path(f"{stem}_ref.csv"), Path(f"{stem}_ref.opt")
-
-
-def _time_matches(a: float, b: float, span: float) -> bool:
-    return abs(a - b) <= 1e-9 * max(abs(span), abs(a), abs(b), 1e-300)
-
-
-def write_reference(trace: Trace, path_stem: Path | str, start: float, stop: float, step: float,
-                    reltol: float) -> tuple[Path, Path]:
-    """Store `trace` as a cross-check reference: <stem>_ref.csv and <stem>_ref.opt.
-
-    path_stem is <folder>/<name> (a trailing _ref.csv or _ref.opt is dropped). step is the step
-    size in s (0 for a variable-step solver); reltol the solver's relative tolerance. The trace
-    must run from `start` to `stop`, as the cross-check rules require.
-    """
-    _check_trace(trace, "trace")
-    if not (math.isfinite(start) and math.isfinite(stop) and stop > start):
-        raise ValueError(f"StopTime ({stop}) must be after StartTime ({start})")
-    if not (math.isfinite(step) and step >= 0 and math.isfinite(reltol) and reltol >= 0):
-        raise ValueError(f"StepSize ({step}) and RelTol ({reltol}) must be finite and >= 0")
-    if not (_time_matches(trace.time[0], start, stop - start) and _time_matches(trace.time[-1], stop, stop - start)):
-        raise ValueError(f"the trace runs from {trace.time[0]} to {trace.time[-1]} s, not from StartTime {start} "
-                         f"to StopTime {stop} s")
-    csv_path, opt_path = _reference_paths(path_stem)
-    write_csv(csv_path, trace)
-    lines = [f"StartTime, {float(start)!r}", f"StopTime, {float(stop)!r}", f"StepSize, {float(step)!r}",
-             f"RelTol, {float(reltol)!r}"]
-    atomic_write(opt_path, lambda stream: stream.write("\n".join(lines) + "\n"))
-    return csv_path, opt_path
-
-
-def read_options(path: Path | str) -> dict[str, float | str]:
-    """Read a cross-check options file (``Name, value`` lines; ``//`` comments allowed)."""
-    path = Path(path)
-    if not path.is_file():
-        raise CompareInputError(
-            f"{path}: no such file; a reference needs its options file beside it "
-            "(StartTime, StopTime, StepSize, RelTol)"
-        )
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as error:
-        raise CompareInputError(f"{path}: is not UTF-8 text (offset {error.start}); re-save it as UTF-8") from error
-    options: dict[str, float | str] = {}
-    for number, line in enumerate(text.splitlines(), start=1):
-        line = line.split("//", 1)[0].strip()
-        if not line:
-            continue
-        key, comma, value = (part.strip() for part in line.partition(","))
-        if not comma or not key or not value:
-            raise CompareInputError(f"{path}: line {number} is not 'Name, value' ({line[:40]!r}); fix or remove it")
-        if key in options:
-            raise CompareInputError(f"{path}: line {number}: {key} is given twice; keep one")
-        if key in _NUMERIC_OPTIONS:
-            number_value = _float_or_none(value)
-            if number_value is None or not math.isfinite(number_value):
-                raise CompareInputError(f"{path}: line {number}: {key} is {value!r}, not a number; write a number")
-            options[key] = number_value
-        else:
-            options[key] = value
-    missing = [key for key in _REQUIRED_OPTIONS if key not in options]
-    if missing:
-        raise CompareInputError(f"{path}: lacks {', '.join(missing)}; add a '{missing[0]}, <value>' line")
-    if not float(options["StopTime"]) > float(options["StartTime"]):
-        raise CompareInputError(f"{path}: StopTime {options['StopTime']} is not after StartTime {options['StartTime']}")
-    for key in ("StepSize", "RelTol"):
-        if float(options[key]) < 0:
-            raise CompareInputError(f"{path}: {key} is negative; it must be >= 0 (StepSize 0 means variable step)")
-    return options
-
-
-def _check_span(trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path) -> None:
-    start, stop = float(options["StartTime"]), float(options["StopTime"])
-    for value, target, word in ((trace.time[0], start, "StartTime"), (trace.time[-1], stop, "StopTime")):
-        if not _time_matches(float(value), target, stop - start):
-            edge = "starts" if word == "StartTime" else "ends"
-            raise CompareInputError(
-                f"{label}: time {edge} at {value:.17g} s but {opt_path} gives {word} {target:.17g} s; "
-                "run over the reference's time span"
-            )
-
-
-def read_reference(path_stem: Path | str) -> tuple[Trace, dict[str, float | str]]:
-    """Read <stem>_ref.csv and <stem>_ref.opt; the trace must run from StartTime to StopTime."""
-    csv_path, opt_path = _reference_paths(path_stem)
-    trace = read_trace(csv_path)
-    options = read_options(opt_path)
-    _check_span(trace, options, str(csv_path), opt_path)
-    return trace, options
-
-
 # ----------------------------------------------------------------------------- command
 
 
 def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_path: Path | str | None = None,
-                out_dir: Path | str | None = None) -> int:
-    """`toggle-cosim compare RESULT REFERENCE [--tolerances FILE] [--out DIR]`: return the exit status.
+                out_dir: Path | str | None = None, **reports: Any) -> int:
+    """`toggle-cosim compare`: see `toggle_cosim.analysis.compare_command.run_compare`."""
+    from toggle_cosim.analysis.compare_command import run_compare as command
 
-    Prints the table to stdout; returns 0 if every variable passes, 1 if any fails, 2 on bad
-    input (one line ``error: ...`` on stderr, and nothing written). When REFERENCE is a
-    ``<name>_ref.csv`` with a ``<name>_ref.opt`` beside it, the result must also run from its
-    StartTime to its StopTime. With `out_dir`, the report of `write_report` is written there.
-    """
-    try:
-        reference_path = Path(reference_path)
-        result_path = Path(result_path)
-        if out_dir is not None and Path(out_dir).exists() and not Path(out_dir).is_dir():
-            raise CompareInputError(f"{out_dir}: exists and is not a directory; give a folder for the report")
-        reference = read_trace(reference_path)
-        _, opt_path = _reference_paths(reference_path)
-        options = None
-        if reference_path.name.endswith("_ref.csv") and opt_path.exists():
-            options = read_options(opt_path)
-            _check_span(reference, options, str(reference_path), opt_path)
-        result = read_trace(result_path)
-        if options is not None:
-            _check_span(result, options, str(result_path), opt_path)
-        if tolerance_path is not None:
-            default, tolerances = load_tolerances(tolerance_path)
-        else:
-            default, tolerances = DEFAULT_TOLERANCE, {}
-        comparison = compare_traces(
-            result, reference, tolerances, default, result_label=str(result_path),
-            reference_label=str(reference_path), tolerances_label=str(tolerance_path),
-        )
-    except CompareInputError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    print(format_table(comparison))
-    if out_dir is not None:
-        try:
-            written = write_report(comparison, Path(out_dir), result, reference)
-        except OSError as error:
-            reason = error.strerror or error
-            print(f"error: {out_dir}: cannot write the report ({reason}); check the folder", file=sys.stderr)
-            return 2
-        print(f"report: {len(written)} files in {out_dir}")
-    return 0 if comparison.passed else 1
+    return command(result_path, reference_path, tolerance_path, out_dir, **reports)

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from toggle_cosim.analysis.solver_stats import NOT_EXPOSED, read_solver_statistics
 from toggle_cosim.controller import VSCController
 from toggle_cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop
 from toggle_cosim.fmu_io import PlantFMU
@@ -188,6 +189,16 @@ def _check_compiled(loop: CompiledLoop, controller: VSCController, state: Any, r
     return True
 
 
+def _solver_statistics(fmu: PlantFMU, plant: PlantInterface) -> dict[str, int] | str:
+    """The plant solver's cumulative counts at the end of the run (toggle_cosim.analysis.solver_stats)."""
+    if not getattr(fmu, "_instantiated", False):
+        return NOT_EXPOSED
+    try:
+        return read_solver_statistics(fmu.fmu, plant.model_description)
+    except Exception as error:  # noqa: BLE001 - a run's record never fails for its statistics
+        return f"unreadable ({error})"
+
+
 def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None) -> RunOutcome:
     """Run one scenario variant against `plant`. Never raises for a plant fault: see RunOutcome."""
     started = clock.perf_counter()
@@ -320,6 +331,7 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         loop_finished = clock.perf_counter()
         reason = f"plant FMU failed at t = {max(rows - 1, 0) * run.T_s:.6g} s: {error}"
     finally:
+        solver_statistics = _solver_statistics(fmu, plant)
         fmu.close()
     trace = Trace(names, data[:rows].copy())
     complete = reason is None and rows == n + 1
@@ -346,6 +358,7 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         "loop_time_s": loop_finished - loop_started,
         "real_time_factor": (rows - 1) * run.T_s / max(loop_finished - loop_started, 1e-12),
         "summary": summary.as_dict() if summary else None,
+        "solver_statistics": solver_statistics,
         "versions": _versions(),
     }
     return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)

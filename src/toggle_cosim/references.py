@@ -6,9 +6,11 @@ Layout (FMI cross-check style), one folder per scenario:
     scenarios/references/<scenario>/tolerances.yaml  optional, per-scenario overrides
     scenarios/references/<scenario>/<variant>_ref.csv
     scenarios/references/<scenario>/<variant>_ref.opt
+    scenarios/references/<scenario>/<variant>_ref_solver.json   solver statistics, where the FMU exposes them
 
 A reference keeps every `DECIMATION`-th sample of the run (every 5 ms at T_s = 0.5 ms), so the
-repository stays small; the check compares the result at the same samples. References change
+repository stays small; the check compares the full-resolution run with it, and the comparison
+looks only at the reference's samples (`toggle_cosim.analysis.sampling`). References change
 only through `toggle-cosim references --update`, never as a side effect of a run or a test.
 """
 
@@ -17,12 +19,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from toggle_cosim.analysis.solver_stats import (
+    SolverCheck,
+    compare_solver_statistics,
+    read_statistics_file,
+    statistics_path,
+    write_statistics_file,
+)
+from toggle_cosim.analysis.tolerance_files import TOLERANCE_FILE, merged_tolerances
 from toggle_cosim.compare import (
-    DEFAULT_TOLERANCE,
     ComparisonResult,
     Tolerance,
     compare_traces,
-    load_tolerances,
     read_reference,
     write_reference,
 )
@@ -38,11 +46,17 @@ REFERENCE_RELTOL = 1e-8  # the FMU's default solver.relTol, recorded in the .opt
 class ReferenceCheck:
     label: str
     comparison: ComparisonResult
+    solver: SolverCheck | None = None  # None: no statistics stored with the reference and none from the run
 
     @property
     def failures(self) -> list[str]:
         return [f"{self.label}: {v.name} off by {v.max_error:.3g} at t = {v.time_of_max_error:.4f} s"
                 for v in self.comparison.variables if not v.passed]
+
+    @property
+    def solver_changes(self) -> list[str]:
+        changed = self.solver is not None and self.solver.changed
+        return [f"{self.label}: solver statistics changed: {line}" for line in self.solver.lines] if changed else []
 
 
 def reference_stem(folder: Path, run: Run) -> Path:
@@ -59,32 +73,38 @@ def decimate(trace: Trace) -> Trace:
 
 def tolerances_for(folder: Path, scenario: str) -> tuple[Tolerance, dict[str, Tolerance]]:
     """The global tolerance file, then the scenario's own entries on top of it."""
-    default, per_variable = DEFAULT_TOLERANCE, {}
-    common = Path(folder) / "tolerances.yaml"
-    if common.is_file():
-        default, per_variable = load_tolerances(common)
-    own = Path(folder) / scenario / "tolerances.yaml"
-    if own.is_file():
-        own_default, own_variables = load_tolerances(own)
-        default = own_default if own_default != DEFAULT_TOLERANCE else default
-        per_variable = {**per_variable, **own_variables}
-    return default, per_variable
+    files = [Path(folder) / TOLERANCE_FILE, Path(folder) / scenario / TOLERANCE_FILE]
+    return merged_tolerances([path for path in files if path.is_file()])
 
 
 def store(outcome: RunOutcome, folder: Path) -> Path:
+    """Write the reference of a run: the decimated trace, its options file, and its solver
+    statistics when the FMU exposes them."""
     run = outcome.run
     csv_path, _ = write_reference(decimate(outcome.trace), reference_stem(folder, run), 0.0, run.t_end,
                                   run.T_s, REFERENCE_RELTOL)
+    counts = outcome.record.get("solver_statistics")
+    if isinstance(counts, dict) and counts:
+        write_statistics_file(statistics_path(csv_path), counts)
     return csv_path
 
 
 def check(outcome: RunOutcome, folder: Path) -> ReferenceCheck:
-    """Compare a run with its stored reference (raises CompareInputError if there is none)."""
+    """Compare a run with its stored reference (raises CompareInputError if there is none).
+
+    The full-resolution trace is compared; the funnel is checked at the reference's samples.
+    """
     run = outcome.run
-    reference, _ = read_reference(reference_stem(folder, run))
+    stem = reference_stem(folder, run)
+    reference, _ = read_reference(stem)
     default, per_variable = tolerances_for(folder, run.scenario)
     comparison = compare_traces(
-        decimate(outcome.trace), reference, per_variable, default,
-        result_label=f"run {run.label}", reference_label=str(reference_stem(folder, run)) + "_ref.csv",
+        outcome.trace, reference, per_variable, default,
+        result_label=f"run {run.label}", reference_label=str(stem) + "_ref.csv",
     )
-    return ReferenceCheck(run.label, comparison)
+    stored = read_statistics_file(statistics_path(Path(str(stem) + "_ref.csv")))
+    current = outcome.record.get("solver_statistics")
+    solver = None
+    if stored is not None or isinstance(current, dict):
+        solver = compare_solver_statistics(stored, current)
+    return ReferenceCheck(run.label, comparison, solver)

@@ -1,0 +1,77 @@
+"""The verdict of the funnel comparison against the sampling ratio, for the unchanged and perturbed plant.
+
+    .venv/bin/python benchmarks/sampling_table.py [fmus/ToggleLSM.fmu]
+
+Runs fig4_nominal/friction once unchanged and once per perturbation (mu 0.2 -> 0.25; one
+controller gain +5 %), then compares each with the unchanged run, one of the two traces
+decimated by 3, 7 and 10: "result ×k" = the result keeps every k-th sample against the
+full-resolution reference, "reference ×k" = the reverse. Tolerances: scenarios/references.
+Prints a Markdown table (pass / FAIL and the number of failing variables).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from toggle_cosim.compare import compare_traces
+from toggle_cosim.master import simulate
+from toggle_cosim.plant import check_plant
+from toggle_cosim.references import tolerances_for
+from toggle_cosim.scenario import Run, load_scenario
+from toggle_cosim.traces import Trace
+
+ROOT = Path(__file__).resolve().parent.parent
+RATIOS = (1, 3, 7, 10)
+
+
+def decimated(trace: Trace, ratio: int, offset: int = 0) -> Trace:
+    """Every `ratio`-th sample from `offset` on, always with the first and the last sample (the span)."""
+    rows = sorted({0, *range(offset, trace.data.shape[0], ratio), trace.data.shape[0] - 1})
+    return Trace(trace.names, trace.data[rows])
+
+
+def nominal_run() -> Run:
+    return next(r for r in load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml") if r.variant == "friction")
+
+
+def perturbations(run: Run) -> dict[str, Run]:
+    gains = run.controller.gains
+    return {
+        "mu 0.2 -> 0.25": dataclasses.replace(run, plant=dataclasses.replace(run.plant, mu=0.25)),
+        "gain C +5 %": dataclasses.replace(run, controller=dataclasses.replace(
+            run.controller, gains=dataclasses.replace(gains, C=gains.C * 1.05))),
+    }
+
+
+def verdict(result: Trace, reference: Trace) -> tuple[bool, int]:
+    default, per_variable = tolerances_for(ROOT / "scenarios" / "references", "fig4_nominal")
+    comparison = compare_traces(result, reference, per_variable, default)
+    return comparison.passed, len(comparison.failed)
+
+
+def main(fmu: Path) -> None:
+    plant = check_plant(fmu)
+    run = nominal_run()
+    nominal = simulate(run, plant).trace
+    cases = {"unchanged": nominal, **{name: simulate(r, plant).trace for name, r in perturbations(run).items()}}
+    header = ["model"] + [f"result ×{k}" for k in RATIOS] + [f"reference ×{k}" for k in RATIOS if k > 1]
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
+    for name, trace in cases.items():
+        cells = []
+        for k in RATIOS:
+            passed, failed = verdict(decimated(trace, k), nominal)
+            cells.append("pass" if passed else f"FAIL ({failed})")
+        for k in RATIOS[1:]:
+            passed, failed = verdict(trace, decimated(nominal, k))
+            cells.append("pass" if passed else f"FAIL ({failed})")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    assert np.all(np.isfinite(nominal.data))
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "fmus" / "ToggleLSM.fmu")

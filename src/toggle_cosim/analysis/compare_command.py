@@ -1,0 +1,122 @@
+"""`toggle-cosim compare`: read two traces, find their tolerances, compare, print and report.
+
+Exit status: 0 every variable passes, 1 any fails (or the solver statistics changed under
+`--fail-on-solver-change`), 2 bad input: one line `error: ...` on stderr, no report written.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from toggle_cosim.analysis.ci_reports import CheckedTrace, write_junit, write_markdown_summary
+from toggle_cosim.analysis.solver_stats import (
+    SolverCheck,
+    compare_solver_statistics,
+    read_statistics_file,
+    statistics_path,
+)
+from toggle_cosim.analysis.tolerance_files import tolerances_for_reference
+from toggle_cosim.analysis.trace_formats import read_any_trace
+from toggle_cosim.analysis.csv_traces import CompareInputError
+from toggle_cosim.analysis.reference_files import _check_span, _reference_paths, read_options
+from toggle_cosim.compare import ComparisonResult, compare_traces, format_table, write_report
+
+__all__ = ["plots_of", "run_compare", "trace_label"]
+
+
+def trace_label(reference_path: Path) -> str:
+    """`<folder>/<name>` of a reference `<folder>/<name>_ref.csv` (the run it stands for)."""
+    stem = reference_path.stem.removesuffix("_ref")
+    return f"{reference_path.resolve().parent.name}/{stem}"
+
+
+def plots_of(comparison: ComparisonResult, written: list[Path]) -> dict[str, Path]:
+    """{failing variable: its PNG} from the files `write_report` wrote (in the variables' order)."""
+    pngs = [path for path in written if path.suffix == ".png"]
+    return dict(zip(comparison.failed, pngs, strict=True))
+
+
+def _result_statistics(result_path: Path) -> dict[str, int] | str | None:
+    """The solver statistics in run.json beside a result trace, None when there is no run.json."""
+    record = result_path.with_name("run.json")
+    if not record.is_file():
+        return None
+    try:
+        return json.loads(record.read_text(encoding="utf-8")).get("solver_statistics")
+    except (OSError, ValueError, AttributeError) as error:
+        raise CompareInputError(f"{record}: is not a readable run record ({error}); rerun or remove it") from error
+
+
+def _check_output(path: Path | None, what: str) -> None:
+    if path is not None and path.is_dir():
+        raise CompareInputError(f"{path}: is a directory; give a file name for the {what}")
+
+
+def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_path: Path | str | None = None,
+                out_dir: Path | str | None = None, *, junit: Path | str | None = None,
+                summary: Path | str | None = None, fail_on_solver_change: bool = False) -> int:
+    """`toggle-cosim compare RESULT REFERENCE [--tolerances FILE] [--out DIR] [--junit XML] [--summary MD]`.
+
+    Traces are CSV (FMI cross-check / FMPy) or Modelica MAT v4 result files. Without
+    `tolerance_path` the tolerance files lying beside the reference apply
+    (`toggle_cosim.analysis.tolerance_files`). When REFERENCE is `<name>_ref.csv` with
+    `<name>_ref.opt` beside it, the result must run from its StartTime to its StopTime, within the
+    time tolerance. With `out_dir`, the envelopes and a PNG of each failing variable are written
+    there; `junit` and `summary` write the CI reports.
+    """
+    try:
+        reference_path, result_path = Path(reference_path), Path(result_path)
+        if out_dir is not None and Path(out_dir).exists() and not Path(out_dir).is_dir():
+            raise CompareInputError(f"{out_dir}: exists and is not a directory; give a folder for the report")
+        _check_output(None if junit is None else Path(junit), "JUnit report")
+        _check_output(None if summary is None else Path(summary), "Markdown summary")
+        reference = read_any_trace(reference_path)
+        _, opt_path = _reference_paths(reference_path)
+        options = None
+        if reference_path.name.endswith("_ref.csv") and opt_path.exists():
+            options = read_options(opt_path)
+            _check_span(reference, options, str(reference_path), opt_path)
+        result = read_any_trace(result_path)
+        default, tolerances, files = tolerances_for_reference(reference_path, tolerance_path)
+        if options is not None:
+            span = float(options["StopTime"]) - float(options["StartTime"])
+            slack = min(tolerances.get(name, default).ttol for name in reference.names[1:]) * span
+            _check_span(result, options, str(result_path), opt_path, slack)
+        comparison = compare_traces(
+            result, reference, tolerances, default, result_label=str(result_path),
+            reference_label=str(reference_path), tolerances_label=str(files[-1]) if files else "tolerances",
+        )
+        stored = read_statistics_file(statistics_path(reference_path))
+        current = _result_statistics(result_path)
+        solver: SolverCheck | None = None
+        if stored is not None or isinstance(current, dict):
+            solver = compare_solver_statistics(stored, current)
+    except (CompareInputError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(format_table(comparison))
+    print(f"checked at the {comparison.grid}; tolerances: "
+          + (", ".join(str(path) for path in files) if files else "built-in defaults"))
+    if solver is not None:
+        word = "FAIL" if fail_on_solver_change and solver.changed else "warning" if solver.changed else "note"
+        for line in solver.lines or ("solver statistics unchanged",):
+            print(f"{word if solver.lines else 'solver'}: {line}")
+    check = CheckedTrace(trace_label(reference_path), comparison, solver=solver,
+                         solver_fails=fail_on_solver_change)
+    try:
+        if out_dir is not None:
+            written = write_report(comparison, Path(out_dir), result, reference)
+            check = CheckedTrace(check.label, comparison, plots_of(comparison, written), solver,
+                                 fail_on_solver_change)
+            print(f"report: {len(written)} files in {out_dir}")
+        if junit is not None:
+            print(f"junit: {write_junit([check], junit)}")
+        if summary is not None:
+            print(f"summary: {write_markdown_summary([check], summary)}")
+    except OSError as error:
+        print(f"error: {error.filename or out_dir}: cannot write the report ({error.strerror or error}); "
+              "check the folder", file=sys.stderr)
+        return 2
+    return 0 if check.passed else 1
