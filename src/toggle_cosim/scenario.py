@@ -72,6 +72,9 @@ _CONTROLLER = {
         "objective": {"enum": ["x_B", "theta1"]},
         "gains": _GAINS,
         "nominal_m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
+        "law": {"enum": ["paper", "integral"]},            # the integral law: control/laws.py, README
+        "K_I": {"type": "number", "minimum": 0, "maximum": 1e6},       # 1/s², integral law only
+        "i_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # A, integral law only
     },
 }
 _STROKE = {
@@ -137,6 +140,9 @@ class ControllerSettings:
     objective: Literal["x_B", "theta1"] = "x_B"
     gains: ControllerGains = field(default_factory=ControllerGains)
     nominal_m_B: float = 4.43
+    law: Literal["paper", "integral"] = "paper"
+    K_I: float = 25.0  # 1/s², the integral law's gain (unused by the paper's law)
+    i_max: float = 20.0  # A, the integral law's current limit (unused by the paper's law)
 
 
 @dataclass(frozen=True)
@@ -297,6 +303,9 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         objective=controller_doc.get("objective", "x_B"),
         gains=ControllerGains(**{k: float(v) for k, v in controller_doc.get("gains", {}).items()}),
         nominal_m_B=float(controller_doc.get("nominal_m_B", 4.43)),
+        law=controller_doc.get("law", "paper"),
+        K_I=float(controller_doc.get("K_I", ControllerSettings.K_I)),
+        i_max=float(controller_doc.get("i_max", ControllerSettings.i_max)),
     )
     fmu = document.get("fmu")
     fmu_path = None
