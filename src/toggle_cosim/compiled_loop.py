@@ -31,6 +31,7 @@ import functools
 import hashlib
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -101,13 +102,18 @@ def _cache_folder() -> Path:
     return Path(base) / "toggle-cosim"
 
 
-def _build_kernel() -> Path:
-    from toggle_cosim.build.package import FMUBuildError, find_c_compiler
+def _c_compiler() -> str:
+    """$CC, else cc, gcc or clang (the FMU build's choice), as a full path. Looked up here, not
+    imported from the FMU export, whose import pulls in the Modelica compiler (~1 s)."""
+    for name in (os.environ.get("CC", ""), "cc", "gcc", "clang"):
+        found = shutil.which(name) if name else None
+        if found:
+            return found
+    raise RuntimeError("no C compiler found (set CC or install gcc)")
 
-    try:
-        compiler = find_c_compiler()
-    except FMUBuildError as error:
-        raise RuntimeError(str(error)) from error
+
+def _build_kernel() -> Path:
+    compiler = _c_compiler()
     suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
     source_text = kernel_source()
     key = hashlib.sha256("\0".join((source_text, *KERNEL_FLAGS, compiler,
