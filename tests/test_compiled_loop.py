@@ -62,9 +62,9 @@ def test_compiled_and_python_loops_agree_bit_for_bit(run, plant_fmu: Path, no_gr
 
 
 def _law(law: float, objective: float) -> LawParameters:
-    controller = VSCController(gains=ControllerGains(C=12.0), nominal=MechanismParameters(mu=0.0),
+    controller = VSCController(gains=ControllerGains(C=5.0), nominal=MechanismParameters(mu=0.0),
                                objective="x_B" if objective == 0.0 else "theta1",
-                               law="paper" if law == 0.0 else "integral", K_I=40.0, i_max=6.0)
+                               law="paper" if law == 0.0 else "integral", C_I=12.0, K_I=40.0, i_max=6.0)
     return controller.law_parameters(t0=0.0, T_h=0.03)
 
 

@@ -107,7 +107,8 @@ class VSCController:
         target: slider-B target position x_B* [m] (also for the θ1 objective, via eq. (26)).
         objective: "x_B" (default) or "theta1".
         law: "paper" (default; eqs. (19)-(25)) or "integral" (README, "An integral-compensated VSC").
-        K_I: integral gain of the integral law [1/s²].
+        C_I: slope of the integral law's surface S = C_I e + ė + K_I ∫e dt [1/s].
+        K_I: integral gain of the integral law [1/s²]; C_I = 2λ, K_I = λ² put a double pole at −λ.
         i_max: current limit of the integral law [A].
         T_s: sample time [s] (the integral law's integrator).
     """
@@ -118,8 +119,9 @@ class VSCController:
     target: float = 0.3199
     objective: Objective = "x_B"
     law: Law = "paper"
-    K_I: float = 0.0
-    i_max: float = math.inf
+    C_I: float = 16.0
+    K_I: float = 64.0
+    i_max: float = 10.0
     T_s: float = 0.0005
 
     def __post_init__(self) -> None:
@@ -127,6 +129,8 @@ class VSCController:
             raise ValueError(f"objective: must be 'x_B' or 'theta1', got {self.objective!r}")
         if self.law not in ("paper", "integral"):
             raise ValueError(f"law: must be 'paper' or 'integral', got {self.law!r}")
+        if not (self.C_I > 0 and math.isfinite(self.C_I)):
+            raise ValueError(f"C_I: must be positive and finite, got {self.C_I!r}")
         if not (self.K_I >= 0 and math.isfinite(self.K_I)):
             raise ValueError(f"K_I: must be non-negative and finite, got {self.K_I!r}")
         if not self.i_max > 0:
@@ -148,7 +152,7 @@ class VSCController:
             objective=OBJECTIVE_XB if self.objective == "x_B" else OBJECTIVE_THETA1,
             target=self.target if self.objective == "x_B" else self.target_theta1,
             C=float(gn.C), Q=float(gn.Q), P=float(gn.P), delta=float(gn.delta), beta=float(gn.beta),
-            K_I=float(self.K_I), i_max=float(self.i_max), T_s=float(self.T_s), K_f=float(self.K_f),
+            C_I=float(self.C_I), K_I=float(self.K_I), i_max=float(self.i_max), T_s=float(self.T_s), K_f=float(self.K_f),
             t0=float(t0), T_h=float(T_h),
             r1=p.r1, r3=p.r3, r4=p.r4, r5=p.r5, f=p.f, h=p.h, phi=p.phi, m3=p.m3, m5=p.m5, mB=p.mB, mC=p.mC,
             J2=p.J2, J3=p.m3 * p.r3 * p.r3 / 12.0, J5=p.m5 * p.r5 * p.r5 / 12.0, g=p.g,
@@ -168,8 +172,18 @@ class VSCController:
         """
         x_B, v_B = float(measurement[0]), float(measurement[1])
         S0 = self.switching_function(x_B, v_B)
+        z0 = 0.0
+        if self.law == "integral":
+            # the integral surface S = C_I e + ė + K_I z starts at S(t0) = 0 when K_I > 0, with
+            # z(t0) = −(C_I e0 + ė0)/K_I: eq. (21) gives T_h = 0, and the error follows
+            # ë + C_I ė + K_I e = 0 from t0 (README, "An integral-compensated VSC")
+            e0, edot0, _, _ = error_terms(x_B, v_B, self.law_parameters())
+            S0 = self.C_I * e0 + edot0
+            if self.K_I > 0:
+                z0 = -S0 / self.K_I
+                S0 = 0.0  # on the surface by construction (up to rounding in the last bit)
         T_h = hitting_time(S0, self.gains)
-        return ControllerState(t0=float(t0), S0=S0, T_h=T_h, law=self.law_parameters(float(t0), T_h))
+        return ControllerState(t0=float(t0), S0=S0, T_h=T_h, law=self.law_parameters(float(t0), T_h), z=z0)
 
     def phase(self, state: ControllerState, t: float) -> Phase:
         """r of eq. (25): "reaching" while t − t0 < T_h, "sliding" afterwards."""

@@ -110,6 +110,7 @@ def make_controller(run: Run) -> VSCController:
         target=run.x_target,
         objective=run.controller.objective,
         law=run.controller.law,
+        C_I=run.controller.C_I,
         K_I=run.controller.K_I,
         i_max=run.controller.i_max,
         T_s=run.T_s,
@@ -183,7 +184,8 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
                     return -1
                 if state is None:
                     state = controller.start(t, (x_B, v_B))
-                if state.z != z:
+                    z = state.z
+                elif state.z != z:
                     state = replace(state, z=z)
                 u, control = control_step(state, t, x_B, v_B)
                 z = control.z

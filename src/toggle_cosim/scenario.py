@@ -73,6 +73,7 @@ _CONTROLLER = {
         "gains": _GAINS,
         "nominal_m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         "law": {"enum": ["paper", "integral"]},            # the integral law: control/laws.py, README
+        "C_I": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # 1/s, integral law only
         "K_I": {"type": "number", "minimum": 0, "maximum": 1e6},       # 1/s², integral law only
         "i_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # A, integral law only
     },
@@ -141,8 +142,9 @@ class ControllerSettings:
     gains: ControllerGains = field(default_factory=ControllerGains)
     nominal_m_B: float = 4.43
     law: Literal["paper", "integral"] = "paper"
-    K_I: float = 25.0  # 1/s², the integral law's gain (unused by the paper's law)
-    i_max: float = 20.0  # A, the integral law's current limit (unused by the paper's law)
+    C_I: float = 16.0  # 1/s, the integral law's surface slope (unused by the paper's law)
+    K_I: float = 64.0  # 1/s², the integral law's gain: C_I = 2λ, K_I = λ², λ = 8/s (unused by the paper's law)
+    i_max: float = 10.0  # A, the integral law's current limit (unused by the paper's law)
 
 
 @dataclass(frozen=True)
@@ -304,6 +306,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         gains=ControllerGains(**{k: float(v) for k, v in controller_doc.get("gains", {}).items()}),
         nominal_m_B=float(controller_doc.get("nominal_m_B", 4.43)),
         law=controller_doc.get("law", "paper"),
+        C_I=float(controller_doc.get("C_I", ControllerSettings.C_I)),
         K_I=float(controller_doc.get("K_I", ControllerSettings.K_I)),
         i_max=float(controller_doc.get("i_max", ControllerSettings.i_max)),
     )

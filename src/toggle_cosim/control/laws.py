@@ -36,9 +36,9 @@ def law_step(t: float, x_B: float, v_B: float, z: float, p: LawParameters) -> tu
     Paper (p.law = 0), with S = C e + ė:
         reaching (t − t0 < T_h), eq. (23): u = G⁻¹ (C ė + P S + Q sgn(S) − f)
         sliding, eq. (24):                  u = G⁻¹ (C ė + β S/(|S| + δ) − f)
-    Integral (p.law = 1), with z = ∫e dt and S = C e + ė + K_I z:
-        reaching: u = G⁻¹ (C ė + K_I e + P S + Q sgn(S) − f)
-        sliding:  u = G⁻¹ (C ė + K_I e + β S/(|S| + δ) − f)
+    Integral (p.law = 1), with z = ∫e dt and S = C_I e + ė + K_I z:
+        reaching: u = G⁻¹ (C_I ė + K_I e + P S + Q sgn(S) − f)
+        sliding:  u = G⁻¹ (C_I ė + K_I e + β S/(|S| + δ) − f)
         then u is clipped to ±i_max, and z integrates e (z + T_s e) only while u is not clipped,
         or while e drives u back inside the limit (conditional integration, the anti-windup).
 
@@ -54,13 +54,13 @@ def law_step(t: float, x_B: float, v_B: float, z: float, p: LawParameters) -> tu
             return u, S, 0.0, e, z
         u = (p.C * edot + p.beta * S / (abs(S) + p.delta) - f) / G
         return u, S, 1.0, e, z
-    S = p.C * e + edot + p.K_I * z
+    S = p.C_I * e + edot + p.K_I * z
     if reaching:
         sg = 1.0 if S > 0.0 else (-1.0 if S < 0.0 else 0.0)
-        u = (p.C * edot + p.K_I * e + p.P * S + p.Q * sg - f) / G
+        u = (p.C_I * edot + p.K_I * e + p.P * S + p.Q * sg - f) / G
         phase = 0.0
     else:
-        u = (p.C * edot + p.K_I * e + p.beta * S / (abs(S) + p.delta) - f) / G
+        u = (p.C_I * edot + p.K_I * e + p.beta * S / (abs(S) + p.delta) - f) / G
         phase = 1.0
     z_next = z + p.T_s * e
     if u > p.i_max:

@@ -21,6 +21,7 @@ class LawParameters:
         objective: 0 slider position x_B, 1 lever angle θ1.
         target: x_B* [m] or θ1* [rad].
         C, Q, P, delta, beta: the gains of eqs. (19)-(24).
+        C_I: slope of the integral law's surface [1/s].
         K_I: integral gain of the integral law [1/s²].
         i_max: current limit of the integral law [A] (its anti-windup acts there).
         T_s: sample time [s] (the integral law's integrator).
@@ -38,6 +39,7 @@ class LawParameters:
     P: float
     delta: float
     beta: float
+    C_I: float
     K_I: float
     i_max: float
     T_s: float
