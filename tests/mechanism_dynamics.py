@@ -44,6 +44,7 @@ Jacobians.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -475,9 +476,10 @@ def powers(
 # --------------------------------------------------------------------------------------------
 
 
+@functools.lru_cache(maxsize=64)
 def _law(p: MechanismParameters, K_f: float = 1.0) -> LawParameters:
     """The nominal mechanism `p` as the law functions read it (gains irrelevant here)."""
-    return LawParameters(law=0.0, objective=0.0, target=0.0, C=1.0, Q=1.0, P=1.0, delta=1.0, beta=1.0, K_I=0.0,
+    return LawParameters(law=0.0, objective=0.0, target=0.0, C=1.0, Q=1.0, P=1.0, delta=1.0, beta=1.0, C_I=1.0, K_I=0.0,
                          i_max=math.inf, T_s=1.0, K_f=K_f, t0=0.0, T_h=0.0, r1=p.r1, r3=p.r3, r4=p.r4, r5=p.r5,
                          f=p.f, h=p.h, phi=p.phi, m3=p.m3, m5=p.m5, mB=p.mB, mC=p.mC, J2=p.J2,
                          J3=p.m3 * p.r3 * p.r3 / 12.0, J5=p.m5 * p.r5 * p.r5 / 12.0, g=p.g)

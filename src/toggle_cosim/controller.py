@@ -74,24 +74,38 @@ class ControlOutput:
     """Diagnostics of one controller sample.
 
     Attributes:
-        S: switching function S = C e + ė.
+        S: switching function S = C e + ė (integral law: C_I e + ė + K_I z).
         phase: "reaching" (r = 1, eq. (23)) or "sliding" (r = 0, eq. (24)).
         u: control input i_q* [A], eq. (25).
         e: tracking error e = x* − x (m, or rad for the θ1 objective).
-        edot: its rate ė = −ẋ.
-        f: drift of the nominal model (m/s² or rad/s²).
-        G: input gain of the nominal model (m/s² per A or rad/s² per A).
         z: the law's state at the next sample (∫e dt for the integral law).
+        x_B, v_B, law: the sample's measurement and law parameters, from which the properties
+            edot, f and G are evaluated on demand (the master's loop never needs them).
     """
 
     S: float
     phase: Phase
     u: float
     e: float
-    edot: float
-    f: float
-    G: float
-    z: float = 0.0
+    z: float
+    x_B: float
+    v_B: float
+    law: LawParameters = field(repr=False)
+
+    @property
+    def edot(self) -> float:
+        """ė = −ẋ."""
+        return error_terms(self.x_B, self.v_B, self.law)[1]
+
+    @property
+    def f(self) -> float:
+        """Drift of the nominal model (m/s² or rad/s²)."""
+        return error_terms(self.x_B, self.v_B, self.law)[2]
+
+    @property
+    def G(self) -> float:
+        """Input gain of the nominal model (m/s² per A or rad/s² per A)."""
+        return error_terms(self.x_B, self.v_B, self.law)[3]
 
 
 @dataclass(frozen=True)
@@ -203,6 +217,5 @@ class VSCController:
         """
         law = state.law if state.law is not None else self.law_parameters(state.t0, state.T_h)
         u, S, phase, e, z_next = law_step(t, x_B, v_B, state.z, law)
-        _, edot, f, G = error_terms(x_B, v_B, law)
-        return u, ControlOutput(S=S, phase="reaching" if phase == 0.0 else "sliding", u=u, e=e, edot=edot,
-                                f=f, G=G, z=z_next)
+        return u, ControlOutput(S=S, phase="reaching" if phase == 0.0 else "sliding", u=u, e=e, z=z_next,
+                                x_B=x_B, v_B=v_B, law=law)
