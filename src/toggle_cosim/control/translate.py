@@ -28,7 +28,6 @@ import dataclasses
 import inspect
 import textwrap
 from collections.abc import Callable, Sequence
-from types import ModuleType
 
 __all__ = ["TranslationError", "c_struct", "ctypes_struct", "translate_functions"]
 
@@ -269,7 +268,3 @@ def translate_functions(functions: Sequence[Callable], params: type) -> str:
     parts = [_Function(fn, arities, params).translate() for fn in trees]
     return "\n".join([*(proto for proto, _ in parts), "", *("\n" + body for _, body in parts)]) + "\n"
 
-
-def module_functions(module: ModuleType) -> list[Callable]:
-    """The functions a module exports (its __all__), in that order."""
-    return [getattr(module, name) for name in module.__all__ if inspect.isfunction(getattr(module, name))]
