@@ -1,7 +1,7 @@
 """Performance figures of toggle-cosim, all measured in one run, printed as one table.
 
-    python benchmarks/bench.py            # full: about a minute on 2 cores
-    python benchmarks/bench.py --quick    # about 20 s (under a minute): fewer repetitions, shorter runs
+    .venv/bin/python benchmarks/bench.py            # full: about a minute on 2 cores
+    .venv/bin/python benchmarks/bench.py --quick    # fewer repetitions, shorter runs (tests/test_bench.py runs it)
 
 What is measured (benchmarks/README.md says more):
 
@@ -49,7 +49,7 @@ PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
 T_S_SWEEP = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
 FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
-from toggle_cosim import fmu_io, master  # noqa: E402
+from toggle_cosim import compiled_loop, fmu_io, master  # noqa: E402
 from toggle_cosim.build import build_fmu  # noqa: E402
 from toggle_cosim.plant import check_plant  # noqa: E402
 from toggle_cosim.scenario import load_scenario, runs_from_document  # noqa: E402
@@ -233,6 +233,9 @@ def full_loop(plant, run, python_loop: bool = False) -> dict:
                 os.environ["TOGGLE_COSIM_KERNEL"] = saved
     if not outcome.complete:
         raise RuntimeError(f"{run.label}: {outcome.reason}")
+    expected = "python" if python_loop or not compiled_loop.kernel_available() else "compiled"
+    if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop
+        raise RuntimeError(f"{run.label}: expected the {expected} loop, ran {outcome.record['loop']}")
     steps = outcome.trace.data.shape[0] - 1
     simulated = steps * run.T_s
     return {
@@ -395,10 +398,12 @@ def main() -> int:
         table.add("Python", platform.python_version(), platform.platform())
         table.add("load average at start (1 min)", f"{os.getloadavg()[0]:.2f}",
                   "other processes share the cores: compare ratios, not absolutes")
-        compiled = getattr(fmu_io, "kernel_available", lambda: False)()
-        loop_kind = "compiled (fmu_io.CompiledLoop)" if compiled else "Python"
-        table.add("co-simulation loop", loop_kind)
+        compiled = compiled_loop.kernel_available()
+        loop_kind = "compiled" if compiled else "python"
+        table.add("co-simulation loop", loop_kind,
+                  "generated from control/laws.py" if compiled else f"why not compiled: {compiled_loop.kernel_reason()}")
         figures["loop"] = loop_kind
+        figures["loop_reason"] = None if compiled else compiled_loop.kernel_reason()
 
         # ---------------------------------------------------------------- build
         table.section("Build: Modelica source -> FMU")
@@ -417,12 +422,12 @@ def main() -> int:
             table.add("  C compile and zip (write_fmu)", f"{package_s:.2f} s")
             if fmu is None:
                 fmu = output
-        if compiled and hasattr(fmu_io, "_build_kernel"):
+        if compiled:
             saved = os.environ.get("TOGGLE_COSIM_CACHE")
             os.environ["TOGGLE_COSIM_CACHE"] = str(folder / "kernel-cache")
             try:
                 t0 = time.perf_counter()
-                fmu_io._build_kernel()
+                compiled_loop._build_kernel()
                 kernel_s = time.perf_counter() - t0
             finally:
                 if saved is None:

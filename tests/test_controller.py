@@ -15,7 +15,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from toggle_cosim.controller import ControllerState, VSCController, hitting_time
-from toggle_cosim.mechanism import dynamics, initial_state, slider_B, state_from_theta1, theta1_from_xB
+from mechanism_dynamics import dynamics, slider_B
+from toggle_cosim.mechanism import initial_state, state_from_theta1, theta1_from_xB
 from toggle_cosim.motor import thrust_constant
 from toggle_cosim.parameters import ControllerGains, MechanismParameters, MotorParameters
 

@@ -20,15 +20,13 @@ from reference_dynamics import (
     reference_joint_forces,
     reference_powers,
 )
-from toggle_cosim.mechanism import (
+from mechanism_dynamics import (
     constraint_jacobian,
     constraint_residuals,
-    dependent_angles,
     dynamics,
     energies,
     friction_matrix,
     gamma,
-    initial_state,
     joint_forces,
     mass_matrix,
     nominal_fG,
@@ -37,11 +35,15 @@ from toggle_cosim.mechanism import (
     powers,
     slider_B,
     slider_C,
+    theta1_state_from_slider,
+    velocity_ratios,
+)
+from toggle_cosim.mechanism import (
+    dependent_angles,
+    initial_state,
     state_from_slider,
     state_from_theta1,
     theta1_from_xB,
-    theta1_state_from_slider,
-    velocity_ratios,
     xB_from_theta1,
 )
 from toggle_cosim.motor import thrust_constant

@@ -1,31 +1,37 @@
 """The master's co-simulation loop in C: read outputs, controller, set inputs, doStep, record.
 
-Even so, a step in Python (read outputs, controller, set inputs, doStep, record) costs several
-times the FMU's own doStep, and most of that is the controller's nominal model (~3 us of
-scalar Python per sample). `CompiledLoop` runs whole stretches of the loop in C: it calls the
-FMU's functions through their pointers, evaluates the controller (the nominal model of
-`mechanism.nominal_fG` / `nominal_fG_theta1` and the control law of `controller.VSCController.step`,
-transcribed operation for operation, compiled without contraction or reassociation so that
-every result is bit-identical to the Python) and writes each sample into the master's
-preallocated trace. It never decides anything the Python would decide differently: a sample
-with non-finite outputs, or one where the Python controller would raise or produce a
-non-finite value (a domain error, a division by zero), is handed back to the Python loop
-before anything of it is sent to the FMU. An FMI error status is reported with the function's
-name and status, and the master raises the same exception the Python path raises.
+A step in Python (read outputs, controller, set inputs, doStep, record) costs several times
+the FMU's own doStep, most of it the controller's nominal model. `CompiledLoop` runs whole
+stretches of the loop in C: it calls the FMU's functions through their pointers, evaluates the
+control law and writes each sample into the master's preallocated trace.
 
-The C source is compiled once per machine with the C compiler the FMU build uses and cached
-(``$XDG_CACHE_HOME/toggle-cosim`` or ``~/.cache/toggle-cosim``; ``TOGGLE_COSIM_CACHE`` overrides).
-Without a C compiler, or with ``TOGGLE_COSIM_KERNEL=0``, the master runs the Python loop.
+Nothing of the law is written twice. The C source is assembled here from
+* the struct `law_t`, generated from the fields of `control.parameters.LawParameters`;
+* the functions of `control.nominal` and `control.laws`, translated from their Python by
+  `control.translate` (same operations, same order; compiled without contraction or
+  reassociation, so the C gives the Python's bits);
+* `control/loop_skeleton.c`, the generic FMI calling loop (no physics, no law).
+The ctypes mirror of the loop's struct is built from the same field lists.
 
-The C source is `compiled_loop.c` beside this module.
+A sample where the Python raises or might raise (a domain error, a division by zero), or
+where an output is not finite, is handed back to the Python loop before anything of it is
+sent to the FMU. An FMI error status is reported with the function's name and status, and
+the master raises the same exception the Python path raises.
+
+The library is compiled once per machine with the C compiler the FMU build uses and cached
+by a hash of the generated source (``$XDG_CACHE_HOME/toggle-cosim`` or
+``~/.cache/toggle-cosim``; ``TOGGLE_COSIM_CACHE`` overrides). Without a C compiler, or with
+``TOGGLE_COSIM_KERNEL=0``, the master runs the Python loop and says why in run.json.
 """
 
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -35,26 +41,52 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from toggle_cosim.build.package import FMUBuildError, find_c_compiler
+from toggle_cosim.control.parameters import LawParameters
 
 if TYPE_CHECKING:
     from toggle_cosim.fmu_io import PlantFMU
 
-KERNEL_SOURCE = resources.files("toggle_cosim").joinpath("compiled_loop.c").read_text(encoding="utf-8")
-
 KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
-_LAW_FIELDS = ("target", "C", "Q", "P", "delta", "beta", "K_f", "t0", "T_h",
-               "r1", "r3", "r4", "r5", "f", "h", "phi", "m3", "m5", "mB", "mC", "J2", "g")
+_POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr", "data")
+_LONGS = ("fmi3", "n_out", "ncols", "i_x", "i_v", "col_u", "n", "k", "fault", "status")
+_DOUBLES = ("T_s", "F_E", "z")
 
 
-class _Kernel(ctypes.Structure):
-    _fields_ = [
-        *((name, ctypes.c_void_p) for name in ("get", "set", "step", "component", "out_vr", "in_vr", "data")),
-        *((name, ctypes.c_long) for name in ("fmi3", "n_out", "ncols", "i_x", "i_v", "col_u", "n", "objective",
-                                             "k", "fault", "status")),
-        *((name, ctypes.c_double) for name in ("T_s", "F_E", *_LAW_FIELDS)),
-    ]
+@functools.cache
+def kernel_source() -> str:
+    """The whole C source of the compiled loop: the generated law, then the loop skeleton."""
+    from toggle_cosim.control import laws, nominal, translate  # the translator only when compiling
+
+    skeleton = resources.files("toggle_cosim.control").joinpath("loop_skeleton.c").read_text(encoding="utf-8")
+    generated = translate.translate_functions(
+        [nominal.mass_terms, nominal.theta1_omega1, nominal.nominal_reduced, laws.error_terms, laws.law_step],
+        LawParameters)
+    return "\n".join([
+        "/* Generated by toggle_cosim.compiled_loop from control/nominal.py and control/laws.py:",
+        "   do not edit. Compile with -ffp-contract=off and without fast-math. */",
+        "#include <math.h>",
+        "",
+        translate.c_struct(LawParameters),
+        generated,
+        skeleton,
+    ])
+
+
+@functools.cache
+def _law_struct() -> type[ctypes.Structure]:
+    return type("_Law", (ctypes.Structure,),
+                {"_fields_": [(name, ctypes.c_double) for name in LawParameters.__dataclass_fields__]})
+
+
+@functools.cache
+def _kernel_struct() -> type[ctypes.Structure]:
+    return type("_Kernel", (ctypes.Structure,), {"_fields_": [
+        *((name, ctypes.c_void_p) for name in _POINTERS),
+        *((name, ctypes.c_long) for name in _LONGS),
+        *((name, ctypes.c_double) for name in _DOUBLES),
+        ("law", _law_struct()),
+    ]})
 
 
 DONE, HAND_BACK, FMI_FAILED = 0, 1, 2
@@ -70,13 +102,21 @@ def _cache_folder() -> Path:
     return Path(base) / "toggle-cosim"
 
 
+def _c_compiler() -> str:
+    """$CC, else cc, gcc or clang (the FMU build's choice), as a full path. Looked up here, not
+    imported from the FMU export, whose import pulls in the Modelica compiler (~1 s)."""
+    for name in (os.environ.get("CC", ""), "cc", "gcc", "clang"):
+        found = shutil.which(name) if name else None
+        if found:
+            return found
+    raise RuntimeError("no C compiler found (set CC or install gcc)")
+
+
 def _build_kernel() -> Path:
-    try:
-        compiler = find_c_compiler()
-    except FMUBuildError as error:
-        raise RuntimeError(str(error)) from error
+    compiler = _c_compiler()
     suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
-    key = hashlib.sha256("\0".join((KERNEL_SOURCE, *KERNEL_FLAGS, compiler,
+    source_text = kernel_source()
+    key = hashlib.sha256("\0".join((source_text, *KERNEL_FLAGS, compiler,
                                     platform.machine(), sys.platform)).encode()).hexdigest()[:16]
     for folder in (_cache_folder(), Path(tempfile.gettempdir()) / f"toggle-cosim-{os.getuid() if hasattr(os, 'getuid') else 'user'}"):
         library = folder / f"loop-kernel-{key}{suffix}"
@@ -86,7 +126,7 @@ def _build_kernel() -> Path:
             folder.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(dir=folder) as work:
                 source = Path(work) / "kernel.c"
-                source.write_text(KERNEL_SOURCE, encoding="utf-8")
+                source.write_text(source_text, encoding="utf-8")
                 built = Path(work) / f"kernel{suffix}"
                 result = subprocess.run([compiler, *KERNEL_FLAGS, "-o", str(built), str(source), "-lm"],
                                         capture_output=True, text=True, check=False)
@@ -107,10 +147,11 @@ def kernel_library() -> ctypes.CDLL | None:
     if _library is None and _library_reason is None:
         try:
             library = ctypes.CDLL(str(_build_kernel()))
-            library.kernel_run.argtypes = [ctypes.POINTER(_Kernel), ctypes.c_long]
+            kernel = _kernel_struct()
+            library.kernel_run.argtypes = [ctypes.POINTER(kernel), ctypes.c_long]
             library.kernel_run.restype = ctypes.c_int
-            library.kernel_control.argtypes = [ctypes.POINTER(_Kernel), ctypes.c_double, ctypes.c_double,
-                                               ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
+            library.kernel_control.argtypes = [ctypes.POINTER(kernel), ctypes.c_double, ctypes.c_double,
+                                               ctypes.c_double, ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
             library.kernel_control.restype = ctypes.c_int
             _library = library
         except Exception as error:  # noqa: BLE001 - no kernel: the Python loop runs instead
@@ -134,18 +175,19 @@ class CompiledLoop:
     """Samples k .. k_end - 1 of the master loop in one C call (see the module docstring).
 
     `data` is the master's preallocated (n + 1, ncols) float64 trace: column 0 time, columns
-    1 .. n_out the FMU outputs, col_u .. col_u + 4 (iq_ref, F_E, S, phase, e). `law` holds the
-    controller: objective (0 x_B, 1 theta1), target (x_B* or theta1*), gains C Q P delta beta,
-    K_f, t0 and T_h of the ControllerState, and the nominal mechanism r1 .. g.
+    1 .. n_out the FMU outputs, col_u .. col_u + 4 (iq_ref, F_E, S, phase, e). `law` is the
+    controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
+    at the first sample the loop runs.
     """
 
     def __init__(self, library: ctypes.CDLL, fmu: PlantFMU, functions: list, data: np.ndarray, n_out: int,
-                 i_x: int, i_v: int, col_u: int, n: int, T_s: float, F_E: float, law: dict[str, float]) -> None:
+                 i_x: int, i_v: int, col_u: int, n: int, T_s: float, F_E: float, law: LawParameters,
+                 z: float = 0.0) -> None:
         if data.dtype != np.float64 or not data.flags.c_contiguous or data.shape[0] < n + 1:
             raise ValueError("the trace must be a C-contiguous float64 array of n + 1 rows")
         self._library = library
         self._keep = (fmu, data, functions)  # everything the C side points into stays alive
-        k = _Kernel()
+        k = _kernel_struct()()
         k.get, k.set, k.step = (ctypes.cast(f, ctypes.c_void_p).value for f in functions)
         k.component = fmu._component
         k.out_vr = ctypes.addressof(fmu._out_vr)
@@ -153,20 +195,24 @@ class CompiledLoop:
         k.data = data.ctypes.data
         k.fmi3 = 1 if fmu.is_fmi3 else 0
         k.n_out, k.ncols, k.i_x, k.i_v, k.col_u, k.n = n_out, data.shape[1], i_x, i_v, col_u, n
-        k.objective = int(law["objective"])
-        k.T_s, k.F_E = float(T_s), float(F_E)
-        for name in _LAW_FIELDS:
-            setattr(k, name, float(law[name]))
+        k.T_s, k.F_E, k.z = float(T_s), float(F_E), float(z)
+        for name in LawParameters.__dataclass_fields__:
+            setattr(k.law, name, float(getattr(law, name)))
         self._state = k
         self._pointer = ctypes.pointer(k)
-        self._out = (ctypes.c_double * 4)()
+        self._out = (ctypes.c_double * 5)()
         self.fault_function = None
         self.fault_status = 0
         self._names = (None, fmu._get_name, fmu._set_name, fmu._step_name)
 
-    def control(self, t: float, x_B: float, v_B: float) -> tuple[float, float, float, float] | None:
-        """(u, S, phase, e) of the compiled controller, or None where it defers to Python."""
-        if self._library.kernel_control(self._pointer, t, x_B, v_B, self._out):
+    @property
+    def z(self) -> float:
+        """The law's state at the next sample."""
+        return float(self._state.z)
+
+    def control(self, t: float, x_B: float, v_B: float, z: float = 0.0) -> tuple[float, float, float, float, float] | None:
+        """(u, S, phase, e, z_next) of the compiled law, or None where it defers to Python."""
+        if self._library.kernel_control(self._pointer, t, x_B, v_B, z, self._out):
             return None
         return tuple(self._out)
 

@@ -11,7 +11,12 @@ nominal masses, ideal current loop, d = 0); it never sees the true plant's param
 * u = r u_r + (1 − r) u_s, eq. (25).
 
 The controller is discrete: the co-simulation master calls :meth:`VSCController.step` at each
-sample with the measured (x_B, v_B) and holds u until the next sample.
+sample with the measured (x_B, v_B) and holds u until the next sample. The law itself is
+`control.laws.law_step` (pure floats, the one definition the compiled loop is generated from);
+this class validates the settings and keeps what the law reads in a `LawParameters`.
+
+Law "integral" (``law="integral"``): the integral-compensated variant, S = C e + ė + K_I ∫e dt,
+with the current clipped to ±i_max and conditional integration as anti-windup (README).
 
 Objectives: "x_B" (default; the paper's section 4: "regulate the position of slider B") and
 "theta1" (the lever angle, as eq. (26) hints): e = θ1* − θ1, with θ1, ω1 computed from the
@@ -26,23 +31,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
-from .mechanism import (
-    nominal_fG,
-    nominal_fG_theta1,
-    theta1_from_xB,
-    theta1_state_from_slider,
-)
+from .control.laws import error_terms, law_step
+from .control.parameters import INTEGRAL, OBJECTIVE_THETA1, OBJECTIVE_XB, PAPER, LawParameters
+from .mechanism import theta1_from_xB
 from .motor import thrust_constant
 from .parameters import ControllerGains, MechanismParameters, MotorParameters
 
 __all__ = ["VSCController", "ControllerState", "ControlOutput", "hitting_time"]
 
 Objective = Literal["x_B", "theta1"]
+Law = Literal["paper", "integral"]
 Phase = Literal["reaching", "sliding"]
-
-
-def _sgn(x: float) -> float:
-    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
 def hitting_time(S0: float, gains: ControllerGains) -> float:
@@ -59,11 +58,15 @@ class ControllerState:
         t0: time of the first sample [s].
         S0: S(t0), the switching function at the first sample (m/s or rad/s).
         T_h: hitting time of eq. (21), measured from t0 [s].
+        law: what `control.laws.law_step` reads (the settings, t0 and T_h).
+        z: the law's state, ∫e dt of the integral law (0 for the paper's law).
     """
 
     t0: float
     S0: float
     T_h: float
+    law: LawParameters | None = None
+    z: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -71,22 +74,38 @@ class ControlOutput:
     """Diagnostics of one controller sample.
 
     Attributes:
-        S: switching function S = C e + ė.
+        S: switching function S = C e + ė (integral law: C_I e + ė + K_I z).
         phase: "reaching" (r = 1, eq. (23)) or "sliding" (r = 0, eq. (24)).
         u: control input i_q* [A], eq. (25).
         e: tracking error e = x* − x (m, or rad for the θ1 objective).
-        edot: its rate ė = −ẋ.
-        f: drift of the nominal model (m/s² or rad/s²).
-        G: input gain of the nominal model (m/s² per A or rad/s² per A).
+        z: the law's state at the next sample (∫e dt for the integral law).
+        x_B, v_B, law: the sample's measurement and law parameters, from which the properties
+            edot, f and G are evaluated on demand (the master's loop never needs them).
     """
 
     S: float
     phase: Phase
     u: float
     e: float
-    edot: float
-    f: float
-    G: float
+    z: float
+    x_B: float
+    v_B: float
+    law: LawParameters = field(repr=False)
+
+    @property
+    def edot(self) -> float:
+        """ė = −ẋ."""
+        return error_terms(self.x_B, self.v_B, self.law)[1]
+
+    @property
+    def f(self) -> float:
+        """Drift of the nominal model (m/s² or rad/s²)."""
+        return error_terms(self.x_B, self.v_B, self.law)[2]
+
+    @property
+    def G(self) -> float:
+        """Input gain of the nominal model (m/s² per A or rad/s² per A)."""
+        return error_terms(self.x_B, self.v_B, self.law)[3]
 
 
 @dataclass(frozen=True)
@@ -101,6 +120,11 @@ class VSCController:
             with the paper's motor parameters).
         target: slider-B target position x_B* [m] (also for the θ1 objective, via eq. (26)).
         objective: "x_B" (default) or "theta1".
+        law: "paper" (default; eqs. (19)-(25)) or "integral" (README, "An integral-compensated VSC").
+        C_I: slope of the integral law's surface S = C_I e + ė + K_I ∫e dt [1/s].
+        K_I: integral gain of the integral law [1/s²]; C_I = 2λ, K_I = λ² put a double pole at −λ.
+        i_max: current limit of the integral law [A].
+        T_s: sample time [s] (the integral law's integrator).
     """
 
     gains: ControllerGains = field(default_factory=ControllerGains)
@@ -108,10 +132,23 @@ class VSCController:
     K_f: float = field(default_factory=lambda: thrust_constant(MotorParameters()))
     target: float = 0.3199
     objective: Objective = "x_B"
+    law: Law = "paper"
+    C_I: float = 16.0
+    K_I: float = 64.0
+    i_max: float = 10.0
+    T_s: float = 0.0005
 
     def __post_init__(self) -> None:
         if self.objective not in ("x_B", "theta1"):
             raise ValueError(f"objective: must be 'x_B' or 'theta1', got {self.objective!r}")
+        if self.law not in ("paper", "integral"):
+            raise ValueError(f"law: must be 'paper' or 'integral', got {self.law!r}")
+        if not (self.C_I > 0 and math.isfinite(self.C_I)):
+            raise ValueError(f"C_I: must be positive and finite, got {self.C_I!r}")
+        if not (self.K_I >= 0 and math.isfinite(self.K_I)):
+            raise ValueError(f"K_I: must be non-negative and finite, got {self.K_I!r}")
+        if not self.i_max > 0:
+            raise ValueError(f"i_max: must be positive, got {self.i_max!r}")
         if not (self.K_f > 0 and math.isfinite(self.K_f)):
             raise ValueError(f"K_f: must be positive and finite, got {self.K_f!r}")
         theta1_from_xB(self.target, self.nominal)  # raises ValueError if out of reach
@@ -121,18 +158,23 @@ class VSCController:
         """θ1* from the slider target by eq. (26), with the nominal geometry [rad]."""
         return theta1_from_xB(self.target, self.nominal)
 
-    def _error(self, x_B: float, v_B: float) -> tuple[float, float, float, float]:
-        """(e, ė, f, G) for the objective, from the measured slider position and velocity."""
-        if self.objective == "x_B":
-            f, G = nominal_fG(x_B, v_B, self.nominal, self.K_f)
-            return self.target - x_B, -v_B, f, G
-        theta1, omega1 = theta1_state_from_slider(x_B, v_B, self.nominal)
-        f, G = nominal_fG_theta1(theta1, omega1, self.nominal, self.K_f)
-        return self.target_theta1 - theta1, -omega1, f, G
+    def law_parameters(self, t0: float = 0.0, T_h: float = 0.0) -> LawParameters:
+        """What `control.laws.law_step` reads, with the first sample's t0 and T_h."""
+        p, gn = self.nominal, self.gains
+        return LawParameters(
+            law=PAPER if self.law == "paper" else INTEGRAL,
+            objective=OBJECTIVE_XB if self.objective == "x_B" else OBJECTIVE_THETA1,
+            target=self.target if self.objective == "x_B" else self.target_theta1,
+            C=float(gn.C), Q=float(gn.Q), P=float(gn.P), delta=float(gn.delta), beta=float(gn.beta),
+            C_I=float(self.C_I), K_I=float(self.K_I), i_max=float(self.i_max), T_s=float(self.T_s), K_f=float(self.K_f),
+            t0=float(t0), T_h=float(T_h),
+            r1=p.r1, r3=p.r3, r4=p.r4, r5=p.r5, f=p.f, h=p.h, phi=p.phi, m3=p.m3, m5=p.m5, mB=p.mB, mC=p.mC,
+            J2=p.J2, J3=p.m3 * p.r3 * p.r3 / 12.0, J5=p.m5 * p.r5 * p.r5 / 12.0, g=p.g,
+        )
 
     def switching_function(self, x_B: float, v_B: float) -> float:
-        """S = C e + ė for the measured state."""
-        e, edot, _, _ = self._error(x_B, v_B)
+        """S = C e + ė for the measured state (with ∫e dt = 0, as at the first sample)."""
+        e, edot, _, _ = error_terms(x_B, v_B, self.law_parameters())
         return self.gains.C * e + edot
 
     def start(self, t0: float, measurement: Sequence[float]) -> ControllerState:
@@ -144,29 +186,36 @@ class VSCController:
         """
         x_B, v_B = float(measurement[0]), float(measurement[1])
         S0 = self.switching_function(x_B, v_B)
-        return ControllerState(t0=float(t0), S0=S0, T_h=hitting_time(S0, self.gains))
+        z0 = 0.0
+        if self.law == "integral":
+            # the integral surface S = C_I e + ė + K_I z starts at S(t0) = 0 when K_I > 0, with
+            # z(t0) = −(C_I e0 + ė0)/K_I: eq. (21) gives T_h = 0, and the error follows
+            # ë + C_I ė + K_I e = 0 from t0 (README, "An integral-compensated VSC")
+            e0, edot0, _, _ = error_terms(x_B, v_B, self.law_parameters())
+            S0 = self.C_I * e0 + edot0
+            if self.K_I > 0:
+                z0 = -S0 / self.K_I
+                S0 = 0.0  # on the surface by construction (up to rounding in the last bit)
+        T_h = hitting_time(S0, self.gains)
+        return ControllerState(t0=float(t0), S0=S0, T_h=T_h, law=self.law_parameters(float(t0), T_h), z=z0)
 
     def phase(self, state: ControllerState, t: float) -> Phase:
         """r of eq. (25): "reaching" while t − t0 < T_h, "sliding" afterwards."""
         return "reaching" if t - state.t0 < state.T_h else "sliding"
 
     def step(self, state: ControllerState, t: float, x_B: float, v_B: float) -> tuple[float, ControlOutput]:
-        """Control input u = i_q* [A] for the sample at time t, eqs. (23)-(25) with d = 0.
+        """Control input u = i_q* [A] for the sample at time t, eqs. (23)-(25) with d = 0
+        (`control.laws.law_step`).
 
         Args:
-            state: from :meth:`start`.
+            state: from :meth:`start` (for the integral law: with z of this sample).
             t: sample time [s].
             x_B, v_B: measured slider-B position [m] and velocity [m/s].
 
         Returns:
-            (u, diagnostics).
+            (u, diagnostics); diagnostics.z is the law's state for the next sample.
         """
-        gn = self.gains
-        e, edot, f, G = self._error(x_B, v_B)
-        S = gn.C * e + edot
-        phase = self.phase(state, t)
-        if phase == "reaching":
-            u = (gn.C * edot + gn.P * S + gn.Q * _sgn(S) - f) / G  # eq. (23)
-        else:
-            u = (gn.C * edot + gn.beta * S / (abs(S) + gn.delta) - f) / G  # eq. (24)
-        return u, ControlOutput(S=S, phase=phase, u=u, e=e, edot=edot, f=f, G=G)
+        law = state.law if state.law is not None else self.law_parameters(state.t0, state.T_h)
+        u, S, phase, e, z_next = law_step(t, x_B, v_B, state.z, law)
+        return u, ControlOutput(S=S, phase="reaching" if phase == 0.0 else "sliding", u=u, e=e, z=z_next,
+                                x_B=x_B, v_B=v_B, law=law)

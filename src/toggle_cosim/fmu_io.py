@@ -24,6 +24,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
 from toggle_cosim.compiled_loop import CompiledLoop, kernel_library
+from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.plant import PlantInterface
 
 _WARNING = 1  # fmi2Warning == fmi3Warning: a status above it is a failure, as fmpy's _call says
@@ -181,7 +182,7 @@ class PlantFMU:
 
     # -- the compiled loop --------------------------------------------------------------------
     def compiled_loop(self, data: np.ndarray, n_out: int, i_x: int, i_v: int, col_u: int, n: int,
-                      T_s: float, F_E: float, law: dict[str, float]) -> CompiledLoop | None:
+                      T_s: float, F_E: float, law: LawParameters, z: float = 0.0) -> CompiledLoop | None:
         """The loop in C over this instance, or None when it cannot be had (no compiler, the
         FMU's C functions not reachable, TOGGLE_COSIM_KERNEL=0). See `CompiledLoop`."""
         library = kernel_library()
@@ -190,4 +191,4 @@ class PlantFMU:
         if library is None or self._component is None or any(name not in functions for name in names):
             return None
         return CompiledLoop(library, self, [functions[name] for name in names], data, n_out, i_x, i_v, col_u,
-                            n, T_s, F_E, law)
+                            n, T_s, F_E, law, z)

@@ -5,13 +5,13 @@
 
 The loop allocates nothing per step: value references are resolved once, the trace is a
 preallocated array, and the FMU calls go straight to its C functions (`fmu_io`). The first
-sample (which starts the controller) runs in Python; the rest run in C (`fmu_io.CompiledLoop`,
-the same controller transcribed and checked bit for bit against `VSCController.step` before
-each run), in one call, or in stretches between progress reports. Without a C compiler, for
-a controller the compiled loop does not implement, or from a sample it hands back (non-finite
-outputs, a controller fault), the loop runs in Python with the same result. The FMU is freed
-on every exit path. A plant fault (an error status, non-finite outputs) ends the run early:
-the trace up to the fault is kept and the run is marked incomplete with the reason.
+sample (which starts the controller) runs in Python; the rest run in C (`compiled_loop`,
+generated from the same law definition, `control.laws`), in one call, or in stretches between
+progress reports. Without a C compiler, or from a sample it hands back (non-finite outputs, a
+controller fault), the loop runs in Python with the same result; run.json says which loop ran
+and why. The FMU is freed on every exit path. A plant fault (an error status, non-finite
+outputs) ends the run early: the trace up to the fault is kept and the run is marked
+incomplete with the reason.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import platform
 import sys
 import time as clock
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -33,7 +33,7 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.analysis.solver_stats import NOT_EXPOSED, read_solver_statistics
 from toggle_cosim.controller import VSCController
-from toggle_cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop
+from toggle_cosim.compiled_loop import FMI_FAILED, HAND_BACK, kernel_reason
 from toggle_cosim.fmu_io import PlantFMU
 from toggle_cosim.motor import thrust_constant
 from toggle_cosim.parameters import MechanismParameters, MotorParameters
@@ -110,6 +110,11 @@ def make_controller(run: Run) -> VSCController:
         K_f=thrust_constant(MotorParameters()),
         target=run.x_target,
         objective=run.controller.objective,
+        law=run.controller.law,
+        C_I=run.controller.C_I,
+        K_I=run.controller.K_I,
+        i_max=run.controller.i_max,
+        T_s=run.T_s,
     )
 
 
@@ -129,64 +134,6 @@ def _plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | 
             raise ValueError(f"key plant.parameters.{name}: the plant FMU has no variable {name!r}")
         settings.append((name, value))
     return settings
-
-
-def _compiled_law(controller: VSCController, state: Any) -> dict[str, float] | None:
-    """The controller as `fmu_io.CompiledLoop` takes it, or None for a controller it does not
-    implement (then the loop runs in Python)."""
-    if type(controller) is not VSCController or controller.objective not in ("x_B", "theta1"):
-        return None
-    p, gains = controller.nominal, controller.gains
-    if p.f != 0.0:  # the compiled nominal model takes math.hypot(x_B, f) as |x_B|, exact only for f = 0
-        return None
-    law = {
-        "objective": 0.0 if controller.objective == "x_B" else 1.0,
-        "target": controller.target if controller.objective == "x_B" else controller.target_theta1,
-        "C": gains.C, "Q": gains.Q, "P": gains.P, "delta": gains.delta, "beta": gains.beta,
-        "K_f": controller.K_f, "t0": state.t0, "T_h": state.T_h,
-        **{name: getattr(p, name) for name in ("r1", "r3", "r4", "r5", "f", "h", "phi", "m3", "m5", "mB", "mC", "J2", "g")},
-    }
-    exact = all(isinstance(v, float) or (type(v) is int and abs(v) < 2**53) for v in law.values())
-    return law if exact and all(math.isfinite(v) for v in law.values()) else None
-
-
-def _same(a: float, b: float) -> bool:
-    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
-
-
-_AGREED: dict[tuple, bool] = {}  # the verdict of _compiled_agrees per controller law and stroke
-
-
-def _compiled_agrees(loop: CompiledLoop, controller: VSCController, state: Any, run: Run,
-                     law: dict[str, float]) -> bool:
-    """Whether the compiled controller gives bit for bit what `VSCController.step` gives, at
-    samples across the stroke, at rest and moving both ways, in both phases: a guard against
-    the C transcription and controller.py drifting apart (the loop then runs in Python).
-    Checked once per process for each controller law and stroke."""
-    key = (tuple(law.items()), run.x_start, run.x_target)
-    if key not in _AGREED:
-        _AGREED[key] = _check_compiled(loop, controller, state, run)
-    return _AGREED[key]
-
-
-def _check_compiled(loop: CompiledLoop, controller: VSCController, state: Any, run: Run) -> bool:
-    span = run.x_target - run.x_start
-    for x_B in (run.x_start, run.x_start + 0.3 * span, run.x_start + 0.8 * span, run.x_target):
-        for v_B in (-0.35, 0.0, 0.2, 0.9):
-            for t in (state.t0, state.t0 + state.T_h, state.t0 + state.T_h + 0.5):
-                try:
-                    u, control = controller.step(state, t, x_B, v_B)
-                    expected = (u, control.S, PHASES[control.phase], control.e)
-                    if not all(math.isfinite(v) for v in expected):
-                        expected = None
-                except (ArithmeticError, ValueError):
-                    expected = None
-                got = loop.control(t, x_B, v_B)
-                if (expected is None) != (got is None):
-                    return False
-                if expected is not None and not all(_same(a, b) for a, b in zip(expected, got)):
-                    return False
-    return True
 
 
 def _solver_statistics(fmu: PlantFMU, plant: PlantInterface) -> dict[str, int] | str:
@@ -217,6 +164,7 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
     state = None
     retries: list[dict[str, Any]] = []
     interrupted = False
+    loop: dict[str, Any] = {"kind": "python", "reason": "the run ended before the second sample"}
     loop_started = loop_finished = clock.perf_counter()
     try:
         fmu.instantiate(0.0, run.t_end)
@@ -234,7 +182,7 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
             """Samples k0 .. k_end - 1 in Python; the next sample, or -1 when the outputs went
             non-finite (`reason` says so). A plant error raises. With read_first False the
             outputs of sample k0 are in the trace already (read by the compiled loop)."""
-            nonlocal rows, state, reason
+            nonlocal rows, state, reason, z
             for k in range(k0, k_end):
                 t = k * T_s
                 row = data[k]
@@ -247,7 +195,11 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
                     return -1
                 if state is None:
                     state = controller.start(t, (x_B, v_B))
+                    z = state.z
+                elif state.z != z:
+                    state = replace(state, z=z)
                 u, control = control_step(state, t, x_B, v_B)
+                z = control.z
                 row[col_u : col_u + 5] = (u, F_E, control.S, PHASES[control.phase], control.e)
                 rows = k + 1
                 if k == n:
@@ -261,17 +213,19 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
                     progress(t / t_end)
             return k_end
 
+        z = 0.0  # the law's state (the integral law's integrator) at the next sample
         loop_started = clock.perf_counter()
         k = python_steps(0, 1)  # the first sample starts the controller (S0, T_h)
         compiled = None
-        if k == 1 and n > 0 and (law := _compiled_law(controller, state)) is not None:
-            compiled = fmu.compiled_loop(data, n_out, i_x, i_v, col_u, n, T_s, F_E, law)
-            if compiled is not None and not _compiled_agrees(compiled, controller, state, run, law):
-                compiled = None
+        if k == 1 and n > 0:
+            compiled = fmu.compiled_loop(data, n_out, i_x, i_v, col_u, n, T_s, F_E, state.law, z)
+            loop = ({"kind": "compiled", "reason": "generated from control.laws; C compiler available"}
+                    if compiled is not None else
+                    {"kind": "python", "reason": kernel_reason() or "the FMU's C functions are not reachable"})
 
         def stretch(k: int, stop: int) -> int:
             """Samples k .. stop - 1, in C where it can, else in Python; the next sample or -1."""
-            nonlocal rows, compiled
+            nonlocal rows, compiled, z, loop
             while compiled is not None and k < stop:
                 # in C: up to the next sample that reports progress, or to the end of the stretch
                 end = stop if progress is None else min(k + (every - k % every) % every + 1, stop)
@@ -283,8 +237,12 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
                         raise _StepFailed(k, error)
                     raise error
                 rows = k
+                z = compiled.z
                 if code == HAND_BACK:  # a sample the Python decides (non-finite outputs, a controller fault)
                     compiled = None
+                    loop = {"kind": "compiled, then python",
+                            "reason": f"the compiled loop handed sample {k} (t = {k * T_s:.6g} s) back to Python "
+                                      "(non-finite outputs, or the law raises there)"}
                     return python_steps(k, stop, read_first=False) if k <= n else k
                 if progress is not None and k - 1 < n and (k - 1) % every == 0:
                     progress((k - 1) * T_s / t_end)
@@ -354,6 +312,7 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         "reason": reason,
         "samples": rows,
         "retries": retries,
+        "loop": loop,
         "wall_time_s": wall,
         "loop_time_s": loop_finished - loop_started,
         "real_time_factor": (rows - 1) * run.T_s / max(loop_finished - loop_started, 1e-12),

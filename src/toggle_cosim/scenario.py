@@ -72,6 +72,10 @@ _CONTROLLER = {
         "objective": {"enum": ["x_B", "theta1"]},
         "gains": _GAINS,
         "nominal_m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
+        "law": {"enum": ["paper", "integral"]},            # the integral law: control/laws.py, README
+        "C_I": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # 1/s, integral law only
+        "K_I": {"type": "number", "minimum": 0, "maximum": 1e6},       # 1/s², integral law only
+        "i_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # A, integral law only
     },
 }
 _STROKE = {
@@ -137,6 +141,10 @@ class ControllerSettings:
     objective: Literal["x_B", "theta1"] = "x_B"
     gains: ControllerGains = field(default_factory=ControllerGains)
     nominal_m_B: float = 4.43
+    law: Literal["paper", "integral"] = "paper"
+    C_I: float = 16.0  # 1/s, the integral law's surface slope (unused by the paper's law)
+    K_I: float = 64.0  # 1/s², the integral law's gain: C_I = 2λ, K_I = λ², λ = 8/s (unused by the paper's law)
+    i_max: float = 10.0  # A, the integral law's current limit (unused by the paper's law)
 
 
 @dataclass(frozen=True)
@@ -297,6 +305,10 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         objective=controller_doc.get("objective", "x_B"),
         gains=ControllerGains(**{k: float(v) for k, v in controller_doc.get("gains", {}).items()}),
         nominal_m_B=float(controller_doc.get("nominal_m_B", 4.43)),
+        law=controller_doc.get("law", "paper"),
+        C_I=float(controller_doc.get("C_I", ControllerSettings.C_I)),
+        K_I=float(controller_doc.get("K_I", ControllerSettings.K_I)),
+        i_max=float(controller_doc.get("i_max", ControllerSettings.i_max)),
     )
     fmu = document.get("fmu")
     fmu_path = None

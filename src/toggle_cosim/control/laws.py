@@ -1,0 +1,74 @@
+"""The control laws, defined once: one sample of the paper's two-phase VSC, eqs. (19)-(25),
+and of its integral-compensated variant (README, "An integral-compensated VSC").
+
+`law_step` is the single definition both loops run: `controller.VSCController.step` calls it
+in Python, and the compiled loop runs its C translation (`control.translate`), which evaluates
+the same operations in the same order, so both give the same bits. Written in the translator's
+subset: floats and `LawParameters`, local assignments, if/else, tuple returns, math.* calls,
+abs, raise ValueError.
+"""
+
+from __future__ import annotations
+
+from toggle_cosim.control.nominal import nominal_reduced, theta1_omega1
+from toggle_cosim.control.parameters import LawParameters
+
+__all__ = ["error_terms", "law_step"]
+
+
+def error_terms(x_B: float, v_B: float, p: LawParameters) -> tuple[float, float, float, float]:
+    """(e, ė, f, G) for the objective: e = x* − x, ė = −ẋ and the nominal plant ẍ = f + G u
+    (u = i_q*; eq. (18) with μ = 0, F_E = 0 and F_C = K_f u).
+
+    For x_B: f = a_B(F_C = 0) = dx_B/dθ1 θ̈1(0) + b_B, G = K_f dx_B/dθ1 ∂θ̈1/∂F_C.
+    For θ1: f = θ̈1(0), G = K_f ∂θ̈1/∂F_C, with θ1, ω1 from (x_B, v_B) by eq. (26).
+    """
+    t1, w1 = theta1_omega1(x_B, v_B, p)
+    acc0, dacc, dxB, bB = nominal_reduced(t1, w1, p)
+    if p.objective == 0.0:
+        return p.target - x_B, -v_B, dxB * acc0 + bB, p.K_f * dxB * dacc
+    return p.target - t1, -w1, acc0, p.K_f * dacc
+
+
+def law_step(t: float, x_B: float, v_B: float, z: float, p: LawParameters) -> tuple[float, float, float, float, float]:
+    """One controller sample at time t from the measured (x_B, v_B) and the integrator state z.
+
+    Paper (p.law = 0), with S = C e + ė:
+        reaching (t − t0 < T_h), eq. (23): u = G⁻¹ (C ė + P S + Q sgn(S) − f)
+        sliding, eq. (24):                  u = G⁻¹ (C ė + β S/(|S| + δ) − f)
+    Integral (p.law = 1), with z = ∫e dt and S = C_I e + ė + K_I z:
+        reaching: u = G⁻¹ (C_I ė + K_I e + P S + Q sgn(S) − f)
+        sliding:  u = G⁻¹ (C_I ė + K_I e + β S/(|S| + δ) − f)
+        then u is clipped to ±i_max, and z integrates e (z + T_s e) only while u is not clipped,
+        or while e drives u back inside the limit (conditional integration, the anti-windup).
+
+    Returns (u = i_q* [A], S, phase (0 reaching, 1 sliding), e, z at the next sample).
+    """
+    e, edot, f, G = error_terms(x_B, v_B, p)
+    reaching = t - p.t0 < p.T_h
+    if p.law == 0.0:
+        S = p.C * e + edot
+        if reaching:
+            sg = 1.0 if S > 0.0 else (-1.0 if S < 0.0 else 0.0)
+            u = (p.C * edot + p.P * S + p.Q * sg - f) / G
+            return u, S, 0.0, e, z
+        u = (p.C * edot + p.beta * S / (abs(S) + p.delta) - f) / G
+        return u, S, 1.0, e, z
+    S = p.C_I * e + edot + p.K_I * z
+    if reaching:
+        sg = 1.0 if S > 0.0 else (-1.0 if S < 0.0 else 0.0)
+        u = (p.C_I * edot + p.K_I * e + p.P * S + p.Q * sg - f) / G
+        phase = 0.0
+    else:
+        u = (p.C_I * edot + p.K_I * e + p.beta * S / (abs(S) + p.delta) - f) / G
+        phase = 1.0
+    z_next = z + p.T_s * e
+    if u > p.i_max:
+        u = p.i_max
+        if e * G > 0.0:  # more error would push u further above the limit: hold the integrator
+            z_next = z
+    elif u < -p.i_max:
+        u = -p.i_max
+        if e * G < 0.0:
+            z_next = z
+    return u, S, phase, e, z_next
