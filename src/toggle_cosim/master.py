@@ -34,6 +34,7 @@ from fmpy.fmi1 import FMICallException
 from toggle_cosim.controller import VSCController
 from toggle_cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop
 from toggle_cosim.fmu_io import PlantFMU
+from toggle_cosim.friction import friction_settings
 from toggle_cosim.motor import thrust_constant
 from toggle_cosim.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant import PlantInterface
@@ -123,6 +124,7 @@ def _plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | 
         raise ValueError(f"{plant.path}: the plant has no parameter idealCurrentLoop, so plant.current_loop: ideal cannot be set")
     if run.plant.K is not None:
         settings.append(("K", run.plant.K))
+    settings += friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, available, plant.path)
     for name, value in run.plant.parameters.items():
         if name not in available:
             raise ValueError(f"key plant.parameters.{name}: the plant FMU has no variable {name!r}")
