@@ -29,7 +29,7 @@ DEFAULT_BUILDS = (
     (DEFAULT_MODEL, DEFAULT_FMU),
     ("ToggleLSM.PlantNoGravity", Path("fmus/ToggleLSM_NoGravity.fmu")),
 )
-SHIPPED_SCENARIOS = (*PAPER_SCENARIOS, "swap_no_gravity")
+SHIPPED_SCENARIOS = (*PAPER_SCENARIOS, "swap_no_gravity", "friction_models")
 
 
 class InputError(click.ClickException):
