@@ -98,3 +98,29 @@ def test_scenario_keys_friction_model_and_mu_s() -> None:
         runs_from_document({**base, "plant": {"friction_model": "karnopp"}})
     with pytest.raises(ScenarioError, match="plant.mu_s"):
         runs_from_document({**base, "plant": {"mu_s": -0.1}})
+
+
+def test_a_foreign_plant_refuses_stick_slip_before_running(plant_fmu: Path, tmp_path: Path) -> None:
+    """Through the CLI, a plant FMU without `frictionModel` (here: ours with the parameter renamed):
+    friction_model: paper runs; stick_slip is refused with one line, exit 2, nothing written."""
+    from click.testing import CliRunner
+
+    from test_bad_plant_files import _rewrite
+    from toggle_cosim.cli import main
+
+    foreign = _rewrite(plant_fmu, tmp_path / "foreign.fmu",
+                       lambda xml: xml.replace('name="frictionModel"', 'name="frictionLaw"'))
+    scenario = tmp_path / "s.yaml"
+    text = ("name: s\nt_end: 0.01\nT_s: 0.0005\nstroke: {x_start: 0.2329, x_target: 0.3199}\n"
+            "plant: {friction_model: %s}\n")
+    runner = CliRunner()
+    scenario.write_text(text % "paper")
+    result = runner.invoke(main, ["run", str(scenario), "--fmu", str(foreign), "--out", str(tmp_path / "ok")])
+    assert result.exit_code == 0, result.output
+    scenario.write_text(text % "stick_slip")
+    out = tmp_path / "refused"
+    result = runner.invoke(main, ["run", str(scenario), "--fmu", str(foreign), "--out", str(out)])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "plant.friction_model: stick_slip" in lines[0] and "frictionModel" in lines[0]
+    assert not out.exists()

@@ -121,6 +121,7 @@ def build(source: Path, model: str | None, output: Path | None, fmi_version: str
 
 def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
     from toggle_cosim.plant import ContractError, check_plant
+    from toggle_cosim.friction import friction_settings
     from toggle_cosim.scenario import ScenarioError, load_scenario
 
     runs = []
@@ -140,7 +141,13 @@ def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
                 plants[chosen] = check_plant(chosen)
             except ContractError as error:
                 raise InputError(str(error)) from error
-    return [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+    pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+    for run, plant in pairs:  # a friction model the plant cannot run is refused before anything runs
+        try:
+            friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, plant.references, plant.path)
+        except ValueError as error:
+            raise InputError(f"{error} (scenario {run.source}, run {run.label})") from error
+    return pairs
 
 
 def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
