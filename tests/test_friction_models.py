@@ -9,6 +9,7 @@ moves the slider; a plant without the parameter refuses a non-default model in o
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +26,7 @@ def _stroke(fmu: Path, model: str, iq: float, seconds: float, load: float = F_E,
             **extra: float | bool) -> dict[str, np.ndarray]:
     """Open loop: constant i_q* and F_E from t = 0 (set before initialisation), sampled every ms."""
     plant = Plant(fmu, frictionModel=FRICTION_MODELS[model], mu=0.2, mu_s=0.2, iq_ref=iq, F_E=load, **extra)
-    names = ("x_B", "v_B", "E_fric", "mechanism.stuck", "mechanism.T_st", "mechanism.T_s")
+    names = ("x_B", "v_B", "E_fric", "mechanism.stuck", "mechanism.T_st", "mechanism.T_s", "E_in", "E_mech", "E_load")
     rows = [plant.get(*names)]
     for _ in range(int(round(seconds / 1e-3))):
         plant.step(1e-3)
@@ -49,6 +50,9 @@ def test_friction_energy_never_decreases(plant_fmu: Path, model: str, iq: float,
     steps = np.diff(run["E_fric"])
     assert steps.min() >= -1e-12, f"E_fric fell by {-steps.min():.3g} J in one sample"
     assert run["E_fric"][-1] > 1e-3
+    # and the energy the friction takes is the energy that goes missing: E_in = dE_mech + E_fric + E_load
+    residual = run["E_in"] - (run["E_mech"] - run["E_mech"][0]) - run["E_fric"] - run["E_load"]
+    assert np.abs(residual).max() < 1e-7
 
 
 def test_paper_friction_hands_energy_back_on_the_backward_stroke(plant_fmu: Path) -> None:
@@ -124,3 +128,38 @@ def test_a_foreign_plant_refuses_stick_slip_before_running(plant_fmu: Path, tmp_
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "plant.friction_model: stick_slip" in lines[0] and "frictionModel" in lines[0]
     assert not out.exists()
+
+
+def _push_then_hold(fmu: Path, model: str, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ideal current loop, F_E = 100 N: 2.6 A for 50 ms (the mechanism breaks away forward), then
+    1.9 A, below what moves it: it decelerates and comes to rest. x_B and `stuck` every ms."""
+    plant = Plant(fmu, frictionModel=FRICTION_MODELS[model], mu=0.2, mu_s=0.2, idealCurrentLoop=True,
+                  iq_ref=2.6, F_E=F_E)
+    rows = []
+    try:
+        for k in range(int(round(seconds / 1e-3))):
+            if k == 50:
+                plant.set("iq_ref", 1.9)
+            plant.step(1e-3)
+            rows.append(plant.get("x_B", "mechanism.stuck"))
+    finally:
+        plant.fmu.freeInstance()
+        shutil.rmtree(plant.dir, ignore_errors=True)
+    data = np.array(rows)
+    return data[:, 0], data[:, 1]
+
+
+def test_a_mechanism_that_comes_to_rest_stays_at_rest(plant_fmu: Path) -> None:
+    """Where the motion would reverse under a load that static friction holds, stick_slip sticks
+    once and stays (x_B constant to 1e-9 m from then on, one stick, no chattering); the dissipative
+    model, without a stick state, chatters there and the FMU stops with its Zeno error."""
+    from fmpy.fmi1 import FMICallException
+
+    x_B, stuck = _push_then_hold(plant_fmu, "stick_slip", 0.8)
+    assert stuck[:100].max() == 0.0, "it moved first"
+    k = int(np.argmax(stuck > 0))
+    assert 100 < k < 700 and np.all(stuck[k:] == 1.0)
+    assert np.ptp(x_B[k:]) <= 1e-9
+    assert x_B[k] - x_B[0] > 1e-3
+    with pytest.raises(FMICallException):
+        _push_then_hold(plant_fmu, "dissipative", 0.8)
