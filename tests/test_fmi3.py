@@ -185,12 +185,14 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
     assert md.coSimulation.canHandleVariableCommunicationStepSize
     assert not md.coSimulation.hasEventMode
     (independent,) = [v for v in md.modelVariables if v.causality == "independent"]
-    assert (independent.name, independent.type, independent.valueReference) == ("time", "Float64", 165)
+    # time comes after the model's variables and the three solver settings
+    assert (independent.name, independent.type, independent.valueReference) == ("time", "Float64", plant3_build.variables + 3)
     assert independent.start is None and independent.initial is None
     references = [v.valueReference for v in md.modelVariables]
     assert len(references) == len(set(references))
     settings = {v.name: v for v in md.modelVariables if v.name.startswith("solver.")}
-    assert [v.valueReference for v in settings.values()] == [162, 163, 164]
+    n = plant3_build.variables  # the model's variables have the value references 0 .. n - 1
+    assert [v.valueReference for v in settings.values()] == [n, n + 1, n + 2]
     assert all(v.variability == "tunable" and v.causality == "parameter" for v in settings.values())
     kinds = {v.name: (v.type, v.causality, v.variability, v.initial) for v in md.modelVariables}
     assert kinds["m_B"] == ("Float64", "parameter", "fixed", "exact")

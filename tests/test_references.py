@@ -17,7 +17,8 @@ from toggle_cosim.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 FOLDER = ROOT / "scenarios" / "references"
-SHIPPED = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation", "swap_no_gravity", "integral_load")
+SHIPPED = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation", "swap_no_gravity", "integral_load",
+           "friction_models")
 
 
 def _runs():

@@ -3,6 +3,8 @@ model Plant "PMLSM-driven toggle mechanism with joint Coulomb friction: the plan
   // Parameters of the contract
   parameter Real m_B(unit = "kg") = 4.43 "Mass of slider B (nominal 4.43 kg; the paper's variation case is 8.86 kg)";
   parameter Real mu = 0.2 "Coefficient of dry friction in the joints, eq. (17); 0 switches friction off";
+  parameter Integer frictionModel = 1 "Joint friction: 1 paper eq. (17), 2 dissipative, 3 stick_slip";
+  parameter Real mu_s = 0.2 "Static coefficient of friction (frictionModel = 3)";
   parameter Boolean idealCurrentLoop = false "true: i_q = i_q* (ideal current loop); false: di_q/dt = K (i_q* - i_q)";
   parameter Real K(unit = "rad/s") = 350 "Current-loop bandwidth (assumed meaning of the paper's K = 350)";
   parameter Real x_B0(unit = "m") = 0.2329 "Initial position of slider B (at rest)";
@@ -11,7 +13,7 @@ model Plant "PMLSM-driven toggle mechanism with joint Coulomb friction: the plan
   input Real F_E(unit = "N") "External force on slider B; >= 0 resists the forward stroke";
 
   LinearSynchronousMotor motor(K = K, idealCurrentLoop = idealCurrentLoop) "PMLSM, eqs. (1)-(16)";
-  ToggleMechanism mechanism(m_B = m_B, mu = mu, x_B0 = x_B0) "Toggle mechanism, eqs. (17)-(18)";
+  ToggleMechanism mechanism(m_B = m_B, mu = mu, frictionModel = frictionModel, mu_s = mu_s, x_B0 = x_B0) "Toggle mechanism, eqs. (17)-(18)";
   LoadForce load "External force on slider B";
 
   // Outputs of the contract

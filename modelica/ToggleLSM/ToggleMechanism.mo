@@ -10,7 +10,18 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
      constraint and friction columns. The constraints enter at acceleration level
      (Phi'' = Phi_q qdd - gamma) with Baumgarte terms that vanish on the constraint manifold and
      pull numerical drift back to it. Q_f' is eq. (17) exactly as the paper writes it: the
-     friction multiplies lambda, not |lambda|. */
+     friction multiplies lambda, not |lambda|.
+     Three friction models (parameter frictionModel), on the rows R_i of Q_f' lambda / mu:
+       1 paper        tau_i = mu sgn(omega_i) R_i                 (eq. (17), the default)
+       2 dissipative  tau_i = mu sgn(omega_i) |R_i|               (friction power >= 0)
+       3 stick_slip   as 2 while the mechanism slips; when omega1 would reverse, the
+                      mechanism sticks: all velocities are set to zero, and a holding torque
+                      T_st on theta1 keeps alpha1 = -stickDecay omega1, until |T_st| exceeds
+                      the static capacity mu_s sum_i |domega_i/domega1| |R_i|; then it slips
+                      again in the direction of T_st.
+     |R_i| is mu sgn(R_i) R_i with sgn(R_i) a relation latch, so the block stays linear in
+     (alpha, lambda). The events of models 2 and 3 have indicators that are identically zero
+     under model 1, so the paper's model integrates exactly as before. */
   constant Real pi = 3.141592653589793;
   // Geometry (assumed, see shared/spec/mechanism.md)
   parameter Real r1(unit = "m") = 0.10 "Lever arm O-A (assumed)";
@@ -31,6 +42,12 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   parameter Real m_C(unit = "kg") = 1.5 "Mass of slider C, the PMLSM mover (assumed)";
   parameter Real g(unit = "m/s2") = 9.81 "Gravitational acceleration, along -y";
   parameter Real mu = 0.2 "Coefficient of dry friction in the joints, eq. (17); 0: no friction";
+  parameter Integer frictionModel = 1 "Joint friction model: 1 paper eq. (17), 2 dissipative, 3 stick_slip";
+  parameter Real mu_s = 0.2 "Static coefficient of friction (frictionModel = 3)";
+  parameter Real stickDecay(unit = "1/s") = 1000 "Rate at which a stuck mechanism's residual velocity decays (frictionModel = 3)";
+  parameter Real stickCompliance = 1e-12 "Residual acceleration of a stuck mechanism per N.m of holding torque, rad/s2 (model 3; numerical regularisation)";
+  parameter Real wDiss = if frictionModel == 1 then 0.0 else 1.0 "1 where the sign of R_i is watched (models 2, 3)";
+  parameter Real wStick = if frictionModel == 3 then 1.0 else 0.0 "1 where sticking is modelled (model 3)";
   parameter Real baumgarte(unit = "1/s") = 20 "Rate of the constraint stabilisation; 0 integrates Phi_q qdd = gamma unmodified";
   // Initial configuration: at rest, theta1 from eq. (26), theta2 and theta5 from the constraints
   parameter Real x_B0(unit = "m") = 0.2329 "Initial position of slider B";
@@ -55,6 +72,20 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   discrete Real sgn1(start = 0.0) "sgn(omega1), latched at its zero crossings";
   discrete Real sgn2(start = 0.0) "sgn(omega2), latched at its zero crossings";
   discrete Real sgn5(start = 0.0) "sgn(omega5), latched at its zero crossings";
+  discrete Real stuck(start = wStick) "1 while the mechanism sticks (model 3; it starts at rest, stuck)";
+  discrete Real dir(start = 0.0) "Direction of omega1 since the last breakaway (model 3), 0 while stuck";
+  Real R1(unit = "N.m") "Row theta1 of Q_f' lambda / (mu sgn1)";
+  Real R2(unit = "N.m") "Row theta2 of Q_f' lambda / (mu sgn2)";
+  Real R5(unit = "N.m") "Row theta5 of Q_f' lambda / (mu sgn5)";
+  discrete Real sR1(start = 1.0) "sgn(R1), latched at its zero crossings (models 2, 3)";
+  discrete Real sR2(start = 1.0) "sgn(R2), latched at its zero crossings (models 2, 3)";
+  discrete Real sR5(start = 1.0) "sgn(R5), latched at its zero crossings (models 2, 3)";
+  Real c1 "Factor of mu R1 in tau1_f: sgn1 (model 1), sgn1 |R1|/R1 while slipping, 0 while stuck";
+  Real c2 "Factor of mu R2 in tau2_f";
+  Real c5 "Factor of mu R5 in tau5_f";
+  Real u_st "Free variable of the theta1 row: alpha1 while slipping, the holding torque T_st while stuck";
+  Real T_st(unit = "N.m") "Holding (static friction) torque on theta1 while stuck (model 3), else 0";
+  Real T_s(unit = "N.m") "Static friction capacity mu_s sum_i |domega_i/domega1| |R_i| (model 3)";
 
   Real x_B(unit = "m") "Position of slider B";
   Real v_B(unit = "m/s") "Velocity of slider B";
@@ -137,6 +168,38 @@ equation
     sgn5 = -1.0;
   end when;
 
+  // Sticking (model 3): break away when the holding torque exceeds the static capacity (the
+  // factor time keeps the condition false at the start, so a load above it breaks away at
+  // t = 0+); stick when omega1 crosses zero against the direction of slip
+  when time * stuck * (abs(T_st) - T_s) > 0 then
+    stuck = 0.0;
+    dir = sign(T_st);
+  elsewhen (1.0 - stuck) * (-dir * omega1) > 0 then
+    stuck = 1.0;
+    dir = 0.0;
+    reinit(omega1, 0.0);
+    reinit(omega2, 0.0);
+    reinit(omega5, 0.0);
+  end when;
+
+  // Signs of the rows R_i (models 2, 3); the factor time sets them at t = 0+ whatever the
+  // start value, and wDiss = 0 keeps the indicators at zero under the paper's model
+  when time * wDiss * R1 > 0 then
+    sR1 = 1.0;
+  elsewhen time * wDiss * R1 < 0 then
+    sR1 = -1.0;
+  end when;
+  when time * wDiss * R2 > 0 then
+    sR2 = 1.0;
+  elsewhen time * wDiss * R2 < 0 then
+    sR2 = -1.0;
+  end when;
+  when time * wDiss * R5 > 0 then
+    sR5 = 1.0;
+  elsewhen time * wDiss * R5 < 0 then
+    sR5 = -1.0;
+  end when;
+
   // Positions and velocities
   x_B = r1 * cos(theta1) + r3 * cos(theta2);
   x_C = r4 * cos(theta1 + phi) + r5 * cos(theta5);
@@ -167,10 +230,23 @@ equation
   a_C = aDx - r5 * (sin(theta5) * alpha5 + cos(theta5) * omega5 ^ 2);
   aCy = aDy + r5 * (cos(theta5) * alpha5 - sin(theta5) * omega5 ^ 2);
 
-  // Rows of Q_f' lambda, eq. (17)
-  tau1_f = mu * sgn1 * (-r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2);
-  tau2_f = -mu * sgn2 * r3 * sin(theta2) * lambda1;
-  tau5_f = mu * sgn5 * r5 * sin(theta5) * lambda2;
+  // Rows of Q_f' lambda, eq. (17), with the factor c_i of the friction model in place of sgn_i
+  R1 = -r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2;
+  R2 = -r3 * sin(theta2) * lambda1;
+  R5 = r5 * sin(theta5) * lambda2;
+  c1 = if frictionModel == 1 then sgn1 else (1.0 - stuck) * sgn1 * sR1;
+  c2 = if frictionModel == 1 then sgn2 else (1.0 - stuck) * sgn2 * sR2;
+  c5 = if frictionModel == 1 then sgn5 else (1.0 - stuck) * sgn5 * sR5;
+  tau1_f = mu * c1 * (-r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2) + T_st;
+  tau2_f = -mu * c2 * r3 * sin(theta2) * lambda1;
+  tau5_f = mu * c5 * r5 * sin(theta5) * lambda2;
+  // Sticking: alpha1 = u_st and T_st = 0 while slipping; while stuck T_st = u_st and
+  // alpha1 = -stickDecay omega1 + stickCompliance T_st (the coefficient of u_st is never zero,
+  // so the compiler may solve this equation for u_st in either state)
+  alpha1 = ((1.0 - stuck) + stuck * stickCompliance) * u_st - stuck * stickDecay * omega1;
+  T_st = stuck * u_st;
+  T_s = mu_s * (abs(R1) + abs(r1 * cos(theta1) / (r3 * cos(theta2))) * abs(R2)
+    + abs(r4 * cos(theta1 + phi) / (r5 * cos(theta5))) * abs(R5));
 
   // Eq. (18), generalized equation of theta1
   J2 * alpha1 + m3 * (-aG3x * r1 * sin(theta1) + aG3y * r1 * cos(theta1)) - m_B * a_B * r1 * sin(theta1)

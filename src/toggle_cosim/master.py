@@ -35,6 +35,7 @@ from toggle_cosim.analysis.solver_stats import NOT_EXPOSED, read_solver_statisti
 from toggle_cosim.controller import VSCController
 from toggle_cosim.compiled_loop import FMI_FAILED, HAND_BACK, kernel_reason
 from toggle_cosim.fmu_io import PlantFMU
+from toggle_cosim.friction import friction_settings
 from toggle_cosim.motor import thrust_constant
 from toggle_cosim.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant import PlantInterface
@@ -129,6 +130,7 @@ def _plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | 
         raise ValueError(f"{plant.path}: the plant has no parameter idealCurrentLoop, so plant.current_loop: ideal cannot be set")
     if run.plant.K is not None:
         settings.append(("K", run.plant.K))
+    settings += friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, available, plant.path)
     for name, value in run.plant.parameters.items():
         if name not in available:
             raise ValueError(f"key plant.parameters.{name}: the plant FMU has no variable {name!r}")

@@ -6,7 +6,8 @@ Any FMU that provides these variables (names, causality and units) can be the pl
 * outputs  x_B v_B theta1 theta2 theta5 x_C i_q F_C lambda1 lambda2, the normal and friction
            force at joints (1,2) (2,3) (3,4) (2,5) (5,6) as N12.. and Ff12.., and the
            energies E_in E_fric E_load E_mech
-* parameters m_B (kg), mu (1); optional: idealCurrentLoop (Boolean), K (rad/s), x_B0 (m)
+* parameters m_B (kg), mu (1); optional: idealCurrentLoop (Boolean), K (rad/s), x_B0 (m),
+  frictionModel (1 paper, 2 dissipative, 3 stick_slip; without it only the paper's model), mu_s (1)
 * optional outputs, recorded when present: a_B, omega1, v_C, Phi1, Phi2
 """
 
@@ -32,7 +33,7 @@ OUTPUTS = {
 }
 OPTIONAL_OUTPUTS = {"a_B": "m/s2", "omega1": "rad/s", "v_C": "m/s", "Phi1": "m", "Phi2": "m"}
 PARAMETERS = {"m_B": "kg", "mu": None}
-OPTIONAL_PARAMETERS = {"idealCurrentLoop": None, "K": "rad/s", "x_B0": "m"}
+OPTIONAL_PARAMETERS = {"idealCurrentLoop": None, "K": "rad/s", "x_B0": "m", "frictionModel": None, "mu_s": None}
 
 
 class ContractError(Exception):

@@ -36,7 +36,12 @@ def summary_table(outcomes: Sequence[RunOutcome]) -> str:
 
 
 def write_summary(outcomes: Sequence[RunOutcome], path: Path) -> Path:
-    text = "# Results of the paper's runs\n\n" + summary_table(outcomes) + "\n" + paper_claims(outcomes)
+    from toggle_cosim.friction_claims import friction_claims
+
+    paper_runs = [o for o in outcomes if o.run.scenario != "friction_models"]
+    text = "# Results of the paper's runs\n\n" + summary_table(paper_runs) + "\n" + paper_claims(paper_runs)
+    if len(paper_runs) < len(outcomes):
+        text += "\n" + friction_claims(outcomes)
     atomic_write(Path(path), lambda stream: stream.write(text))
     return Path(path)
 

@@ -11,7 +11,8 @@ say (a target beyond the toggle position) are checked after it.
     t_end: 1.5                          # s
     T_s: 0.0005                         # s, controller sample time
     stroke: {x_start: 0.2329, x_target: 0.3199}
-    plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, current_loop: first_order, parameters: {}}
+    plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, current_loop: first_order, parameters: {},
+            friction_model: paper, mu_s: 0.2}     # friction_model: paper | dissipative | stick_slip
     controller: {objective: x_B, gains: {C: 5, Q: 4, P: 50, delta: 0.25, beta: 65}}
     variants:
       friction: {plant: {mu: 0.2}}
@@ -46,6 +47,8 @@ _PLANT = {
         "m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         "mu": {"type": "number", "minimum": 0, "maximum": 1},
         "current_loop": {"enum": ["first_order", "ideal"]},
+        "friction_model": {"enum": ["paper", "dissipative", "stick_slip"]},
+        "mu_s": {"type": "number", "minimum": 0, "maximum": 1},
         "K": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6},
         "parameters": {
             "type": "object",
@@ -132,6 +135,8 @@ class PlantSettings:
     m_B: float = 4.43
     mu: float = 0.2
     current_loop: Literal["first_order", "ideal"] = "first_order"
+    friction_model: Literal["paper", "dissipative", "stick_slip"] = "paper"
+    mu_s: float | None = None  # static coefficient (stick_slip); None: the same as mu
     K: float | None = None
     parameters: Mapping[str, float | bool] = field(default_factory=dict)
 
@@ -298,6 +303,8 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         m_B=float(plant_doc.get("m_B", 4.43)),
         mu=float(plant_doc.get("mu", 0.2)),
         current_loop=plant_doc.get("current_loop", "first_order"),
+        friction_model=plant_doc.get("friction_model", "paper"),
+        mu_s=float(plant_doc["mu_s"]) if "mu_s" in plant_doc else None,
         K=float(plant_doc["K"]) if "K" in plant_doc else None,
         parameters=dict(plant_doc.get("parameters", {})),
     )
