@@ -34,7 +34,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 HEADERS = Path(fmpy.__file__).parent / "c-code"
-SHELL = ROOT / "src" / "toggle_cosim" / "build" / "shell"
+SHELL = ROOT / "src" / "toggle_cosim" / "fmu_export" / "shell"
 
 PARAMETERS = {"m_B": 8.86, "mu": 0.2, "idealCurrentLoop": False, "F_E": 50.0}
 T_END, H = 0.3, 5e-4
@@ -47,7 +47,7 @@ def iq_ref(t: float) -> float:
 
 @pytest.fixture(scope="module")
 def plant3_build(tmp_path_factory: pytest.TempPathFactory):
-    from toggle_cosim.build import build_fmu
+    from toggle_cosim.fmu_export import build_fmu
 
     output = tmp_path_factory.mktemp("fmu3") / "ToggleLSM3.fmu"
     return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant", output, fmi_version="3.0")
@@ -163,7 +163,7 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
     buildDescription.xml, and the modelDescription essentials."""
     from lxml import etree
 
-    from toggle_cosim.build.package import platform_tuple
+    from toggle_cosim.fmu_export.package import platform_tuple
 
     assert platform_tuple() == fmpy.platform_tuple
     with zipfile.ZipFile(plant3_fmu) as archive:

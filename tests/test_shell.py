@@ -1,4 +1,4 @@
-"""The generic FMI 2.0 Co-Simulation shell (src/toggle_cosim/build/shell), on its own.
+"""The generic FMI 2.0 Co-Simulation shell (src/toggle_cosim/fmu_export/shell), on its own.
 
 Nothing here uses toggle_cosim's build code. Each test model is written in Modelica below,
 compiled by `modelica.sim.cgen` exactly as the build does it (inputs turned into parameter
@@ -43,7 +43,7 @@ from fmpy.fmi2 import (  # noqa: E402
 from fmpy.logging import addLoggerProxy  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-SHELL = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "build" / "shell"
+SHELL = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "fmu_export" / "shell"
 FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 CC = shutil.which("gcc")
 
@@ -321,7 +321,7 @@ def _array(ctype: str, name: str, values: list[str]) -> str:
 
 
 def tables_c(spec: Spec, guid: str) -> str:
-    """The md_model.h tables for `spec`: what toggle_cosim.build generates for real models."""
+    """The md_model.h tables for `spec`: what toggle_cosim.fmu_export generates for real models."""
     vs = spec.variables
     names = ", ".join(f'"{v.name}"' for v in vs)
     return "\n".join(
@@ -346,7 +346,7 @@ def tables_c(spec: Spec, guid: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------
-# modelDescription.xml for a test model (the real one is toggle_cosim.build's business)
+# modelDescription.xml for a test model (the real one is toggle_cosim.fmu_export's business)
 # ---------------------------------------------------------------------------------------
 
 _MD_ATTRS = {

@@ -81,7 +81,7 @@ def _inside_project(path: Path, what: str, option: str) -> Path:
 
 
 def _build(source: Path, model: str, output: Path, fmi_version: str = "2.0") -> None:
-    from toggle_cosim.build import FMUBuildError, ModelCompileError, build_fmu
+    from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
 
     source = _inside_project(source, "Modelica source", "--source")
     output = _inside_project(output, "FMU output", "--output")

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from toggle_cosim.build.package import FMUBuildError, find_c_compiler
+from toggle_cosim.fmu_export.package import FMUBuildError, find_c_compiler
 
 if TYPE_CHECKING:
     from toggle_cosim.fmu_io import PlantFMU

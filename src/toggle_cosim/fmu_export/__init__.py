@@ -11,8 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toggle_cosim import __version__
-from toggle_cosim.build.compile import ModelCompileError, compile_model
-from toggle_cosim.build.package import FMI_VERSIONS, BuiltFMU, FMUBuildError, write_fmu
+from toggle_cosim.fmu_export.compile import ModelCompileError, compile_model
+from toggle_cosim.fmu_export.package import FMI_VERSIONS, BuiltFMU, FMUBuildError, write_fmu
 
 __all__ = ["FMI_VERSIONS", "BuildReport", "FMUBuildError", "ModelCompileError", "build_fmu"]
 

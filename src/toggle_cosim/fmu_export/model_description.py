@@ -12,8 +12,8 @@ import datetime
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
-from toggle_cosim.build.compile import GeneratedModel, ModelVariable
-from toggle_cosim.build.units import base_exponents
+from toggle_cosim.fmu_export.compile import GeneratedModel, ModelVariable
+from toggle_cosim.fmu_export.units import base_exponents
 
 
 @dataclass(frozen=True)

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import fmpy
 
-from toggle_cosim.build.compile import GeneratedModel
-from toggle_cosim.build.model_description import fmi2_model_description, fmi3_model_description
+from toggle_cosim.fmu_export.compile import GeneratedModel
+from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
 
 # The shell files every FMU carries in sources/, whatever its FMI version.
 CORE_FILES = ("md_model.h", "solver.h", "solver.c", "instance.h", "instance.c")
@@ -156,7 +156,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         work = Path(scratch)
         sources = work / "sources"
         sources.mkdir()
-        shell = resources.files("toggle_cosim.build") / "shell"
+        shell = resources.files("toggle_cosim.fmu_export") / "shell"
         for name in (*CORE_FILES, version.interface):
             (sources / name).write_text(shell.joinpath(name).read_text(encoding="utf-8"), encoding="utf-8")
         (sources / "model.c").write_text(model.c_source, encoding="utf-8")
