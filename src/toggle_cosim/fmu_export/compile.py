@@ -30,7 +30,9 @@ from modelica.sim.cgen import unit
 from modelica.sim.dialect import C
 from modelica.sim.emit import Emitter, emit_expr, settings
 
+from toggle_cosim.fmu_export.experiment import Experiment, ExperimentError, experiment_of
 from toggle_cosim.fmu_export.source import ModelSourceError, load_program
+from toggle_cosim.fmu_export.structure import Dependencies, model_dependencies
 
 Kind = Literal["parameter", "input", "calculated", "constant", "state", "computed"]
 _SHELL_KIND = {
@@ -76,6 +78,10 @@ class GeneratedModel:
     states: tuple[str, ...]
     derivatives: tuple[str, ...]
     event_count: int
+    # ModelStructure dependencies by variable name (states, der_ variables and the model's
+    # variables): see structure.py. Empty: unknown (the description then claims all).
+    dependencies: Dependencies = Dependencies(continuous={}, initial={})
+    experiment: Experiment = Experiment()  # from the `experiment` annotation
 
     def variable(self, name: str) -> ModelVariable:
         for variable in self.variables:
@@ -163,6 +169,14 @@ def _parameter_function(parameters: tuple[FlatVariable, ...], calculated: set[st
     return lines
 
 
+def _nominal(variable: FlatVariable | None) -> float:
+    """The state's `nominal` attribute if it is a positive literal, else 1.0 (FMI's default)."""
+    nominal = getattr(variable, "nominal", None)
+    if isinstance(nominal, (ir.RealLiteral, ir.IntLiteral)) and abs(float(nominal.value)) > 0:
+        return abs(float(nominal.value))
+    return 1.0
+
+
 def _c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
@@ -245,6 +259,18 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         for name in emitter.remembered
         if name in flat_by_name
     ]
+    dependencies = model_dependencies(
+        system,
+        inputs=inputs,
+        independent=[v.name for v in variables if v.kind == "parameter"],
+        start={name: flat_by_name[name].start for name in states if name in flat_by_name},
+        bindings={v.name: v.binding for v in parameters},
+    )
+    top = program.find(model)
+    try:
+        experiment = experiment_of(top, model)
+    except ExperimentError as error:
+        raise ModelCompileError(f"{source}: {error}") from error
     digest = hashlib.sha256(body.encode()).hexdigest()
     guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"toggle-cosim:{model}:{digest}")) + "}"
     n = len(variables)
@@ -260,11 +286,18 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         f"static const int md_obs_[{n}] = {{" + ", ".join(str(v.obs_slot) for v in variables) + "};",
         f"static const int md_par_[{n}] = {{" + ", ".join(str(v.par_slot) for v in variables) + "};",
         f"static const char *const md_names_[{n}] = {{" + ", ".join(_c_string(v.name) for v in variables) + "};",
+        f"static const double md_nominal_[{max(len(states), 1)}] = {{"
+        + ", ".join(_c_number(_nominal(flat_by_name.get(name))) for name in states) + ("1.0" if not states else "") + "};",
+        "/* the interface types modelDescription.xml offers: package.py defines MD_INTERFACES */",
+        "#ifndef MD_INTERFACES",
+        "#define MD_INTERFACES MD_INTERFACE_CS",
+        "#endif",
         "const md_info MD_INFO = {",
         f"    {_c_string(model)}, {_c_string(guid)},",
         f"    {len(states)}, {len(parameters)}, {nw}, {len(observed)}, {len(events)},",
         "    md_direction_, md_latch_,",
-        f"    {n}, md_kind_, md_obs_, md_par_, md_names_",
+        f"    {n}, md_kind_, md_obs_, md_par_, md_names_,",
+        "    md_nominal_, MD_INTERFACES",
         "};",
         "",
         *_defaults_function(variables),
@@ -279,7 +312,6 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         '#include "md_model.h"',
     ]
     c_source = "\n".join(header) + "\n" + body + "\n".join(tables)
-    top = program.find(model)
     return GeneratedModel(
         name=model,
         description=top.comment if top is not None else "",
@@ -289,4 +321,6 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         states=tuple(states),
         derivatives=tuple(system.derivative[s] for s in states),
         event_count=len(events),
+        dependencies=dependencies,
+        experiment=experiment,
     )

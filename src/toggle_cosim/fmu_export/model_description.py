@@ -1,9 +1,13 @@
-"""modelDescription.xml for a compiled model, FMI 2.0 and FMI 3.0 Co-Simulation.
+"""modelDescription.xml for a compiled model, FMI 2.0 and FMI 3.0, Co-Simulation, Model
+Exchange or both.
 
 Written from `GeneratedModel`: every variable with its causality, variability, initial,
 unit, description and, where the standard allows one, start value; the unit definitions;
-and the model structure. The shell's own solver settings are appended as parameters after
-the model's variables (their value references follow the model's, as `shell/solver.h` says).
+and the model structure with the dependencies structure.py reads off the flat model. After
+the model's variables come the shell's own (value references as `shell/instance.h` numbers
+them): the solver settings (tunable parameters), `time` (FMI 3.0), the integrator
+statistics (`solver.steps`, `solver.rejectedSteps`, `solver.events`: Integer / Int64,
+local, discrete), der(x) of every state, and (FMI 3.0 Model Exchange) the event indicators.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from toggle_cosim.fmu_export.compile import GeneratedModel, ModelVariable
+from toggle_cosim.fmu_export.interfaces import CO_SIMULATION, MODEL_EXCHANGE, Interfaces
 from toggle_cosim.fmu_export.units import base_exponents
 
 
@@ -32,7 +37,74 @@ SHELL_SETTINGS = (
     ShellSetting("solver.maxStep", 0.0, "s", "Largest internal step of the FMU's integrator; 0: no bound"),
 )
 
-DEFAULT_EXPERIMENT = {"startTime": "0.0", "stopTime": "1.5", "tolerance": "1e-08", "stepSize": "0.0005"}
+
+@dataclass(frozen=True)
+class ShellStatistic:
+    """An integrator statistic of the shell, an integer variable (shell/instance.h md_statistic)."""
+
+    name: str
+    description: str
+
+
+SHELL_STATISTICS = (
+    ShellStatistic("solver.steps", "Accepted integrator steps since instantiation (Model Exchange: "
+                   "the importer's completed integrator steps)"),
+    ShellStatistic("solver.rejectedSteps", "Rejected integrator steps since instantiation (error test "
+                   "failed or non-finite values; 0 under Model Exchange)"),
+    ShellStatistic("solver.events", "State events handled since instantiation (transitions, event "
+                   "iteration included)"),
+)
+
+
+@dataclass(frozen=True)
+class ShellReferences:
+    """The value references of the shell's variables for `model` (shell/instance.h MD_VR_*)."""
+
+    settings: int
+    time: int
+    statistics: int
+    derivatives: int
+    indicators: int
+
+    @classmethod
+    def of(cls, model: GeneratedModel) -> ShellReferences:
+        settings = len(model.variables)
+        time = settings + len(SHELL_SETTINGS)
+        statistics = time + 1
+        derivatives = statistics + len(SHELL_STATISTICS)
+        return cls(settings, time, statistics, derivatives, derivatives + len(model.states))
+
+
+def default_experiment(model: GeneratedModel) -> dict[str, str]:
+    """<DefaultExperiment> from the model's `experiment` annotation; the tolerance defaults to
+    the shell's relative tolerance."""
+    return model.experiment.attributes(default_tolerance=SHELL_SETTINGS[0].start)
+
+
+def _continuous_dependencies(model: GeneratedModel, name: str) -> frozenset[str] | None:
+    return model.dependencies.continuous.get(name) if model.dependencies.continuous else None
+
+
+def _initial_dependencies(model: GeneratedModel, name: str) -> frozenset[str] | None:
+    return model.dependencies.initial.get(name) if model.dependencies.initial else None
+
+
+def _dependency_list(found: frozenset[str] | None, key: dict[str, int]) -> str | None:
+    """The dependencies attribute: the keys (indices / value references) of the named
+    knowns, ascending; None (attribute left out: depends on everything) if unknown."""
+    if found is None:
+        return None
+    return " ".join(str(k) for k in sorted(key[name] for name in found if name in key))
+
+
+def _unknown(parent: ET.Element, tag: str, key_attribute: str, key: int, dependencies: str | None) -> None:
+    element = ET.SubElement(parent, tag, {key_attribute: str(key)})
+    if dependencies is not None:
+        element.set("dependencies", dependencies)
+
+
+def _state_variables(model: GeneratedModel) -> list[ModelVariable]:
+    return [model.variable(name) for name in model.states]
 
 
 def _number(value: float) -> str:
@@ -84,30 +156,56 @@ def _description_root(model: GeneratedModel, tool: str, **version_specific: str)
     return root
 
 
-def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: str) -> str:
-    """The FMI 2.0 Co-Simulation modelDescription.xml text."""
+def _fmi2_interface_elements(root: ET.Element, model_identifier: str, interfaces: Interfaces,
+                             sources: tuple[str, ...]) -> None:
+    """<ModelExchange> and / or <CoSimulation>, in the schema's order, with <SourceFiles>."""
+    common = {
+        "modelIdentifier": model_identifier,
+        "needsExecutionTool": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "true",
+        "canSerializeFMUstate": "true",
+        "providesDirectionalDerivative": "false",
+    }
+    elements = []
+    if MODEL_EXCHANGE in interfaces:
+        # fmi2CompletedIntegratorStep counts the importer's steps (solver.steps): wanted
+        elements.append(ET.SubElement(root, "ModelExchange", {**common, "completedIntegratorStepNotNeeded": "false"}))
+    if CO_SIMULATION in interfaces:
+        elements.append(ET.SubElement(root, "CoSimulation", {
+            **common,
+            "canHandleVariableCommunicationStepSize": "true",
+            "canInterpolateInputs": "false",
+            "maxOutputDerivativeOrder": "0",
+            "canRunAsynchronuously": "false",
+        }))
+    for element in elements:
+        if sources:
+            files = ET.SubElement(element, "SourceFiles")
+            for name in sources:
+                ET.SubElement(files, "File", name=name)
+
+
+def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: str,
+                           interfaces: Interfaces = frozenset({CO_SIMULATION}),
+                           sources: tuple[str, ...] = ()) -> str:
+    """The FMI 2.0 modelDescription.xml text; `sources`: the C files of <SourceFiles>."""
     root = _description_root(model, tool, fmiVersion="2.0", guid=model.guid,
                              numberOfEventIndicators=str(model.event_count))
-    ET.SubElement(
-        root,
-        "CoSimulation",
-        modelIdentifier=model_identifier,
-        canHandleVariableCommunicationStepSize="true",
-        canInterpolateInputs="false",
-        maxOutputDerivativeOrder="0",
-        canRunAsynchronuously="false",
-        canBeInstantiatedOnlyOncePerProcess="false",
-        canNotUseMemoryManagementFunctions="false",
-        canGetAndSetFMUstate="true",
-        canSerializeFMUstate="true",
-        providesDirectionalDerivative="false",
-    )
+    _fmi2_interface_elements(root, model_identifier, interfaces, sources)
     _add_unit_definitions(root, _units(model))
-    ET.SubElement(root, "DefaultExperiment", DEFAULT_EXPERIMENT)
+    categories = ET.SubElement(root, "LogCategories")
+    for name, description in FMI2_LOG_CATEGORIES:
+        ET.SubElement(categories, "Category", name=name, description=description)
+    ET.SubElement(root, "DefaultExperiment", default_experiment(model))
     variables = ET.SubElement(root, "ModelVariables")
-    outputs: list[int] = []
-    initial_unknowns: list[int] = []
+    references = ShellReferences.of(model)
+    index_of: dict[str, int] = {}  # variable name -> 1-based index in ModelVariables
+    outputs: list[ModelVariable] = []
+    calculated: list[ModelVariable] = []
     for index, variable in enumerate(model.variables, start=1):
+        index_of[variable.name] = index
         attributes = _fmi2_attributes(variable)
         element = ET.SubElement(
             variables,
@@ -135,31 +233,64 @@ def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: s
             if has_start:
                 typed.set("start", _number(variable.start if variable.start is not None else 0.0))
         if attributes["causality"] == "output":
-            outputs.append(index)
-            initial_unknowns.append(index)
+            outputs.append(variable)
         elif attributes["causality"] == "calculatedParameter":
-            initial_unknowns.append(index)
+            calculated.append(variable)
+    next_index = len(model.variables) + 1
     for offset, setting in enumerate(SHELL_SETTINGS):
         element = ET.SubElement(
             variables,
             "ScalarVariable",
             name=setting.name,
-            valueReference=str(len(model.variables) + offset),
+            valueReference=str(references.settings + offset),
             description=setting.description,
             causality="parameter",
             variability="tunable",
             initial="exact",
         )
         ET.SubElement(element, "Real", unit=setting.unit, start=_number(setting.start))
+        next_index += 1
+    for offset, statistic in enumerate(SHELL_STATISTICS):
+        element = ET.SubElement(
+            variables, "ScalarVariable", name=statistic.name,
+            valueReference=str(references.statistics + offset), description=statistic.description,
+            causality="local", variability="discrete", initial="calculated",
+        )
+        ET.SubElement(element, "Integer")
+        next_index += 1
+    derivative_index: list[int] = []
+    for offset, state in enumerate(_state_variables(model)):
+        element = ET.SubElement(
+            variables, "ScalarVariable", name=f"der({state.name})",
+            valueReference=str(references.derivatives + offset),
+            description=f"Time derivative of {state.name}",
+            causality="local", variability="continuous", initial="calculated",
+        )
+        ET.SubElement(element, "Real", derivative=str(index_of[state.name]))
+        derivative_index.append(next_index)
+        next_index += 1
+
+    knowns = {v.name: index_of[v.name] for v in model.variables if v.kind in ("state", "input")}
+    start_knowns = {v.name: index_of[v.name] for v in model.variables if v.kind in ("parameter", "input")}
     structure = ET.SubElement(root, "ModelStructure")
     if outputs:
         section = ET.SubElement(structure, "Outputs")
-        for index in outputs:
-            ET.SubElement(section, "Unknown", index=str(index))
-    if initial_unknowns:
+        for variable in outputs:
+            _unknown(section, "Unknown", "index", index_of[variable.name],
+                     _dependency_list(_continuous_dependencies(model, variable.name), knowns))
+    if model.states:
+        section = ET.SubElement(structure, "Derivatives")
+        for index, name in zip(derivative_index, model.derivatives, strict=True):
+            _unknown(section, "Unknown", "index", index,
+                     _dependency_list(_continuous_dependencies(model, name), knowns))
+    initial: list[tuple[int, str]] = [(index_of[v.name], v.name) for v in (*outputs, *calculated)]
+    initial += [(index_of[name], name) for name in model.states]
+    initial += list(zip(derivative_index, model.derivatives, strict=True))
+    if initial:
         section = ET.SubElement(structure, "InitialUnknowns")
-        for index in initial_unknowns:
-            ET.SubElement(section, "Unknown", index=str(index))
+        for index, name in sorted(initial):
+            _unknown(section, "Unknown", "index", index,
+                     _dependency_list(_initial_dependencies(model, name), start_knowns))
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
@@ -167,6 +298,13 @@ def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: s
 # ---------------------------------------------------------------------------------------
 # FMI 3.0
 # ---------------------------------------------------------------------------------------
+
+# The log categories of shell/fmi2.c, in its order.
+FMI2_LOG_CATEGORIES = (
+    ("logEvents", "One line per state event: time, indicator and kind"),
+    ("logStatusError", "Calls that return a status other than fmi2OK, with the reason"),
+    ("logAll", "Everything, including integrator statistics per communication step"),
+)
 
 # The log categories of shell/fmi3.c, in its order (error statuses are logged regardless).
 FMI3_LOG_CATEGORIES = (
@@ -179,8 +317,8 @@ FMI3_LOG_CATEGORIES = (
 
 def time_value_reference(model: GeneratedModel) -> int:
     """The value reference of FMI 3.0's independent variable `time`: after the model's
-    variables and the shell settings (shell/fmi3.c: VR_TIME = nvars + MD_SHELL_NREAL)."""
-    return len(model.variables) + len(SHELL_SETTINGS)
+    variables and the shell settings (shell/instance.h: MD_VR_TIME = nvars + MD_SHELL_NREAL)."""
+    return ShellReferences.of(model).time
 
 
 def _fmi3_attributes(variable: ModelVariable) -> dict[str, str]:
@@ -192,50 +330,63 @@ def _fmi3_attributes(variable: ModelVariable) -> dict[str, str]:
     return attributes
 
 
-def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: str) -> str:
-    """The FMI 3.0 Co-Simulation modelDescription.xml text.
+def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: str,
+                           interfaces: Interfaces = frozenset({CO_SIMULATION}),
+                           sources: tuple[str, ...] = ()) -> str:
+    """The FMI 3.0 modelDescription.xml text (the sources are listed in buildDescription.xml).
 
-    Value references are those of FMI 2.0 (the model's variables, then the shell settings),
-    plus `time` (causality independent) at `time_value_reference(model)`. The model
-    structure lists outputs and initial unknowns by value reference.
+    Value references are those of FMI 2.0 (the model's variables, then the shell's), plus
+    `time` (causality independent) and, for Model Exchange, the event indicators. The model
+    structure lists outputs, state derivatives, initial unknowns and event indicators by
+    value reference.
     """
+    del sources  # FMI 3.0 lists them in sources/buildDescription.xml
     root = _description_root(model, tool, fmiVersion="3.0", instantiationToken=model.guid)
-    ET.SubElement(
-        root,
-        "CoSimulation",
-        modelIdentifier=model_identifier,
-        canBeInstantiatedOnlyOncePerProcess="false",
-        canGetAndSetFMUState="true",
-        canSerializeFMUState="true",
-        providesDirectionalDerivatives="false",
-        providesAdjointDerivatives="false",
-        providesPerElementDependencies="false",
-        canHandleVariableCommunicationStepSize="true",
-        maxOutputDerivativeOrder="0",
-        providesIntermediateUpdate="false",
-        mightReturnEarlyFromDoStep="false",
-        canReturnEarlyAfterIntermediateUpdate="false",
-        hasEventMode="false",
-        providesEvaluateDiscreteStates="false",
-    )
+    common = {
+        "modelIdentifier": model_identifier,
+        "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canGetAndSetFMUState": "true",
+        "canSerializeFMUState": "true",
+        "providesDirectionalDerivatives": "false",
+        "providesAdjointDerivatives": "false",
+        "providesPerElementDependencies": "false",
+    }
+    if MODEL_EXCHANGE in interfaces:
+        ET.SubElement(root, "ModelExchange", {
+            **common,
+            "needsCompletedIntegratorStep": "true",  # it counts solver.steps
+            "providesEvaluateDiscreteStates": "false",
+        })
+    if CO_SIMULATION in interfaces:
+        ET.SubElement(root, "CoSimulation", {
+            **common,
+            "canHandleVariableCommunicationStepSize": "true",
+            "maxOutputDerivativeOrder": "0",
+            "providesIntermediateUpdate": "false",
+            "mightReturnEarlyFromDoStep": "false",
+            "canReturnEarlyAfterIntermediateUpdate": "false",
+            "hasEventMode": "false",
+            "providesEvaluateDiscreteStates": "false",
+        })
     _add_unit_definitions(root, _units(model))
     categories = ET.SubElement(root, "LogCategories")
     for name, description in FMI3_LOG_CATEGORIES:
         ET.SubElement(categories, "Category", name=name, description=description)
-    ET.SubElement(root, "DefaultExperiment", DEFAULT_EXPERIMENT)
+    ET.SubElement(root, "DefaultExperiment", default_experiment(model))
     variables = ET.SubElement(root, "ModelVariables")
+    references = ShellReferences.of(model)
     ET.SubElement(
         variables,
         "Float64",
         name="time",
-        valueReference=str(time_value_reference(model)),
+        valueReference=str(references.time),
         description="Simulation time",
         causality="independent",
         variability="continuous",
         unit="s",
     )
-    outputs: list[int] = []
-    initial_unknowns: list[int] = []
+    outputs: list[ModelVariable] = []
+    calculated: list[ModelVariable] = []
     for variable in model.variables:
         attributes = _fmi3_attributes(variable)
         element = ET.SubElement(
@@ -257,16 +408,15 @@ def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: s
             start = variable.start if variable.start is not None else 0.0
             element.set("start", ("true" if start else "false") if variable.base_type == "Boolean" else _number(start))
         if attributes["causality"] == "output":
-            outputs.append(variable.value_reference)
-            initial_unknowns.append(variable.value_reference)
+            outputs.append(variable)
         elif attributes["causality"] == "calculatedParameter":
-            initial_unknowns.append(variable.value_reference)
+            calculated.append(variable)
     for offset, setting in enumerate(SHELL_SETTINGS):
         ET.SubElement(
             variables,
             "Float64",
             name=setting.name,
-            valueReference=str(len(model.variables) + offset),
+            valueReference=str(references.settings + offset),
             description=setting.description,
             causality="parameter",
             variability="tunable",
@@ -274,10 +424,45 @@ def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: s
             unit=setting.unit,
             start=_number(setting.start),
         )
+    for offset, statistic in enumerate(SHELL_STATISTICS):
+        ET.SubElement(variables, "Int64", name=statistic.name,
+                      valueReference=str(references.statistics + offset),
+                      description=statistic.description, causality="local", variability="discrete")
+    derivative_vr: list[int] = []
+    for offset, state in enumerate(_state_variables(model)):
+        element = ET.SubElement(
+            variables, "Float64", name=f"der({state.name})",
+            valueReference=str(references.derivatives + offset),
+            description=f"Time derivative of {state.name}",
+            causality="local", variability="continuous",
+            derivative=str(state.value_reference),
+        )
+        derivative_vr.append(references.derivatives + offset)
+    indicator_vr: list[int] = []
+    if MODEL_EXCHANGE in interfaces:
+        for k in range(model.event_count):
+            ET.SubElement(variables, "Float64", name=f"eventIndicator{k + 1}",
+                          valueReference=str(references.indicators + k),
+                          description=f"Event indicator {k + 1} of the model (zero crossings are events)",
+                          causality="local", variability="continuous")
+            indicator_vr.append(references.indicators + k)
+
+    knowns = {v.name: v.value_reference for v in model.variables if v.kind in ("state", "input")}
+    start_knowns = {v.name: v.value_reference for v in model.variables if v.kind in ("parameter", "input")}
     structure = ET.SubElement(root, "ModelStructure")
-    for reference in outputs:
-        ET.SubElement(structure, "Output", valueReference=str(reference))
-    for reference in initial_unknowns:
-        ET.SubElement(structure, "InitialUnknown", valueReference=str(reference))
+    for variable in outputs:
+        _unknown(structure, "Output", "valueReference", variable.value_reference,
+                 _dependency_list(_continuous_dependencies(model, variable.name), knowns))
+    for reference, name in zip(derivative_vr, model.derivatives, strict=True):
+        _unknown(structure, "ContinuousStateDerivative", "valueReference", reference,
+                 _dependency_list(_continuous_dependencies(model, name), knowns))
+    initial: list[tuple[int, str]] = [(v.value_reference, v.name) for v in (*outputs, *calculated)]
+    initial += [(model.variable(name).value_reference, name) for name in model.states]
+    initial += list(zip(derivative_vr, model.derivatives, strict=True))
+    for reference, name in sorted(initial):
+        _unknown(structure, "InitialUnknown", "valueReference", reference,
+                 _dependency_list(_initial_dependencies(model, name), start_knowns))
+    for reference in indicator_vr:
+        ET.SubElement(structure, "EventIndicator", valueReference=str(reference))
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

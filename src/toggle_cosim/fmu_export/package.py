@@ -32,6 +32,7 @@ from pathlib import Path
 import fmpy
 
 from toggle_cosim.fmu_export.compile import GeneratedModel
+from toggle_cosim.fmu_export import interfaces as interface_types
 from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
 
 # The shell files every FMU carries in sources/, whatever its FMI version.
@@ -53,6 +54,7 @@ class BuiltFMU:
     model_identifier: str
     size_bytes: int
     fmi_version: str = "2.0"
+    interfaces: frozenset[str] = interface_types.CHOICES[interface_types.DEFAULT]
 
 
 def platform_folder() -> str:
@@ -133,7 +135,7 @@ class FMIVersion:
 
     interface: str  # the shell's FMI layer, compiled with CORE_UNITS
     binaries_folder: Callable[[], str]
-    model_description: Callable[[GeneratedModel, str, str], str]
+    model_description: Callable[..., str]  # (model, identifier, tool, interfaces, sources)
     build_description: Callable[[str, tuple[str, ...]], str] | None
 
 
@@ -143,12 +145,20 @@ FMI_VERSIONS = {
 }
 
 
-def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str = "2.0") -> BuiltFMU:
-    """Compile `model` and write the FMU for `fmi_version` ("2.0" or "3.0") to `output`
-    (atomically: a temporary name, then rename)."""
+def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str = "2.0",
+              interfaces: str | frozenset[str] = interface_types.DEFAULT) -> BuiltFMU:
+    """Compile `model` and write the FMU for `fmi_version` ("2.0" or "3.0") offering
+    `interfaces` ("both", "cs", "me") to `output` (atomically: a temporary name, then rename).
+
+    One binary serves every choice; the choice decides what modelDescription.xml offers and
+    what the binary accepts (MD_INTERFACES, defined at the top of model.c)."""
     version = FMI_VERSIONS.get(fmi_version)
     if version is None:
         raise FMUBuildError(f"unsupported FMI version {fmi_version!r} (choose from {', '.join(FMI_VERSIONS)})")
+    try:
+        offered = interface_types.parse(interfaces)
+    except ValueError as error:
+        raise FMUBuildError(str(error)) from error
     output = Path(output)
     identifier = model_identifier_for(output)
     compiled = (*CORE_UNITS, version.interface, "model.c")
@@ -159,7 +169,9 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         shell = resources.files("toggle_cosim.fmu_export") / "shell"
         for name in (*CORE_FILES, version.interface):
             (sources / name).write_text(shell.joinpath(name).read_text(encoding="utf-8"), encoding="utf-8")
-        (sources / "model.c").write_text(model.c_source, encoding="utf-8")
+        (sources / "model.c").write_text(
+            f"#define MD_INTERFACES ({interface_types.c_mask(offered)})\n{model.c_source}", encoding="utf-8"
+        )
         if version.build_description is not None:
             (sources / "buildDescription.xml").write_text(
                 version.build_description(identifier, compiled), encoding="utf-8"
@@ -176,7 +188,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         if result.returncode != 0:
             raise FMUBuildError(f"C compiler failed for {model.name}:\n{result.stderr.strip()[:4000]}")
         (work / "modelDescription.xml").write_text(
-            version.model_description(model, identifier, tool), encoding="utf-8"
+            version.model_description(model, identifier, tool, offered, compiled), encoding="utf-8"
         )
         output.parent.mkdir(parents=True, exist_ok=True)
         partial = output.with_name(f".{output.name}.partial")
@@ -185,4 +197,4 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
                 if file.is_file():
                     archive.write(file, file.relative_to(work).as_posix())
         os.replace(partial, output)
-    return BuiltFMU(output, model.guid, identifier, output.stat().st_size, fmi_version)
+    return BuiltFMU(output, model.guid, identifier, output.stat().st_size, fmi_version, offered)

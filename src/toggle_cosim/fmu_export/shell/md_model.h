@@ -34,7 +34,14 @@ typedef struct {
     const int *obs_slot;     /* [nvars] slot of the variable in observe()'s output */
     const int *par_slot;     /* [nvars] slot in p (parameters, inputs, calculated), else -1 */
     const char *const *names;/* [nvars] for log messages */
+    /* Added for Model Exchange; a table written before them leaves them 0 / NULL. */
+    const double *nominal;   /* [ny] nominal values of the states (NULL: all 1.0) */
+    int interfaces;          /* MD_INTERFACE_* bits the modelDescription.xml offers (0: CS) */
 } md_info;
+
+/* The interface types an FMU offers (md_info.interfaces). */
+#define MD_INTERFACE_CS 1
+#define MD_INTERFACE_ME 2
 
 extern const md_info MD_INFO;
 

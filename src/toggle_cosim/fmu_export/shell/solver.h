@@ -94,10 +94,11 @@ typedef struct {
 } md_settings;
 
 typedef struct {
-    unsigned long steps;      /* accepted internal steps */
+    unsigned long steps;      /* accepted internal steps (Model Exchange: the importer's
+                                 completed integrator steps) */
     unsigned long rejected;   /* rejected internal steps (error test or non-finite) */
     unsigned long rhs_calls;
-    unsigned long events;     /* transition() calls */
+    unsigned long events;     /* transition() calls: state and time events handled */
 } md_counters;
 
 typedef struct md_solver {
@@ -123,6 +124,7 @@ typedef struct md_solver {
     double *ynew, *ytmp, *yerr, *ydense, *rcont; /* [ny] each, rcont [5*ny] */
     double *zl, *zr, *zm; /* [nz] root-finder brackets */
     double *obs_tmp;      /* [nobs] */
+    double *w_tmp;        /* [nw] w kept aside while derivatives are read (md_solver_rhs_at) */
     int *fired;           /* [nz] */
     char message[MD_MESSAGE_SIZE];
 } md_solver;
@@ -162,6 +164,25 @@ md_status md_solver_observe(md_solver *s);
 md_status md_solver_advance(md_solver *s, double t_end);
 
 const char *md_solver_message(const md_solver *s);
+
+/* ---------------------------------------------------------------------------------------
+ * Model Exchange: the importer integrates; the core evaluates the model at the point it
+ * sets and handles the events it reports. The same event logic as md_solver_advance.
+ * ------------------------------------------------------------------------------------- */
+
+/* Move to (t, y) as the importer sets them (y may be NULL: time only). The derivative
+ * cache is invalid afterwards; obs is not refreshed (call md_solver_observe). */
+void md_solver_set_point(md_solver *s, double t, const double *y);
+/* The state derivatives at (s->t, s->y) into dy[ny]. w is left exactly as it was, so reading
+ * derivatives between Co-Simulation steps cannot change the integration. MD_FAIL if any is
+ * not finite. */
+md_status md_solver_derivatives(md_solver *s, double *dy);
+/* The event indicators at (s->t, s->y) into z[nz]. */
+md_status md_solver_indicators(md_solver *s, double *z);
+/* Event mode: act on every condition that changed since the last event (or initialisation)
+ * at the present point, with event iteration (as at a located event in md_solver_advance),
+ * then refresh obs. *state_changed: transition() moved the continuous state. */
+md_status md_solver_handle_events(md_solver *s, int *state_changed);
 
 /* ---------------------------------------------------------------------------------------
  * State copy and serialisation.
