@@ -189,8 +189,14 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
     assert independent.start is None and independent.initial is None
     references = [v.valueReference for v in md.modelVariables]
     assert len(references) == len(set(references))
-    settings = {v.name: v for v in md.modelVariables if v.name.startswith("solver.")}
+    settings = {v.name: v for v in md.modelVariables if v.name.startswith("solver.") and v.type == "Float64"}
     assert [v.valueReference for v in settings.values()] == [162, 163, 164]
+    statistics = [v for v in md.modelVariables if v.type == "Int64"]
+    assert [(v.name, v.valueReference, v.causality, v.variability) for v in statistics] == [
+        ("solver.steps", 166, "local", "discrete"),
+        ("solver.rejectedSteps", 167, "local", "discrete"),
+        ("solver.events", 168, "local", "discrete"),
+    ]
     assert all(v.variability == "tunable" and v.causality == "parameter" for v in settings.values())
     kinds = {v.name: (v.type, v.causality, v.variability, v.initial) for v in md.modelVariables}
     assert kinds["m_B"] == ("Float64", "parameter", "fixed", "exact")
@@ -395,9 +401,11 @@ def test_wrong_instantiation_token_is_refused(plant3_fmu: Path) -> None:
         fmu.instantiate(eventModeUsed=True,
                         logMessage=lambda env, status, category, message: messages.append(message.decode()))
     assert any("eventModeUsed = true" in m for m in messages)
-    assert fmu.fmi3InstantiateModelExchange(b"me", md.guid.encode(), None, False, False, None,
+    # the FMU offers Model Exchange too: the same check of the token there
+    assert fmu.fmi3InstantiateModelExchange(b"me", b"{wrong}", None, False, False, None,
                                             fmu.logMessage) is None
-    assert any("Co-Simulation only" in m for m in messages)
+    assert any("fmi3InstantiateModelExchange: instantiationToken {wrong} does not match" in m
+               for m in messages)
     fmu.freeLibrary()
     shutil.rmtree(unzipped, ignore_errors=True)
     # earlyReturnAllowed is accepted (the FMU just never returns early)
@@ -457,7 +465,8 @@ def test_start_values_and_what_is_settable_when(plant3_fmu: Path) -> None:
     assert "m_B is not a Int32 variable" in errors
     assert "unknown value reference 999" in errors
     assert "hasEventMode" in errors and "providesDirectionalDerivatives" in errors
-    assert "maxOutputDerivativeOrder" in errors and "Model Exchange is not supported" in errors
+    assert "maxOutputDerivativeOrder" in errors
+    assert "fmi3SetTime: a Model Exchange function, but the instance is a Co-Simulation one" in errors
     assert fmu.fmu.getInt32([]) == []  # an empty request is fine
     # none of that damaged the instance
     fmu.step(1e-3)

@@ -632,7 +632,9 @@ def mass_analytic(t: float, k2: float = 4.0, mu: float = 0.1, x0: float = 1.0):
 # ---------------------------------------------------------------------------------------
 
 
-def test_only_fmi2_cosimulation_functions_are_exported(build):
+def test_only_fmi2_functions_are_exported(build):
+    """Only the fmi2 entry points leave the binary: Co-Simulation and Model Exchange (the
+    modelDescription decides which of them an importer may use), never the model's symbols."""
     nm = shutil.which("nm")
     if nm is None:
         pytest.skip("needs nm")
@@ -643,12 +645,25 @@ def test_only_fmi2_cosimulation_functions_are_exported(build):
     assert exported, out
     assert all(name.startswith("fmi2") for name in exported), exported
     for required in ("fmi2Instantiate", "fmi2DoStep", "fmi2GetFMUstate", "fmi2CancelStep",
-                     "fmi2GetRealStatus", "fmi2DeSerializeFMUstate"):
+                     "fmi2GetRealStatus", "fmi2DeSerializeFMUstate", "fmi2EnterEventMode",
+                     "fmi2GetDerivatives", "fmi2SetTime", "fmi2GetEventIndicators",
+                     "fmi2SetContinuousStates", "fmi2NewDiscreteStates",
+                     "fmi2CompletedIntegratorStep", "fmi2GetNominalsOfContinuousStates"):
         assert required in exported
-    for model_exchange_only in ("fmi2EnterEventMode", "fmi2GetDerivatives", "fmi2SetTime",
-                                "fmi2GetEventIndicators", "fmi2SetContinuousStates"):
-        assert model_exchange_only not in exported
     assert "MD_INFO" not in exported and "rhs" not in exported
+
+
+def test_model_exchange_refused_when_the_description_offers_co_simulation_only(build):
+    """These hand-made tables leave MD_INFO.interfaces at 0 (Co-Simulation only), and their
+    modelDescription has no <ModelExchange>: fmi2Instantiate(fmi2ModelExchange) says no."""
+    from fmpy.fmi2 import FMU2Model
+
+    built = build("Mass")
+    model = FMU2Model(guid=built.guid, unzipDirectory=str(built.unzipped),
+                      modelIdentifier=built.spec.name, instanceName="me")
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        model.instantiate(loggingOn=True)
+    model.freeLibrary()
 
 
 @pytest.mark.parametrize("name", sorted(MODELS))
