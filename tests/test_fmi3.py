@@ -33,7 +33,7 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 
 ROOT = Path(__file__).resolve().parent.parent
-HEADERS = Path(fmpy.__file__).parent / "c-code"
+HEADERS = ROOT / "src" / "toggle_cosim" / "fmu_export" / "fmi_headers"  # vendored, BSD-2-Clause
 SHELL = ROOT / "src" / "toggle_cosim" / "fmu_export" / "shell"
 
 PARAMETERS = {"m_B": 8.86, "mu": 0.2, "idealCurrentLoop": False, "F_E": 50.0}
@@ -232,12 +232,15 @@ def test_every_fmi3_function_is_exported_and_nothing_of_fmi2(plant3_fmu: Path) -
 
 
 def test_fmi3_shell_compiles_with_strict_flags(tmp_path: Path) -> None:
+    from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header
+
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         pytest.skip("no C compiler")
+    (tmp_path / HEADER_NAME).write_text(settings_header())  # as the build writes it
     result = subprocess.run(
         [cc, "-c", "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-fPIC", "-O2",
-         "-fvisibility=hidden", f"-I{HEADERS}", f"-I{SHELL}", str(SHELL / "fmi3.c"), "-o",
+         "-fvisibility=hidden", f"-I{HEADERS}", f"-I{SHELL}", f"-I{tmp_path}", str(SHELL / "fmi3.c"), "-o",
          str(tmp_path / "fmi3.o")],
         capture_output=True, text=True, check=False,
     )

@@ -19,6 +19,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 import zipfile
@@ -43,8 +44,10 @@ from fmpy.fmi2 import (  # noqa: E402
 from fmpy.logging import addLoggerProxy  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
+from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header  # noqa: E402
+
 SHELL = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "fmu_export" / "shell"
-FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
+FMI_HEADERS = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "fmu_export" / "fmi_headers"
 CC = shutil.which("gcc")
 
 pytestmark = pytest.mark.skipif(
@@ -52,7 +55,10 @@ pytestmark = pytest.mark.skipif(
 )
 
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
-COMMON = ["-fPIC", "-O2", "-fvisibility=hidden", f"-I{FMI_HEADERS}", f"-I{SHELL}"]
+# md_settings.h is written from toggle_cosim.fmu_export.shell_settings (as the build does)
+GENERATED = Path(tempfile.mkdtemp(prefix="md-settings-"))
+(GENERATED / HEADER_NAME).write_text(settings_header())
+COMMON = ["-fPIC", "-O2", "-fvisibility=hidden", f"-I{FMI_HEADERS}", f"-I{SHELL}", f"-I{GENERATED}"]
 SETTINGS = ("solver.relTol", "solver.absTol", "solver.maxStep")  # vr nvars + 0, 1, 2
 SETTING_DEFAULTS = (1e-8, 1e-10, 0.0)
 
@@ -476,6 +482,7 @@ def build(tmp_path_factory, shell_objects):
             zf.write(library, f"binaries/{fmpy.platform}/{library.name}")
             for source in ("md_model.h", "solver.h", "solver.c", "instance.h", "instance.c", "fmi2.c"):
                 zf.write(SHELL / source, f"sources/{source}")
+            zf.write(GENERATED / HEADER_NAME, f"sources/{HEADER_NAME}")
             zf.writestr("sources/model.c", model_c)
         unzipped = Path(fmpy.extract(str(fmu), str(work / "unzipped")))
         cache[name] = Built(spec, guid, fmu, unzipped, library, model_c)

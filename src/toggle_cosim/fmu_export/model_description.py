@@ -18,42 +18,13 @@ from dataclasses import dataclass
 
 from toggle_cosim.fmu_export.compile import GeneratedModel, ModelVariable
 from toggle_cosim.fmu_export.interfaces import CO_SIMULATION, MODEL_EXCHANGE, Interfaces
+from toggle_cosim.fmu_export.shell_settings import (
+    FMI2_LOG_CATEGORIES,
+    FMI3_LOG_CATEGORIES,
+    SHELL_SETTINGS,
+    SHELL_STATISTICS,
+)
 from toggle_cosim.fmu_export.units import base_exponents
-
-
-@dataclass(frozen=True)
-class ShellSetting:
-    """A setting of the FMU's integrator, exposed as a tunable parameter."""
-
-    name: str
-    start: float
-    unit: str
-    description: str
-
-
-SHELL_SETTINGS = (
-    ShellSetting("solver.relTol", 1e-8, "1", "Relative tolerance of the FMU's Dormand-Prince 5(4) integrator"),
-    ShellSetting("solver.absTol", 1e-10, "1", "Absolute tolerance of the FMU's integrator"),
-    ShellSetting("solver.maxStep", 0.0, "s", "Largest internal step of the FMU's integrator; 0: no bound"),
-)
-
-
-@dataclass(frozen=True)
-class ShellStatistic:
-    """An integrator statistic of the shell, an integer variable (shell/instance.h md_statistic)."""
-
-    name: str
-    description: str
-
-
-SHELL_STATISTICS = (
-    ShellStatistic("solver.steps", "Accepted integrator steps since instantiation (Model Exchange: "
-                   "the importer's completed integrator steps)"),
-    ShellStatistic("solver.rejectedSteps", "Rejected integrator steps since instantiation (error test "
-                   "failed or non-finite values; 0 under Model Exchange)"),
-    ShellStatistic("solver.events", "State events handled since instantiation (transitions, event "
-                   "iteration included)"),
-)
 
 
 @dataclass(frozen=True)
@@ -196,8 +167,8 @@ def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: s
     _fmi2_interface_elements(root, model_identifier, interfaces, sources)
     _add_unit_definitions(root, _units(model))
     categories = ET.SubElement(root, "LogCategories")
-    for name, description in FMI2_LOG_CATEGORIES:
-        ET.SubElement(categories, "Category", name=name, description=description)
+    for category in FMI2_LOG_CATEGORIES:
+        ET.SubElement(categories, "Category", name=category.name, description=category.description)
     ET.SubElement(root, "DefaultExperiment", default_experiment(model))
     variables = ET.SubElement(root, "ModelVariables")
     references = ShellReferences.of(model)
@@ -299,22 +270,6 @@ def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: s
 # FMI 3.0
 # ---------------------------------------------------------------------------------------
 
-# The log categories of shell/fmi2.c, in its order.
-FMI2_LOG_CATEGORIES = (
-    ("logEvents", "One line per state event: time, indicator and kind"),
-    ("logStatusError", "Calls that return a status other than fmi2OK, with the reason"),
-    ("logAll", "Everything, including integrator statistics per communication step"),
-)
-
-# The log categories of shell/fmi3.c, in its order (error statuses are logged regardless).
-FMI3_LOG_CATEGORIES = (
-    ("logEvents", "One line per state event: time, indicator and kind"),
-    ("logStatusWarning", "Calls that return fmi3Warning, with the reason"),
-    ("logStatusError", "Calls that return fmi3Error, with the reason (always reported)"),
-    ("logAll", "Everything, including integrator statistics per communication step"),
-)
-
-
 def time_value_reference(model: GeneratedModel) -> int:
     """The value reference of FMI 3.0's independent variable `time`: after the model's
     variables and the shell settings (shell/instance.h: MD_VR_TIME = nvars + MD_SHELL_NREAL)."""
@@ -370,8 +325,8 @@ def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: s
         })
     _add_unit_definitions(root, _units(model))
     categories = ET.SubElement(root, "LogCategories")
-    for name, description in FMI3_LOG_CATEGORIES:
-        ET.SubElement(categories, "Category", name=name, description=description)
+    for category in FMI3_LOG_CATEGORIES:
+        ET.SubElement(categories, "Category", name=category.name, description=category.description)
     ET.SubElement(root, "DefaultExperiment", default_experiment(model))
     variables = ET.SubElement(root, "ModelVariables")
     references = ShellReferences.of(model)

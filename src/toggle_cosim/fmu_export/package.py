@@ -29,13 +29,13 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-import fmpy
-
 from toggle_cosim.fmu_export.compile import GeneratedModel
 from toggle_cosim.fmu_export import interfaces as interface_types
 from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
+from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header
 
-# The shell files every FMU carries in sources/, whatever its FMI version.
+# The shell files every FMU carries in sources/, whatever its FMI version (and md_settings.h,
+# written from shell_settings.py).
 CORE_FILES = ("md_model.h", "solver.h", "solver.c", "instance.h", "instance.c")
 # The translation units compiled into every binary, besides the FMI layer and model.c
 # (instance.c is not one: each layer #includes it).
@@ -100,8 +100,10 @@ def model_identifier_for(path: Path) -> str:
     return identifier
 
 
-def _fmi_headers() -> Path:
-    return Path(fmpy.__file__).parent / "c-code"
+def fmi_headers() -> Path:
+    """The FMI 2.0 / 3.0 standard headers vendored in this package (fmi_headers/, BSD-2-Clause,
+    see its LICENSE.txt): the build does not depend on another package's data files."""
+    return Path(str(resources.files("toggle_cosim.fmu_export") / "fmi_headers"))
 
 
 def find_c_compiler() -> str:
@@ -169,6 +171,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         shell = resources.files("toggle_cosim.fmu_export") / "shell"
         for name in (*CORE_FILES, version.interface):
             (sources / name).write_text(shell.joinpath(name).read_text(encoding="utf-8"), encoding="utf-8")
+        (sources / HEADER_NAME).write_text(settings_header(), encoding="utf-8")
         (sources / "model.c").write_text(
             f"#define MD_INTERFACES ({interface_types.c_mask(offered)})\n{model.c_source}", encoding="utf-8"
         )
@@ -180,7 +183,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         binary_dir.mkdir(parents=True)
         binary = binary_dir / f"{identifier}{shared_library_suffix()}"
         command = [
-            find_c_compiler(), *CFLAGS, f"-I{sources}", f"-I{_fmi_headers()}",
+            find_c_compiler(), *CFLAGS, f"-I{sources}", f"-I{fmi_headers()}",
             *(str(sources / n) for n in compiled),
             "-o", str(binary), "-lm",
         ]

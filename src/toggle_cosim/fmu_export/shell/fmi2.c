@@ -57,9 +57,9 @@ typedef struct {
 /* Variables can be read from initialisation mode on. */
 #define ST_READABLE (MD_MODE_INIT | MD_MODE_RUNNING | MD_MODE_TERMINATED | MD_MODE_ERROR)
 
-/* Log categories (modelDescription.xml <LogCategories> lists the same names). */
-enum { LOG_EVENTS = 0, LOG_STATUS_ERROR = 1, LOG_ALL = 2, LOG_NCATEGORIES = 3 };
-static const char *const LOG_NAMES[LOG_NCATEGORIES] = {"logEvents", "logStatusError", "logAll"};
+/* Log categories: md_settings.h, from the table modelDescription.xml <LogCategories> is
+   written from. */
+static const char *const LOG_NAMES[MD_FMI2_NLOG] = MD_FMI2_LOG_NAMES;
 
 static fmi2Status status_of(md_result result) {
     switch (result) {
@@ -92,11 +92,13 @@ static const md_layer FMI2 = {
     .has_time = 0,
     .state_magic = 0x32494D46u, /* "FMI2" */
     .categories = LOG_NAMES,
-    .ncategories = LOG_NCATEGORIES,
-    .category_of = {[MD_CATEGORY_EVENTS] = LOG_EVENTS, [MD_CATEGORY_WARNING] = LOG_STATUS_ERROR,
-                    [MD_CATEGORY_ERROR] = LOG_STATUS_ERROR, [MD_CATEGORY_ALL] = LOG_ALL},
+    .ncategories = MD_FMI2_NLOG,
+    .category_of = {[MD_CATEGORY_EVENTS] = MD_FMI2_LOG_EVENTS,
+                    [MD_CATEGORY_WARNING] = MD_FMI2_LOG_STATUS_ERROR,
+                    [MD_CATEGORY_ERROR] = MD_FMI2_LOG_STATUS_ERROR,
+                    [MD_CATEGORY_ALL] = MD_FMI2_LOG_ALL},
     .errors_always_logged = 0,
-    .quiet_log_mask = 1u << LOG_STATUS_ERROR, /* errors are reported unless switched off */
+    .quiet_log_mask = 1u << MD_FMI2_LOG_STATUS_ERROR, /* errors are reported unless switched off */
     .log = log_message,
 };
 

@@ -83,16 +83,9 @@ typedef struct {
    model_description.py (fmi3_model_description) writes the same number. */
 #define VR_TIME ((fmi3ValueReference)MD_INFO.nvars + (fmi3ValueReference)MD_SHELL_NREAL)
 
-/* Log categories (modelDescription.xml <LogCategories> lists the same names). */
-enum {
-    LOG_EVENTS = 0,
-    LOG_STATUS_WARNING = 1,
-    LOG_STATUS_ERROR = 2,
-    LOG_ALL = 3,
-    LOG_NCATEGORIES = 4
-};
-static const char *const LOG_NAMES[LOG_NCATEGORIES] = {
-    "logEvents", "logStatusWarning", "logStatusError", "logAll"};
+/* Log categories: md_settings.h, from the table modelDescription.xml <LogCategories> is
+   written from. */
+static const char *const LOG_NAMES[MD_FMI3_NLOG] = MD_FMI3_LOG_NAMES;
 
 static fmi3Status status_of(md_result result) {
     switch (result) {
@@ -136,9 +129,11 @@ static const md_layer FMI3 = {
     .has_time = 1,
     .state_magic = 0x33494D46u, /* "FMI3" */
     .categories = LOG_NAMES,
-    .ncategories = LOG_NCATEGORIES,
-    .category_of = {[MD_CATEGORY_EVENTS] = LOG_EVENTS, [MD_CATEGORY_WARNING] = LOG_STATUS_WARNING,
-                    [MD_CATEGORY_ERROR] = LOG_STATUS_ERROR, [MD_CATEGORY_ALL] = LOG_ALL},
+    .ncategories = MD_FMI3_NLOG,
+    .category_of = {[MD_CATEGORY_EVENTS] = MD_FMI3_LOG_EVENTS,
+                    [MD_CATEGORY_WARNING] = MD_FMI3_LOG_STATUS_WARNING,
+                    [MD_CATEGORY_ERROR] = MD_FMI3_LOG_STATUS_ERROR,
+                    [MD_CATEGORY_ALL] = MD_FMI3_LOG_ALL},
     .errors_always_logged = 1,
     .quiet_log_mask = 0u, /* loggingOn enables every category; errors are reported regardless */
     .log = log_message,

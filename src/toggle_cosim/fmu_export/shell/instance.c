@@ -704,7 +704,7 @@ md_result md_get_statistics(md_instance *m, const char *function, const md_vr vr
         }
     }
     for (size_t i = 0; i < nvr; ++i) {
-        switch ((md_statistic)(vr[i] - MD_VR_STATISTICS)) {
+        switch ((int)(vr[i] - MD_VR_STATISTICS)) {
         case MD_STATISTIC_STEPS: values[i] = (int64_t)count->steps; break;
         case MD_STATISTIC_REJECTED: values[i] = (int64_t)count->rejected; break;
         default: values[i] = (int64_t)count->events; break;

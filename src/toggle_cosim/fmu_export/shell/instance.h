@@ -81,12 +81,9 @@ typedef uint32_t md_vr;
  *   MD_VR_STATISTICS  MD_NSTATISTICS integer counters of the integrator (md_statistic)
  *   MD_VR_DERIVATIVES der(x) of each continuous state, ny Real / Float64 (read-only)
  *   MD_VR_INDICATORS  the event indicators, nz Float64 (FMI 3.0 lists them; read-only) */
-typedef enum {
-    MD_STATISTIC_STEPS = 0,    /* "solver.steps": accepted integrator steps */
-    MD_STATISTIC_REJECTED = 1, /* "solver.rejectedSteps" */
-    MD_STATISTIC_EVENTS = 2,   /* "solver.events": state events handled (transition calls) */
-    MD_NSTATISTICS = 3
-} md_statistic;
+/* MD_STATISTIC_STEPS ("solver.steps": accepted integrator steps), MD_STATISTIC_REJECTED
+ * ("solver.rejectedSteps"), MD_STATISTIC_EVENTS ("solver.events": transition calls) and
+ * MD_NSTATISTICS come from md_settings.h. */
 #define MD_VR_TIME ((md_vr)MD_INFO.nvars + (md_vr)MD_SHELL_NREAL)
 #define MD_VR_STATISTICS (MD_VR_TIME + 1u)
 #define MD_VR_DERIVATIVES (MD_VR_STATISTICS + (md_vr)MD_NSTATISTICS)

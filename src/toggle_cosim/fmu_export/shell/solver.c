@@ -25,17 +25,10 @@
 #include <string.h>
 
 /* ---------------------------------------------------------------------------------------
- * Settings table (mirrored by the Python modelDescription generator)
+ * Settings table (md_settings.h, written from shell_settings.py)
  * ------------------------------------------------------------------------------------- */
 
-const md_setting MD_SHELL_SETTINGS[MD_SHELL_NREAL] = {
-    {"solver.relTol", 1e-8, "1",
-     "Relative error tolerance of the FMU's internal Dormand-Prince 5(4) integrator, (0, 0.1]"},
-    {"solver.absTol", 1e-10, "1",
-     "Absolute error tolerance of the internal integrator, per state, > 0"},
-    {"solver.maxStep", 0.0, "s",
-     "Largest internal integration step; 0 means unbounded"},
-};
+const md_setting MD_SHELL_SETTINGS[MD_SHELL_NREAL] = MD_SHELL_SETTINGS_TABLE;
 
 /* ---------------------------------------------------------------------------------------
  * Dormand-Prince 5(4) coefficients

@@ -16,23 +16,17 @@
 
 #include <stddef.h>
 #include "md_model.h"
+#include "md_settings.h" /* the settings table, written by shell_settings.py */
 
 /* ---------------------------------------------------------------------------------------
  * Solver settings
  *
- * Three of them are exposed by the FMU as Real parameters with value references
- * MD_INFO.nvars + MD_SETTING_* (after the model's own variables). The Python
- * modelDescription generator mirrors this table: keep the names, defaults and order in sync.
- * The other two are compile-time defaults (override with -D...).
+ * MD_SHELL_NREAL of them are exposed by the FMU as Real parameters with value references
+ * MD_INFO.nvars + MD_SETTING_* (after the model's own variables): names, defaults, units
+ * and order come from md_settings.h, which shell_settings.py writes from the table the
+ * modelDescription.xml is written from. Valid ranges: relTol (0, 0.1], absTol > 0,
+ * maxStep >= 0 (0: unbounded). The limits below are compile-time defaults (-D...).
  * ------------------------------------------------------------------------------------- */
-
-#define MD_SHELL_NREAL 3
-
-enum {
-    MD_SETTING_RELTOL = 0,  /* "solver.relTol"  default 1e-8,  valid (0, 0.1]            */
-    MD_SETTING_ABSTOL = 1,  /* "solver.absTol"  default 1e-10, valid > 0                 */
-    MD_SETTING_MAXSTEP = 2  /* "solver.maxStep" default 0 (unbounded), s, valid >= 0      */
-};
 
 typedef struct {
     const char *name;
