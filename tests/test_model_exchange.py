@@ -281,3 +281,22 @@ def test_small_model_default_experiment_comes_from_the_annotation(small_fmus):
     assert (float(ball.stopTime), float(ball.stepSize)) == (2.0, 0.001)
     vdp = read_model_description(str(small_fmus["VanDerPol"])).defaultExperiment
     assert (float(vdp.stopTime), float(vdp.stepSize)) == (10.0, 0.01)
+
+
+def test_without_an_experiment_annotation_there_is_no_stop_time():
+    """Nothing model-specific in the generic build: a model without the annotation gets only
+    the shell's tolerance (solver.relTol's default) in <DefaultExperiment>."""
+    from modelica import lang
+
+    from toggle_cosim.fmu_export.experiment import ExperimentError, experiment_of
+
+    plain = lang.parse('model M Real x(start = 1); equation der(x) = -x; end M;').find("M")
+    assert experiment_of(plain, "M").attributes(default_tolerance=1e-8) == {"tolerance": "1e-08"}
+    annotated = lang.parse(
+        "model M Real x(start = 1); equation der(x) = -x; "
+        "annotation(experiment(StartTime = 0, StopTime = 3, Tolerance = 1e-6, Interval = 0.1)); end M;").find("M")
+    assert experiment_of(annotated, "M").attributes(default_tolerance=1e-8) == {
+        "startTime": "0.0", "stopTime": "3.0", "tolerance": "1e-06", "stepSize": "0.1"}
+    bad = lang.parse('model M Real x; equation der(x) = -x; annotation(experiment(StopTime = "x")); end M;').find("M")
+    with pytest.raises(ExperimentError, match="StopTime"):
+        experiment_of(bad, "M")
