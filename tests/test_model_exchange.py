@@ -300,3 +300,38 @@ def test_without_an_experiment_annotation_there_is_no_stop_time():
     bad = lang.parse('model M Real x; equation der(x) = -x; annotation(experiment(StopTime = "x")); end M;').find("M")
     with pytest.raises(ExperimentError, match="StopTime"):
         experiment_of(bad, "M")
+
+
+@pytest.mark.parametrize("name, variable", [("BouncingBall", "h"), ("VanDerPol", "x")])
+def test_small_models_agree_as_model_exchange_and_co_simulation(small_fmus, name, variable):
+    """The same FMU, both interfaces, on the default experiment's output grid: within 1e-6."""
+    runs = {kind: simulate_fmu(str(small_fmus[name]), fmi_type=kind, relative_tolerance=1e-10, output=[variable],
+                               record_events=False)
+            for kind in ("CoSimulation", "ModelExchange")}
+    cs, me = runs["CoSimulation"], runs["ModelExchange"]
+    np.testing.assert_allclose(me["time"], cs["time"], rtol=0, atol=1e-12)
+    assert np.max(np.abs(me[variable] - cs[variable])) < 1e-6
+
+
+def test_model_exchange_fmu_state_round_trip(plant_variants):
+    """fmi2GetFMUstate / fmi2SetFMUstate in continuous-time mode restore time, states and the
+    event conditions: integrating on from the restored state repeats the first continuation
+    (CVODE restarted at the same point both times) bit for bit."""
+    run = ModelExchangeRun(str(plant_variants["2.0", "me"]), {"iq_ref": 1.0})
+    try:
+        run.advance(0.05)
+        saved, t_saved = run.model.getFMUstate(), run.time
+        x_saved = _states(run)
+        run.solver.reset(run.time)
+        run.advance(0.1)
+        first = (_states(run), run.get(["x_B", "v_B"]), run.statistic("solver.events"))
+        run.model.setFMUstate(saved)
+        run.time = t_saved
+        assert _states(run) == x_saved
+        run.solver.reset(run.time)
+        run.advance(0.1)
+        second = (_states(run), run.get(["x_B", "v_B"]), run.statistic("solver.events"))
+        assert second == first
+        run.model.freeFMUstate(saved)
+    finally:
+        run.close()
