@@ -50,7 +50,7 @@ T_S_SWEEP = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
 FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
 from toggle_cosim import compiled_loop, fmu_io, master  # noqa: E402
-from toggle_cosim.build import build_fmu  # noqa: E402
+from toggle_cosim.fmu_export import build_fmu  # noqa: E402
 from toggle_cosim.plant import check_plant  # noqa: E402
 from toggle_cosim.scenario import load_scenario, runs_from_document  # noqa: E402
 

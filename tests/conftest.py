@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # reference_dynamics.p
 @pytest.fixture(scope="session")
 def plant_build(tmp_path_factory: pytest.TempPathFactory):
     """Build fmus/ToggleLSM.fmu's twin from modelica/ToggleLSM into a temporary folder."""
-    from toggle_cosim.build import build_fmu
+    from toggle_cosim.fmu_export import build_fmu
 
     output = tmp_path_factory.mktemp("fmu") / "ToggleLSM.fmu"
     return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant", output)
@@ -28,7 +28,7 @@ def plant_fmu(plant_build) -> Path:
 @pytest.fixture(scope="session")
 def no_gravity_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The second plant, built from the variant ToggleLSM.PlantNoGravity of the same source."""
-    from toggle_cosim.build import build_fmu
+    from toggle_cosim.fmu_export import build_fmu
 
     output = tmp_path_factory.mktemp("fmu-nog") / "ToggleLSM_NoGravity.fmu"
     return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.PlantNoGravity", output).fmu.path

@@ -45,7 +45,7 @@ def _cases(plant_fmu: Path, folder: Path) -> dict[str, tuple[Path, str]]:
         "no binary": (_rewrite(plant_fmu, folder / "nobinary.fmu", drop=lambda name: name.startswith("binaries/")),
                       "no binary for this platform"),
         "Model Exchange only": (_rewrite(plant_fmu, folder / "me.fmu",
-                                         lambda xml: re.sub(r"<CoSimulation\b", "<ModelExchange", xml)),
+                                         lambda xml: re.sub(r"<CoSimulation\b.*?</CoSimulation>\s*", "", xml, flags=re.S)),
                                 "does not support Co-Simulation"),
         "foreign": (_rewrite(plant_fmu, folder / "foreign.fmu", lambda xml: xml.replace('name="lambda2"', 'name="lambda_two"')),
                     "missing contract variable 'lambda2'"),

@@ -19,7 +19,7 @@ import yaml
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim import fmu_io, master
-from toggle_cosim.build import build_fmu
+from toggle_cosim.fmu_export import build_fmu
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import runs_from_document
 from toggle_cosim.traces import read_csv

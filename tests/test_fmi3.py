@@ -33,8 +33,8 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 
 ROOT = Path(__file__).resolve().parent.parent
-HEADERS = Path(fmpy.__file__).parent / "c-code"
-SHELL = ROOT / "src" / "toggle_cosim" / "build" / "shell"
+HEADERS = ROOT / "src" / "toggle_cosim" / "fmu_export" / "fmi_headers"  # vendored, BSD-2-Clause
+SHELL = ROOT / "src" / "toggle_cosim" / "fmu_export" / "shell"
 
 PARAMETERS = {"m_B": 8.86, "mu": 0.2, "idealCurrentLoop": False, "F_E": 50.0}
 T_END, H = 0.3, 5e-4
@@ -47,7 +47,7 @@ def iq_ref(t: float) -> float:
 
 @pytest.fixture(scope="module")
 def plant3_build(tmp_path_factory: pytest.TempPathFactory):
-    from toggle_cosim.build import build_fmu
+    from toggle_cosim.fmu_export import build_fmu
 
     output = tmp_path_factory.mktemp("fmu3") / "ToggleLSM3.fmu"
     return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant", output, fmi_version="3.0")
@@ -163,7 +163,7 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
     buildDescription.xml, and the modelDescription essentials."""
     from lxml import etree
 
-    from toggle_cosim.build.package import platform_tuple
+    from toggle_cosim.fmu_export.package import platform_tuple
 
     assert platform_tuple() == fmpy.platform_tuple
     with zipfile.ZipFile(plant3_fmu) as archive:
@@ -190,9 +190,16 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
     assert independent.start is None and independent.initial is None
     references = [v.valueReference for v in md.modelVariables]
     assert len(references) == len(set(references))
-    settings = {v.name: v for v in md.modelVariables if v.name.startswith("solver.")}
     n = plant3_build.variables  # the model's variables have the value references 0 .. n - 1
+    settings = {v.name: v for v in md.modelVariables if v.name.startswith("solver.") and v.type == "Float64"}
     assert [v.valueReference for v in settings.values()] == [n, n + 1, n + 2]
+    statistics = [v for v in md.modelVariables if v.type == "Int64"]
+    # after the settings and time (n + 3): the integrator's statistics
+    assert [(v.name, v.valueReference, v.causality, v.variability) for v in statistics] == [
+        ("solver.steps", n + 4, "local", "discrete"),
+        ("solver.rejectedSteps", n + 5, "local", "discrete"),
+        ("solver.events", n + 6, "local", "discrete"),
+    ]
     assert all(v.variability == "tunable" and v.causality == "parameter" for v in settings.values())
     kinds = {v.name: (v.type, v.causality, v.variability, v.initial) for v in md.modelVariables}
     assert kinds["m_B"] == ("Float64", "parameter", "fixed", "exact")
@@ -228,12 +235,15 @@ def test_every_fmi3_function_is_exported_and_nothing_of_fmi2(plant3_fmu: Path) -
 
 
 def test_fmi3_shell_compiles_with_strict_flags(tmp_path: Path) -> None:
+    from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header
+
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         pytest.skip("no C compiler")
+    (tmp_path / HEADER_NAME).write_text(settings_header())  # as the build writes it
     result = subprocess.run(
         [cc, "-c", "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-fPIC", "-O2",
-         "-fvisibility=hidden", f"-I{HEADERS}", f"-I{SHELL}", str(SHELL / "fmi3.c"), "-o",
+         "-fvisibility=hidden", f"-I{HEADERS}", f"-I{SHELL}", f"-I{tmp_path}", str(SHELL / "fmi3.c"), "-o",
          str(tmp_path / "fmi3.o")],
         capture_output=True, text=True, check=False,
     )
@@ -397,9 +407,11 @@ def test_wrong_instantiation_token_is_refused(plant3_fmu: Path) -> None:
         fmu.instantiate(eventModeUsed=True,
                         logMessage=lambda env, status, category, message: messages.append(message.decode()))
     assert any("eventModeUsed = true" in m for m in messages)
-    assert fmu.fmi3InstantiateModelExchange(b"me", md.guid.encode(), None, False, False, None,
+    # the FMU offers Model Exchange too: the same check of the token there
+    assert fmu.fmi3InstantiateModelExchange(b"me", b"{wrong}", None, False, False, None,
                                             fmu.logMessage) is None
-    assert any("Co-Simulation only" in m for m in messages)
+    assert any("fmi3InstantiateModelExchange: instantiationToken {wrong} does not match" in m
+               for m in messages)
     fmu.freeLibrary()
     shutil.rmtree(unzipped, ignore_errors=True)
     # earlyReturnAllowed is accepted (the FMU just never returns early)
@@ -459,7 +471,8 @@ def test_start_values_and_what_is_settable_when(plant3_fmu: Path) -> None:
     assert "m_B is not a Int32 variable" in errors
     assert "unknown value reference 999" in errors
     assert "hasEventMode" in errors and "providesDirectionalDerivatives" in errors
-    assert "maxOutputDerivativeOrder" in errors and "Model Exchange is not supported" in errors
+    assert "maxOutputDerivativeOrder" in errors
+    assert "fmi3SetTime: a Model Exchange function, but the instance is a Co-Simulation one" in errors
     assert fmu.fmu.getInt32([]) == []  # an empty request is fine
     # none of that damaged the instance
     fmu.step(1e-3)

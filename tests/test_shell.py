@@ -1,4 +1,4 @@
-"""The generic FMI 2.0 Co-Simulation shell (src/toggle_cosim/build/shell), on its own.
+"""The generic FMI 2.0 Co-Simulation shell (src/toggle_cosim/fmu_export/shell), on its own.
 
 Nothing here uses toggle_cosim's build code. Each test model is written in Modelica below,
 compiled by `modelica.sim.cgen` exactly as the build does it (inputs turned into parameter
@@ -19,6 +19,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 import zipfile
@@ -43,8 +44,10 @@ from fmpy.fmi2 import (  # noqa: E402
 from fmpy.logging import addLoggerProxy  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-SHELL = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "build" / "shell"
-FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
+from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header  # noqa: E402
+
+SHELL = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "fmu_export" / "shell"
+FMI_HEADERS = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "fmu_export" / "fmi_headers"
 CC = shutil.which("gcc")
 
 pytestmark = pytest.mark.skipif(
@@ -52,7 +55,10 @@ pytestmark = pytest.mark.skipif(
 )
 
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
-COMMON = ["-fPIC", "-O2", "-fvisibility=hidden", f"-I{FMI_HEADERS}", f"-I{SHELL}"]
+# md_settings.h is written from toggle_cosim.fmu_export.shell_settings (as the build does)
+GENERATED = Path(tempfile.mkdtemp(prefix="md-settings-"))
+(GENERATED / HEADER_NAME).write_text(settings_header())
+COMMON = ["-fPIC", "-O2", "-fvisibility=hidden", f"-I{FMI_HEADERS}", f"-I{SHELL}", f"-I{GENERATED}"]
 SETTINGS = ("solver.relTol", "solver.absTol", "solver.maxStep")  # vr nvars + 0, 1, 2
 SETTING_DEFAULTS = (1e-8, 1e-10, 0.0)
 
@@ -321,7 +327,7 @@ def _array(ctype: str, name: str, values: list[str]) -> str:
 
 
 def tables_c(spec: Spec, guid: str) -> str:
-    """The md_model.h tables for `spec`: what toggle_cosim.build generates for real models."""
+    """The md_model.h tables for `spec`: what toggle_cosim.fmu_export generates for real models."""
     vs = spec.variables
     names = ", ".join(f'"{v.name}"' for v in vs)
     return "\n".join(
@@ -346,7 +352,7 @@ def tables_c(spec: Spec, guid: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------
-# modelDescription.xml for a test model (the real one is toggle_cosim.build's business)
+# modelDescription.xml for a test model (the real one is toggle_cosim.fmu_export's business)
 # ---------------------------------------------------------------------------------------
 
 _MD_ATTRS = {
@@ -476,6 +482,7 @@ def build(tmp_path_factory, shell_objects):
             zf.write(library, f"binaries/{fmpy.platform}/{library.name}")
             for source in ("md_model.h", "solver.h", "solver.c", "instance.h", "instance.c", "fmi2.c"):
                 zf.write(SHELL / source, f"sources/{source}")
+            zf.write(GENERATED / HEADER_NAME, f"sources/{HEADER_NAME}")
             zf.writestr("sources/model.c", model_c)
         unzipped = Path(fmpy.extract(str(fmu), str(work / "unzipped")))
         cache[name] = Built(spec, guid, fmu, unzipped, library, model_c)
@@ -632,7 +639,9 @@ def mass_analytic(t: float, k2: float = 4.0, mu: float = 0.1, x0: float = 1.0):
 # ---------------------------------------------------------------------------------------
 
 
-def test_only_fmi2_cosimulation_functions_are_exported(build):
+def test_only_fmi2_functions_are_exported(build):
+    """Only the fmi2 entry points leave the binary: Co-Simulation and Model Exchange (the
+    modelDescription decides which of them an importer may use), never the model's symbols."""
     nm = shutil.which("nm")
     if nm is None:
         pytest.skip("needs nm")
@@ -643,12 +652,25 @@ def test_only_fmi2_cosimulation_functions_are_exported(build):
     assert exported, out
     assert all(name.startswith("fmi2") for name in exported), exported
     for required in ("fmi2Instantiate", "fmi2DoStep", "fmi2GetFMUstate", "fmi2CancelStep",
-                     "fmi2GetRealStatus", "fmi2DeSerializeFMUstate"):
+                     "fmi2GetRealStatus", "fmi2DeSerializeFMUstate", "fmi2EnterEventMode",
+                     "fmi2GetDerivatives", "fmi2SetTime", "fmi2GetEventIndicators",
+                     "fmi2SetContinuousStates", "fmi2NewDiscreteStates",
+                     "fmi2CompletedIntegratorStep", "fmi2GetNominalsOfContinuousStates"):
         assert required in exported
-    for model_exchange_only in ("fmi2EnterEventMode", "fmi2GetDerivatives", "fmi2SetTime",
-                                "fmi2GetEventIndicators", "fmi2SetContinuousStates"):
-        assert model_exchange_only not in exported
     assert "MD_INFO" not in exported and "rhs" not in exported
+
+
+def test_model_exchange_refused_when_the_description_offers_co_simulation_only(build):
+    """These hand-made tables leave MD_INFO.interfaces at 0 (Co-Simulation only), and their
+    modelDescription has no <ModelExchange>: fmi2Instantiate(fmi2ModelExchange) says no."""
+    from fmpy.fmi2 import FMU2Model
+
+    built = build("Mass")
+    model = FMU2Model(guid=built.guid, unzipDirectory=str(built.unzipped),
+                      modelIdentifier=built.spec.name, instanceName="me")
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        model.instantiate(loggingOn=True)
+    model.freeLibrary()
 
 
 @pytest.mark.parametrize("name", sorted(MODELS))

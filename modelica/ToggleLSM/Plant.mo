@@ -82,4 +82,5 @@ equation
   E_mech = mechanism.E_mech;
   Phi1 = mechanism.Phi1;
   Phi2 = mechanism.Phi2;
+  annotation(experiment(StartTime = 0, StopTime = 1.5, Tolerance = 1e-8, Interval = 5e-4));
 end Plant;

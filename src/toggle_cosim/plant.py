@@ -101,7 +101,7 @@ def check_plant(path: Path) -> PlantInterface:
         message = " ".join(str(error).split())
         raise ContractError(f"{path}: unreadable modelDescription.xml ({message})") from error
     if md.coSimulation is None:
-        raise ContractError(f"{path}: the FMU does not support Co-Simulation (export it as a Co-Simulation FMU)")
+        raise ContractError(f"{path}: the FMU does not support Co-Simulation (rebuild it with --interfaces both or cs)")
     identifier = md.coSimulation.modelIdentifier
     folder2, folder3 = _platform_binary_folders()
     folder = folder2 if md.fmiVersion == "2.0" else folder3

@@ -29,12 +29,13 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-import fmpy
+from toggle_cosim.fmu_export.compile import GeneratedModel
+from toggle_cosim.fmu_export import interfaces as interface_types
+from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
+from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header
 
-from toggle_cosim.build.compile import GeneratedModel
-from toggle_cosim.build.model_description import fmi2_model_description, fmi3_model_description
-
-# The shell files every FMU carries in sources/, whatever its FMI version.
+# The shell files every FMU carries in sources/, whatever its FMI version (and md_settings.h,
+# written from shell_settings.py).
 CORE_FILES = ("md_model.h", "solver.h", "solver.c", "instance.h", "instance.c")
 # The translation units compiled into every binary, besides the FMI layer and model.c
 # (instance.c is not one: each layer #includes it).
@@ -53,6 +54,7 @@ class BuiltFMU:
     model_identifier: str
     size_bytes: int
     fmi_version: str = "2.0"
+    interfaces: frozenset[str] = interface_types.CHOICES[interface_types.DEFAULT]
 
 
 def platform_folder() -> str:
@@ -98,8 +100,10 @@ def model_identifier_for(path: Path) -> str:
     return identifier
 
 
-def _fmi_headers() -> Path:
-    return Path(fmpy.__file__).parent / "c-code"
+def fmi_headers() -> Path:
+    """The FMI 2.0 / 3.0 standard headers vendored in this package (fmi_headers/, BSD-2-Clause,
+    see its LICENSE.txt): the build does not depend on another package's data files."""
+    return Path(str(resources.files("toggle_cosim.fmu_export") / "fmi_headers"))
 
 
 def find_c_compiler() -> str:
@@ -133,7 +137,7 @@ class FMIVersion:
 
     interface: str  # the shell's FMI layer, compiled with CORE_UNITS
     binaries_folder: Callable[[], str]
-    model_description: Callable[[GeneratedModel, str, str], str]
+    model_description: Callable[..., str]  # (model, identifier, tool, interfaces, sources)
     build_description: Callable[[str, tuple[str, ...]], str] | None
 
 
@@ -143,12 +147,20 @@ FMI_VERSIONS = {
 }
 
 
-def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str = "2.0") -> BuiltFMU:
-    """Compile `model` and write the FMU for `fmi_version` ("2.0" or "3.0") to `output`
-    (atomically: a temporary name, then rename)."""
+def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str = "2.0",
+              interfaces: str | frozenset[str] = interface_types.DEFAULT) -> BuiltFMU:
+    """Compile `model` and write the FMU for `fmi_version` ("2.0" or "3.0") offering
+    `interfaces` ("both", "cs", "me") to `output` (atomically: a temporary name, then rename).
+
+    One binary serves every choice; the choice decides what modelDescription.xml offers and
+    what the binary accepts (MD_INTERFACES, defined at the top of model.c)."""
     version = FMI_VERSIONS.get(fmi_version)
     if version is None:
         raise FMUBuildError(f"unsupported FMI version {fmi_version!r} (choose from {', '.join(FMI_VERSIONS)})")
+    try:
+        offered = interface_types.parse(interfaces)
+    except ValueError as error:
+        raise FMUBuildError(str(error)) from error
     output = Path(output)
     identifier = model_identifier_for(output)
     compiled = (*CORE_UNITS, version.interface, "model.c")
@@ -156,10 +168,13 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         work = Path(scratch)
         sources = work / "sources"
         sources.mkdir()
-        shell = resources.files("toggle_cosim.build") / "shell"
+        shell = resources.files("toggle_cosim.fmu_export") / "shell"
         for name in (*CORE_FILES, version.interface):
             (sources / name).write_text(shell.joinpath(name).read_text(encoding="utf-8"), encoding="utf-8")
-        (sources / "model.c").write_text(model.c_source, encoding="utf-8")
+        (sources / HEADER_NAME).write_text(settings_header(), encoding="utf-8")
+        (sources / "model.c").write_text(
+            f"#define MD_INTERFACES ({interface_types.c_mask(offered)})\n{model.c_source}", encoding="utf-8"
+        )
         if version.build_description is not None:
             (sources / "buildDescription.xml").write_text(
                 version.build_description(identifier, compiled), encoding="utf-8"
@@ -168,7 +183,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         binary_dir.mkdir(parents=True)
         binary = binary_dir / f"{identifier}{shared_library_suffix()}"
         command = [
-            find_c_compiler(), *CFLAGS, f"-I{sources}", f"-I{_fmi_headers()}",
+            find_c_compiler(), *CFLAGS, f"-I{sources}", f"-I{fmi_headers()}",
             *(str(sources / n) for n in compiled),
             "-o", str(binary), "-lm",
         ]
@@ -176,7 +191,7 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         if result.returncode != 0:
             raise FMUBuildError(f"C compiler failed for {model.name}:\n{result.stderr.strip()[:4000]}")
         (work / "modelDescription.xml").write_text(
-            version.model_description(model, identifier, tool), encoding="utf-8"
+            version.model_description(model, identifier, tool, offered, compiled), encoding="utf-8"
         )
         output.parent.mkdir(parents=True, exist_ok=True)
         partial = output.with_name(f".{output.name}.partial")
@@ -185,4 +200,4 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
                 if file.is_file():
                     archive.write(file, file.relative_to(work).as_posix())
         os.replace(partial, output)
-    return BuiltFMU(output, model.guid, identifier, output.stat().st_size, fmi_version)
+    return BuiltFMU(output, model.guid, identifier, output.stat().st_size, fmi_version, offered)

@@ -1,7 +1,13 @@
-/* FMI 2.0 Co-Simulation entry points for a generated model (md_model.h): a thin layer over
- * the generic shell (instance.c, the logic fmi3.c shares) and the solver core (solver.c).
- * Co-Simulation only: the Model Exchange functions are deliberately not defined, and
- * fmi2Instantiate refuses fmi2ModelExchange.
+/* FMI 2.0 Co-Simulation and Model Exchange entry points for a generated model (md_model.h):
+ * a thin layer over the generic shell (instance.c, the logic fmi3.c shares) and the solver
+ * core (solver.c). fmi2Instantiate accepts the interface types modelDescription.xml offers
+ * (MD_INFO.interfaces); a Model Exchange instance is integrated by the importer, through
+ * the same model evaluations and the same event handling as the shell's own integrator.
+ *
+ * Model Exchange state machine (sec. 3.2.1): instantiated -> initialisationMode ->
+ * eventMode <-> continuousTimeMode -> terminated. fmi2NewDiscreteStates handles every event
+ * at the present point with event iteration, so one call settles it
+ * (newDiscreteStatesNeeded is always false); there are no time events.
  *
  * Section references are to the FMI 2.0 standard (2.0.x).
  *
@@ -49,11 +55,11 @@ typedef struct {
 } Instance;
 
 /* Variables can be read from initialisation mode on. */
-#define ST_READABLE (MD_MODE_INIT | MD_MODE_STEP | MD_MODE_TERMINATED | MD_MODE_ERROR)
+#define ST_READABLE (MD_MODE_INIT | MD_MODE_RUNNING | MD_MODE_TERMINATED | MD_MODE_ERROR)
 
-/* Log categories (modelDescription.xml <LogCategories> lists the same names). */
-enum { LOG_EVENTS = 0, LOG_STATUS_ERROR = 1, LOG_ALL = 2, LOG_NCATEGORIES = 3 };
-static const char *const LOG_NAMES[LOG_NCATEGORIES] = {"logEvents", "logStatusError", "logAll"};
+/* Log categories: md_settings.h, from the table modelDescription.xml <LogCategories> is
+   written from. */
+static const char *const LOG_NAMES[MD_FMI2_NLOG] = MD_FMI2_LOG_NAMES;
 
 static fmi2Status status_of(md_result result) {
     switch (result) {
@@ -86,11 +92,13 @@ static const md_layer FMI2 = {
     .has_time = 0,
     .state_magic = 0x32494D46u, /* "FMI2" */
     .categories = LOG_NAMES,
-    .ncategories = LOG_NCATEGORIES,
-    .category_of = {[MD_CATEGORY_EVENTS] = LOG_EVENTS, [MD_CATEGORY_WARNING] = LOG_STATUS_ERROR,
-                    [MD_CATEGORY_ERROR] = LOG_STATUS_ERROR, [MD_CATEGORY_ALL] = LOG_ALL},
+    .ncategories = MD_FMI2_NLOG,
+    .category_of = {[MD_CATEGORY_EVENTS] = MD_FMI2_LOG_EVENTS,
+                    [MD_CATEGORY_WARNING] = MD_FMI2_LOG_STATUS_ERROR,
+                    [MD_CATEGORY_ERROR] = MD_FMI2_LOG_STATUS_ERROR,
+                    [MD_CATEGORY_ALL] = MD_FMI2_LOG_ALL},
     .errors_always_logged = 0,
-    .quiet_log_mask = 1u << LOG_STATUS_ERROR, /* errors are reported unless switched off */
+    .quiet_log_mask = 1u << MD_FMI2_LOG_STATUS_ERROR, /* errors are reported unless switched off */
     .log = log_message,
 };
 
@@ -144,10 +152,16 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         instantiate_error(functions, instanceName, "fmi2Instantiate: instanceName is NULL");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
-        instantiate_error(functions, instanceName,
-                          "fmi2Instantiate: this FMU supports Co-Simulation only "
-                          "(fmuType must be fmi2CoSimulation)");
+    if ((fmuType == fmi2CoSimulation && !md_offers(MD_INTERFACE_CS))
+        || (fmuType == fmi2ModelExchange && !md_offers(MD_INTERFACE_ME))
+        || (fmuType != fmi2CoSimulation && fmuType != fmi2ModelExchange)) {
+        snprintf(text, sizeof text, "fmi2Instantiate: fmuType %d is not offered by this FMU "
+                 "(it offers %s)", (int)fmuType,
+                 md_offers(MD_INTERFACE_ME)
+                     ? (md_offers(MD_INTERFACE_CS) ? "Co-Simulation and Model Exchange"
+                                                   : "Model Exchange only")
+                     : "Co-Simulation only");
+        instantiate_error(functions, instanceName, text);
         return NULL;
     }
     if (fmuGUID == NULL || strcmp(fmuGUID, MD_INFO.guid) != 0) {
@@ -166,6 +180,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     }
     c->cb = *functions;
     c->last_step_status = fmi2OK;
+    c->base.interface = fmuType == fmi2ModelExchange ? MD_INTERFACE_ME : MD_INTERFACE_CS;
     md_instance_start_logging(&c->base, functions->logger != NULL, loggingOn);
     return c;
 }
@@ -205,7 +220,7 @@ fmi2Status fmi2Terminate(fmi2Component component) {
     md_instance *m = component;
     /* from error too: a master that tidies up after a failed step should not get a second
        error for it */
-    GUARD(m, "fmi2Terminate", MD_MODE_STEP | MD_MODE_ERROR);
+    GUARD(m, "fmi2Terminate", MD_MODE_RUNNING | MD_MODE_ERROR);
     m->mode = MD_MODE_TERMINATED;
     return fmi2OK;
 }
@@ -269,12 +284,22 @@ static fmi2Status no_such_variables(md_instance *m, const char *function, const 
                                vr != NULL ? vr[0] : 0u));
 }
 
+/* The Integer variables are the integrator statistics (solver.steps, ...). */
 fmi2Status fmi2GetInteger(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
                           fmi2Integer value[]) {
     md_instance *m = component;
-    (void)value;
+    int64_t counts[MD_NSTATISTICS];
+    md_result result = MD_RESULT_OK;
     GUARD(m, "fmi2GetInteger", ST_READABLE);
-    return no_such_variables(m, "fmi2GetInteger", "Integer", vr, nvr);
+    if (nvr > 0 && (vr == NULL || value == NULL)) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi2GetInteger: NULL array"));
+    }
+    for (size_t i = 0; i < nvr && result == MD_RESULT_OK; ++i) {
+        result = md_get_statistics(m, "fmi2GetInteger", &vr[i], 1, counts, 1);
+        /* saturate: fmi2Integer is an int */
+        if (result == MD_RESULT_OK) { value[i] = counts[0] > 2147483647 ? 2147483647 : (fmi2Integer)counts[0]; }
+    }
+    return status_of(result);
 }
 
 fmi2Status fmi2GetString(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
@@ -290,7 +315,10 @@ fmi2Status fmi2SetInteger(fmi2Component component, const fmi2ValueReference vr[]
     md_instance *m = component;
     (void)value;
     GUARD(m, "fmi2SetInteger", MD_MODE_SETTABLE);
-    return no_such_variables(m, "fmi2SetInteger", "Integer", vr, nvr);
+    if (nvr == 0) { return fmi2OK; }
+    return status_of(md_report(m, MD_RESULT_ERROR, "fmi2SetInteger: value reference %u is not "
+                               "settable (the Integer variables are the solver's statistics)",
+                               vr != NULL ? vr[0] : 0u));
 }
 
 fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
@@ -394,7 +422,11 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
     Instance *c = component;
     md_result result;
     (void)noSetFMUStatePriorToCurrentPoint;
-    GUARD(m, "fmi2DoStep", MD_MODE_STEP);
+    GUARD(m, "fmi2DoStep", MD_MODE_STEP | MD_MODE_EVENT | MD_MODE_CONTINUOUS);
+    if (m->interface != MD_INTERFACE_CS) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi2DoStep: a Model Exchange instance "
+                                   "does not step (instantiate as fmi2CoSimulation)"));
+    }
     result = md_do_step(m, "fmi2DoStep", currentCommunicationPoint, communicationStepSize);
     if (result == MD_RESULT_OK) {
         c->last_step_status = fmi2OK;
@@ -461,4 +493,106 @@ fmi2Status fmi2GetStringStatus(fmi2Component component, const fmi2StatusKind kin
     (void)value;
     return status_query(component, "fmi2GetStringStatus", kind, -1, NULL,
                         " (no asynchronous steps)");
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Model Exchange (sec. 3.2)
+ * ------------------------------------------------------------------------------------- */
+
+/* At the top of every Model Exchange function: the instance must be one. */
+#define GUARD_ME(m, function, allowed)                                                      \
+    do {                                                                                    \
+        if ((m) != NULL && (m)->mode != MD_MODE_FATAL && (m)->interface != MD_INTERFACE_ME) { \
+            return status_of(md_report((m), MD_RESULT_ERROR, "%s: a Model Exchange function, "\
+                                       "but the instance is a Co-Simulation one", function)); \
+        }                                                                                   \
+        GUARD(m, function, allowed);                                                        \
+    } while (0)
+
+fmi2Status fmi2EnterEventMode(fmi2Component component) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2EnterEventMode", MD_MODE_EVENT | MD_MODE_CONTINUOUS);
+    m->mode = MD_MODE_EVENT;
+    return fmi2OK;
+}
+
+fmi2Status fmi2NewDiscreteStates(fmi2Component component, fmi2EventInfo *eventInfo) {
+    md_instance *m = component;
+    int changed = 0;
+    md_result result;
+    GUARD_ME(m, "fmi2NewDiscreteStates", MD_MODE_EVENT);
+    if (eventInfo == NULL) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi2NewDiscreteStates: eventInfo is "
+                                   "NULL"));
+    }
+    result = md_me_update_discrete_states(m, "fmi2NewDiscreteStates", &changed);
+    eventInfo->newDiscreteStatesNeeded = fmi2False; /* event iteration is done inside */
+    eventInfo->terminateSimulation = fmi2False;
+    eventInfo->nominalsOfContinuousStatesChanged = fmi2False;
+    eventInfo->valuesOfContinuousStatesChanged = changed ? fmi2True : fmi2False;
+    eventInfo->nextEventTimeDefined = fmi2False; /* no time events */
+    eventInfo->nextEventTime = 0.0;
+    return status_of(result);
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component component) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2EnterContinuousTimeMode", MD_MODE_EVENT);
+    m->mode = MD_MODE_CONTINUOUS;
+    return fmi2OK;
+}
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component component,
+                                       fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi2Boolean *enterEventMode,
+                                       fmi2Boolean *terminateSimulation) {
+    md_instance *m = component;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    GUARD_ME(m, "fmi2CompletedIntegratorStep", MD_MODE_CONTINUOUS);
+    if (enterEventMode == NULL || terminateSimulation == NULL) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi2CompletedIntegratorStep: an "
+                                   "output argument is NULL"));
+    }
+    md_me_completed_step(m);
+    *enterEventMode = fmi2False; /* no step events: every event has an indicator */
+    *terminateSimulation = fmi2False;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetTime(fmi2Component component, fmi2Real time) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2SetTime", MD_MODE_EVENT | MD_MODE_CONTINUOUS);
+    return status_of(md_me_set_time(m, "fmi2SetTime", time));
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component component, const fmi2Real x[], size_t nx) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2SetContinuousStates", MD_MODE_EVENT | MD_MODE_CONTINUOUS);
+    return status_of(md_me_set_states(m, "fmi2SetContinuousStates", x, nx));
+}
+
+fmi2Status fmi2GetDerivatives(fmi2Component component, fmi2Real derivatives[], size_t nx) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2GetDerivatives", MD_MODE_EVALUABLE);
+    return status_of(md_me_get_derivatives(m, "fmi2GetDerivatives", derivatives, nx));
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component component, fmi2Real eventIndicators[],
+                                  size_t ni) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2GetEventIndicators", MD_MODE_EVALUABLE);
+    return status_of(md_me_get_indicators(m, "fmi2GetEventIndicators", eventIndicators, ni));
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component component, fmi2Real x[], size_t nx) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2GetContinuousStates", MD_MODE_EVALUABLE);
+    return status_of(md_me_get_states(m, "fmi2GetContinuousStates", x, nx));
+}
+
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component component, fmi2Real x_nominal[],
+                                             size_t nx) {
+    md_instance *m = component;
+    GUARD_ME(m, "fmi2GetNominalsOfContinuousStates", MD_MODE_ANY);
+    return status_of(md_me_get_nominals(m, "fmi2GetNominalsOfContinuousStates", x_nominal, nx));
 }

@@ -4,9 +4,13 @@
  *
  * References in quotes are section titles of the FMI 3.0 standard.
  *
- * Interface types: Co-Simulation only. The standard asks every function of fmi3Functions.h to
- * be present in the binary ("FMU Distribution"), so the Model Exchange and Scheduled Execution
- * functions exist: the instantiation functions return NULL and the rest return fmi3Error.
+ * Interface types: Co-Simulation and Model Exchange, as modelDescription.xml offers them
+ * (MD_INFO.interfaces); Scheduled Execution is refused (its instantiation returns NULL). Model
+ * Exchange ("Model Exchange" chapter): Instantiated -> Initialization Mode -> Event Mode <->
+ * Continuous-Time Mode -> Terminated; fmi3UpdateDiscreteStates handles every event at the
+ * present point with event iteration, so one call settles it (discreteStatesNeedUpdate is
+ * always false); there are no time events. Event indicators and der(x) are Float64
+ * variables (MD_VR_INDICATORS, MD_VR_DERIVATIVES), as FMI 3.0 lists them in ModelStructure.
  * Co-Simulation without Event Mode (hasEventMode="false"), early return, intermediate update,
  * clocks, derivatives or configuration mode: a request for any of them is refused with
  * fmi3Error and a log message; the instance is not damaged by that.
@@ -79,16 +83,9 @@ typedef struct {
    model_description.py (fmi3_model_description) writes the same number. */
 #define VR_TIME ((fmi3ValueReference)MD_INFO.nvars + (fmi3ValueReference)MD_SHELL_NREAL)
 
-/* Log categories (modelDescription.xml <LogCategories> lists the same names). */
-enum {
-    LOG_EVENTS = 0,
-    LOG_STATUS_WARNING = 1,
-    LOG_STATUS_ERROR = 2,
-    LOG_ALL = 3,
-    LOG_NCATEGORIES = 4
-};
-static const char *const LOG_NAMES[LOG_NCATEGORIES] = {
-    "logEvents", "logStatusWarning", "logStatusError", "logAll"};
+/* Log categories: md_settings.h, from the table modelDescription.xml <LogCategories> is
+   written from. */
+static const char *const LOG_NAMES[MD_FMI3_NLOG] = MD_FMI3_LOG_NAMES;
 
 static fmi3Status status_of(md_result result) {
     switch (result) {
@@ -132,9 +129,11 @@ static const md_layer FMI3 = {
     .has_time = 1,
     .state_magic = 0x33494D46u, /* "FMI3" */
     .categories = LOG_NAMES,
-    .ncategories = LOG_NCATEGORIES,
-    .category_of = {[MD_CATEGORY_EVENTS] = LOG_EVENTS, [MD_CATEGORY_WARNING] = LOG_STATUS_WARNING,
-                    [MD_CATEGORY_ERROR] = LOG_STATUS_ERROR, [MD_CATEGORY_ALL] = LOG_ALL},
+    .ncategories = MD_FMI3_NLOG,
+    .category_of = {[MD_CATEGORY_EVENTS] = MD_FMI3_LOG_EVENTS,
+                    [MD_CATEGORY_WARNING] = MD_FMI3_LOG_STATUS_WARNING,
+                    [MD_CATEGORY_ERROR] = MD_FMI3_LOG_STATUS_ERROR,
+                    [MD_CATEGORY_ALL] = MD_FMI3_LOG_ALL},
     .errors_always_logged = 1,
     .quiet_log_mask = 0u, /* loggingOn enables every category; errors are reported regardless */
     .log = log_message,
@@ -183,17 +182,58 @@ static int blank(const char *text) {
     return 1;
 }
 
+/* The checks both instantiation functions make; NULL and a logged reason if one fails. */
+static Instance *instantiate(const char *function, int interface, fmi3String instanceName,
+                             fmi3String instantiationToken, fmi3Boolean loggingOn,
+                             fmi3InstanceEnvironment instanceEnvironment,
+                             fmi3LogMessageCallback logMessage) {
+    Instance *c;
+    char text[MD_MESSAGE_SIZE];
+    if (!md_offers(interface)) {
+        snprintf(text, sizeof text, "%s: this FMU does not offer %s (modelDescription.xml has "
+                 "no <%s>)", function, interface == MD_INTERFACE_ME ? "Model Exchange"
+                 : "Co-Simulation", interface == MD_INTERFACE_ME ? "ModelExchange"
+                 : "CoSimulation");
+        instantiate_error(logMessage, instanceEnvironment, text);
+        return NULL;
+    }
+    if (instanceName == NULL || blank(instanceName)) {
+        snprintf(text, sizeof text, "%s: instanceName must be a non-empty string", function);
+        instantiate_error(logMessage, instanceEnvironment, text);
+        return NULL;
+    }
+    if (instantiationToken == NULL || strcmp(instantiationToken, MD_INFO.guid) != 0) {
+        snprintf(text, sizeof text, "%s: instantiationToken %s does "
+                 "not match this binary's %s (modelDescription.xml and binary out of step?)",
+                 function, instantiationToken != NULL ? instantiationToken : "(null)",
+                 MD_INFO.guid);
+        instantiate_error(logMessage, instanceEnvironment, text);
+        return NULL;
+    }
+    /* FMI 3.0 has no memory callbacks */
+    c = (Instance *)md_instance_new(&FMI3, sizeof *c, calloc, free, instanceName);
+    if (c == NULL) {
+        snprintf(text, sizeof text, "%s: out of memory", function);
+        instantiate_error(logMessage, instanceEnvironment, text);
+        return NULL;
+    }
+    c->env = instanceEnvironment;
+    c->logger = logMessage;
+    c->base.interface = interface;
+    md_instance_start_logging(&c->base, logMessage != NULL, loggingOn);
+    return c;
+}
+
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName,
                                           fmi3String instantiationToken,
                                           fmi3String resourcePath, fmi3Boolean visible,
                                           fmi3Boolean loggingOn,
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage) {
-    (void)instanceName; (void)instantiationToken; (void)resourcePath; (void)visible;
-    (void)loggingOn;
-    instantiate_error(logMessage, instanceEnvironment, "fmi3InstantiateModelExchange: this FMU "
-                      "supports Co-Simulation only (modelDescription.xml has no <ModelExchange>)");
-    return NULL;
+    (void)resourcePath; /* the FMU has no resources */
+    (void)visible;
+    return instantiate("fmi3InstantiateModelExchange", MD_INTERFACE_ME, instanceName,
+                       instantiationToken, loggingOn, instanceEnvironment, logMessage);
 }
 
 fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName,
@@ -223,26 +263,11 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName,
                                          fmi3InstanceEnvironment instanceEnvironment,
                                          fmi3LogMessageCallback logMessage,
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
-    Instance *c;
-    char text[MD_MESSAGE_SIZE];
-
     (void)resourcePath;       /* the FMU has no resources */
     (void)visible;
     (void)earlyReturnAllowed; /* allowed, never used: fmi3DoStep always completes its step */
     (void)requiredIntermediateVariables;
     (void)intermediateUpdate; /* providesIntermediateUpdate="false": never called */
-    if (instanceName == NULL || blank(instanceName)) {
-        instantiate_error(logMessage, instanceEnvironment,
-                          "fmi3InstantiateCoSimulation: instanceName must be a non-empty string");
-        return NULL;
-    }
-    if (instantiationToken == NULL || strcmp(instantiationToken, MD_INFO.guid) != 0) {
-        snprintf(text, sizeof text, "fmi3InstantiateCoSimulation: instantiationToken %s does "
-                 "not match this binary's %s (modelDescription.xml and binary out of step?)",
-                 instantiationToken != NULL ? instantiationToken : "(null)", MD_INFO.guid);
-        instantiate_error(logMessage, instanceEnvironment, text);
-        return NULL;
-    }
     if (eventModeUsed) {
         /* eventModeUsed may only be true if hasEventMode = true (fmi3InstantiateCoSimulation) */
         instantiate_error(logMessage, instanceEnvironment, "fmi3InstantiateCoSimulation: "
@@ -256,18 +281,8 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName,
                           "has intermediateUpdate=\"true\" (providesIntermediateUpdate=\"false\")");
         return NULL;
     }
-
-    /* FMI 3.0 has no memory callbacks */
-    c = (Instance *)md_instance_new(&FMI3, sizeof *c, calloc, free, instanceName);
-    if (c == NULL) {
-        instantiate_error(logMessage, instanceEnvironment,
-                          "fmi3InstantiateCoSimulation: out of memory");
-        return NULL;
-    }
-    c->env = instanceEnvironment;
-    c->logger = logMessage;
-    md_instance_start_logging(&c->base, logMessage != NULL, loggingOn);
-    return c;
+    return instantiate("fmi3InstantiateCoSimulation", MD_INTERFACE_CS, instanceName,
+                       instantiationToken, loggingOn, instanceEnvironment, logMessage);
 }
 
 void fmi3FreeInstance(fmi3Instance instance) { md_instance_free(instance); }
@@ -293,7 +308,8 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     md_instance *m = instance;
     GUARD(m, "fmi3ExitInitializationMode", MD_MODE_INIT);
-    /* eventModeUsed is false: straight to Step Mode */
+    /* Co-Simulation (eventModeUsed is false): straight to Step Mode; Model Exchange: Event
+       Mode */
     return status_of(md_exit_initialization(m, "fmi3ExitInitializationMode"));
 }
 
@@ -301,7 +317,7 @@ fmi3Status fmi3Terminate(fmi3Instance instance) {
     md_instance *m = instance;
     /* from error too: a master that tidies up after a failed step should not get a second
        error for it */
-    GUARD(m, "fmi3Terminate", MD_MODE_STEP | MD_MODE_ERROR);
+    GUARD(m, "fmi3Terminate", MD_MODE_RUNNING | MD_MODE_ERROR);
     m->mode = MD_MODE_TERMINATED;
     return fmi3OK;
 }
@@ -415,9 +431,17 @@ NO_GET(Int16, fmi3Int16)
 NO_GET(UInt16, fmi3UInt16)
 NO_GET(Int32, fmi3Int32)
 NO_GET(UInt32, fmi3UInt32)
-NO_GET(Int64, fmi3Int64)
 NO_GET(UInt64, fmi3UInt64)
 NO_GET(String, fmi3String)
+
+/* The Int64 variables are the integrator statistics (solver.steps, ...). */
+fmi3Status fmi3GetInt64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, fmi3Int64 values[], size_t nValues) {
+    md_instance *m = instance;
+    GUARD(m, "fmi3GetInt64", ST_READABLE);
+    return status_of(md_get_statistics(m, "fmi3GetInt64", valueReferences, nValueReferences,
+                                       values, nValues));
+}
 
 NO_SET(Float32, fmi3Float32)
 NO_SET(Int8, fmi3Int8)
@@ -538,11 +562,16 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
  * Not provided: capability flags false in modelDescription.xml, or another interface type
  * ------------------------------------------------------------------------------------- */
 
-#define NOT_ME "Model Exchange is not supported by this FMU (Co-Simulation only)"
 #define NO_EVENT_MODE "this FMU has no Event Mode (hasEventMode=\"false\")"
 #define NO_CLOCKS "this FMU has no clocks"
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
+    md_instance *m = instance;
+    if (m != NULL && m->interface == MD_INTERFACE_ME) {
+        GUARD(m, "fmi3EnterEventMode", MD_MODE_EVENT | MD_MODE_CONTINUOUS);
+        m->mode = MD_MODE_EVENT;
+        return fmi3OK;
+    }
     return unsupported(instance, "fmi3EnterEventMode", NO_EVENT_MODE);
 }
 
@@ -562,10 +591,27 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Boolean *valuesOfContinuousStatesChanged,
                                     fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime) {
-    (void)discreteStatesNeedUpdate; (void)terminateSimulation;
-    (void)nominalsOfContinuousStatesChanged; (void)valuesOfContinuousStatesChanged;
-    (void)nextEventTimeDefined; (void)nextEventTime;
-    return unsupported(instance, "fmi3UpdateDiscreteStates", NO_EVENT_MODE);
+    md_instance *m = instance;
+    int changed = 0;
+    md_result result;
+    if (m == NULL || m->interface != MD_INTERFACE_ME) {
+        return unsupported(instance, "fmi3UpdateDiscreteStates", NO_EVENT_MODE);
+    }
+    GUARD(m, "fmi3UpdateDiscreteStates", MD_MODE_EVENT);
+    if (discreteStatesNeedUpdate == NULL || terminateSimulation == NULL
+        || nominalsOfContinuousStatesChanged == NULL || valuesOfContinuousStatesChanged == NULL
+        || nextEventTimeDefined == NULL || nextEventTime == NULL) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi3UpdateDiscreteStates: an output "
+                                   "argument is NULL"));
+    }
+    result = md_me_update_discrete_states(m, "fmi3UpdateDiscreteStates", &changed);
+    *discreteStatesNeedUpdate = 0; /* event iteration is done inside */
+    *terminateSimulation = 0;
+    *nominalsOfContinuousStatesChanged = 0;
+    *valuesOfContinuousStatesChanged = changed ? 1 : 0;
+    *nextEventTimeDefined = 0; /* no time events */
+    *nextEventTime = 0.0;
+    return status_of(result);
 }
 
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance,
@@ -695,61 +741,108 @@ fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference 
                        "Scheduled Execution is not supported by this FMU (Co-Simulation only)");
 }
 
-/* Model Exchange */
+/* ---------------------------------------------------------------------------------------
+ * Model Exchange ("Model Exchange" chapter)
+ * ------------------------------------------------------------------------------------- */
+
+/* At the top of every Model Exchange function: the instance must be one. */
+#define GUARD_ME(m, function, allowed)                                                      \
+    do {                                                                                    \
+        if ((m) != NULL && (m)->mode != MD_MODE_FATAL && (m)->interface != MD_INTERFACE_ME) { \
+            return status_of(md_report((m), MD_RESULT_ERROR, "%s: a Model Exchange function, "\
+                                       "but the instance is a Co-Simulation one", function)); \
+        }                                                                                   \
+        GUARD(m, function, allowed);                                                        \
+    } while (0)
 
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
-    return unsupported(instance, "fmi3EnterContinuousTimeMode", NOT_ME);
+    md_instance *m = instance;
+    GUARD_ME(m, "fmi3EnterContinuousTimeMode", MD_MODE_EVENT);
+    m->mode = MD_MODE_CONTINUOUS;
+    return fmi3OK;
 }
 
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance,
                                        fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode,
                                        fmi3Boolean *terminateSimulation) {
-    (void)noSetFMUStatePriorToCurrentPoint; (void)enterEventMode; (void)terminateSimulation;
-    return unsupported(instance, "fmi3CompletedIntegratorStep", NOT_ME);
+    md_instance *m = instance;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    GUARD_ME(m, "fmi3CompletedIntegratorStep", MD_MODE_CONTINUOUS);
+    if (enterEventMode == NULL || terminateSimulation == NULL) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi3CompletedIntegratorStep: an "
+                                   "output argument is NULL"));
+    }
+    md_me_completed_step(m);
+    *enterEventMode = 0; /* no step events: every event has an indicator */
+    *terminateSimulation = 0;
+    return fmi3OK;
 }
 
 fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
-    (void)time;
-    return unsupported(instance, "fmi3SetTime", NOT_ME);
+    md_instance *m = instance;
+    GUARD_ME(m, "fmi3SetTime", MD_MODE_EVENT | MD_MODE_CONTINUOUS);
+    return status_of(md_me_set_time(m, "fmi3SetTime", time));
 }
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
                                    size_t nContinuousStates) {
-    (void)continuousStates; (void)nContinuousStates;
-    return unsupported(instance, "fmi3SetContinuousStates", NOT_ME);
+    md_instance *m = instance;
+    GUARD_ME(m, "fmi3SetContinuousStates", MD_MODE_EVENT | MD_MODE_CONTINUOUS);
+    return status_of(md_me_set_states(m, "fmi3SetContinuousStates", continuousStates,
+                                      nContinuousStates));
 }
 
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
                                              size_t nContinuousStates) {
-    (void)derivatives; (void)nContinuousStates;
-    return unsupported(instance, "fmi3GetContinuousStateDerivatives", NOT_ME);
+    md_instance *m = instance;
+    GUARD_ME(m, "fmi3GetContinuousStateDerivatives", MD_MODE_EVALUABLE);
+    return status_of(md_me_get_derivatives(m, "fmi3GetContinuousStateDerivatives", derivatives,
+                                           nContinuousStates));
 }
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[],
                                   size_t nEventIndicators) {
-    (void)eventIndicators; (void)nEventIndicators;
-    return unsupported(instance, "fmi3GetEventIndicators", NOT_ME);
+    md_instance *m = instance;
+    GUARD_ME(m, "fmi3GetEventIndicators", MD_MODE_EVALUABLE);
+    return status_of(md_me_get_indicators(m, "fmi3GetEventIndicators", eventIndicators,
+                                          nEventIndicators));
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
                                    size_t nContinuousStates) {
-    (void)continuousStates; (void)nContinuousStates;
-    return unsupported(instance, "fmi3GetContinuousStates", NOT_ME);
+    md_instance *m = instance;
+    GUARD_ME(m, "fmi3GetContinuousStates", MD_MODE_EVALUABLE);
+    return status_of(md_me_get_states(m, "fmi3GetContinuousStates", continuousStates,
+                                      nContinuousStates));
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
                                              size_t nContinuousStates) {
-    (void)nominals; (void)nContinuousStates;
-    return unsupported(instance, "fmi3GetNominalsOfContinuousStates", NOT_ME);
+    md_instance *m = instance;
+    GUARD_ME(m, "fmi3GetNominalsOfContinuousStates", MD_MODE_ANY);
+    return status_of(md_me_get_nominals(m, "fmi3GetNominalsOfContinuousStates", nominals,
+                                        nContinuousStates));
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
-    (void)nEventIndicators;
-    return unsupported(instance, "fmi3GetNumberOfEventIndicators", NOT_ME);
+    md_instance *m = instance;
+    GUARD(m, "fmi3GetNumberOfEventIndicators", MD_MODE_ANY);
+    if (nEventIndicators == NULL) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi3GetNumberOfEventIndicators: "
+                                   "nEventIndicators is NULL"));
+    }
+    *nEventIndicators = (size_t)MD_INFO.nz;
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
-    (void)nContinuousStates;
-    return unsupported(instance, "fmi3GetNumberOfContinuousStates", NOT_ME);
+    md_instance *m = instance;
+    GUARD(m, "fmi3GetNumberOfContinuousStates", MD_MODE_ANY);
+    if (nContinuousStates == NULL) {
+        return status_of(md_report(m, MD_RESULT_ERROR, "fmi3GetNumberOfContinuousStates: "
+                                   "nContinuousStates is NULL"));
+    }
+    *nContinuousStates = (size_t)MD_INFO.ny;
+    return fmi3OK;
 }

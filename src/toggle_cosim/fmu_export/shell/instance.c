@@ -26,6 +26,8 @@ static const char *mode_name(md_mode mode) {
     case MD_MODE_TERMINATED: return "terminated";
     case MD_MODE_ERROR: return "error";
     case MD_MODE_FATAL: return "fatal";
+    case MD_MODE_EVENT: return "event mode";
+    case MD_MODE_CONTINUOUS: return "continuous-time mode";
     default: return "?";
     }
 }
@@ -133,6 +135,7 @@ static void clear(md_instance *m) {
     m->stop_defined = 0;
     m->rel_tol_set = 0;
     m->params_dirty = 0;
+    m->obs_stale = 0;
     m->message[0] = '\0';
 }
 
@@ -162,6 +165,7 @@ md_instance *md_instance_new(const md_layer *layer, size_t size, md_allocate all
         return NULL;
     }
     m->states = NULL;
+    m->interface = MD_INTERFACE_CS;
     m->has_logger = 0;
     m->log_mask = 0u;
     clear(m);
@@ -274,7 +278,9 @@ md_result md_exit_initialization(md_instance *m, const char *function) {
         m->mode = MD_MODE_ERROR;
         return md_report(m, MD_RESULT_ERROR, "%s: %s", function, md_solver_message(s));
     }
-    m->mode = MD_MODE_STEP;
+    /* Model Exchange: into event mode, where the importer settles the discrete states */
+    m->mode = m->interface == MD_INTERFACE_ME ? MD_MODE_EVENT : MD_MODE_STEP;
+    m->obs_stale = 0;
     md_log(m, MD_CATEGORY_ALL, "initialised at t=%.17g s (relTol=%g, absTol=%g, maxStep=%g)",
            s->t, s->settings.rel_tol, s->settings.abs_tol, s->settings.max_step);
     return MD_RESULT_OK;
@@ -320,7 +326,7 @@ double md_real_at(const void *values, size_t i) { return ((const double *)values
 
 void md_real_put(void *values, size_t i, double value) { ((double *)values)[i] = value; }
 
-static md_vr time_vr(void) { return (md_vr)MD_INFO.nvars + (md_vr)MD_SHELL_NREAL; }
+static md_vr time_vr(void) { return MD_VR_TIME; }
 
 /* Every variable is a scalar: one value per value reference. */
 static md_result check_arrays(md_instance *m, const char *function, const md_vr vr[], size_t nvr,
@@ -338,6 +344,12 @@ static md_result check_arrays(md_instance *m, const char *function, const md_vr 
 
 /* Before reading: the values must follow the parameters set so far. */
 static md_result refresh_for_get(md_instance *m, const md_vr vr[], size_t nvr) {
+    if (m->obs_stale && m->mode != MD_MODE_INSTANTIATED) {
+        if (md_solver_observe(m->solver) != MD_OK) {
+            return md_report(m, MD_RESULT_ERROR, "%s", md_solver_message(m->solver));
+        }
+        m->obs_stale = 0;
+    }
     if (m->mode == MD_MODE_INIT && m->params_dirty) {
         if (md_solver_start(m->solver, m->start_time) != MD_OK) {
             return md_report(m, MD_RESULT_ERROR, "%s", md_solver_message(m->solver));
@@ -397,6 +409,29 @@ static md_result get_value(md_instance *m, const char *function, md_vr r, int bo
         *value = m->solver->t;
         return MD_RESULT_OK;
     }
+    if (!boolean && r >= MD_VR_DERIVATIVES && r < MD_VR_END) {
+        /* der(x) or an event indicator, evaluated at the present point; from
+           initialisation on (a start value of the states is needed) */
+        md_solver *s = m->solver;
+        double *scratch = s->ydense; /* no step in progress: free */
+        const int derivatives = r < MD_VR_INDICATORS;
+        md_status status;
+        if (m->mode == MD_MODE_INSTANTIATED) {
+            return md_report(m, MD_RESULT_ERROR, "%s: value reference %u has no value before %s",
+                             function, r, layer->enter_initialization);
+        }
+        if (derivatives) {
+            status = md_solver_derivatives(s, scratch);
+        } else {
+            status = md_solver_indicators(s, s->zm);
+            scratch = s->zm;
+        }
+        if (status != MD_OK) {
+            return md_report(m, MD_RESULT_ERROR, "%s: %s", function, md_solver_message(s));
+        }
+        *value = scratch[r - (derivatives ? MD_VR_DERIVATIVES : MD_VR_INDICATORS)];
+        return MD_RESULT_OK;
+    }
     return md_report(m, MD_RESULT_ERROR, "%s: unknown value reference %u", function, r);
 }
 
@@ -453,6 +488,10 @@ static md_result check_settable(md_instance *m, const char *function, md_vr r, d
     } else if (layer->has_time && r == time_vr()) {
         return md_report(m, MD_RESULT_ERROR, "%s: time is the independent variable: only %s "
                          "advances it", function, layer->do_step);
+    } else if (r >= MD_VR_STATISTICS && r < MD_VR_END) {
+        return md_report(m, MD_RESULT_ERROR, "%s: value reference %u is computed by the FMU "
+                         "(a derivative, an event indicator or a statistic): not settable",
+                         function, r);
     } else {
         return md_report(m, MD_RESULT_ERROR, "%s: unknown value reference %u", function, r);
     }
@@ -498,6 +537,10 @@ md_result md_set_values(md_instance *m, const char *function, const md_vr vr[], 
         if (info->kind[r] == MD_INPUT) { inputs = 1; } else { parameters = 1; }
     }
     if (parameters && m->mode == MD_MODE_INIT) { m->params_dirty = 1; }
+    if (inputs && (m->mode & (MD_MODE_EVENT | MD_MODE_CONTINUOUS))) {
+        m->obs_stale = 1; /* outputs follow when they are read */
+        return MD_RESULT_OK;
+    }
     if (inputs && (m->mode & (MD_MODE_INIT | MD_MODE_STEP)) && !m->params_dirty
         && md_solver_observe(s) != MD_OK) {
         return md_report(m, MD_RESULT_WARNING, "%s: outputs not updated: %s", function,
@@ -517,7 +560,8 @@ static int is_state(const md_instance *m, const md_fmu_state *st) {
 static int tag_valid(int tag) {
     int mode = tag & TAG_MODE_MASK;
     return mode == MD_MODE_INSTANTIATED || mode == MD_MODE_INIT || mode == MD_MODE_STEP
-           || mode == MD_MODE_TERMINATED || mode == MD_MODE_ERROR;
+           || mode == MD_MODE_TERMINATED || mode == MD_MODE_ERROR || mode == MD_MODE_EVENT
+           || mode == MD_MODE_CONTINUOUS;
 }
 
 /* The state *state points to, to be overwritten, or a new one (linked into m->states). */
@@ -545,6 +589,7 @@ md_result md_get_state(md_instance *m, const char *function, void **state) {
     if (state == NULL) {
         return md_report(m, MD_RESULT_ERROR, "%s: %s is NULL", function, m->layer->fmu_state);
     }
+    if (m->obs_stale && md_solver_observe(m->solver) == MD_OK) { m->obs_stale = 0; }
     st = state_object(m, state, size);
     if (st == NULL) { return md_report(m, MD_RESULT_ERROR, "%s: out of memory", function); }
     tag = (int)m->mode | (m->params_dirty ? TAG_DIRTY : 0)
@@ -571,6 +616,7 @@ md_result md_set_state(md_instance *m, const char *function, const void *state) 
     m->mode = (md_mode)(tag & TAG_MODE_MASK);
     m->params_dirty = (tag & TAG_DIRTY) != 0;
     m->rel_tol_set = (tag & TAG_RELTOL_SET) != 0;
+    m->obs_stale = 0;
     return MD_RESULT_OK;
 }
 
@@ -638,3 +684,123 @@ md_result md_deserialize_state(md_instance *m, const char *function, const void 
     memcpy(st->data, buffer, size);
     return MD_RESULT_OK;
 }
+
+/* ---------------------------------------------------------------------------------------
+ * Integrator statistics
+ * ------------------------------------------------------------------------------------- */
+
+md_result md_get_statistics(md_instance *m, const char *function, const md_vr vr[], size_t nvr,
+                            int64_t values[], size_t nvalues) {
+    const md_counters *count = &m->solver->count;
+    if (check_arrays(m, function, vr, nvr, values, nvalues) != MD_RESULT_OK) {
+        return MD_RESULT_ERROR;
+    }
+    for (size_t i = 0; i < nvr; ++i) {
+        if (vr[i] < MD_VR_STATISTICS || vr[i] >= MD_VR_STATISTICS + MD_NSTATISTICS) {
+            return md_report(m, MD_RESULT_ERROR, "%s: no integer variable with value reference "
+                             "%u (the integer variables are solver.steps, "
+                             "solver.rejectedSteps and solver.events, %u to %u)", function,
+                             vr[i], MD_VR_STATISTICS, MD_VR_STATISTICS + MD_NSTATISTICS - 1u);
+        }
+    }
+    for (size_t i = 0; i < nvr; ++i) {
+        switch ((int)(vr[i] - MD_VR_STATISTICS)) {
+        case MD_STATISTIC_STEPS: values[i] = (int64_t)count->steps; break;
+        case MD_STATISTIC_REJECTED: values[i] = (int64_t)count->rejected; break;
+        default: values[i] = (int64_t)count->events; break;
+        }
+    }
+    return MD_RESULT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Model Exchange
+ * ------------------------------------------------------------------------------------- */
+
+int md_offers(int interface) {
+    int offered = MD_INFO.interfaces != 0 ? MD_INFO.interfaces : MD_INTERFACE_CS;
+    return (offered & interface) != 0;
+}
+
+static md_result check_vector(md_instance *m, const char *function, const void *x, size_t n,
+                              int expected, const char *what) {
+    if (n != (size_t)expected) {
+        return md_report(m, MD_RESULT_ERROR, "%s: %lu %s given, this model has %d", function,
+                         (unsigned long)n, what, expected);
+    }
+    if (n > 0 && x == NULL) { return md_report(m, MD_RESULT_ERROR, "%s: NULL array", function); }
+    return MD_RESULT_OK;
+}
+
+md_result md_me_set_time(md_instance *m, const char *function, double time) {
+    if (!isfinite(time)) {
+        return md_report(m, MD_RESULT_ERROR, "%s: time %g is not finite", function, time);
+    }
+    md_solver_set_point(m->solver, time, NULL);
+    m->obs_stale = 1;
+    return MD_RESULT_OK;
+}
+
+md_result md_me_set_states(md_instance *m, const char *function, const double x[], size_t nx) {
+    if (check_vector(m, function, x, nx, MD_INFO.ny, "states") != MD_RESULT_OK) {
+        return MD_RESULT_ERROR;
+    }
+    for (size_t i = 0; i < nx; ++i) {
+        if (!isfinite(x[i])) {
+            return md_report(m, MD_RESULT_ERROR, "%s: state %lu is not finite (%g)", function,
+                             (unsigned long)i, x[i]);
+        }
+    }
+    md_solver_set_point(m->solver, m->solver->t, x);
+    m->obs_stale = 1;
+    return MD_RESULT_OK;
+}
+
+md_result md_me_get_states(md_instance *m, const char *function, double x[], size_t nx) {
+    if (check_vector(m, function, x, nx, MD_INFO.ny, "states") != MD_RESULT_OK) {
+        return MD_RESULT_ERROR;
+    }
+    if (nx > 0) { memcpy(x, m->solver->y, sizeof(double) * nx); }
+    return MD_RESULT_OK;
+}
+
+md_result md_me_get_derivatives(md_instance *m, const char *function, double dx[], size_t nx) {
+    if (check_vector(m, function, dx, nx, MD_INFO.ny, "derivatives") != MD_RESULT_OK) {
+        return MD_RESULT_ERROR;
+    }
+    if (nx > 0 && md_solver_derivatives(m->solver, dx) != MD_OK) {
+        return md_report(m, MD_RESULT_ERROR, "%s: %s", function, md_solver_message(m->solver));
+    }
+    return MD_RESULT_OK;
+}
+
+md_result md_me_get_indicators(md_instance *m, const char *function, double z[], size_t nz) {
+    if (check_vector(m, function, z, nz, MD_INFO.nz, "event indicators") != MD_RESULT_OK) {
+        return MD_RESULT_ERROR;
+    }
+    if (nz > 0 && md_solver_indicators(m->solver, z) != MD_OK) {
+        return md_report(m, MD_RESULT_ERROR, "%s: %s", function, md_solver_message(m->solver));
+    }
+    return MD_RESULT_OK;
+}
+
+md_result md_me_get_nominals(md_instance *m, const char *function, double x[], size_t nx) {
+    if (check_vector(m, function, x, nx, MD_INFO.ny, "nominals") != MD_RESULT_OK) {
+        return MD_RESULT_ERROR;
+    }
+    for (size_t i = 0; i < nx; ++i) { x[i] = MD_INFO.nominal != NULL ? MD_INFO.nominal[i] : 1.0; }
+    return MD_RESULT_OK;
+}
+
+md_result md_me_update_discrete_states(md_instance *m, const char *function,
+                                       int *states_changed) {
+    *states_changed = 0;
+    if (md_solver_handle_events(m->solver, states_changed) != MD_OK) {
+        m->mode = MD_MODE_ERROR;
+        return md_report(m, MD_RESULT_ERROR, "%s: %s", function, md_solver_message(m->solver));
+    }
+    m->obs_stale = 0;
+    return MD_RESULT_OK;
+}
+
+void md_me_completed_step(md_instance *m) { m->solver->count.steps++; }

@@ -25,17 +25,10 @@
 #include <string.h>
 
 /* ---------------------------------------------------------------------------------------
- * Settings table (mirrored by the Python modelDescription generator)
+ * Settings table (md_settings.h, written from shell_settings.py)
  * ------------------------------------------------------------------------------------- */
 
-const md_setting MD_SHELL_SETTINGS[MD_SHELL_NREAL] = {
-    {"solver.relTol", 1e-8, "1",
-     "Relative error tolerance of the FMU's internal Dormand-Prince 5(4) integrator, (0, 0.1]"},
-    {"solver.absTol", 1e-10, "1",
-     "Absolute error tolerance of the internal integrator, per state, > 0"},
-    {"solver.maxStep", 0.0, "s",
-     "Largest internal integration step; 0 means unbounded"},
-};
+const md_setting MD_SHELL_SETTINGS[MD_SHELL_NREAL] = MD_SHELL_SETTINGS_TABLE;
 
 /* ---------------------------------------------------------------------------------------
  * Dormand-Prince 5(4) coefficients
@@ -154,8 +147,8 @@ md_solver *md_solver_new(const md_info *info, const md_host *host) {
 
     ny = (size_t)info->ny; np = (size_t)info->np; nw = (size_t)info->nw;
     nobs = (size_t)info->nobs; nz = (size_t)info->nz;
-    /* y p w obs z | k(7 ny) ynew ytmp yerr ydense | rcont(5 ny) | zl zr zm | obs_tmp */
-    total = ny + np + nw + nobs + nz + 7 * ny + 4 * ny + 5 * ny + 3 * nz + nobs;
+    /* y p w obs z | k(7 ny) ynew ytmp yerr ydense | rcont(5 ny) | zl zr zm | obs_tmp | w_tmp */
+    total = ny + np + nw + nobs + nz + 7 * ny + 4 * ny + 5 * ny + 3 * nz + nobs + nw;
     d = allocate(s, total, sizeof(double));
     s->cond = allocate(s, nz, sizeof(unsigned char));
     s->fired = allocate(s, nz, sizeof(int));
@@ -181,7 +174,8 @@ md_solver *md_solver_new(const md_info *info, const md_host *host) {
     s->zl = d; d += nz;
     s->zr = d; d += nz;
     s->zm = d; d += nz;
-    s->obs_tmp = d;
+    s->obs_tmp = d; d += nobs;
+    s->w_tmp = d;
     md_solver_reset(s);
     return s;
 }
@@ -668,6 +662,48 @@ md_status md_solver_advance(md_solver *s, double t_end) {
 }
 
 #undef STAGE
+
+/* ---------------------------------------------------------------------------------------
+ * Model Exchange
+ * ------------------------------------------------------------------------------------- */
+
+void md_solver_set_point(md_solver *s, double t, const double *y) {
+    s->t = t;
+    if (y != NULL) { memcpy(s->y, y, sizeof(double) * (size_t)s->info->ny); }
+    s->fsal_valid = 0;
+}
+
+md_status md_solver_derivatives(md_solver *s, double *dy) {
+    const md_info *info = s->info;
+    memcpy(s->w_tmp, s->w, sizeof(double) * (size_t)info->nw);
+    rhs(s->t, s->y, s->p, s->w, dy);
+    memcpy(s->w, s->w_tmp, sizeof(double) * (size_t)info->nw);
+    if (!all_finite(dy, info->ny)) {
+        return fail(s, "a state derivative is not finite at t=%.10g s %s", s->t, NONFINITE_HINT);
+    }
+    return MD_OK;
+}
+
+md_status md_solver_indicators(md_solver *s, double *z) {
+    const md_info *info = s->info;
+    md_status status;
+    memcpy(s->w_tmp, s->w, sizeof(double) * (size_t)info->nw);
+    status = evaluate_indicators(s, s->t, s->y, z);
+    memcpy(s->w, s->w_tmp, sizeof(double) * (size_t)info->nw);
+    return status;
+}
+
+md_status md_solver_handle_events(md_solver *s, int *state_changed) {
+    const md_info *info = s->info;
+    long events_here = 0;
+    /* ytmp is scratch here (no step in progress): the state before the events */
+    memcpy(s->ytmp, s->y, sizeof(double) * (size_t)info->ny);
+    if (evaluate_indicators(s, s->t, s->y, s->zr) != MD_OK) { return MD_FAIL; }
+    if (settle(s, &events_here) != MD_OK) { return MD_FAIL; }
+    *state_changed = memcmp(s->ytmp, s->y, sizeof(double) * (size_t)info->ny) != 0;
+    s->fsal_valid = 0;
+    return md_solver_observe(s);
+}
 
 /* ---------------------------------------------------------------------------------------
  * State copy and serialisation

@@ -53,13 +53,20 @@ typedef enum {
     MD_MODE_STEP = 1 << 2,
     MD_MODE_TERMINATED = 1 << 3,
     MD_MODE_ERROR = 1 << 4,
-    MD_MODE_FATAL = 1 << 5
+    MD_MODE_FATAL = 1 << 5,
+    MD_MODE_EVENT = 1 << 6,     /* Model Exchange: event mode */
+    MD_MODE_CONTINUOUS = 1 << 7 /* Model Exchange: continuous-time mode */
 } md_mode;
 
 /* Sets of modes, for md_guard. */
-#define MD_MODE_ANY \
-    (MD_MODE_INSTANTIATED | MD_MODE_INIT | MD_MODE_STEP | MD_MODE_TERMINATED | MD_MODE_ERROR)
-#define MD_MODE_SETTABLE (MD_MODE_INSTANTIATED | MD_MODE_INIT | MD_MODE_STEP)
+#define MD_MODE_ANY                                                                         \
+    (MD_MODE_INSTANTIATED | MD_MODE_INIT | MD_MODE_STEP | MD_MODE_TERMINATED | MD_MODE_ERROR \
+     | MD_MODE_EVENT | MD_MODE_CONTINUOUS)
+#define MD_MODE_RUNNING (MD_MODE_STEP | MD_MODE_EVENT | MD_MODE_CONTINUOUS)
+#define MD_MODE_SETTABLE (MD_MODE_INSTANTIATED | MD_MODE_INIT | MD_MODE_RUNNING)
+/* Model Exchange: where the model can be evaluated (states, derivatives, indicators). */
+#define MD_MODE_EVALUABLE \
+    (MD_MODE_INIT | MD_MODE_EVENT | MD_MODE_CONTINUOUS | MD_MODE_TERMINATED | MD_MODE_ERROR)
 
 /* A value reference: 0 .. nvars-1 the model's variables (MD_INFO tables), nvars +
  * MD_SETTING_* the solver settings (Real / Float64 parameters), and, if the layer has one,
@@ -67,6 +74,21 @@ typedef enum {
  * fmi2ValueReference (unsigned int) and fmi3ValueReference (uint32_t) on every platform FMI
  * binaries are built for. */
 typedef uint32_t md_vr;
+
+/* The value references after the model's variables and the solver settings, in this order
+ * (model_description.py writes the same numbers):
+ *   MD_VR_TIME        the independent variable (FMI 3.0 only; unused in FMI 2.0)
+ *   MD_VR_STATISTICS  MD_NSTATISTICS integer counters of the integrator (md_statistic)
+ *   MD_VR_DERIVATIVES der(x) of each continuous state, ny Real / Float64 (read-only)
+ *   MD_VR_INDICATORS  the event indicators, nz Float64 (FMI 3.0 lists them; read-only) */
+/* MD_STATISTIC_STEPS ("solver.steps": accepted integrator steps), MD_STATISTIC_REJECTED
+ * ("solver.rejectedSteps"), MD_STATISTIC_EVENTS ("solver.events": transition calls) and
+ * MD_NSTATISTICS come from md_settings.h. */
+#define MD_VR_TIME ((md_vr)MD_INFO.nvars + (md_vr)MD_SHELL_NREAL)
+#define MD_VR_STATISTICS (MD_VR_TIME + 1u)
+#define MD_VR_DERIVATIVES (MD_VR_STATISTICS + (md_vr)MD_NSTATISTICS)
+#define MD_VR_INDICATORS (MD_VR_DERIVATIVES + (md_vr)MD_INFO.ny)
+#define MD_VR_END (MD_VR_INDICATORS + (md_vr)MD_INFO.nz)
 
 /* ---------------------------------------------------------------------------------------
  * What the FMI layer tells the generic shell about itself
@@ -133,6 +155,8 @@ struct md_instance {
     int stop_defined;
     int rel_tol_set;   /* solver.relTol set explicitly: it wins over the tolerance argument */
     int params_dirty;  /* a parameter changed in initialisation mode since md_solver_start */
+    int interface;     /* MD_INTERFACE_CS or MD_INTERFACE_ME: what it was instantiated as */
+    int obs_stale;     /* Model Exchange: time, states or inputs set since obs was computed */
     struct md_fmu_state *states;  /* FMU states not yet freed: md_instance_free frees them */
     char message[MD_MESSAGE_SIZE];/* the explanation of the last non-OK status */
 };
@@ -233,6 +257,35 @@ md_result md_get_values(md_instance *instance, const char *function, const md_vr
 md_result md_set_values(md_instance *instance, const char *function, const md_vr vr[],
                         size_t nvr, const void *values, size_t nvalues, md_value_at at,
                         int boolean);
+
+/* The integrator statistics (value references MD_VR_STATISTICS ..), cumulative since
+ * instantiation (or reset), readable in every mode but instantiated. */
+md_result md_get_statistics(md_instance *instance, const char *function, const md_vr vr[],
+                            size_t nvr, int64_t values[], size_t nvalues);
+
+/* ---------------------------------------------------------------------------------------
+ * Model Exchange (instance->interface == MD_INTERFACE_ME). md_exit_initialization leaves a
+ * Model Exchange instance in event mode. The layer guards the modes; these check arguments.
+ * ------------------------------------------------------------------------------------- */
+
+/* Does the modelDescription offer this interface type? (Error with the reason if not.) */
+int md_offers(int interface);
+md_result md_me_set_time(md_instance *instance, const char *function, double time);
+md_result md_me_set_states(md_instance *instance, const char *function, const double x[],
+                           size_t nx);
+md_result md_me_get_states(md_instance *instance, const char *function, double x[], size_t nx);
+md_result md_me_get_derivatives(md_instance *instance, const char *function, double dx[],
+                                size_t nx);
+md_result md_me_get_indicators(md_instance *instance, const char *function, double z[],
+                               size_t nz);
+md_result md_me_get_nominals(md_instance *instance, const char *function, double x[],
+                             size_t nx);
+/* Event mode: handle the events at the present point (event iteration included); the
+ * discrete states are then settled (no further update is needed). */
+md_result md_me_update_discrete_states(md_instance *instance, const char *function,
+                                       int *states_changed);
+/* An integrator step of the importer was completed (counted in solver.steps). */
+void md_me_completed_step(md_instance *instance);
 
 /* ---------------------------------------------------------------------------------------
  * FMU states: the solver's flat state buffer (md_solver_save) tagged with the mode and two

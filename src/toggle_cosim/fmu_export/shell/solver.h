@@ -16,23 +16,17 @@
 
 #include <stddef.h>
 #include "md_model.h"
+#include "md_settings.h" /* the settings table, written by shell_settings.py */
 
 /* ---------------------------------------------------------------------------------------
  * Solver settings
  *
- * Three of them are exposed by the FMU as Real parameters with value references
- * MD_INFO.nvars + MD_SETTING_* (after the model's own variables). The Python
- * modelDescription generator mirrors this table: keep the names, defaults and order in sync.
- * The other two are compile-time defaults (override with -D...).
+ * MD_SHELL_NREAL of them are exposed by the FMU as Real parameters with value references
+ * MD_INFO.nvars + MD_SETTING_* (after the model's own variables): names, defaults, units
+ * and order come from md_settings.h, which shell_settings.py writes from the table the
+ * modelDescription.xml is written from. Valid ranges: relTol (0, 0.1], absTol > 0,
+ * maxStep >= 0 (0: unbounded). The limits below are compile-time defaults (-D...).
  * ------------------------------------------------------------------------------------- */
-
-#define MD_SHELL_NREAL 3
-
-enum {
-    MD_SETTING_RELTOL = 0,  /* "solver.relTol"  default 1e-8,  valid (0, 0.1]            */
-    MD_SETTING_ABSTOL = 1,  /* "solver.absTol"  default 1e-10, valid > 0                 */
-    MD_SETTING_MAXSTEP = 2  /* "solver.maxStep" default 0 (unbounded), s, valid >= 0      */
-};
 
 typedef struct {
     const char *name;
@@ -94,10 +88,11 @@ typedef struct {
 } md_settings;
 
 typedef struct {
-    unsigned long steps;      /* accepted internal steps */
+    unsigned long steps;      /* accepted internal steps (Model Exchange: the importer's
+                                 completed integrator steps) */
     unsigned long rejected;   /* rejected internal steps (error test or non-finite) */
     unsigned long rhs_calls;
-    unsigned long events;     /* transition() calls */
+    unsigned long events;     /* transition() calls: state and time events handled */
 } md_counters;
 
 typedef struct md_solver {
@@ -123,6 +118,7 @@ typedef struct md_solver {
     double *ynew, *ytmp, *yerr, *ydense, *rcont; /* [ny] each, rcont [5*ny] */
     double *zl, *zr, *zm; /* [nz] root-finder brackets */
     double *obs_tmp;      /* [nobs] */
+    double *w_tmp;        /* [nw] w kept aside while derivatives are read (md_solver_rhs_at) */
     int *fired;           /* [nz] */
     char message[MD_MESSAGE_SIZE];
 } md_solver;
@@ -162,6 +158,25 @@ md_status md_solver_observe(md_solver *s);
 md_status md_solver_advance(md_solver *s, double t_end);
 
 const char *md_solver_message(const md_solver *s);
+
+/* ---------------------------------------------------------------------------------------
+ * Model Exchange: the importer integrates; the core evaluates the model at the point it
+ * sets and handles the events it reports. The same event logic as md_solver_advance.
+ * ------------------------------------------------------------------------------------- */
+
+/* Move to (t, y) as the importer sets them (y may be NULL: time only). The derivative
+ * cache is invalid afterwards; obs is not refreshed (call md_solver_observe). */
+void md_solver_set_point(md_solver *s, double t, const double *y);
+/* The state derivatives at (s->t, s->y) into dy[ny]. w is left exactly as it was, so reading
+ * derivatives between Co-Simulation steps cannot change the integration. MD_FAIL if any is
+ * not finite. */
+md_status md_solver_derivatives(md_solver *s, double *dy);
+/* The event indicators at (s->t, s->y) into z[nz]. */
+md_status md_solver_indicators(md_solver *s, double *z);
+/* Event mode: act on every condition that changed since the last event (or initialisation)
+ * at the present point, with event iteration (as at a located event in md_solver_advance),
+ * then refresh obs. *state_changed: transition() moved the continuous state. */
+md_status md_solver_handle_events(md_solver *s, int *state_changed);
 
 /* ---------------------------------------------------------------------------------------
  * State copy and serialisation.
