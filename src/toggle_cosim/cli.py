@@ -7,16 +7,18 @@ The only module that knows about files, exit codes and progress display. Exit st
 from __future__ import annotations
 
 import json
-import signal
 import sys
-import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import click
+from toggle_cosim import interrupts
 
-from toggle_cosim import __version__
+_OLD_HANDLERS = interrupts.install()  # before the heavy imports: an interrupt at start-up exits 130 too
+
+import click  # noqa: E402
+
+from toggle_cosim import __version__  # noqa: E402
 
 DEFAULT_SOURCE = Path("modelica/ToggleLSM")
 DEFAULT_MODEL = "ToggleLSM.Plant"
@@ -48,17 +50,32 @@ class RunFailed(click.ClickException):
         click.echo(f"failed: {self.message}", err=True)
 
 
-def _terminate_as_interrupt(signum: int, frame: object) -> None:
-    """SIGTERM ends a run the way Ctrl-C does: the run in progress is written as incomplete."""
-    raise KeyboardInterrupt(f"signal {signum}")
+class _Commands(click.Group):
+    """The command group, with one exit-status policy: 0 success, 1 a run or comparison failed,
+    2 bad input (one line), 130 interrupted (SIGINT or SIGTERM, at any moment; no traceback)."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):  # noqa: ANN001, ANN201
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        interrupts.install()
+        try:
+            result = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except (KeyboardInterrupt, click.exceptions.Abort):
+            interrupts.ignore()
+            click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
+            sys.exit(interrupts.EXIT_INTERRUPTED)
+        except click.ClickException as error:
+            error.show()
+            sys.exit(error.exit_code)
+        except click.exceptions.Exit as error:
+            sys.exit(error.exit_code)
+        sys.exit(result if isinstance(result, int) else 0)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="toggle-cosim")
 def main() -> None:
     """Co-simulation of the PMLSM-driven toggle mechanism (Fung, Wu and Chen 2001)."""
-    if threading.current_thread() is threading.main_thread():  # signal handlers live in the main thread
-        signal.signal(signal.SIGTERM, _terminate_as_interrupt)
 
 
 def project_root() -> Path:
@@ -147,19 +164,33 @@ def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
     from toggle_cosim.traces import write_csv, write_json
 
     folder = out / outcome.run.scenario / (outcome.run.variant or "run")
-    write_csv(folder / "trace.csv", outcome.trace)
-    write_json(folder / "run.json", outcome.record)
+    with interrupts.deferred():  # both files whole, or an interrupt waits for them
+        write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
+        write_json(folder / "run.json", outcome.record)
     return folder
 
 
-def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
-    from toggle_cosim.master import simulate
+def _status_text(outcome) -> str:  # noqa: ANN001
+    if outcome.complete:
+        return "complete"
+    return f"{'INTERRUPTED' if outcome.interrupted else 'FAILED'} ({outcome.reason})"
 
+
+def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path | None = None):  # noqa: ANN001, ANN202
+    from toggle_cosim.supervision import simulate_supervised
+
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
+
+
+def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None) -> list:  # noqa: ANN001
+    from toggle_cosim.resources import check_runs
+
+    check_runs(pairs, out)
     outcomes = []
     for number, (run, plant) in enumerate(pairs, start=1):
         label = f"[{number}/{len(pairs)}] {run.label}"
         if quiet or not sys.stderr.isatty():
-            outcome = simulate(run, plant)
+            outcome = _simulate(run, plant, time_limit)
         else:
             with click.progressbar(length=1000, label=label, file=sys.stderr) as bar:
                 done = [0]
@@ -170,20 +201,30 @@ def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
                         bar.update(step)
                         done[0] += step
 
-                outcome = simulate(run, plant, progress)
+                outcome = _simulate(run, plant, time_limit, progress)
         folder = _write_outcome(outcome, out)
         s = outcome.summary
-        status = "complete" if outcome.complete else f"INCOMPLETE ({outcome.reason})"
         detail = (
             f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
-            f"T_h {s.hitting_time_s:.4f} s" if s else "no summary"
+            f"T_h {s.hitting_time_s:.4f} s" if s and s.final_error_m is not None else "no summary"
         )
-        click.echo(f"{label}: {status}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
+        click.echo(f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
         outcomes.append(outcome)
         if outcome.interrupted:
-            click.echo(f"interrupted: {label} written as incomplete; {len(pairs) - number} run(s) not started", err=True)
-            sys.exit(130)
+            click.echo(f"interrupted: {label} written as interrupted; {len(pairs) - number} run(s) not started", err=True)
+            raise KeyboardInterrupt
     return outcomes
+
+
+def _failed(outcomes) -> None:  # noqa: ANN001
+    failed = [f"{o.run.label} ({o.reason})" for o in outcomes if not o.complete]
+    if failed:
+        raise RunFailed(f"{len(failed)} run(s) failed: {'; '.join(failed)}")
+
+
+_TIME_LIMIT = click.option(
+    "--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
+    help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).")
 
 
 @main.command()
@@ -191,13 +232,11 @@ def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the scenarios' fmu: key).")
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True, help="Output folder.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
-def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool) -> None:
+@_TIME_LIMIT
+def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, time_limit: float | None) -> None:
     """Run scenario files; write trace.csv and run.json per run under OUT/<scenario>/<variant>/."""
     pairs = _load_runs(scenarios, fmu)
-    outcomes = _execute(pairs, out, quiet)
-    failed = [o.run.label for o in outcomes if not o.complete]
-    if failed:
-        raise RunFailed(f"{len(failed)} run(s) incomplete: {', '.join(failed)}")
+    _failed(_execute(pairs, out, quiet, time_limit))
 
 
 def _plot_scenario(folder: Path, output: Path | None) -> Path:
@@ -236,7 +275,8 @@ def plot(results: tuple[Path, ...], output: Path | None) -> None:
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True)
 @click.option("--fmu", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True)
 @click.option("--skip-build", is_flag=True, help="Use the existing FMU.")
-def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
+@_TIME_LIMIT
+def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: float | None) -> None:
     """The main job: build the FMU, run the paper's six runs, write traces, figures and a summary."""
     from toggle_cosim.report import write_summary
 
@@ -247,14 +287,12 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
             _build(DEFAULT_SOURCE, name, path)
     files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
     pairs = _load_runs(files, fmu)
-    outcomes = _execute(pairs, out, quiet=False)
+    outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit)
     for name in PAPER_SCENARIOS:
         click.echo(f"wrote {_plot_scenario(out / name, None)}")
     summary = write_summary(outcomes, out / "summary.md")
     click.echo(f"wrote {summary}; total {time.perf_counter() - started:.1f} s")
-    failed = [o.run.label for o in outcomes if not o.complete]
-    if failed:
-        raise RunFailed(f"{len(failed)} run(s) incomplete: {', '.join(failed)}")
+    _failed(outcomes)
 
 
 @main.command()
@@ -276,17 +314,20 @@ def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | 
 @click.option("--update", is_flag=True, help="Rewrite the stored references from fresh runs (review the diff!).")
 @click.option("--folder", type=click.Path(path_type=Path), default=DEFAULT_REFERENCES, show_default=True)
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU for every scenario.")
-def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Path | None) -> None:
+@_TIME_LIMIT
+def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Path | None,
+               time_limit: float | None) -> None:
     """Check the shipped runs against their stored reference traces (or --update them)."""
     from toggle_cosim import references as refs
     from toggle_cosim.compare import CompareInputError, format_table
-    from toggle_cosim.master import simulate
 
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     pairs = _load_runs(files, fmu)
     failures: list[str] = []
     for run, plant in pairs:
-        outcome = simulate(run, plant)
+        outcome = _simulate(run, plant, time_limit)
+        if outcome.interrupted:
+            raise KeyboardInterrupt
         if not outcome.complete:
             raise RunFailed(f"{run.label}: {outcome.reason}")
         if update:
@@ -310,11 +351,14 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
 @click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
-def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Path | None, retry_failed: bool) -> None:
+@click.option("--case-timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
+              help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).")
+def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Path | None, retry_failed: bool,
+          case_timeout: float | None) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
     from toggle_cosim.sweep import run_sweep
 
-    sys.exit(run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed))
+    sys.exit(run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed, case_timeout=case_timeout))
 
 
 if __name__ == "__main__":
