@@ -5,7 +5,8 @@
     child:  master.simulate writing straight into the shared buffer -> its outcome (without the
             trace) back through a pipe -> _exit
 
-A segfault, abort, endless loop or huge allocation in the plant's native code ends the child,
+A segfault, abort, endless loop or huge allocation (the child's address space may grow by
+TOGGLE_COSIM_PLANT_MEMORY, default 4 GiB) in the plant's native code ends the child,
 not the command: the parent keeps the trace up to the last sample the child recorded (it is in
 the shared buffer), writes the run as `failed` with the reason (the signal's name, "time limit
 30 s exceeded", the exit status) and goes on with the next run. SIGINT/SIGTERM in the parent
@@ -42,6 +43,7 @@ from toggle_cosim.plant import PlantInterface
 from toggle_cosim.scenario import Run
 from toggle_cosim.traces import Trace
 
+PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process as forked
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
 TIME_LIMIT_PER_SIMULATED_S = 20.0
 _PR_SET_PDEATHSIG = 1
@@ -72,6 +74,33 @@ def _die_with_parent(parent: int) -> None:
         os._exit(1)
 
 
+def plant_memory_limit() -> int:
+    """TOGGLE_COSIM_PLANT_MEMORY (bytes, or with a K/M/G suffix), default 4 GiB."""
+    text = os.environ.get("TOGGLE_COSIM_PLANT_MEMORY", "").strip().upper()
+    if not text:
+        return PLANT_MEMORY_DEFAULT
+    scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1], 1)
+    try:
+        return int(float(text.rstrip("KMG")) * scale)
+    except ValueError:
+        return PLANT_MEMORY_DEFAULT
+
+
+def _limit_memory() -> None:
+    """The child's address space may grow by plant_memory_limit(): a plant that allocates without
+    end gets NULL from malloc instead of taking the machine's memory."""
+    with contextlib.suppress(Exception):
+        import resource
+
+        with open("/proc/self/statm") as stream:
+            current = int(stream.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+        soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        wanted = current + plant_memory_limit()
+        if hard != resource.RLIM_INFINITY:
+            wanted = min(wanted, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (wanted, hard))
+
+
 def _warm_up() -> None:
     """Work each child would repeat, done once in the parent before forking."""
     master._installed_versions()
@@ -89,6 +118,7 @@ def _child(run: Run, plant: PlantInterface, buffer: np.ndarray, progress_slot: n
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides about interrupts
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _die_with_parent(parent)
+        _limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
         log = None
         if capture_log:
