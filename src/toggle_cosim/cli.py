@@ -64,6 +64,10 @@ class _Commands(click.Group):
             interrupts.ignore()
             click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
             sys.exit(interrupts.EXIT_INTERRUPTED)
+        except click.UsageError as error:  # one line, like every other bad input
+            command = error.ctx.command_path if error.ctx is not None else "toggle-cosim"
+            click.echo(f"error: {' '.join(error.format_message().split())} (see '{command} --help')", err=True)
+            sys.exit(2)
         except click.ClickException as error:
             error.show()
             sys.exit(error.exit_code)

@@ -42,10 +42,12 @@ def restore(old: dict[int, object]) -> None:
 
 
 def ignore() -> None:
-    """From here on the process is ending: further signals change nothing (main thread only)."""
+    """From here on the process is ending: further signals change nothing (main thread only), and
+    helper threads that fail while it ends (a process pool whose workers were killed) stay quiet."""
     if threading.current_thread() is threading.main_thread():
         for number in (signal.SIGINT, signal.SIGTERM):
             signal.signal(number, signal.SIG_IGN)
+    threading.excepthook = lambda args: None
 
 
 @contextlib.contextmanager

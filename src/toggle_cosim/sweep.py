@@ -845,6 +845,8 @@ class ResultStore:
         _atomic_parquet(_table(rows, self.schema), self.results)
         for identifier in self.rows:
             (self.parts / f"{identifier}.parquet").unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            self.parts.rmdir()  # only when empty: no empty folder is left behind
         return self.results
 
 
@@ -1083,12 +1085,13 @@ def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None
                 bar.close()
             with interrupts.deferred():
                 result.results = store.consolidate()
-        table = read_results(result.results)
-        result.done = len(table)
-        result.failed = int((table["status"] != "ok").sum())
-        if not result.interrupted:
-            result.figures = write_heatmaps(table, sweep)
-        _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
+        finished = [row for identifier, row in store.rows.items() if identifier in store.wanted]
+        result.done = len(finished)
+        result.failed = sum(1 for row in finished if row.get("status") != "ok")
+        if not result.interrupted:  # pandas and matplotlib only when there is time for them
+            result.figures = write_heatmaps(read_results(result.results), sweep)
+        with interrupts.deferred():
+            _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
     return result
 
 
