@@ -197,6 +197,8 @@ def test_mutated_text_loads_or_gives_one_line(folder: Path, text: str) -> None:
 
 NAMES = st.from_regex(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,15}", fullmatch=True)
 X = st.floats(min_value=0.171, max_value=0.369)
+START = st.floats(min_value=0.18, max_value=0.26)  # within the working range, 10 mm from the singular positions
+TARGET = st.floats(min_value=0.27, max_value=0.36)  # and a stroke of some length
 
 
 @st.composite
@@ -210,7 +212,8 @@ def valid_documents(draw: st.DrawFn) -> dict[str, Any]:
         "mu": st.floats(0, 1),
         "current_loop": st.sampled_from(["first_order", "ideal"]),
         "K": st.floats(1e-3, 1e6),
-        "parameters": st.dictionaries(st.from_regex(r"[A-Za-z_][A-Za-z0-9_.]{0,8}", fullmatch=True),
+        "parameters": st.dictionaries(st.from_regex(r"[A-Za-z_][A-Za-z0-9_.]{0,8}", fullmatch=True).filter(
+                                          lambda name: name not in ("m_B", "mu", "K", "idealCurrentLoop", "x_B0")),
                                       st.booleans() | st.floats(-1e6, 1e6) | st.integers(-10, 10), max_size=3),
     }))
     gains = draw(st.fixed_dictionaries({}, optional={k: st.floats(1e-3, 1e3) for k in ("C", "Q", "P", "delta", "beta")}))
@@ -218,13 +221,13 @@ def valid_documents(draw: st.DrawFn) -> dict[str, Any]:
         "name": draw(NAMES),
         "t_end": steps * T_s,
         "T_s": T_s,
-        "stroke": {"x_start": draw(X), "x_target": draw(X)},
+        "stroke": {"x_start": draw(START), "x_target": draw(TARGET)},
         "plant": plant,
         "controller": {"objective": draw(st.sampled_from(["x_B", "theta1"])), "gains": gains},
     }
     variants = draw(st.dictionaries(NAMES, st.fixed_dictionaries({}, optional={
         "plant": st.fixed_dictionaries({}, optional={"mu": st.floats(0, 1), "m_B": st.floats(0.001, 1000)}),
-        "stroke": st.fixed_dictionaries({}, optional={"x_target": X}),
+        "stroke": st.fixed_dictionaries({}, optional={"x_target": TARGET}),
         "description": st.text(max_size=20),
     }), max_size=3))
     if variants:

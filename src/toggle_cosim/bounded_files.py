@@ -20,7 +20,7 @@ CSV_LIMIT = 1024 * MiB  # trace CSV files (a 2 GB output limit applies when writ
 MODEL_DESCRIPTION_LIMIT = 16 * MiB  # modelDescription.xml inside an FMU (ours is ~0.5 MB)
 
 
-class InputFileError(Exception):
+class InputFileError(ValueError):
     """A file that cannot be read as input; str() is the one-line message, naming the file."""
 
 

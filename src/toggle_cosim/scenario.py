@@ -285,7 +285,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
     suffix = f" (variant {variant})" if variant else ""
     for key in ("x_start", "x_target"):
         value = stroke[key]
-        if not lower + SINGULARITY_MARGIN <= value <= upper - SINGULARITY_MARGIN:
+        if not lower + SINGULARITY_MARGIN - 1e-12 <= value <= upper - SINGULARITY_MARGIN + 1e-12:
             raise ScenarioError(
                 f"key stroke.{key}{suffix}: {value} m is outside the working range of the linkage (must lie between"
                 f" {lower + SINGULARITY_MARGIN:.4f} m and {upper - SINGULARITY_MARGIN:.4f} m: {SINGULARITY_MARGIN * 1e3:.0f} mm"

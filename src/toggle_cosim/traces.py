@@ -6,6 +6,7 @@ reader never sees a half-written file.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import tempfile
@@ -87,12 +88,17 @@ def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
 
 
 def read_csv(path: Path) -> Trace:
-    """Read a CSV written by `write_csv` (or any cross-check CSV with a header row)."""
+    """Read a CSV written by `write_csv` (or any cross-check CSV with a header row): a regular
+    file of at most `bounded_files.CSV_LIMIT` bytes. Raises ValueError (or InputFileError) naming it."""
+    from toggle_cosim.bounded_files import CSV_LIMIT, read_text_bounded
+
     path = Path(path)
-    with path.open(encoding="utf-8") as stream:
-        header = stream.readline()
+    text = read_text_bounded(path, CSV_LIMIT, "trace CSV")
+    header, _, body = text.partition("\n")
     names = tuple(name.strip().strip('"') for name in header.strip().split(","))
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
+    if data.size == 0:
+        data = np.empty((0, len(names)))
     if data.shape[1] != len(names):
         raise ValueError(f"{path}: {len(names)} names in the header but {data.shape[1]} columns")
     return Trace(names, data)

@@ -121,8 +121,10 @@ def parse_yaml(text: str) -> Any:
             loader.dispose()
     except YamlError:
         raise
-    except yaml.reader.ReaderError as error:
-        raise YamlError(f"unacceptable character #x{error.character:04x} at byte {error.position} ({error.reason})") from None
+    except yaml.reader.ReaderError as error:  # a control character: it has a position, not a mark
+        lines = re.split("\r\n|[\n\r\x85\u2028\u2029]", text[: error.position])
+        raise YamlError(f"YAML syntax error at line {len(lines)}, column {len(lines[-1]) + 1}: unacceptable character"
+                        f" #x{error.character:04x} ({error.reason})") from None
     except yaml.MarkedYAMLError as error:
         problem = " ".join(str(error.problem or error.context or "malformed YAML").split())
         raise YamlError(f"YAML syntax error{_where(error.problem_mark)}: {problem}") from None
