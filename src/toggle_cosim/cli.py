@@ -161,7 +161,15 @@ def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
                 plants[chosen] = check_plant(chosen)
             except ContractError as error:
                 raise InputError(str(error)) from error
-    return [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+    pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+    from toggle_cosim.plant_settings import SettingError, check_settings
+
+    for run, plant in pairs:  # every name and value the run sets, before any run starts
+        try:
+            check_settings(run, plant)
+        except SettingError as error:
+            raise InputError(f"{run.source or run.label}: {error}") from error
+    return pairs
 
 
 def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001

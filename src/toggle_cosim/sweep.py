@@ -1010,6 +1010,23 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     for name in sorted(names):
         if name not in plant.references:
             raise SweepError(f"{sweep.base}: key plant.parameters.{name}: the plant FMU has no variable {name!r}")
+    from types import SimpleNamespace
+
+    from toggle_cosim.plant_settings import SettingError, check_settings
+
+    seen = set()
+    for case in sweep.cases:  # each distinct setting of the plant, before any case runs
+        plant_doc = case.document.get("plant") or {}
+        settings = SimpleNamespace(current_loop=plant_doc.get("current_loop", "first_order"),
+                                   parameters=dict(plant_doc.get("parameters") or {}))
+        key = (settings.current_loop, repr(sorted(settings.parameters.items(), key=repr)))
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            check_settings(SimpleNamespace(plant=settings, variant=case.variant), plant)
+        except SettingError as error:
+            raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
     return chosen, _sha256(chosen)
 
 
