@@ -14,7 +14,8 @@ from pathlib import Path
 
 from toggle_cosim import interrupts
 
-_OLD_HANDLERS = interrupts.install()  # before the heavy imports: an interrupt at start-up exits 130 too
+if __name__ == "__main__" or Path(sys.argv[0]).name == "toggle-cosim":
+    interrupts.install_for_start_up()  # before the heavy imports: an interrupt at start-up exits 130 too
 
 import click  # noqa: E402
 
@@ -63,7 +64,7 @@ class _Commands(click.Group):
         except (KeyboardInterrupt, click.exceptions.Abort):
             interrupts.ignore()
             click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
-            sys.exit(interrupts.EXIT_INTERRUPTED)
+            interrupts.exit_interrupted()
         except click.UsageError as error:  # one line, like every other bad input
             command = error.ctx.command_path if error.ctx is not None else "toggle-cosim"
             click.echo(f"error: {' '.join(error.format_message().split())} (see '{command} --help')", err=True)
@@ -73,6 +74,14 @@ class _Commands(click.Group):
             sys.exit(error.exit_code)
         except click.exceptions.Exit as error:
             sys.exit(error.exit_code)
+        except SystemExit:
+            raise
+        except BaseException as error:
+            if not interrupts.is_interrupt(error):  # e.g. a SystemError from a C call the signal landed in
+                raise
+            interrupts.ignore()
+            click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
+            interrupts.exit_interrupted()
         sys.exit(result if isinstance(result, int) else 0)
 
 
@@ -391,7 +400,10 @@ def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Pat
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
     from toggle_cosim.sweep import run_sweep
 
-    sys.exit(run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed, case_timeout=case_timeout))
+    code = run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed, case_timeout=case_timeout)
+    if code == interrupts.EXIT_INTERRUPTED:
+        interrupts.exit_interrupted()
+    sys.exit(code)
 
 
 if __name__ == "__main__":

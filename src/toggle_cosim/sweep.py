@@ -1093,7 +1093,9 @@ def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None
 
         try:
             execute(todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout)
-        except KeyboardInterrupt:
+        except BaseException as error:
+            if not interrupts.is_interrupt(error):
+                raise
             result.interrupted = True
             interrupts.ignore()  # the sweep is ending: what follows is writing its table
         finally:
