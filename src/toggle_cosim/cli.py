@@ -198,6 +198,14 @@ def _status_text(outcome) -> str:  # noqa: ANN001
 
 
 def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path | None = None):  # noqa: ANN001, ANN202
+    """One run, supervised (`supervision`); TOGGLE_COSIM_SUPERVISE=0 runs it in this process
+    instead (for the benchmark's comparison and for debugging: no time limit, no crash guard)."""
+    import os
+
+    if os.environ.get("TOGGLE_COSIM_SUPERVISE", "1") == "0":
+        from toggle_cosim.master import simulate
+
+        return simulate(run, plant, progress)
     from toggle_cosim.supervision import simulate_supervised
 
     return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
