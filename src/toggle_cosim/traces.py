@@ -96,9 +96,9 @@ def read_csv(path: Path) -> Trace:
     text = read_text_bounded(path, CSV_LIMIT, "trace CSV")
     header, _, body = text.partition("\n")
     names = tuple(name.strip().strip('"') for name in header.strip().split(","))
+    if not body.strip():
+        return Trace(names, np.empty((0, len(names))))
     data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
-    if data.size == 0:
-        data = np.empty((0, len(names)))
     if data.shape[1] != len(names):
         raise ValueError(f"{path}: {len(names)} names in the header but {data.shape[1]} columns")
     return Trace(names, data)
