@@ -76,6 +76,12 @@ class _Commands(click.Group):
             sys.exit(error.exit_code)
         except SystemExit:
             raise
+        except OSError as error:  # a file system problem found late (e.g. a disk that filled up): one line
+            if interrupts.is_interrupt(error):
+                interrupts.exit_interrupted()
+            where = f"{error.filename}: " if error.filename else ""
+            click.echo(f"error: {where}{error.strerror or error} (check the path, its permissions and free space)", err=True)
+            sys.exit(2)
         except BaseException as error:
             if not interrupts.is_interrupt(error):  # e.g. a SystemError from a C call the signal landed in
                 raise
@@ -100,9 +106,20 @@ def project_root() -> Path:
     return here
 
 
-def _inside_project(path: Path, what: str, option: str) -> Path:
+def _project_of(source: Path) -> Path:
+    """The project a Modelica source belongs to: the nearest folder up from it with a
+    pyproject.toml (whatever the current folder is); a one-line refusal if there is none."""
+    resolved = source.resolve()
+    for folder in (resolved, *resolved.parents):
+        if (folder / "pyproject.toml").is_file():
+            return folder
+    raise InputError(f"{source}: the Modelica source lies in no project (no pyproject.toml above it); "
+                     "the build only reads and writes inside a project")
+
+
+def _inside_project(path: Path, what: str, option: str, root: Path | None = None) -> Path:
     """`path`, resolved, if it lies inside the project; else a one-line refusal."""
-    root = project_root()
+    root = root or project_root()
     resolved = path.resolve()
     if not resolved.is_relative_to(root):
         raise InputError(f"{path}: the {what} lies outside the project {root}; the build only reads and writes "
@@ -113,8 +130,9 @@ def _inside_project(path: Path, what: str, option: str) -> Path:
 def _build(source: Path, model: str, output: Path, fmi_version: str = "2.0") -> None:
     from toggle_cosim.build import FMUBuildError, ModelCompileError, build_fmu
 
-    source = _inside_project(source, "Modelica source", "--source")
-    output = _inside_project(output, "FMU output", "--output")
+    root = _project_of(source)
+    source = _inside_project(source, "Modelica source", "--source", root)
+    output = _inside_project(output, "FMU output", "--output", root)
     if output.suffix != ".fmu":
         raise InputError(f"{output}: an FMU file name must end in .fmu (fix --output)")
     try:

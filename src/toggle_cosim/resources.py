@@ -92,11 +92,16 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
     """`out` is a folder, or can be made one; it is writable and has `needed` bytes free. Nothing
     is created (a probe file in the nearest existing folder is removed at once)."""
     out = Path(out)
+    for part in out.parts:
+        if len(os.fsencode(part)) > _name_max(Path(".")):
+            raise ResourceError(f"{out}: the name {part[:20]}... is longer than the file system allows "
+                                f"({_name_max(Path('.'))} bytes); use a shorter --out")
     existing = out
-    while not existing.exists() and existing != existing.parent:
-        if len(existing.name.encode()) > _name_max(existing.parent if existing.parent.exists() else Path(".")):
-            raise ResourceError(f"{out}: the folder name {existing.name[:20]}... is longer than the file system allows (use a shorter --out)")
-        existing = existing.parent
+    try:
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+    except OSError as error:
+        raise ResourceError(f"{out}: unusable output folder ({error.strerror or error}); choose another --out") from None
     if existing.exists() and not existing.is_dir():
         what = "the output folder" if existing == out else f"{existing}, a part of the output folder's path,"
         raise ResourceError(f"{out}: {what} is an existing file, not a folder (choose another --out)")
