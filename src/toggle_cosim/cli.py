@@ -1,7 +1,7 @@
 """Command line: `toggle-cosim build | run | plot | paper`.
 
 The only module that knows about files, exit codes and progress display. Exit status:
-0 success, 1 a run or comparison failed, 2 bad input (nothing is written then).
+0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
 """
 
 from __future__ import annotations
