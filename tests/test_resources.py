@@ -101,3 +101,31 @@ def test_the_time_limit_key_ends_a_slow_run_as_failed(tmp_path: Path, plant_fmu:
     record = json.loads((out / "small" / "run" / "run.json").read_text())
     assert record["status"] == "failed" and record["reason"].startswith("time limit 1 s exceeded at t = ")
     assert read_csv(out / "small" / "run" / "trace.csv").data.shape[0] == record["samples"] < 401
+
+
+@pytest.mark.parametrize("binary", ["script", "no-symbols"])
+def test_a_plant_binary_that_cannot_serve_is_bad_input(tmp_path: Path, plant_fmu: Path, binary: str) -> None:
+    """A shell script as the binary, or a library without the fmi2 functions: one line, exit 2,
+    nothing written (the binary is loaded in a throw-away child before any run)."""
+    import shutil
+    import subprocess
+    import zipfile
+
+    if binary == "script":
+        data = b"#!/bin/sh\necho plant\n"
+    else:
+        compiler = shutil.which("cc") or shutil.which("gcc")
+        if compiler is None:
+            pytest.skip("no C compiler")
+        (tmp_path / "empty.c").write_text("int not_an_fmu(void) { return 0; }\n")
+        subprocess.run([compiler, "-shared", "-fPIC", "-o", str(tmp_path / "empty.so"), str(tmp_path / "empty.c")],
+                       check=True)
+        data = (tmp_path / "empty.so").read_bytes()
+    fmu = tmp_path / "bad.fmu"
+    with zipfile.ZipFile(plant_fmu) as source, zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as target:
+        for info in source.infolist():
+            is_binary = info.filename.startswith("binaries/linux64/")
+            target.writestr(info.filename, data if is_binary else source.read(info))
+    out = tmp_path / "out"
+    line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(fmu), "--out", str(out)])
+    assert ("cannot be loaded" if binary == "script" else "lacks fmi2Instantiate") in line and not out.exists()

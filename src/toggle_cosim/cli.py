@@ -169,6 +169,7 @@ def build(source: Path, model: str | None, output: Path | None, fmi_version: str
 
 def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
     from toggle_cosim.plant import ContractError, check_plant
+    from toggle_cosim.plant_probe import ProbeError, probe_binary
     from toggle_cosim.scenario import ScenarioError, load_scenario
 
     runs = []
@@ -186,7 +187,8 @@ def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
         if chosen not in plants:
             try:
                 plants[chosen] = check_plant(chosen)
-            except ContractError as error:
+                probe_binary(plants[chosen])
+            except (ContractError, ProbeError) as error:
                 raise InputError(str(error)) from error
     pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.plant_settings import SettingError, check_settings

@@ -998,9 +998,12 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     if chosen is None:
         raise SweepError(f"{sweep.path}: no fmu: key here or in the base scenario, and no --fmu option (name the plant FMU)")
     chosen = Path(chosen).resolve()
+    from toggle_cosim.plant_probe import ProbeError, probe_binary
+
     try:
         plant = check_plant(chosen)
-    except ContractError as error:
+        probe_binary(plant)
+    except (ContractError, ProbeError) as error:
         raise SweepError(str(error)) from error
     for key in sweep.axes:
         path = _split_key(key)
