@@ -393,6 +393,9 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
 
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     pairs = _load_runs(files, fmu)
+    from toggle_cosim.resources import check_runs
+
+    check_runs(pairs, folder if update else None)
     failures: list[str] = []
     for run, plant in pairs:
         outcome = _simulate(run, plant, time_limit)

@@ -1017,6 +1017,17 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
 
     from toggle_cosim.plant_settings import SettingError, check_settings
 
+    from toggle_cosim.master import trace_names
+    from toggle_cosim.resources import max_output
+
+    if sweep.cases:  # each case's trace buffer (8 bytes a value while it runs) within the output limit
+        biggest = max(sweep.cases, key=lambda c: c.parameters["t_end"] / c.parameters["T_s"])
+        samples = int(round(biggest.parameters["t_end"] / biggest.parameters["T_s"])) + 1
+        size = samples * len(trace_names(plant)) * 8
+        if size > max_output():
+            raise SweepError(f"{sweep.path}: case {biggest.index} would hold {samples} samples x {len(trace_names(plant))}"
+                             f" columns, about {size / 1e9:.2f} GB while it runs, over the {max_output() / 1e9:.2f} GB"
+                             " output limit; raise T_s or shorten t_end (or raise TOGGLE_COSIM_MAX_OUTPUT)")
     seen = set()
     for case in sweep.cases:  # each distinct setting of the plant, before any case runs
         plant_doc = case.document.get("plant") or {}
