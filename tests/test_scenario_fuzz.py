@@ -22,6 +22,7 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from toggle_cosim.yaml_loader import Dumper  # quotes '1e5' as YAML 1.2 needs
 from toggle_cosim.parameters import MechanismParameters
 from toggle_cosim.scenario import Run, ScenarioError, load_scenario, toggle_limit
 
@@ -185,7 +186,7 @@ def mutated_texts(draw: st.DrawFn) -> str:
 @FUZZ
 @given(document=mutated_documents(), unicode=st.booleans())
 def test_mutated_document_loads_or_gives_one_line(folder: Path, document: Any, unicode: bool) -> None:
-    text = yaml.safe_dump(document, sort_keys=False, allow_unicode=unicode)  # non-ASCII raw or escaped
+    text = yaml.dump(document, Dumper=Dumper, sort_keys=False, allow_unicode=unicode)  # non-ASCII raw or escaped
     check_loader(write(folder, text.encode("utf-8")))
 
 
@@ -239,7 +240,7 @@ def valid_documents(draw: st.DrawFn) -> dict[str, Any]:
 @given(document=valid_documents(), rotation=st.integers(0, 100))
 def test_valid_documents_load_with_the_values_written(folder: Path, document: dict[str, Any], rotation: int) -> None:
     """Inside the limits everything loads, each variant applied to the base, whatever the key order."""
-    runs = check_loader(write(folder, yaml.safe_dump(document, sort_keys=False).encode("utf-8")))
+    runs = check_loader(write(folder, yaml.dump(document, Dumper=Dumper, sort_keys=False).encode("utf-8")))
     assert runs is not None
     variants = document.get("variants", {None: {}})
     assert [run.variant for run in runs] == list(variants)
@@ -255,7 +256,7 @@ def test_valid_documents_load_with_the_values_written(folder: Path, document: di
                                                   **document["controller"]["gains"]}
     items = list(document.items())
     k = rotation % len(items)
-    again = check_loader(write(folder, yaml.safe_dump(dict(items[k:] + items[:k]), sort_keys=False).encode("utf-8")))
+    again = check_loader(write(folder, yaml.dump(dict(items[k:] + items[:k]), Dumper=Dumper, sort_keys=False).encode("utf-8")))
     assert again is not None
     assert [(r.label, r.t_end, r.T_s, r.x_start, r.x_target, r.plant, r.controller) for r in runs] == [
         (r.label, r.t_end, r.T_s, r.x_start, r.x_target, r.plant, r.controller) for r in again

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import faulthandler
 import io
 import mmap
 import os
@@ -115,6 +116,7 @@ def _child(run: Run, plant: PlantInterface, buffer: np.ndarray, progress_slot: n
     """The child's whole life: run, send the outcome (no trace) back, exit without cleanup."""
     code = 0
     try:
+        faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides about interrupts
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _die_with_parent(parent)
