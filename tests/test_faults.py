@@ -142,11 +142,16 @@ def test_sigterm_writes_a_complete_file_marked_interrupted(plant_fmu: Path, tmp_
     scenario = tmp_path / "long.yaml"
     scenario.write_text(yaml.safe_dump(document))
     out = tmp_path / "out"
-    env = {**os.environ, "TOGGLE_COSIM_KERNEL": "0"}  # the Python loop, which sees the signal at every sample
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {**os.environ, "TOGGLE_COSIM_KERNEL": "0", "TMPDIR": str(scratch)}  # the Python loop
     process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.cli", "run", str(scenario), "--fmu", str(plant_fmu),
                                 "--out", str(out), "-q"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    wait_for_plant_child(process.pid)
-    time.sleep(0.5)
+    deadline = time.monotonic() + 60
+    while not list(scratch.glob("toggle-cosim-run-*")):  # the supervised run has started
+        assert time.monotonic() < deadline and process.poll() is None, "the run never started"
+        time.sleep(0.02)
+    time.sleep(1.0)
     process.send_signal(signal.SIGTERM)
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, (stdout, stderr)
@@ -156,21 +161,6 @@ def test_sigterm_writes_a_complete_file_marked_interrupted(plant_fmu: Path, tmp_
     assert 0 < trace.data.shape[0] < 180001 and trace.data.shape[0] == record["samples"]
     assert np.all(np.isfinite(trace.data))
     assert not list(out.rglob("*.partial"))
-
-
-def plant_children(pid: int) -> list[int]:
-    """The processes `pid` started (the supervised plant of the run in progress)."""
-    try:
-        return [int(p) for p in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
-    except OSError:
-        return []
-
-
-def wait_for_plant_child(pid: int, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not plant_children(pid):
-        assert time.monotonic() < deadline, "the run never started its supervised plant"
-        time.sleep(0.02)
 
 
 def test_sigkill_leaves_no_truncated_csv(plant_fmu: Path, tmp_path: Path) -> None:

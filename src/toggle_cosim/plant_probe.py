@@ -16,6 +16,7 @@ import shutil
 import signal
 import sys
 import tempfile
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -61,7 +62,9 @@ def probe_binary(plant: PlantInterface) -> None:
         read_fd, write_fd = os.pipe()
         sys.stdout.flush()
         sys.stderr.flush()
-        pid = os.fork()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
+            pid = os.fork()
         if pid == 0:  # the child: load, answer, leave without cleanup
             code = 0
             try:

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import copy
 import math
-import re
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field

@@ -720,6 +720,8 @@ def execute(cases: Sequence[Case], fmu: Path, scheduler: str | None, workers: in
 def _arrow_schema(sweep: Sweep) -> Any:
     import pyarrow as pa
 
+    pa.enable_signal_handlers(False)  # its own SIGINT handler would bypass ours (exit -2, not 130)
+
     types = {"float": pa.float64(), "bool": pa.bool_(), "string": pa.string()}
     fields = [pa.field("case", pa.int64()), pa.field("case_id", pa.string()), pa.field("variant", pa.string())]
     fields += [pa.field(c, types[sweep.parameter_types[c]]) for c in sweep.parameter_columns]
@@ -853,7 +855,9 @@ class ResultStore:
 def read_results(path: Path) -> Any:
     """A sweep's results table as a pandas DataFrame (give results.parquet or its folder)."""
     import pandas as pd
+    import pyarrow as pa
 
+    pa.enable_signal_handlers(False)
     path = Path(path)
     return pd.read_parquet(path / RESULTS_FILE if path.is_dir() else path)
 
