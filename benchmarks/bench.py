@@ -262,13 +262,14 @@ def cli_command() -> list[str]:
     return [sys.executable, "-c", "import sys; from toggle_cosim.cli import main; sys.exit(main())"]
 
 
-def six_runs_process(fmu: Path, folder: Path) -> dict:
+def six_runs_process(fmu: Path, folder: Path, supervised: bool = True) -> dict:
     out = folder / "six"
     shutil.rmtree(out, ignore_errors=True)
     files = [str(SCENARIOS / f"{name}.yaml") for name in PAPER]
+    env = {**os.environ, "TOGGLE_COSIM_SUPERVISE": "1" if supervised else "0"}
     started = time.time()
     result = subprocess.run([*cli_command(), "run", *files, "--fmu", str(fmu), "--out", str(out), "-q"],
-                            capture_output=True, text=True, check=False)
+                            capture_output=True, text=True, check=False, env=env)
     ended = time.time()
     if result.returncode != 0:
         raise RuntimeError(f"toggle-cosim run failed: {result.stderr.strip()}")
@@ -533,6 +534,20 @@ def main() -> int:
                                "write_csv_s": sum(w[0] for w in writes), "write_json_s": sum(w[1] for w in writes),
                                "rtf": rtf_six}
         table.check("six runs together, process start to last file, RTF >= 5", rtf_six >= 5, f"{rtf_six:.1f}")
+
+        # ---------------------------------------------------------------- supervision
+        table.section("Supervision: the six paper runs end to end, each plant in a supervised child vs in-process")
+        pairs = [(six_runs_process(fmu, folder, True), six_runs_process(fmu, folder, False))
+                 for _ in range(max(3, reps // 2))]  # interleaved: load elsewhere hits both alike
+        supervised_s = best(p[0]["process"] for p in pairs)
+        unsupervised_s = best(p[1]["process"] for p in pairs)
+        supervision_ratio = supervised_s / unsupervised_s
+        table.add("supervised (fork per run, time limit, shared trace buffer)", f"{supervised_s:.2f} s", "process start to exit")
+        table.add("unsupervised (TOGGLE_COSIM_SUPERVISE=0)", f"{unsupervised_s:.2f} s", "process start to exit")
+        table.add("ratio supervised / unsupervised", f"{supervision_ratio:.3f}")
+        figures["supervision"] = {"supervised_s": supervised_s, "unsupervised_s": unsupervised_s,
+                                  "ratio": supervision_ratio}
+        table.check("supervised paper suite <= 1.5 x unsupervised", supervision_ratio <= 1.5, f"{supervision_ratio:.3f}")
 
         # ---------------------------------------------------------------- T_s sweep
         table.section(f"Cost vs number of steps: T_s from 2 ms to 0.05 ms over {sweep_t_end:g} simulated s "

@@ -1,5 +1,5 @@
 """Plant faults and interruptions: the master stops cleanly, frees the FMU, keeps the trace up to
-the fault (marked incomplete, with the reason), and first retries a failed step from a saved
+the fault (marked failed, with the reason), and first retries a failed step from a saved
 state where the FMU can save it. Result files are never left truncated."""
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def test_an_fmu_fault_ends_the_run_cleanly_after_a_retry(fault_fmu: Path, monkey
     time_column = outcome.trace.time
     assert time_column[-1] == pytest.approx(0.1995, abs=1e-9)  # the last sample before t_fault = 0.2 s
     assert np.all(np.isfinite(outcome.trace.data))
-    assert outcome.record["status"] == "incomplete" and outcome.record["samples"] == len(time_column)
+    assert outcome.record["status"] == "failed" and outcome.record["samples"] == len(time_column)
 
 
 @pytest.mark.parametrize("status, retried", [(2, True), (3, True), (4, False)])
@@ -132,9 +132,9 @@ def test_non_finite_outputs_end_the_run(plant_fmu: Path, monkeypatch: pytest.Mon
     assert len(outcome.trace.time) == 300 and np.all(np.isfinite(outcome.trace.data))
 
 
-def test_sigterm_writes_a_complete_file_marked_incomplete(plant_fmu: Path, tmp_path: Path) -> None:
+def test_sigterm_writes_a_complete_file_marked_interrupted(plant_fmu: Path, tmp_path: Path) -> None:
     """Killing a long run with SIGTERM: exit 130, the trace up to the signal is a whole CSV, and
-    run.json says incomplete and why; no temporary file is left behind."""
+    run.json says interrupted and why; no temporary file is left behind."""
     document = yaml.safe_load((ROOT / "scenarios" / "fig4_nominal.yaml").read_text())
     document.pop("variants")
     document["t_end"] = 90.0
@@ -142,15 +142,21 @@ def test_sigterm_writes_a_complete_file_marked_incomplete(plant_fmu: Path, tmp_p
     scenario = tmp_path / "long.yaml"
     scenario.write_text(yaml.safe_dump(document))
     out = tmp_path / "out"
-    env = {**os.environ, "TOGGLE_COSIM_KERNEL": "0"}  # the Python loop, which sees the signal at every sample
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {**os.environ, "TOGGLE_COSIM_KERNEL": "0", "TMPDIR": str(scratch)}  # the Python loop
     process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.cli", "run", str(scenario), "--fmu", str(plant_fmu),
                                 "--out", str(out), "-q"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(2.5)
+    deadline = time.monotonic() + 60
+    while not list(scratch.glob("toggle-cosim-run-*")):  # the supervised run has started
+        assert time.monotonic() < deadline and process.poll() is None, "the run never started"
+        time.sleep(0.02)
+    time.sleep(1.0)
     process.send_signal(signal.SIGTERM)
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, (stdout, stderr)
     record = json.loads((out / "fig4_nominal" / "run" / "run.json").read_text())
-    assert record["status"] == "incomplete" and record["reason"].startswith("interrupted")
+    assert record["status"] == "interrupted" and record["reason"].startswith("interrupted")
     trace = read_csv(out / "fig4_nominal" / "run" / "trace.csv")
     assert 0 < trace.data.shape[0] < 180001 and trace.data.shape[0] == record["samples"]
     assert np.all(np.isfinite(trace.data))

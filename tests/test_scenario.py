@@ -271,7 +271,7 @@ def test_optional_keys_may_be_left_out(tmp_path: Path) -> None:
 
 def test_target_beyond_the_toggle_position(tmp_path: Path) -> None:
     path = write_doc(tmp_path, mutated(stroke__x_target=0.40))
-    one_line_error(path, "key stroke.x_target", "0.4", "toggle position 0.3700 m", "between 0.1700 m")
+    one_line_error(path, "key stroke.x_target", "0.4", "toggle position 0.3700 m", "between 0.1800 m")
 
 
 def test_target_beyond_the_toggle_position_in_a_variant(tmp_path: Path) -> None:
@@ -279,10 +279,48 @@ def test_target_beyond_the_toggle_position_in_a_variant(tmp_path: Path) -> None:
     one_line_error(path, "key stroke.x_target (variant friction)", "toggle position")
 
 
-@pytest.mark.parametrize("x_start", [0.1, 0.17, 0.37, 0.5, 10**6])
+@pytest.mark.parametrize("x_start", [0.1, 0.17, 0.1799, 0.3601, 0.37, 0.5, 10**6])
 def test_start_outside_the_reach(tmp_path: Path, x_start: float) -> None:
+    """The linkage is singular at the folded (x_B = r3 - r1 = 0.17 m) and the toggle position
+    (r1 + r3 = 0.37 m): a start within 10 mm of either is refused, not run into huge currents."""
     path = write_doc(tmp_path, mutated(stroke__x_start=x_start))
-    one_line_error(path, "key stroke.x_start", "outside the reach", "between 0.1700 m and the toggle position 0.3700 m")
+    one_line_error(path, "key stroke.x_start", "outside the working range", "between 0.1800 m and 0.3600 m",
+                   "folded position 0.1700 m", "toggle position 0.3700 m")
+
+
+@pytest.mark.parametrize("x_start", [0.18, 0.36])
+def test_start_at_the_margin_is_accepted(tmp_path: Path, x_start: float) -> None:
+    (run, _) = load_scenario(write_doc(tmp_path, mutated(stroke__x_start=x_start)))
+    assert run.x_start == x_start
+
+
+def test_zero_length_stroke_is_refused(tmp_path: Path) -> None:
+    path = write_doc(tmp_path, mutated(stroke__x_start=0.3199))
+    one_line_error(path, "key stroke.x_target", "of x_start", "needs a length")
+
+
+@pytest.mark.parametrize(("name", "own"), [("m_B", "plant.m_B"), ("mu", "plant.mu"), ("K", "plant.K"),
+                                           ("idealCurrentLoop", "plant.current_loop"), ("x_B0", "stroke.x_start")])
+def test_plant_parameters_may_not_bypass_their_own_keys(tmp_path: Path, name: str, own: str) -> None:
+    path = write_doc(tmp_path, mutated(plant__parameters={name: True}))
+    one_line_error(path, f"key plant.parameters.{name}", f"set {own} instead")
+
+
+@pytest.mark.parametrize("text", ["5e-4", "5E-4", "+5e-4"])
+def test_yaml_1_2_exponents_are_numbers(tmp_path: Path, text: str) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text(BASE_TEXT_FOR_NUMBERS.replace("T_s: 0.0005", f"T_s: {text}"))
+    (run,) = load_scenario(path)
+    assert run.T_s == 5e-4
+
+
+def test_duplicate_keys_are_refused(tmp_path: Path) -> None:
+    path = tmp_path / "s.yaml"
+    path.write_text(BASE_TEXT_FOR_NUMBERS + "t_end: 2.0\n")
+    one_line_error(path, "duplicate key 't_end'", "line 5")
+
+
+BASE_TEXT_FOR_NUMBERS = "name: fig\nt_end: 1.5\nT_s: 0.0005\nstroke: {x_start: 0.2329, x_target: 0.3199}\n"
 
 
 def test_t_end_not_a_whole_number_of_samples(tmp_path: Path) -> None:
@@ -391,8 +429,8 @@ def test_unconvertible_tagged_scalar(tmp_path: Path, scalar: str) -> None:
 
 
 def test_missing_file_and_directory(tmp_path: Path) -> None:
-    one_line_error(tmp_path / "nowhere.yaml", "cannot read the scenario file")
-    one_line_error(tmp_path, "cannot read the scenario file")
+    one_line_error(tmp_path / "nowhere.yaml", "no such scenario file")
+    one_line_error(tmp_path, "is a directory, not a scenario file")
 
 
 # ----------------------------------------------------------------------------- names and patterns

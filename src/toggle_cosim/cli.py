@@ -1,22 +1,25 @@
 """Command line: `toggle-cosim build | run | plot | paper`.
 
 The only module that knows about files, exit codes and progress display. Exit status:
-0 success, 1 a run or comparison failed, 2 bad input (nothing is written then).
+0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
 """
 
 from __future__ import annotations
 
 import json
-import signal
 import sys
-import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import click
+from toggle_cosim import interrupts
 
-from toggle_cosim import __version__
+if __name__ == "__main__" or Path(sys.argv[0]).name == "toggle-cosim":
+    interrupts.install_for_start_up()  # before the heavy imports: an interrupt at start-up exits 130 too
+
+import click  # noqa: E402
+
+from toggle_cosim import __version__  # noqa: E402
 
 DEFAULT_SOURCE = Path("modelica/ToggleLSM")
 DEFAULT_MODEL = "ToggleLSM.Plant"
@@ -48,17 +51,50 @@ class RunFailed(click.ClickException):
         click.echo(f"failed: {self.message}", err=True)
 
 
-def _terminate_as_interrupt(signum: int, frame: object) -> None:
-    """SIGTERM ends a run the way Ctrl-C does: the run in progress is written as incomplete."""
-    raise KeyboardInterrupt(f"signal {signum}")
+class _Commands(click.Group):
+    """The command group, with one exit-status policy: 0 success, 1 a run or comparison failed,
+    2 bad input (one line), 130 interrupted (SIGINT or SIGTERM, at any moment; no traceback)."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):  # noqa: ANN001, ANN201
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        interrupts.install()
+        try:
+            result = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except (KeyboardInterrupt, click.exceptions.Abort):
+            interrupts.ignore()
+            click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
+            interrupts.exit_interrupted()
+        except click.UsageError as error:  # one line, like every other bad input
+            command = error.ctx.command_path if error.ctx is not None else "toggle-cosim"
+            click.echo(f"error: {' '.join(error.format_message().split())} (see '{command} --help')", err=True)
+            sys.exit(2)
+        except click.ClickException as error:
+            error.show()
+            sys.exit(error.exit_code)
+        except click.exceptions.Exit as error:
+            sys.exit(error.exit_code)
+        except SystemExit:
+            raise
+        except OSError as error:  # a file system problem found late (e.g. a disk that filled up): one line
+            if interrupts.is_interrupt(error):
+                interrupts.exit_interrupted()
+            where = f"{error.filename}: " if error.filename else ""
+            click.echo(f"error: {where}{error.strerror or error} (check the path, its permissions and free space)", err=True)
+            sys.exit(2)
+        except BaseException as error:
+            if not interrupts.is_interrupt(error):  # e.g. a SystemError from a C call the signal landed in
+                raise
+            interrupts.ignore()
+            click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
+            interrupts.exit_interrupted()
+        sys.exit(result if isinstance(result, int) else 0)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="toggle-cosim")
 def main() -> None:
     """Co-simulation of the PMLSM-driven toggle mechanism (Fung, Wu and Chen 2001)."""
-    if threading.current_thread() is threading.main_thread():  # signal handlers live in the main thread
-        signal.signal(signal.SIGTERM, _terminate_as_interrupt)
 
 
 def project_root() -> Path:
@@ -70,9 +106,20 @@ def project_root() -> Path:
     return here
 
 
-def _inside_project(path: Path, what: str, option: str) -> Path:
+def _project_of(source: Path) -> Path:
+    """The project a Modelica source belongs to: the nearest folder up from it with a
+    pyproject.toml (whatever the current folder is); a one-line refusal if there is none."""
+    resolved = source.resolve()
+    for folder in (resolved, *resolved.parents):
+        if (folder / "pyproject.toml").is_file():
+            return folder
+    raise InputError(f"{source}: the Modelica source lies in no project (no pyproject.toml above it); "
+                     "the build only reads and writes inside a project")
+
+
+def _inside_project(path: Path, what: str, option: str, root: Path | None = None) -> Path:
     """`path`, resolved, if it lies inside the project; else a one-line refusal."""
-    root = project_root()
+    root = root or project_root()
     resolved = path.resolve()
     if not resolved.is_relative_to(root):
         raise InputError(f"{path}: the {what} lies outside the project {root}; the build only reads and writes "
@@ -83,8 +130,9 @@ def _inside_project(path: Path, what: str, option: str) -> Path:
 def _build(source: Path, model: str, output: Path, fmi_version: str = "2.0", interfaces: str = "both") -> None:
     from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
 
-    source = _inside_project(source, "Modelica source", "--source")
-    output = _inside_project(output, "FMU output", "--output")
+    root = _project_of(source)
+    source = _inside_project(source, "Modelica source", "--source", root)
+    output = _inside_project(output, "FMU output", "--output", root)
     if output.suffix != ".fmu":
         raise InputError(f"{output}: an FMU file name must end in .fmu (fix --output)")
     try:
@@ -124,7 +172,7 @@ def build(source: Path, model: str | None, output: Path | None, fmi_version: str
 
 def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
     from toggle_cosim.plant import ContractError, check_plant
-    from toggle_cosim.friction import friction_settings
+    from toggle_cosim.plant_probe import ProbeError, probe_binary
     from toggle_cosim.scenario import ScenarioError, load_scenario
 
     runs = []
@@ -142,14 +190,17 @@ def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
         if chosen not in plants:
             try:
                 plants[chosen] = check_plant(chosen)
-            except ContractError as error:
+                probe_binary(plants[chosen])
+            except (ContractError, ProbeError) as error:
                 raise InputError(str(error)) from error
     pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
-    for run, plant in pairs:  # a friction model the plant cannot run is refused before anything runs
+    from toggle_cosim.plant_settings import SettingError, check_settings
+
+    for run, plant in pairs:  # every name and value the run sets, before any run starts
         try:
-            friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, plant.references, plant.path)
-        except ValueError as error:
-            raise InputError(f"{error} (scenario {run.source}, run {run.label})") from error
+            check_settings(run, plant)
+        except SettingError as error:
+            raise InputError(f"{run.source or run.label}: {error}") from error
     return pairs
 
 
@@ -157,19 +208,41 @@ def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
     from toggle_cosim.traces import write_csv, write_json
 
     folder = out / outcome.run.scenario / (outcome.run.variant or "run")
-    write_csv(folder / "trace.csv", outcome.trace)
-    write_json(folder / "run.json", outcome.record)
+    with interrupts.deferred():  # both files whole, or an interrupt waits for them
+        write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
+        write_json(folder / "run.json", outcome.record)
     return folder
 
 
-def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
-    from toggle_cosim.master import simulate
+def _status_text(outcome) -> str:  # noqa: ANN001
+    if outcome.complete:
+        return "complete"
+    return f"{'INTERRUPTED' if outcome.interrupted else 'FAILED'} ({outcome.reason})"
 
+
+def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path | None = None):  # noqa: ANN001, ANN202
+    """One run, supervised (`supervision`); TOGGLE_COSIM_SUPERVISE=0 runs it in this process
+    instead (for the benchmark's comparison and for debugging: no time limit, no crash guard)."""
+    import os
+
+    if os.environ.get("TOGGLE_COSIM_SUPERVISE", "1") == "0":
+        from toggle_cosim.master import simulate
+
+        return simulate(run, plant, progress)
+    from toggle_cosim.supervision import simulate_supervised
+
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
+
+
+def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None) -> list:  # noqa: ANN001
+    from toggle_cosim.resources import check_runs
+
+    check_runs(pairs, out)
     outcomes = []
     for number, (run, plant) in enumerate(pairs, start=1):
         label = f"[{number}/{len(pairs)}] {run.label}"
         if quiet or not sys.stderr.isatty():
-            outcome = simulate(run, plant)
+            outcome = _simulate(run, plant, time_limit)
         else:
             with click.progressbar(length=1000, label=label, file=sys.stderr) as bar:
                 done = [0]
@@ -180,20 +253,30 @@ def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
                         bar.update(step)
                         done[0] += step
 
-                outcome = simulate(run, plant, progress)
+                outcome = _simulate(run, plant, time_limit, progress)
         folder = _write_outcome(outcome, out)
         s = outcome.summary
-        status = "complete" if outcome.complete else f"INCOMPLETE ({outcome.reason})"
         detail = (
             f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
-            f"T_h {s.hitting_time_s:.4f} s" if s else "no summary"
+            f"T_h {s.hitting_time_s:.4f} s" if s and s.final_error_m is not None else "no summary"
         )
-        click.echo(f"{label}: {status}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
+        click.echo(f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
         outcomes.append(outcome)
         if outcome.interrupted:
-            click.echo(f"interrupted: {label} written as incomplete; {len(pairs) - number} run(s) not started", err=True)
-            sys.exit(130)
+            click.echo(f"interrupted: {label} written as interrupted; {len(pairs) - number} run(s) not started", err=True)
+            raise KeyboardInterrupt
     return outcomes
+
+
+def _failed(outcomes) -> None:  # noqa: ANN001
+    failed = [f"{o.run.label} ({o.reason})" for o in outcomes if not o.complete]
+    if failed:
+        raise RunFailed(f"{len(failed)} run(s) failed: {'; '.join(failed)}")
+
+
+_TIME_LIMIT = click.option(
+    "--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
+    help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).")
 
 
 @main.command()
@@ -201,32 +284,51 @@ def _execute(pairs, out: Path, quiet: bool) -> list:  # noqa: ANN001
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the scenarios' fmu: key).")
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True, help="Output folder.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
-def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool) -> None:
+@_TIME_LIMIT
+def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, time_limit: float | None) -> None:
     """Run scenario files; write trace.csv and run.json per run under OUT/<scenario>/<variant>/."""
     pairs = _load_runs(scenarios, fmu)
-    outcomes = _execute(pairs, out, quiet)
-    failed = [o.run.label for o in outcomes if not o.complete]
-    if failed:
-        raise RunFailed(f"{len(failed)} run(s) incomplete: {', '.join(failed)}")
+    _failed(_execute(pairs, out, quiet, time_limit))
+
+
+def _read_record(path: Path) -> dict:
+    """A run.json: a regular file of at most JSON_LIMIT bytes holding a JSON object."""
+    from toggle_cosim.bounded_files import JSON_LIMIT, read_text_bounded
+
+    record = json.loads(read_text_bounded(path, JSON_LIMIT, "run record"))
+    if not isinstance(record, dict):
+        raise ValueError("run.json does not hold a JSON object")
+    return record
 
 
 def _plot_scenario(folder: Path, output: Path | None) -> Path:
+    from toggle_cosim.plant import OUTPUTS
     from toggle_cosim.plots import nine_panel_figure
     from toggle_cosim.traces import read_csv
 
     runs = sorted(p for p in folder.iterdir() if (p / "trace.csv").is_file()) if folder.is_dir() else []
     if not runs:
         raise InputError(f"{folder}: no run results here (expected <variant>/trace.csv; run 'toggle-cosim run' first)")
+    needed = ("time", "x_B", "iq_ref", "lambda1", "lambda2", *(n for n in OUTPUTS if n[:1] == "N" or n[:2] == "Ff"))
     traces, target, title = {}, None, folder.name
     for run_dir in runs:
         try:
-            traces[run_dir.name] = read_csv(run_dir / "trace.csv")
-            record = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
-        except (OSError, ValueError) as error:
-            raise InputError(f"{run_dir}: unreadable results ({error})") from error
-        target = record["resolved"]["stroke"]["x_target"]
-        title = f"{record['scenario']}: {record['description']}"
-    return nine_panel_figure(traces, title, output or folder / "figure.png", target)
+            trace = read_csv(run_dir / "trace.csv")
+            record = _read_record(run_dir / "run.json")
+            target = float(record["resolved"]["stroke"]["x_target"])
+            title = f"{record['scenario']}: {record.get('description', '')}"
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            detail = f"missing key {error}" if isinstance(error, KeyError) else " ".join(str(error).split())
+            raise InputError(f"{run_dir}: unreadable results ({detail}); run it again with 'toggle-cosim run'") from error
+        missing = [name for name in needed if name not in trace.names]
+        if missing:
+            raise InputError(f"{run_dir / 'trace.csv'}: no column {missing[0]!r} (the figure needs {', '.join(needed[:5])}, ...);"
+                             " run it again with 'toggle-cosim run'")
+        traces[run_dir.name] = trace
+    try:
+        return nine_panel_figure(traces, title, output or folder / "figure.png", target)
+    except OSError as error:
+        raise InputError(f"{output or folder / 'figure.png'}: cannot write the figure ({error.strerror or error})") from error
 
 
 @main.command()
@@ -246,7 +348,8 @@ def plot(results: tuple[Path, ...], output: Path | None) -> None:
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True)
 @click.option("--fmu", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True)
 @click.option("--skip-build", is_flag=True, help="Use the existing FMU.")
-def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
+@_TIME_LIMIT
+def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: float | None) -> None:
     """The main job: build the FMU, run the paper's six runs, write traces, figures and a summary."""
     from toggle_cosim.report import write_summary
 
@@ -257,7 +360,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
             _build(DEFAULT_SOURCE, name, path)
     files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
     pairs = _load_runs(files, fmu)
-    outcomes = _execute(pairs, out, quiet=False)
+    outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit)
     for name in PAPER_SCENARIOS:
         click.echo(f"wrote {_plot_scenario(out / name, None)}")
     extra = scenarios / "friction_models.yaml"
@@ -270,9 +373,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool) -> None:
         outcomes = [*outcomes, *_execute(extra_pairs, out, quiet=False)]
     summary = write_summary(outcomes, out / "summary.md")
     click.echo(f"wrote {summary}; total {time.perf_counter() - started:.1f} s")
-    failed = [o.run.label for o in outcomes if not o.complete]
-    if failed:
-        raise RunFailed(f"{len(failed)} run(s) incomplete: {', '.join(failed)}")
+    _failed(outcomes)
 
 
 @main.command()
@@ -310,13 +411,13 @@ def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | 
               help="Markdown summary (default: OUT/summary.md).")
 @click.option("--fail-on-solver-change", is_flag=True,
               help="A change of the stored solver statistics fails (default: a warning).")
+@_TIME_LIMIT
 def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Path | None, out: Path,
-               junit: Path | None, summary: Path | None, fail_on_solver_change: bool) -> None:
+               junit: Path | None, summary: Path | None, fail_on_solver_change: bool, time_limit: float | None) -> None:
     """Check the shipped runs against their stored reference traces (or --update them)."""
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim import references as refs
     from toggle_cosim.compare import CompareInputError, format_table
-    from toggle_cosim.master import simulate
 
     for path, what in ((junit, "JUnit report"), (summary, "Markdown summary")):
         if path is not None and path.is_dir():
@@ -325,12 +426,19 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     pairs = _load_runs(files, fmu)
+    from toggle_cosim.resources import check_runs
+
+    check_runs(pairs, folder if update else None)
     failures: list[str] = []
     checks = []
     for run, plant in pairs:
-        outcome = simulate(run, plant)
-        if not outcome.complete:
-            raise RunFailed(f"{run.label}: {outcome.reason}")
+        outcome = _simulate(run, plant, time_limit)
+        if outcome.interrupted:
+            raise KeyboardInterrupt
+        if not outcome.complete:  # the other runs go on; the command fails at the end
+            click.echo(f"{run.label}: FAILED ({outcome.reason})")
+            failures.append(f"{run.label}: {outcome.reason}")
+            continue
         if update:
             click.echo(f"{run.label}: wrote {refs.store(outcome, folder)}")
             continue
@@ -361,11 +469,17 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
 @click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
-def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Path | None, retry_failed: bool) -> None:
+@click.option("--case-timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
+              help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).")
+def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Path | None, retry_failed: bool,
+          case_timeout: float | None) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
     from toggle_cosim.sweep import run_sweep
 
-    sys.exit(run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed))
+    code = run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed, case_timeout=case_timeout)
+    if code == interrupts.EXIT_INTERRUPTED:
+        interrupts.exit_interrupted()
+    sys.exit(code)
 
 
 if __name__ == "__main__":

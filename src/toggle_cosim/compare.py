@@ -440,23 +440,17 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     from DEFAULT_TOLERANCE. Returns (default, {variable: tolerance}).
     """
     import jsonschema
-    import yaml
+
+    from toggle_cosim.yaml_loader import YamlError, load_yaml
 
     path = Path(path)
     if not path.is_file():
         what = "is a directory" if path.is_dir() else "no such file"
         raise CompareInputError(f"{path}: {what}; give the YAML tolerance file")
     try:
-        document = yaml.safe_load(path.read_text(encoding="utf-8-sig"))
-    except UnicodeDecodeError as error:
-        raise CompareInputError(f"{path}: is not UTF-8 text (offset {error.start}); re-save it as UTF-8") from error
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f"line {mark.line + 1}: " if mark is not None else ""
-        problem = getattr(error, "problem", None) or str(error)
-        raise CompareInputError(f"{path}: is not valid YAML ({where}{problem}); fix the syntax") from error
-    except OSError as error:
-        raise CompareInputError(f"{path}: cannot be read ({error.strerror})") from error
+        document = load_yaml(path, "tolerance file")  # one hardened loader for every YAML file
+    except YamlError as error:
+        raise CompareInputError(f"{error} (it is not valid YAML for a tolerance file); fix the syntax") from error
     if document is None:
         raise CompareInputError(
             f"{path}: is empty; write {{variable: {{atol:, rtol:, ttol:}}}} entries or drop the option"
@@ -469,6 +463,10 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
         if not isinstance(key, str):
             raise CompareInputError(f"{path}: key {key!r} is not a variable name; quote it")
     document = _coerce_numbers(document)
+    for key, entry in document.items():  # NaN and infinities pass a schema's number bounds
+        for name, value in (entry.items() if isinstance(entry, dict) else ()):
+            if isinstance(value, float) and not math.isfinite(value):
+                raise CompareInputError(f"{path}: key '{key}.{name}': {value!r} is not a finite number; {_FIX}")
     validator = jsonschema.Draft202012Validator(TOLERANCE_SCHEMA)
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
     if error is not None:

@@ -148,14 +148,23 @@ def _solver_statistics(fmu: PlantFMU, plant: PlantInterface) -> dict[str, int] |
         return f"unreadable ({error})"
 
 
-def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None) -> RunOutcome:
-    """Run one scenario variant against `plant`. Never raises for a plant fault: see RunOutcome."""
+def trace_names(plant: PlantInterface) -> tuple[str, ...]:
+    """The columns of a run's trace: time, the plant's recorded outputs, the controller's columns."""
+    return ("time", *plant.recorded_outputs, *CONTROL_COLUMNS)
+
+
+def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None,
+             buffer: np.ndarray | None = None) -> RunOutcome:
+    """Run one scenario variant against `plant`. Never raises for a plant fault: see RunOutcome.
+
+    `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
+    file-backed map shared with a supervising process (`supervision`); the trace is then a view of it."""
     started = clock.perf_counter()
     controller = make_controller(run)
     n = run.steps
     outputs = list(plant.recorded_outputs)
-    names = ("time", *outputs, *CONTROL_COLUMNS)
-    data = np.full((n + 1, len(names)), np.nan)
+    names = trace_names(plant)
+    data = np.full((n + 1, len(names)), np.nan) if buffer is None else buffer
     n_out = len(outputs)
     i_x, i_v = 1 + outputs.index("x_B"), 1 + outputs.index("v_B")
     col_u = 1 + n_out
@@ -171,7 +180,10 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
     try:
         fmu.instantiate(0.0, run.t_end)
         for name, value in _plant_settings(run, plant):
-            fmu.set_value(name, value)
+            try:
+                fmu.set_value(name, value)
+            except Exception as error:  # noqa: BLE001 - name the variable and the value
+                raise RuntimeError(f"setting {name} = {value!r} failed ({error})") from None
         fmu.enter_initialization()
         fmu.write_inputs((0.0, F_E))
         fmu.exit_initialization()
@@ -293,7 +305,7 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
     finally:
         solver_statistics = _solver_statistics(fmu, plant)
         fmu.close()
-    trace = Trace(names, data[:rows].copy())
+    trace = Trace(names, data[:rows].copy() if buffer is None else data[:rows])
     complete = reason is None and rows == n + 1
     summary = None
     if rows > 1 and state is not None:
@@ -302,7 +314,15 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
             trace.column("E_fric"), run.x_start, run.x_target, state.T_h, state.S0,
         )
     wall = clock.perf_counter() - started
-    record = {
+    status = "complete" if complete else "interrupted" if interrupted else "failed"
+    record = run_record(run, plant, status, reason, rows, wall, loop_finished - loop_started, summary, retries)
+    return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)
+
+
+def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None, rows: int, wall: float,
+               loop_seconds: float, summary: RunSummary | None = None, retries: list | None = None) -> dict[str, Any]:
+    """What run.json says about a run: status is "complete", "failed" or "interrupted"."""
+    return {
         "scenario": run.scenario,
         "variant": run.variant,
         "scenario_file": str(run.source) if run.source else None,
@@ -310,16 +330,15 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         "resolved": run.resolved,
         "fmu": {"path": str(plant.path), "sha256": file_sha256(plant.path), "guid": plant.guid,
                 "fmi_version": plant.fmi_version, "model_name": plant.model_description.modelName},
-        "status": "complete" if complete else "incomplete",
+        "status": status,
         "reason": reason,
         "samples": rows,
-        "retries": retries,
+        "retries": retries or [],
         "loop": loop,
         "wall_time_s": wall,
-        "loop_time_s": loop_finished - loop_started,
-        "real_time_factor": (rows - 1) * run.T_s / max(loop_finished - loop_started, 1e-12),
+        "loop_time_s": loop_seconds,
+        "real_time_factor": max(rows - 1, 0) * run.T_s / max(loop_seconds, 1e-12),
         "summary": summary.as_dict() if summary else None,
         "solver_statistics": solver_statistics,
         "versions": _versions(),
     }
-    return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)

@@ -14,6 +14,7 @@ Any FMU that provides these variables (names, causality and units) can be the pl
 from __future__ import annotations
 
 import platform
+import stat
 import zipfile
 from xml.etree import ElementTree
 from dataclasses import dataclass
@@ -34,6 +35,8 @@ OUTPUTS = {
 OPTIONAL_OUTPUTS = {"a_B": "m/s2", "omega1": "rad/s", "v_C": "m/s", "Phi1": "m", "Phi2": "m"}
 PARAMETERS = {"m_B": "kg", "mu": None}
 OPTIONAL_PARAMETERS = {"idealCurrentLoop": None, "K": "rad/s", "x_B0": "m", "frictionModel": None, "mu_s": None}
+VARIABILITIES = {"input": ("continuous", "discrete"), "output": ("continuous", "discrete"),
+                 "parameter": ("fixed", "tunable")}
 
 
 class ContractError(Exception):
@@ -79,14 +82,18 @@ def check_plant(path: Path) -> PlantInterface:
     path = Path(path)
     if not path.is_file():
         raise ContractError(f"{path}: no such FMU file (build it with 'toggle-cosim build' or fix the fmu: key)")
+    if not stat.S_ISREG(path.stat().st_mode):
+        raise ContractError(f"{path}: not a regular file (give the .fmu file itself)")
     if not zipfile.is_zipfile(path):
         raise ContractError(f"{path}: not an FMU (not a zip archive)")
+    from toggle_cosim.fmu_archive import ArchiveError, read_model_description as read_archive
+
     try:
-        with zipfile.ZipFile(path) as archive:
-            names = set(archive.namelist())
-            description = archive.read("modelDescription.xml") if "modelDescription.xml" in names else None
-    except (zipfile.BadZipFile, OSError) as error:
-        raise ContractError(f"{path}: not an FMU (damaged zip archive: {error})") from error
+        names, description = read_archive(path)  # names, sizes and data checked before anything is used
+    except ArchiveError as error:
+        raise ContractError(f"{path}: unusable FMU archive: {error}") from error
+    except (zipfile.BadZipFile, OSError, ValueError, NotImplementedError) as error:
+        raise ContractError(f"{path}: not an FMU (damaged zip archive: {' '.join(str(error).split())})") from error
     if description is None:
         raise ContractError(f"{path}: not an FMU (no modelDescription.xml in the archive)")
     try:
@@ -125,6 +132,14 @@ def check_plant(path: Path) -> PlantInterface:
         declared = variable.unit if variable.unit is not None else (variable.declaredType.unit if variable.declaredType else None)
         if unit is not None and declared != unit:
             raise ContractError(f"{path}: variable {name!r} has unit {declared!r}, the contract needs {unit!r}")
+        wanted = "Boolean" if name == "idealCurrentLoop" else ("Real", "Float64")
+        if variable.type not in ((wanted,) if isinstance(wanted, str) else wanted):
+            need = wanted if isinstance(wanted, str) else "Real (FMI 2.0) or Float64 (FMI 3.0)"
+            raise ContractError(f"{path}: variable {name!r} has type {variable.type}, the contract needs {need}")
+        allowed = VARIABILITIES[causalities[0]]
+        if variable.variability not in allowed:
+            raise ContractError(f"{path}: variable {name!r} has variability {variable.variability}, the contract needs "
+                                f"{' or '.join(allowed)} for a {causalities[0]}")
         references[name] = variable.valueReference
         types[name] = variable.type
 
@@ -138,6 +153,13 @@ def check_plant(path: Path) -> PlantInterface:
         require(name, ("parameter",), unit)
     for name, unit in OPTIONAL_PARAMETERS.items():
         require(name, ("parameter",), unit, optional=True)
+    shared: dict[tuple[str, int], str] = {}
+    for name in references:  # two contract variables on one value reference read the same number
+        kind = "any" if md.fmiVersion.startswith("3") else types[name]
+        other = shared.setdefault((kind, references[name]), name)
+        if other != name:
+            raise ContractError(f"{path}: variables {other!r} and {name!r} share the value reference {references[name]};"
+                                " the contract needs each on its own")
     for variable in md.modelVariables:
         references.setdefault(variable.name, variable.valueReference)
         types.setdefault(variable.name, variable.type)

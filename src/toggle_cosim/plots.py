@@ -50,7 +50,12 @@ def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, tar
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
     partial = output.with_name(f".{output.stem}.partial.png")
-    figure.savefig(partial, dpi=110)
-    plt.close(figure)
-    partial.replace(output)
+    try:
+        figure.savefig(partial, dpi=110)
+        partial.replace(output)
+    except BaseException:
+        partial.unlink(missing_ok=True)  # no stray partial PNG
+        raise
+    finally:
+        plt.close(figure)
     return output

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import copy
 import math
-import re
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -31,7 +30,6 @@ from pathlib import Path
 from typing import Any, Literal
 
 import jsonschema
-import yaml
 
 from toggle_cosim.parameters import ControllerGains, MechanismParameters
 
@@ -97,6 +95,10 @@ _OVERRIDE = {
         "stroke": {**_STROKE, "required": []},
         "plant": _PLANT,
         "controller": _CONTROLLER,
+        "time_limit": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6,
+                       "description": "wall-clock limit of the run in s (default max(30 s, 20 x t_end))"},
+        "record_every": {"type": "integer", "minimum": 1, "maximum": 1_000_000,
+                         "description": "write every n-th sample (and the last) to trace.csv"},
     },
 }
 SCHEMA: dict[str, Any] = {
@@ -113,6 +115,8 @@ SCHEMA: dict[str, Any] = {
         "stroke": _STROKE,
         "plant": _PLANT,
         "controller": _CONTROLLER,
+        "time_limit": _OVERRIDE["properties"]["time_limit"],
+        "record_every": _OVERRIDE["properties"]["record_every"],
         "variants": {
             "type": "object",
             "minProperties": 1,
@@ -279,17 +283,36 @@ def _reach_limit(geometry: MechanismParameters) -> float:
     return math.sqrt(max((geometry.r3 - geometry.r1) ** 2 - geometry.f**2, 0.0))
 
 
+SINGULARITY_MARGIN = 0.01  # m: a stroke keeps this far from the toggle and the folded position
+MIN_STROKE = 1e-4  # m: a shorter stroke is refused (the summary's figures divide by it)
+# keys of their own: plant.parameters may not set these FMU parameters behind the record's back
+OWN_KEYS = {"m_B": "plant.m_B", "mu": "plant.mu", "K": "plant.K", "idealCurrentLoop": "plant.current_loop",
+            "x_B0": "stroke.x_start", "frictionModel": "plant.friction_model", "mu_s": "plant.mu_s"}
+
+
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
     stroke = document["stroke"]
     geometry = MechanismParameters()
     upper, lower = toggle_limit(geometry), _reach_limit(geometry)
+    suffix = f" (variant {variant})" if variant else ""
     for key in ("x_start", "x_target"):
         value = stroke[key]
-        if not lower < value < upper:
-            where = f"stroke.{key}" + (f" (variant {variant})" if variant else "")
+        if not lower + SINGULARITY_MARGIN - 1e-12 <= value <= upper - SINGULARITY_MARGIN + 1e-12:
             raise ScenarioError(
-                f"key {where}: {value} m is outside the reach of the linkage (must lie between {lower:.4f} m and"
-                f" the toggle position {upper:.4f} m)"
+                f"key stroke.{key}{suffix}: {value} m is outside the working range of the linkage (must lie between"
+                f" {lower + SINGULARITY_MARGIN:.4f} m and {upper - SINGULARITY_MARGIN:.4f} m: {SINGULARITY_MARGIN * 1e3:.0f} mm"
+                f" from the folded position {lower:.4f} m and the toggle position {upper:.4f} m, where the"
+                f" linkage is singular)"
+            )
+    if abs(stroke["x_target"] - stroke["x_start"]) < MIN_STROKE:
+        raise ScenarioError(
+            f"key stroke.x_target{suffix}: {stroke['x_target']} m is within {MIN_STROKE * 1e3:g} mm of x_start"
+            f" ({stroke['x_start']} m): a stroke needs a length (move x_target)"
+        )
+    for name in (document.get("plant") or {}).get("parameters") or {}:
+        if name in OWN_KEYS:
+            raise ScenarioError(
+                f"key plant.parameters.{name}{suffix}: {name} has its own key; set {OWN_KEYS[name]} instead"
             )
     t_end, T_s = float(document["t_end"]), float(document["T_s"])
     if T_s > t_end:
@@ -347,43 +370,15 @@ def runs_from_document(document: Any, source: Path | None = None) -> list[Run]:
     return [_build_run(merge_documents(base, override), name, source) for name, override in variants.items()]
 
 
-def _line_column(text: str, position: int) -> tuple[int, int]:
-    """1-based line and column of a character offset, counting line breaks as PyYAML does."""
-    lines = re.split("\r\n|[\n\r\x85\u2028\u2029]", text[:position])
-    return len(lines), len(lines[-1]) + 1
-
-
 def load_scenario(path: Path) -> list[Run]:
-    """Read and validate a scenario file. Raises ScenarioError with 'FILE: problem'."""
+    """Read and validate a scenario file (`yaml_loader`). Raises ScenarioError with 'FILE: problem'."""
+    from toggle_cosim.yaml_loader import YamlError, load_yaml
+
     path = Path(path)
     try:
-        raw = path.read_bytes()
-    except OSError as error:
-        raise ScenarioError(f"{path}: cannot read the scenario file ({error.strerror or error})") from error
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise ScenarioError(f"{path}: not UTF-8 text (byte {error.start}); save the scenario as UTF-8 YAML") from error
-    try:
-        document = yaml.safe_load(text)
-    except yaml.reader.ReaderError as error:  # a control character: it has a position, not a mark
-        line, column = _line_column(text, error.position)
-        raise ScenarioError(
-            f"{path}: YAML syntax error at line {line}, column {column}: unacceptable character"
-            f" #x{error.character:04x} ({error.reason})"
-        ) from error
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = " ".join(str(getattr(error, "problem", None) or "malformed YAML").split())
-        raise ScenarioError(f"{path}: YAML syntax error{where}: {problem}") from error
-    except RecursionError as error:
-        raise ScenarioError(f"{path}: YAML nested too deeply (a scenario needs a few levels)") from error
-    except Exception as error:  # noqa: BLE001 - PyYAML's constructors raise plain Python errors too:
-        # ValueError ("!!int abc", an integer of more than 4300 digits), KeyError ("!!bool maybe"),
-        # IndexError ('!!int ""'), AttributeError ("!!timestamp abc"), ...
-        reason = " ".join(f"{type(error).__name__}: {error}".split())
-        raise ScenarioError(f"{path}: YAML value that cannot be converted ({reason})") from error
+        document = load_yaml(path, "scenario file")
+    except YamlError as error:
+        raise ScenarioError(str(error)) from error
     if document is None:
         raise ScenarioError(f"{path}: the file is empty (a scenario needs name, t_end, T_s and stroke)")
     try:

@@ -62,8 +62,8 @@ from typing import Any
 
 import jsonschema
 import numpy as np
-import yaml
 
+from toggle_cosim import interrupts
 from toggle_cosim.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
 from toggle_cosim.summary import RunSummary
@@ -278,21 +278,12 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
 
 
 def _read_yaml(path: Path, what: str) -> Any:
+    from toggle_cosim.yaml_loader import YamlError, load_yaml
+
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise SweepError(f"{path}: cannot read the {what} ({error.strerror or error})") from error
-    except UnicodeDecodeError as error:
-        raise SweepError(f"{path}: not UTF-8 text (byte {error.start})") from error
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = " ".join(str(getattr(error, "problem", None) or "malformed YAML").split())
-        raise SweepError(f"{path}: YAML syntax error{where}: {problem}") from error
-    except Exception as error:  # noqa: BLE001 - PyYAML constructors raise plain Python errors
-        raise SweepError(f"{path}: YAML value that cannot be converted ({type(error).__name__}: {error})") from error
+        return load_yaml(path, what)
+    except YamlError as error:
+        raise SweepError(str(error)) from error
 
 
 def _column_type(values: Iterable[Any]) -> str:
@@ -519,13 +510,15 @@ def _resolve_fmu(fmu: str, sha256: str | None, data: bytes | None = None) -> Pat
 
 
 def run_case(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None = None,
-             fmu_data: bytes | None = None) -> dict[str, Any]:
+             fmu_data: bytes | None = None, time_limit: float | None = None) -> dict[str, Any]:
     """Run one case (a payload of plain data) on the plant FMU at `fmu` (checked against
     `fmu_sha256` if given; `fmu_data`, the FMU's bytes, stand in where that file is missing);
     return its table row.
 
-    Never raises for a failure of the case: the row has status "failed" and the reason."""
-    from toggle_cosim.master import simulate
+    Never raises for a failure of the case: the row has status "failed" and the reason. The case
+    runs supervised (`supervision`): a crash or hang of the plant, or `time_limit` (default: the
+    case's time_limit key, else max(30 s, 20 x t_end)) exceeded, is a failed row."""
+    from toggle_cosim.supervision import simulate_supervised
 
     started = time.perf_counter()
     row: dict[str, Any] = {
@@ -538,7 +531,7 @@ def run_case(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None = None,
             try:
                 (run,) = runs_from_document(copy.deepcopy(case["document"]))
                 plant = _plant(_resolve_fmu(fmu, fmu_sha256, fmu_data))
-                outcome = simulate(run, plant)
+                outcome = simulate_supervised(run, plant, time_limit=time_limit, capture_log=True)
             except Exception as error:  # noqa: BLE001 - any failure is the case's result
                 outcome = None
                 row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
@@ -573,17 +566,18 @@ def _pool_init(slots: Any, counter: Any) -> None:
     """Pool worker start: Ctrl-C is the parent's to handle; take a slot to report the running case."""
     global _slots, _slot
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     with counter.get_lock():
         _slot = counter.value
         counter.value += 1
     _slots = slots
 
 
-def _pool_task(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None) -> dict[str, Any]:
+def _pool_task(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None, time_limit: float | None = None) -> dict[str, Any]:
     if _slots is not None and 0 <= _slot < len(_slots):
         _slots[_slot] = case["index"]
     try:
-        return run_case(case, fmu, fmu_sha256)
+        return run_case(case, fmu, fmu_sha256, time_limit=time_limit)
     finally:
         if _slots is not None and 0 <= _slot < len(_slots):
             _slots[_slot] = -1
@@ -597,7 +591,15 @@ def _crash_row(case: Case, fmu_sha256: str | None, reason: str) -> dict[str, Any
     }
 
 
-def _run_pool(cases: Sequence[Case], fmu: str, sha: str, workers: int, on_row: Callable[[dict[str, Any]], None]) -> None:
+def _kill_workers(pool: ProcessPoolExecutor) -> None:
+    """End the pool's workers now (an interrupt): their running cases' plants die with them."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        with contextlib.suppress(Exception):
+            process.kill()
+
+
+def _run_pool(cases: Sequence[Case], fmu: str, sha: str, workers: int, on_row: Callable[[dict[str, Any]], None],
+              time_limit: float | None = None) -> None:
     """Local process pool. A worker process that dies (a crash inside the FMU) breaks the pool:
     the cases that were running then are re-run one at a time to find the one that crashes, which
     is recorded as failed; the others are resubmitted."""
@@ -612,7 +614,7 @@ def _run_pool(cases: Sequence[Case], fmu: str, sha: str, workers: int, on_row: C
         slots = context.Array("q", [-1] * size, lock=False)
         counter = context.Value("i", 0)
         pool = ProcessPoolExecutor(max_workers=size, mp_context=context, initializer=_pool_init, initargs=(slots, counter))
-        futures = {pool.submit(_pool_task, case.payload(), fmu, sha): case for case in batch}
+        futures = {pool.submit(_pool_task, case.payload(), fmu, sha, time_limit): case for case in batch}
         broken: list[Case] = []
         running_at_break: set[int] = set()
         try:
@@ -631,6 +633,7 @@ def _run_pool(cases: Sequence[Case], fmu: str, sha: str, workers: int, on_row: C
                         row = _crash_row(futures[future], sha, " ".join(f"{type(error).__name__}: {error}".split()))
                     on_row(row)
         except BaseException:
+            _kill_workers(pool)
             pool.shutdown(wait=False, cancel_futures=True)
             raise
         pool.shutdown(wait=True)
@@ -656,7 +659,8 @@ def connect(scheduler: str) -> Any:
         raise SweepError(f"cannot connect to the Dask scheduler at {scheduler} ({' '.join(str(error).split())})") from error
 
 
-def _run_dask(cases: Sequence[Case], fmu: str, sha: str, client: Any, on_row: Callable[[dict[str, Any]], None]) -> None:
+def _run_dask(cases: Sequence[Case], fmu: str, sha: str, client: Any, on_row: Callable[[dict[str, Any]], None],
+              time_limit: float | None = None) -> None:
     """An existing Dask distributed cluster: submit every case, collect as they complete. The FMU
     travels with the tasks: the workers need toggle-cosim installed, not the project's files."""
     from distributed import as_completed
@@ -665,7 +669,7 @@ def _run_dask(cases: Sequence[Case], fmu: str, sha: str, client: Any, on_row: Ca
     fmu_data = client.scatter(Path(fmu).read_bytes(), broadcast=True, hash=False)
     futures = {}
     for case in cases:
-        future = client.submit(run_case, case.payload(), fmu, sha, fmu_data,
+        future = client.submit(run_case, case.payload(), fmu, sha, fmu_data, time_limit,
                                key=f"toggle-cosim-case-{case.case_id}", pure=False)
         futures[future] = case
     try:
@@ -687,7 +691,8 @@ def _run_dask(cases: Sequence[Case], fmu: str, sha: str, client: Any, on_row: Ca
 
 
 def execute(cases: Sequence[Case], fmu: Path, scheduler: str | None, workers: int | None,
-            on_row: Callable[[dict[str, Any]], None], fmu_sha256: str | None = None, client: Any = None) -> None:
+            on_row: Callable[[dict[str, Any]], None], fmu_sha256: str | None = None, client: Any = None,
+            time_limit: float | None = None) -> None:
     """Run `cases` on the chosen backend and call `on_row(row)` in this process as each finishes:
     the Dask cluster at `scheduler` (or an open `client` of one), else a local process pool of
     `workers` processes (default: all cores)."""
@@ -697,16 +702,16 @@ def execute(cases: Sequence[Case], fmu: Path, scheduler: str | None, workers: in
     if fmu_sha256 is None:
         fmu_sha256 = _sha256(fmu)
     if client is not None:
-        _run_dask(cases, str(fmu), fmu_sha256, client, on_row)
+        _run_dask(cases, str(fmu), fmu_sha256, client, on_row, time_limit)
     elif scheduler:
         own = connect(scheduler)
         try:
-            _run_dask(cases, str(fmu), fmu_sha256, own, on_row)
+            _run_dask(cases, str(fmu), fmu_sha256, own, on_row, time_limit)
         finally:
             with contextlib.suppress(Exception):
                 own.close()
     else:
-        _run_pool(cases, str(fmu), fmu_sha256, workers or os.cpu_count() or 1, on_row)
+        _run_pool(cases, str(fmu), fmu_sha256, workers or os.cpu_count() or 1, on_row, time_limit)
 
 
 # -- results -----------------------------------------------------------------------------------
@@ -714,6 +719,8 @@ def execute(cases: Sequence[Case], fmu: Path, scheduler: str | None, workers: in
 
 def _arrow_schema(sweep: Sweep) -> Any:
     import pyarrow as pa
+
+    pa.enable_signal_handlers(False)  # its own SIGINT handler would bypass ours (exit -2, not 130)
 
     types = {"float": pa.float64(), "bool": pa.bool_(), "string": pa.string()}
     fields = [pa.field("case", pa.int64()), pa.field("case_id", pa.string()), pa.field("variant", pa.string())]
@@ -840,13 +847,17 @@ class ResultStore:
         _atomic_parquet(_table(rows, self.schema), self.results)
         for identifier in self.rows:
             (self.parts / f"{identifier}.parquet").unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            self.parts.rmdir()  # only when empty: no empty folder is left behind
         return self.results
 
 
 def read_results(path: Path) -> Any:
     """A sweep's results table as a pandas DataFrame (give results.parquet or its folder)."""
     import pandas as pd
+    import pyarrow as pa
 
+    pa.enable_signal_handlers(False)
     path = Path(path)
     return pd.read_parquet(path / RESULTS_FILE if path.is_dir() else path)
 
@@ -991,9 +1002,12 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     if chosen is None:
         raise SweepError(f"{sweep.path}: no fmu: key here or in the base scenario, and no --fmu option (name the plant FMU)")
     chosen = Path(chosen).resolve()
+    from toggle_cosim.plant_probe import ProbeError, probe_binary
+
     try:
         plant = check_plant(chosen)
-    except ContractError as error:
+        probe_binary(plant)
+    except (ContractError, ProbeError) as error:
         raise SweepError(str(error)) from error
     for key in sweep.axes:
         path = _split_key(key)
@@ -1003,21 +1017,52 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     for name in sorted(names):
         if name not in plant.references:
             raise SweepError(f"{sweep.base}: key plant.parameters.{name}: the plant FMU has no variable {name!r}")
+    from types import SimpleNamespace
+
+    from toggle_cosim.plant_settings import SettingError, check_settings
+
+    from toggle_cosim.master import trace_names
+    from toggle_cosim.resources import max_output
+
+    if sweep.cases:  # each case's trace buffer (8 bytes a value while it runs) within the output limit
+        biggest = max(sweep.cases, key=lambda c: c.parameters["t_end"] / c.parameters["T_s"])
+        samples = int(round(biggest.parameters["t_end"] / biggest.parameters["T_s"])) + 1
+        size = samples * len(trace_names(plant)) * 8
+        if size > max_output():
+            raise SweepError(f"{sweep.path}: case {biggest.index} would hold {samples} samples x {len(trace_names(plant))}"
+                             f" columns, about {size / 1e9:.2f} GB while it runs, over the {max_output() / 1e9:.2f} GB"
+                             " output limit; raise T_s or shorten t_end (or raise TOGGLE_COSIM_MAX_OUTPUT)")
+    seen = set()
+    for case in sweep.cases:  # each distinct setting of the plant, before any case runs
+        plant_doc = case.document.get("plant") or {}
+        settings = SimpleNamespace(current_loop=plant_doc.get("current_loop", "first_order"),
+                                   parameters=dict(plant_doc.get("parameters") or {}))
+        key = (settings.current_loop, repr(sorted(settings.parameters.items(), key=repr)))
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            check_settings(SimpleNamespace(plant=settings, variant=case.variant), plant)
+        except SettingError as error:
+            raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
     return chosen, _sha256(chosen)
 
 
 def execute_sweep(sweep: Sweep, fmu: Path | None = None, scheduler: str | None = None, workers: int | None = None,
-                  progress: bool = True, retry_failed: bool = False, log: Callable[[str], None] | None = None) -> SweepResult:
+                  progress: bool = True, retry_failed: bool = False, log: Callable[[str], None] | None = None,
+                  case_timeout: float | None = None) -> SweepResult:
     """Run the cases of `sweep` that are not done yet, write the table and the heat maps."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
     if workers is not None and workers < 1:
         raise SweepError(f"--workers {workers}: give at least 1")
     if scheduler and workers is not None:
         raise SweepError("--workers sets the local pool's size; with --scheduler the Dask cluster's workers run the cases")
+    if case_timeout is not None and not (case_timeout > 0 and math.isfinite(case_timeout)):
+        raise SweepError(f"--case-timeout {case_timeout}: give a positive number of seconds")
     fmu_path, sha = _resolve_plant(sweep, fmu)
     client = connect(scheduler) if scheduler else None  # before anything is written
     try:
-        return _execute_sweep(sweep, fmu_path, sha, scheduler, client, workers, progress, retry_failed, say)
+        return _execute_sweep(sweep, fmu_path, sha, scheduler, client, workers, progress, retry_failed, say, case_timeout)
     finally:
         if client is not None:
             with contextlib.suppress(Exception):
@@ -1025,7 +1070,8 @@ def execute_sweep(sweep: Sweep, fmu: Path | None = None, scheduler: str | None =
 
 
 def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None, client: Any, workers: int | None,
-                   progress: bool, retry_failed: bool, say: Callable[[str], None]) -> SweepResult:
+                   progress: bool, retry_failed: bool, say: Callable[[str], None],
+                   case_timeout: float | None = None) -> SweepResult:
     with _exclusive(sweep.output):
         store = ResultStore(sweep)
         store.load()
@@ -1053,7 +1099,8 @@ def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None
 
         def on_row(row: dict[str, Any]) -> None:
             nonlocal failed_now
-            store.add(row)
+            with interrupts.deferred():  # a part file is whole or not there
+                store.add(row)
             result.ran += 1
             if row["status"] != "ok":
                 failed_now += 1
@@ -1063,20 +1110,25 @@ def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None
                 bar.update(1)
 
         try:
-            execute(todo, fmu_path, scheduler, workers, on_row, sha, client)
-        except KeyboardInterrupt:
+            execute(todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout)
+        except BaseException as error:
+            if not interrupts.is_interrupt(error):
+                raise
             result.interrupted = True
+            interrupts.ignore()  # the sweep is ending: what follows is writing its table
         finally:
             result.wall_seconds = time.perf_counter() - run_started
             if bar is not None:
                 bar.close()
-            result.results = store.consolidate()
-        table = read_results(result.results)
-        result.done = len(table)
-        result.failed = int((table["status"] != "ok").sum())
-        if not result.interrupted:
-            result.figures = write_heatmaps(table, sweep)
-        _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
+            with interrupts.deferred():
+                result.results = store.consolidate()
+        finished = [row for identifier, row in store.rows.items() if identifier in store.wanted]
+        result.done = len(finished)
+        result.failed = sum(1 for row in finished if row.get("status") != "ok")
+        if not result.interrupted:  # pandas and matplotlib only when there is time for them
+            result.figures = write_heatmaps(read_results(result.results), sweep)
+        with interrupts.deferred():
+            _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
     return result
 
 
@@ -1097,14 +1149,16 @@ def _write_manifest(sweep: Sweep, result: SweepResult, fmu: Path, sha: str, sche
 
 
 def run_sweep(sweep_path: Path, scheduler: str | None = None, workers: int | None = None, fmu: Path | None = None,
-              *, output: Path | None = None, retry_failed: bool = False, progress: bool = True) -> int:
+              *, output: Path | None = None, retry_failed: bool = False, progress: bool = True,
+              case_timeout: float | None = None) -> int:
     """`toggle-cosim sweep SWEEP.yaml [--scheduler ADDRESS] [--workers N] [--fmu PATH]`.
 
     Exit status: 0 every case ok, 1 some case failed, 2 bad input (one `error: ...` line on
     stderr, nothing run), 130 interrupted (finished cases are kept; run again to finish)."""
     try:
         sweep = load_sweep(Path(sweep_path), output)
-        result = execute_sweep(sweep, fmu, scheduler, workers, progress=progress, retry_failed=retry_failed)
+        result = execute_sweep(sweep, fmu, scheduler, workers, progress=progress, retry_failed=retry_failed,
+                               case_timeout=case_timeout)
     except SweepError as error:
         print(f"error: {' '.join(str(error).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -1130,10 +1184,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--fmu", type=Path, default=None, help="plant FMU (overrides the fmu: keys)")
     parser.add_argument("--output", type=Path, default=None, help="output folder (overrides output:)")
     parser.add_argument("--retry-failed", action="store_true", help="run failed cases again")
+    parser.add_argument("--case-timeout", type=float, default=None, help="wall-clock limit per case in s")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     return run_sweep(args.sweep, args.scheduler, args.workers, args.fmu, output=args.output,
-                     retry_failed=args.retry_failed, progress=not args.quiet)
+                     retry_failed=args.retry_failed, progress=not args.quiet, case_timeout=args.case_timeout)
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ reader never sees a half-written file.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import tempfile
@@ -32,14 +33,25 @@ class Trace:
         return self.data[:, 0]
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+FILE_MODE = 0o666 & ~_umask()  # what open() would give: mkstemp's files are private (0600)
+
+
 def atomic_write(path: Path, write: Any) -> None:
-    """Call `write(stream)` on a temporary file beside `path`, then rename it into place."""
+    """Call `write(stream)` on a temporary file beside `path`, then rename it into place (its
+    mode follows the umask, like any file the user creates)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
     try:
         with os.fdopen(handle, "w", encoding="utf-8", newline="\n") as stream:
             write(stream)
             stream.flush()
+            os.fchmod(stream.fileno(), FILE_MODE)
             os.fsync(stream.fileno())
         os.replace(temporary, path)
     except BaseException:
@@ -47,23 +59,46 @@ def atomic_write(path: Path, write: Any) -> None:
         raise
 
 
-def write_csv(path: Path, trace: Trace) -> None:
-    """FMI cross-check CSV: a header of quoted names, "time" first, then one row per sample."""
+CHUNK_ROWS = 20_000  # rows formatted at a time: memory stays bounded however long the trace
+
+
+def recorded_rows(samples: int, every: int = 1) -> np.ndarray:
+    """The samples a trace file keeps: every `every`-th one, and always the last."""
+    kept = np.arange(0, samples, max(int(every), 1))
+    if samples and kept[-1] != samples - 1:
+        kept = np.append(kept, samples - 1)
+    return kept
+
+
+def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
+    """FMI cross-check CSV: a header of quoted names, "time" first, then one row per sample
+    (every `every`-th sample and the last one: the scenario key record_every), in chunks."""
 
     def write(stream: Any) -> None:
         stream.write(",".join(f'"{name}"' for name in trace.names) + "\n")
-        np.savetxt(stream, trace.data, delimiter=",", fmt="%.17g")
+        if every <= 1:
+            for start in range(0, trace.data.shape[0], CHUNK_ROWS):
+                np.savetxt(stream, trace.data[start : start + CHUNK_ROWS], delimiter=",", fmt="%.17g")
+            return
+        kept = recorded_rows(trace.data.shape[0], every)
+        for start in range(0, kept.size, CHUNK_ROWS):
+            np.savetxt(stream, trace.data[kept[start : start + CHUNK_ROWS]], delimiter=",", fmt="%.17g")
 
     atomic_write(Path(path), write)
 
 
 def read_csv(path: Path) -> Trace:
-    """Read a CSV written by `write_csv` (or any cross-check CSV with a header row)."""
+    """Read a CSV written by `write_csv` (or any cross-check CSV with a header row): a regular
+    file of at most `bounded_files.CSV_LIMIT` bytes. Raises ValueError (or InputFileError) naming it."""
+    from toggle_cosim.bounded_files import CSV_LIMIT, read_text_bounded
+
     path = Path(path)
-    with path.open(encoding="utf-8") as stream:
-        header = stream.readline()
+    text = read_text_bounded(path, CSV_LIMIT, "trace CSV")
+    header, _, body = text.partition("\n")
     names = tuple(name.strip().strip('"') for name in header.strip().split(","))
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if not body.strip():
+        return Trace(names, np.empty((0, len(names))))
+    data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
     if data.shape[1] != len(names):
         raise ValueError(f"{path}: {len(names)} names in the header but {data.shape[1]} columns")
     return Trace(names, data)

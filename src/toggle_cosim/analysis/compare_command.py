@@ -20,6 +20,7 @@ from toggle_cosim.analysis.solver_stats import (
 from toggle_cosim.analysis.tolerance_files import tolerances_for_reference
 from toggle_cosim.analysis.trace_formats import read_any_trace
 from toggle_cosim.analysis.csv_traces import CompareInputError
+from toggle_cosim.bounded_files import JSON_LIMIT, read_text_bounded
 from toggle_cosim.analysis.reference_files import _check_span, _reference_paths, read_options
 from toggle_cosim.compare import ComparisonResult, compare_traces, format_table, write_report
 
@@ -44,8 +45,8 @@ def _result_statistics(result_path: Path) -> dict[str, int] | str | None:
     if not record.is_file():
         return None
     try:
-        return json.loads(record.read_text(encoding="utf-8")).get("solver_statistics")
-    except (OSError, ValueError, AttributeError) as error:
+        return json.loads(read_text_bounded(record, JSON_LIMIT, "run record")).get("solver_statistics")
+    except (OSError, ValueError, AttributeError) as error:  # InputFileError is a ValueError
         raise CompareInputError(f"{record}: is not a readable run record ({error}); rerun or remove it") from error
 
 

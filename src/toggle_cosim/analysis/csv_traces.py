@@ -40,10 +40,12 @@ def read_trace(path: Path | str) -> Trace:
         raise CompareInputError(f"{path}: no such file; check the path (traces are written by `toggle-cosim run`)")
     if path.is_dir():
         raise CompareInputError(f"{path}: is a directory, not a CSV file; give the trace's .csv file")
+    from toggle_cosim.bounded_files import CSV_LIMIT, InputFileError, read_bounded
+
     try:
-        raw = path.read_bytes()
-    except OSError as error:
-        raise CompareInputError(f"{path}: cannot be read ({error.strerror}); check its permissions") from error
+        raw = read_bounded(path, CSV_LIMIT, "trace CSV")  # a regular file, at most CSV_LIMIT bytes
+    except InputFileError as error:
+        raise CompareInputError(str(error)) from error
     if b"\x00" in raw:
         raise CompareInputError(
             f'{path}: is a binary file, not a CSV; give a CSV with a header of quoted names, "time" first'

@@ -61,10 +61,12 @@ def read_options(path: Path | str) -> dict[str, float | str]:
             f"{path}: no such file; a reference needs its options file beside it "
             "(StartTime, StopTime, StepSize, RelTol)"
         )
+    from toggle_cosim.bounded_files import YAML_LIMIT, InputFileError, read_text_bounded
+
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as error:
-        raise CompareInputError(f"{path}: is not UTF-8 text (offset {error.start}); re-save it as UTF-8") from error
+        text = read_text_bounded(path, YAML_LIMIT, "options file", encoding="utf-8-sig")
+    except InputFileError as error:
+        raise CompareInputError(str(error)) from error
     options: dict[str, float | str] = {}
     for number, line in enumerate(text.splitlines(), start=1):
         line = line.split("//", 1)[0].strip()

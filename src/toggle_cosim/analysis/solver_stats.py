@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim.bounded_files import JSON_LIMIT, read_text_bounded
 from toggle_cosim.traces import atomic_write
 
 __all__ = [
@@ -72,8 +73,8 @@ def read_statistics_file(path: Path | str) -> dict[str, int] | None:
     if not path.is_file():
         return None
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        document = json.loads(read_text_bounded(path, JSON_LIMIT, "solver statistics file"))
+    except (OSError, ValueError) as error:  # InputFileError and JSONDecodeError are ValueErrors
         raise ValueError(f"{path}: unreadable solver statistics ({error}); rewrite it with "
                          "`toggle-cosim references --update` or delete it") from error
     if not isinstance(document, dict) or not all(

@@ -190,6 +190,9 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         result = subprocess.run(command, capture_output=True, text=True, check=False)
         if result.returncode != 0:
             raise FMUBuildError(f"C compiler failed for {model.name}:\n{result.stderr.strip()[:4000]}")
+        if not binary.is_file() or binary.stat().st_size == 0:
+            raise FMUBuildError(f"C compiler exited 0 but wrote no library {binary.name} for {model.name} "
+                                f"(check the compiler {command[0]})")
         (work / "modelDescription.xml").write_text(
             version.model_description(model, identifier, tool, offered, compiled), encoding="utf-8"
         )

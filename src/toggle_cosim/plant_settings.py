@@ -1,0 +1,42 @@
+"""What a run sets on its plant, checked against the plant's variables before any run starts.
+
+`plant.parameters` names must be variables of the FMU that can be set before initialisation
+(causality parameter, variability fixed or tunable), with a value of their type (a number for a
+Real/Float64, true/false for a Boolean); `current_loop: ideal` needs the parameter
+idealCurrentLoop. Each failure is one `SettingError` line naming the key and the variable.
+"""
+
+from __future__ import annotations
+
+from toggle_cosim.friction import friction_settings
+from toggle_cosim.plant import PlantInterface
+from toggle_cosim.scenario import Run
+
+
+class SettingError(Exception):
+    """A setting the plant cannot take; str() is the one-line reason."""
+
+
+def check_settings(run: Run, plant: PlantInterface) -> None:
+    variables = {v.name: v for v in plant.model_description.modelVariables}
+    try:  # a friction model the plant cannot run
+        friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, plant.references, plant.path)
+    except ValueError as error:
+        raise SettingError(str(error)) from None
+    if run.plant.current_loop == "ideal" and "idealCurrentLoop" not in variables:
+        raise SettingError(f"key plant.current_loop: the plant FMU {plant.path} has no parameter idealCurrentLoop, "
+                           "so 'ideal' cannot be set (use first_order)")
+    for name, value in run.plant.parameters.items():
+        where = f"key plant.parameters.{name}" + (f" (variant {run.variant})" if run.variant else "")
+        variable = variables.get(name)
+        if variable is None:
+            raise SettingError(f"{where}: the plant FMU {plant.path} has no variable {name!r} (check the name)")
+        if variable.causality != "parameter" or variable.variability not in ("fixed", "tunable"):
+            raise SettingError(f"{where}: {name!r} is a {variable.variability} {variable.causality}, not a parameter "
+                               "that can be set before a run")
+        if variable.type == "Boolean" and not isinstance(value, bool):
+            raise SettingError(f"{where}: {name!r} is a Boolean; write true or false, not {value!r}")
+        if variable.type in ("Real", "Float64") and isinstance(value, bool):
+            raise SettingError(f"{where}: {name!r} is a {variable.type}; write a number, not {value!r}")
+        if variable.type not in ("Real", "Float64", "Boolean"):
+            raise SettingError(f"{where}: {name!r} is of type {variable.type}; only Real/Float64 and Boolean can be set")

@@ -1,0 +1,286 @@
+"""Supervised runs: every co-simulation's plant runs in a child process, under a time limit.
+
+    parent: trace buffer (a file-backed shared map) -> fork -> wait for the child's answer, its
+            exit, the time limit or an interrupt -> the outcome, whatever happened
+    child:  master.simulate writing straight into the shared buffer -> its outcome (without the
+            trace) back through a pipe -> _exit
+
+A segfault, abort, endless loop or huge allocation (the child's address space may grow by
+TOGGLE_COSIM_PLANT_MEMORY, default 4 GiB) in the plant's native code ends the child,
+not the command: the parent keeps the trace up to the last sample the child recorded (it is in
+the shared buffer), writes the run as `failed` with the reason (the signal's name, "time limit
+30 s exceeded", the exit status) and goes on with the next run. SIGINT/SIGTERM in the parent
+kill the child at once (a plant stuck in C cannot ignore SIGKILL) and the run is `interrupted`.
+The child dies with its parent (PR_SET_PDEATHSIG), and the FMU's unzipped copy lives in the
+run's own temporary folder, which the parent removes on every path.
+
+The trace buffer is a file in that folder, mapped shared and unlinked when the run ends (the map
+stays valid), so a long run's trace lives in the page cache backed by disk, not in memory.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import faulthandler
+import io
+import mmap
+import os
+import pickle
+import select
+import shutil
+import signal
+import sys
+import tempfile
+import time as clock
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from toggle_cosim import master
+from toggle_cosim.plant import PlantInterface
+from toggle_cosim.scenario import Run
+from toggle_cosim.traces import Trace
+
+PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process as forked
+TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
+TIME_LIMIT_PER_SIMULATED_S = 20.0
+_PR_SET_PDEATHSIG = 1
+
+
+def default_time_limit(t_end: float) -> float:
+    """The wall-clock limit of a run that names none: max(30 s, 20 s per simulated second)."""
+    return max(TIME_LIMIT_FLOOR_S, TIME_LIMIT_PER_SIMULATED_S * t_end)
+
+
+def time_limit_of(run: Run, override: float | None = None) -> float:
+    """--time-limit, else the scenario's time_limit key, else the default from t_end."""
+    if override is not None:
+        return float(override)
+    own = run.resolved.get("time_limit")
+    return float(own) if own is not None else default_time_limit(run.t_end)
+
+
+def _seconds(value: float) -> str:
+    return f"{value:.0f} s" if value >= 10 else f"{value:.3g} s"
+
+
+def _die_with_parent(parent: int) -> None:
+    with contextlib.suppress(Exception):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def plant_memory_limit() -> int:
+    """TOGGLE_COSIM_PLANT_MEMORY (bytes, or with a K/M/G suffix), default 4 GiB."""
+    text = os.environ.get("TOGGLE_COSIM_PLANT_MEMORY", "").strip().upper()
+    if not text:
+        return PLANT_MEMORY_DEFAULT
+    scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1], 1)
+    try:
+        return int(float(text.rstrip("KMG")) * scale)
+    except ValueError:
+        return PLANT_MEMORY_DEFAULT
+
+
+def _limit_memory() -> None:
+    """The child's address space may grow by plant_memory_limit(): a plant that allocates without
+    end gets NULL from malloc instead of taking the machine's memory."""
+    with contextlib.suppress(Exception):
+        import resource
+
+        with open("/proc/self/statm") as stream:
+            current = int(stream.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+        soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+        wanted = current + plant_memory_limit()
+        if hard != resource.RLIM_INFINITY:
+            wanted = min(wanted, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (wanted, hard))
+
+
+def _warm_up() -> None:
+    """Work each child would repeat, done once in the parent before forking."""
+    master._installed_versions()
+    with contextlib.suppress(Exception):
+        from toggle_cosim.compiled_loop import kernel_library
+
+        kernel_library()
+
+
+def _child(run: Run, plant: PlantInterface, buffer: np.ndarray, progress_slot: np.ndarray | None,
+           workdir: Path, write_fd: int, parent: int, capture_log: bool) -> None:
+    """The child's whole life: run, send the outcome (no trace) back, exit without cleanup."""
+    code = 0
+    try:
+        faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides about interrupts
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        _die_with_parent(parent)
+        _limit_memory()
+        tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
+        log = None
+        if capture_log:
+            log = io.StringIO()
+            sys.stdout = log
+
+        def progress(fraction: float) -> None:
+            progress_slot[0] = fraction
+
+        outcome = master.simulate(run, plant, progress if progress_slot is not None else None, buffer=buffer)
+        answer = ("outcome", outcome.complete, outcome.reason, outcome.wall_seconds, outcome.loop_seconds,
+                  outcome.summary, outcome.record, outcome.interrupted, log.getvalue() if log else "")
+    except BaseException as error:  # noqa: BLE001 - everything goes back to the parent
+        answer = ("error", " ".join(f"{type(error).__name__}: {error}".split()))
+        code = 3
+    try:
+        data = pickle.dumps(answer)
+        view = memoryview(data)
+        while view:
+            view = view[os.write(write_fd, view):]
+        sys.stdout.flush()
+        sys.__stdout__.flush()
+        sys.stderr.flush()
+    except BaseException:  # noqa: BLE001
+        code = 4
+    os._exit(code)
+
+
+def _rows_recorded(buffer: np.ndarray) -> int:
+    """Samples the child finished: the leading rows whose last column (written last) is set."""
+    if buffer.shape[0] == 0:
+        return 0
+    unset = np.flatnonzero(np.isnan(buffer[:, -1]))
+    return int(unset[0]) if unset.size else buffer.shape[0]
+
+
+def _map_buffer(path: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndarray]:
+    size = max(rows * columns * 8, 8)
+    with open(path, "w+b") as stream:
+        stream.truncate(size)
+        mapped = mmap.mmap(stream.fileno(), size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
+    array = np.frombuffer(mapped, dtype=np.float64, count=rows * columns).reshape(rows, columns)
+    array.fill(np.nan)
+    return mapped, array
+
+
+def simulate_supervised(run: Run, plant: PlantInterface, *, time_limit: float | None = None,
+                        progress: Callable[[float], None] | None = None, scratch: Path | None = None,
+                        capture_log: bool = False) -> master.RunOutcome:
+    """`master.simulate` in a supervised child process; never raises for anything the plant does.
+
+    An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
+    interrupted (`outcome.interrupted`); the caller stops after writing it."""
+    limit = time_limit_of(run, time_limit)
+    started = clock.perf_counter()
+    names = master.trace_names(plant)
+    rows_total = run.steps + 1
+    workdir = Path(tempfile.mkdtemp(prefix="toggle-cosim-run-", dir=scratch))
+    pid = -1
+    read_fd = write_fd = pidfd = -1
+    status: int | None = None
+    reason: str | None = None
+    interrupted = False
+    chunks: list[bytes] = []
+    buffer = np.full((0, len(names)), np.nan)
+    try:
+        _, buffer = _map_buffer(workdir / "trace.bin", rows_total, len(names))
+        progress_slot = np.zeros(1) if progress is None else np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
+        _warm_up()
+        read_fd, write_fd = os.pipe()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        parent = os.getpid()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
+            pid = os.fork()
+        if pid == 0:
+            os.close(read_fd)
+            _child(run, plant, buffer, progress_slot if progress is not None else None, workdir, write_fd, parent,
+                   capture_log)
+        os.close(write_fd)
+        write_fd = -1
+        deadline = clock.monotonic() + limit
+        try:
+            pidfd = os.pidfd_open(pid)
+        except (AttributeError, OSError):
+            pidfd = -1
+        watch = [read_fd] + ([pidfd] if pidfd >= 0 else [])
+        while True:
+            left = deadline - clock.monotonic()
+            if left <= 0:
+                os.kill(pid, signal.SIGKILL)
+                reason = f"time limit {_seconds(limit)} exceeded"
+                _, status = os.waitpid(pid, 0)
+                break
+            wait = min(left, 0.1) if (progress is not None or pidfd < 0) else left
+            ready, _, _ = select.select(watch, [], [], wait)
+            if read_fd in ready:
+                chunk = os.read(read_fd, 1 << 16)
+                if chunk:
+                    chunks.append(chunk)
+                else:
+                    watch.remove(read_fd)
+            if pidfd in ready or pidfd < 0:
+                done, got = os.waitpid(pid, os.WNOHANG)
+                if done:
+                    status = got
+                    while read_fd in watch and (chunk := os.read(read_fd, 1 << 16)):
+                        chunks.append(chunk)  # what the child wrote before select saw its exit
+                    break
+            if progress is not None:
+                progress(float(progress_slot[0]))
+    except KeyboardInterrupt:
+        interrupted = True
+        reason = "interrupted (SIGINT or SIGTERM)"
+        if pid > 0 and status is None:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                os.waitpid(pid, 0)
+    finally:
+        for fd in (read_fd, write_fd, pidfd):
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        shutil.rmtree(workdir, ignore_errors=True)  # the map outlives its file
+    answer = _answer(chunks)
+    rows = _rows_recorded(buffer)
+    trace = Trace(names, buffer[:rows])
+    wall = clock.perf_counter() - started
+    if answer is not None and answer[0] == "outcome" and reason is None:
+        _, complete, child_reason, _, loop_s, summary, record, child_interrupted, log = answer
+        if log:
+            sys.stdout.write(log)
+        record["wall_time_s"] = wall
+        # the trace is a view of the map, which it keeps alive
+        return master.RunOutcome(run, trace, complete, child_reason, wall, loop_s, summary, record, child_interrupted)
+    if reason is None:
+        if answer is not None and answer[0] == "error":
+            reason = f"the plant could not be run: {answer[1]}"
+        elif status is not None and os.WIFSIGNALED(status):
+            number = os.WTERMSIG(status)
+            name = signal.Signals(number).name if number in signal.Signals._value2member_map_ else f"signal {number}"
+            reason = f"the plant process was killed by {name}"
+        elif status is not None:
+            reason = f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
+        else:
+            reason = "the plant process ended without an answer"
+    at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
+    reason = f"{reason}{at}"
+    status_word = "interrupted" if interrupted else "failed"
+    record = master.run_record(run, plant, status_word, reason, rows, wall, wall)
+    return master.RunOutcome(run, trace, False, reason, wall, wall, None, record, interrupted)
+
+
+def _answer(chunks: list[bytes]) -> tuple | None:
+    if not chunks:
+        return None
+    try:
+        answer = pickle.loads(b"".join(chunks))
+    except Exception:  # noqa: BLE001 - a child that died while writing
+        return None
+    return answer if isinstance(answer, tuple) and answer else None

@@ -1,0 +1,131 @@
+"""Checks before work: the recorded size, the output folder and the plant settings; the trace's
+recording interval and the file modes of what is written."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+from pathlib import Path
+
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from toggle_cosim.cli import main
+from toggle_cosim.traces import read_csv
+
+ROOT = Path(__file__).resolve().parent.parent
+BASE = {
+    "name": "small",
+    "t_end": 0.2,
+    "T_s": 0.0005,
+    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+    "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
+}
+
+
+def _scenario(folder: Path, **changes) -> Path:
+    document = {**BASE, **changes}
+    path = folder / "s.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return path
+
+
+def _bad_input(args: list[str]) -> str:
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    return lines[0]
+
+
+def test_a_run_too_big_to_record_is_refused_before_it_starts(tmp_path: Path, plant_fmu: Path) -> None:
+    """t_end = 100 s at T_s = 1 us: 1e8 samples of 35 columns, about 84 GB of CSV."""
+    out = tmp_path / "out"
+    line = _bad_input(["run", str(_scenario(tmp_path, t_end=100, T_s=1e-6)), "--fmu", str(plant_fmu), "--out", str(out)])
+    assert "100000000 steps x 35 columns" in line and "GB" in line and "2.00 GB output limit" in line
+    assert "raise T_s" in line and not out.exists()
+
+
+@pytest.mark.parametrize("case", ["file", "long", "nested-file"])
+def test_unusable_output_folders_are_refused_before_any_run(tmp_path: Path, plant_fmu: Path, case: str) -> None:
+    blocker = tmp_path / "blocker"
+    blocker.write_text("x")
+    out = {"file": blocker, "long": tmp_path / ("a" * 300), "nested-file": blocker / "sub"}[case]
+    line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out)])
+    assert {"file": "is an existing file", "long": "longer than the file system allows",
+            "nested-file": "is an existing file"}[case] in line
+
+
+@pytest.mark.parametrize(("parameters", "needle"), [({"no_such_thing": 1.0}, "has no variable 'no_such_thing'"),
+                                                    ({"solver.relTol": True}, "write a number"),
+                                                    ({"x_B": 0.3}, "not a parameter")])
+def test_plant_settings_are_checked_before_any_run(tmp_path: Path, plant_fmu: Path, parameters: dict, needle: str) -> None:
+    out = tmp_path / "out"
+    plant = {**BASE["plant"], "parameters": parameters}
+    line = _bad_input(["run", str(_scenario(tmp_path, plant=plant)), "--fmu", str(plant_fmu), "--out", str(out)])
+    assert needle in line and not out.exists()
+
+
+def test_record_every_thins_the_csv_and_keeps_the_last_sample(tmp_path: Path, plant_fmu: Path) -> None:
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path, record_every=7)), "--fmu", str(plant_fmu),
+                                       "--out", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    trace = read_csv(out / "small" / "run" / "trace.csv")
+    record = json.loads((out / "small" / "run" / "run.json").read_text())
+    assert record["samples"] == 401  # every sample ran and counts for the summary
+    assert trace.data.shape[0] == len(range(0, 401, 7)) + 1  # 0, 7, ..., 399, and 400
+    assert trace.time[-1] == pytest.approx(0.2) and trace.time[1] == pytest.approx(7 * 0.0005)
+
+
+def test_written_files_follow_the_umask(tmp_path: Path, plant_fmu: Path) -> None:
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    mask = os.umask(0)
+    os.umask(mask)
+    for name in ("trace.csv", "run.json"):
+        mode = stat.S_IMODE((out / "small" / "run" / name).stat().st_mode)
+        assert mode == 0o666 & ~mask, (name, oct(mode))
+
+
+def test_the_time_limit_key_ends_a_slow_run_as_failed(tmp_path: Path, plant_fmu: Path) -> None:
+    """solver.maxStep = 1e-7 s makes the plant far slower than real time; time_limit: 1 stops it."""
+    out = tmp_path / "out"
+    plant = {**BASE["plant"], "parameters": {"solver.maxStep": 1e-7}}
+    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path, plant=plant, time_limit=1)), "--fmu",
+                                       str(plant_fmu), "--out", str(out), "-q"])
+    assert result.exit_code == 1, result.output
+    record = json.loads((out / "small" / "run" / "run.json").read_text())
+    assert record["status"] == "failed" and record["reason"].startswith("time limit 1 s exceeded at t = ")
+    assert read_csv(out / "small" / "run" / "trace.csv").data.shape[0] == record["samples"] < 401
+
+
+@pytest.mark.parametrize("binary", ["script", "no-symbols"])
+def test_a_plant_binary_that_cannot_serve_is_bad_input(tmp_path: Path, plant_fmu: Path, binary: str) -> None:
+    """A shell script as the binary, or a library without the fmi2 functions: one line, exit 2,
+    nothing written (the binary is loaded in a throw-away child before any run)."""
+    import shutil
+    import subprocess
+    import zipfile
+
+    if binary == "script":
+        data = b"#!/bin/sh\necho plant\n"
+    else:
+        compiler = shutil.which("cc") or shutil.which("gcc")
+        if compiler is None:
+            pytest.skip("no C compiler")
+        (tmp_path / "empty.c").write_text("int not_an_fmu(void) { return 0; }\n")
+        subprocess.run([compiler, "-shared", "-fPIC", "-o", str(tmp_path / "empty.so"), str(tmp_path / "empty.c")],
+                       check=True)
+        data = (tmp_path / "empty.so").read_bytes()
+    fmu = tmp_path / "bad.fmu"
+    with zipfile.ZipFile(plant_fmu) as source, zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as target:
+        for info in source.infolist():
+            is_binary = info.filename.startswith("binaries/linux64/")
+            target.writestr(info.filename, data if is_binary else source.read(info))
+    out = tmp_path / "out"
+    line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(fmu), "--out", str(out)])
+    assert ("cannot be loaded" if binary == "script" else "lacks fmi2Instantiate") in line and not out.exists()

@@ -1,0 +1,226 @@
+"""Supervised runs under misbehaving plants (fault injection) and interrupts at any moment.
+
+The plants come from `fault_plants`: the shipped FMU with a C shim in front of its binary that
+segfaults, aborts, loops forever, allocates without end, answers NaN or returns Discard/Error
+once the communication point reaches t_fault = 0.1 s, only in runs whose F_E is >= 50 N. Each
+command also holds a run with F_E = 0 that must complete. For every fault the tests check the
+exit status, the run record's status and reason, the length of the partial trace (samples 0 ..
+t_fault: 201 at T_s = 0.5 ms), that no temporary folder is left and that the other run completed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from fault_plants import fault_environment, make_faulty_fmu
+from toggle_cosim.cli import main
+from toggle_cosim.plant import check_plant
+from toggle_cosim.sweep import run_sweep
+from toggle_cosim.traces import read_csv
+
+ROOT = Path(__file__).resolve().parent.parent
+T_FAULT = 0.1
+ROWS_TO_FAULT = 201  # samples t = 0 .. 0.1 s at T_s = 0.5 ms, the last one before the faulty step
+SCENARIO = {
+    "name": "faulty",
+    "t_end": 0.3,
+    "T_s": 0.0005,
+    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+    "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
+    "controller": {"objective": "x_B", "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
+    "variants": {"hit": {"plant": {"F_E": 60.0}}, "clean": {"plant": {"F_E": 0.0}}},
+}
+REASONS = {
+    "segfault": "killed by SIGSEGV",
+    "abort": "killed by SIGABRT",
+    "loop": "time limit 2 s exceeded",
+    "alloc": "killed by SIGABRT",  # malloc fails at the child's memory limit, the shim aborts
+    "nan": "plant outputs became non-finite",
+    "discard": "fmi2DoStep failed with status 2 (discard)",
+    "error": "fmi2DoStep failed with status 3 (error)",
+}
+
+
+@pytest.fixture(scope="module")
+def faulty_fmu(plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return make_faulty_fmu(plant_fmu, tmp_path_factory.mktemp("faulty") / "Faulty.fmu")
+
+
+@pytest.fixture()
+def fault(faulty_fmu: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path):
+    """Set the shim's environment for one kind of fault; a private temporary folder to count leaks."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    monkeypatch.setenv("TMPDIR", str(scratch))  # for the sweep's pool workers too
+    references = check_plant(faulty_fmu).references
+
+    def arm(kind: str) -> Path:
+        for key, value in fault_environment(kind, T_FAULT, references, min_F_E=50.0).items():
+            monkeypatch.setenv(key, value)
+        return scratch
+
+    return arm
+
+
+def _scenario(folder: Path) -> Path:
+    path = folder / "faulty.yaml"
+    path.write_text(yaml.safe_dump(SCENARIO, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("kind", sorted(REASONS))
+def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
+    scratch = fault(kind)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(faulty_fmu), "--out", str(out),
+                                       "-q", "--time-limit", "2"])
+    assert result.exit_code == 1, result.output
+    assert "Traceback" not in result.output
+    hit = json.loads((out / "faulty" / "hit" / "run.json").read_text())
+    assert hit["status"] == "failed" and REASONS[kind] in hit["reason"], hit["reason"]
+    assert f"t = {T_FAULT:g}" in hit["reason"]
+    trace = read_csv(out / "faulty" / "hit" / "trace.csv")
+    assert trace.data.shape[0] == hit["samples"] == ROWS_TO_FAULT
+    assert trace.time[-1] == pytest.approx(T_FAULT, abs=1e-12) and np.all(np.isfinite(trace.data))
+    clean = json.loads((out / "faulty" / "clean" / "run.json").read_text())
+    assert clean["status"] == "complete" and clean["samples"] == 601
+    assert list(scratch.iterdir()) == []  # the runs' temporary folders (the unzipped FMU) are gone
+    assert not list(out.rglob("*.partial"))
+
+
+def test_the_paper_runs_stay_bit_identical_under_supervision(plant_fmu: Path, tmp_path: Path) -> None:
+    """The supervised child writes the same numbers the unsupervised loop does."""
+    from toggle_cosim.master import simulate
+    from toggle_cosim.scenario import load_scenario
+    from toggle_cosim.supervision import simulate_supervised
+
+    plant = check_plant(plant_fmu)
+    for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):
+        plain, supervised = simulate(run, plant), simulate_supervised(run, plant)
+        assert supervised.complete and supervised.record["status"] == "complete"
+        assert np.array_equal(plain.trace.data, supervised.trace.data)
+        assert plain.summary == supervised.summary
+
+
+def _sweep_file(folder: Path) -> Path:
+    base = {k: v for k, v in SCENARIO.items() if k != "variants"}
+    (folder / "base.yaml").write_text(yaml.safe_dump(base, sort_keys=False))
+    sweep = {"base": "base.yaml", "axes": {"plant.F_E": {"values": [0.0, 60.0, 10.0]}}, "output": "out"}
+    path = folder / "sweep.yaml"
+    path.write_text(yaml.safe_dump(sweep, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("kind", ["segfault", "loop", "nan"])
+def test_sweep_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
+    scratch = fault(kind)
+    path = _sweep_file(tmp_path)
+    code = run_sweep(path, fmu=faulty_fmu, workers=1, progress=False, case_timeout=2.0)
+    assert code == 1
+    rows = {row["plant.F_E"]: row for row in pq.read_table(tmp_path / "out" / "results.parquet").to_pylist()}
+    assert rows[60.0]["status"] == "failed" and REASONS[kind] in rows[60.0]["reason"]
+    assert rows[60.0]["samples"] == ROWS_TO_FAULT
+    assert rows[0.0]["status"] == rows[10.0]["status"] == "ok"  # the other cases went on
+    assert list(scratch.iterdir()) == []
+
+
+# ---------------------------------------------------------------------------------- interrupts
+
+
+def _command(*args: str) -> list[str]:
+    return [sys.executable, "-m", "toggle_cosim.cli", *args]
+
+
+def _whole_files_only(out: Path) -> None:
+    """Every result present is whole: trace.csv parses and has run.json's sample count, no
+    partial file, no empty folder."""
+    assert not list(out.rglob("*.partial")) and not list(out.rglob(".*.partial.*"))
+    for folder in [p for p in out.rglob("*") if p.is_dir()]:
+        assert any(folder.iterdir()), f"empty folder {folder}"
+    for record_path in out.rglob("run.json"):
+        record = json.loads(record_path.read_text())
+        assert record["status"] in ("complete", "interrupted")
+        trace = read_csv(record_path.parent / "trace.csv")
+        assert trace.data.shape[0] == record["samples"]
+        if record["status"] == "complete":
+            assert record["samples"] == 3001
+
+
+def _interrupt(command: list[str], delay: float, number: int, out: Path) -> tuple[int, float, str]:
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    sent = time.monotonic()
+    process.send_signal(number)
+    try:
+        _, stderr = process.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        raise
+    return process.returncode, time.monotonic() - sent, stderr
+
+
+SIGNAL_POINTS = [(0.15 + 0.2 * k, signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(12)]
+
+
+def test_interrupts_at_any_moment_of_a_multi_variant_run(plant_fmu: Path, tmp_path: Path) -> None:
+    """SIGINT/SIGTERM at 12 moments from start-up to the last runs of six: exit 130 within 2 s,
+    no traceback, whole files only, the interrupted run recorded as interrupted."""
+    files = [str(ROOT / "scenarios" / f"{name}.yaml") for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")]
+    interrupted = 0
+    for number, (delay, which) in enumerate(SIGNAL_POINTS):
+        out = tmp_path / f"out{number}"
+        code, took, stderr = _interrupt(_command("run", *files, "--fmu", str(plant_fmu), "--out", str(out), "-q"),
+                                        delay, which, out)
+        assert "Traceback" not in stderr, stderr
+        if code == 0:  # finished before the signal
+            continue
+        assert code == 130, (delay, which, stderr)
+        assert took < 2.0, (delay, which, took)
+        interrupted += 1
+        if out.exists():
+            _whole_files_only(out)
+    assert interrupted >= 10
+
+
+def test_interrupts_at_any_moment_of_a_sweep(plant_fmu: Path, tmp_path: Path) -> None:
+    """The same over a sweep (start-up, pool start, cases running and finishing): exit 130
+    within 2 s, readable tables only, no traceback."""
+    base = {k: v for k, v in SCENARIO.items() if k != "variants"}
+    base["t_end"] = 1.0
+    (tmp_path / "base.yaml").write_text(yaml.safe_dump(base, sort_keys=False))
+    interrupted = 0
+    for number, (delay, which) in enumerate(SIGNAL_POINTS):
+        delay *= 2.0
+        sweep = {"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": f"out{number}"}
+        path = tmp_path / f"sweep{number}.yaml"
+        path.write_text(yaml.safe_dump(sweep, sort_keys=False))
+        code, took, stderr = _interrupt(_command("sweep", str(path), "--fmu", str(plant_fmu), "--workers", "2"),
+                                        delay, which, tmp_path)
+        assert "Traceback" not in stderr, stderr
+        if code in (0, 1):
+            continue
+        assert code == 130, (delay, which, stderr)
+        assert took < 2.0, (delay, which, took)
+        interrupted += 1
+        out = tmp_path / f"out{number}"
+        if out.exists():
+            assert not list(out.rglob("*.partial"))
+            for table in [*out.glob("results.parquet"), *out.glob("parts/*.parquet")]:
+                pq.read_table(table)
+            if (out / "sweep.json").exists():
+                assert json.loads((out / "sweep.json").read_text())["last_run"]["interrupted"]
+    assert interrupted >= 10
