@@ -49,7 +49,7 @@ PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
 T_S_SWEEP = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
 FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
-from toggle_cosim import compiled_loop, fmu_io, master  # noqa: E402
+from toggle_cosim.cosim import compiled_loop, master, session  # noqa: E402
 from toggle_cosim.fmu_export import build_fmu  # noqa: E402
 from toggle_cosim.plant import check_plant  # noqa: E402
 from toggle_cosim.scenario import load_scenario, runs_from_document  # noqa: E402
@@ -129,12 +129,12 @@ def run_with(T_s: float, t_end: float, scenario: str = "fig4_nominal", variant: 
 
 
 def _settings(run, plant) -> list:
-    return master._plant_settings(run, plant)
+    return master.plant_settings(run, plant)
 
 
-def open_fmu(plant, run, inputs=FIXED_INPUTS, stop: float | None = None) -> fmu_io.PlantFMU:
-    """A PlantFMU set up as simulate() does (same parameters), initialised with `inputs`."""
-    fmu = fmu_io.PlantFMU(plant, "bench", list(plant.recorded_outputs), ["iq_ref", "F_E"])
+def open_fmu(plant, run, inputs=FIXED_INPUTS, stop: float | None = None) -> session.PlantSession:
+    """A PlantSession set up as simulate() does (same parameters), initialised with `inputs`."""
+    fmu = session.PlantSession(plant, "bench", list(plant.recorded_outputs), ["iq_ref", "F_E"])
     fmu.instantiate(0.0, stop if stop is not None else run.t_end)
     for name, value in _settings(run, plant):
         fmu.set_value(name, value)
@@ -157,7 +157,8 @@ def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
     try:
         slave = fmu.fmu
         c = slave.component
-        raw = slave._functions["fmi2DoStep"]
+        raw = slave.dll.fmi2DoStep  # with the argument types fmpy gave it
+        functions = fmu.c_functions()
         if how == "fmpy":
             wrapped = slave.fmi2DoStep
             started = time.perf_counter()
@@ -171,15 +172,14 @@ def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
                     raise RuntimeError(f"fmi2DoStep failed at step {k}")
             elapsed = time.perf_counter() - started
         elif how == "C":
-            address = ctypes.cast(raw, ctypes.c_void_p).value
+            address = functions.step
             started = time.perf_counter()
             done = driver.drive(address, c, 0, h, n)
             elapsed = time.perf_counter() - started
             if done != n:
                 raise RuntimeError(f"fmi2DoStep failed at step {done}")
         elif how == "replay":
-            address = {name: ctypes.cast(slave._functions[name], ctypes.c_void_p).value
-                       for name in ("fmi2DoStep", "fmi2SetReal", "fmi2GetReal")}
+            address = {"fmi2DoStep": functions.step, "fmi2SetReal": functions.set, "fmi2GetReal": functions.get}
             vr_in = (ctypes.c_uint32 * 2)(plant.references["iq_ref"], plant.references["F_E"])
             names = list(plant.recorded_outputs)
             vr_out = (ctypes.c_uint32 * len(names))(*(plant.references[name] for name in names))
@@ -199,8 +199,8 @@ def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
     return elapsed / n
 
 
-class Timed(fmu_io.PlantFMU):
-    """PlantFMU that notes the time from instantiate to the end of close (terminate, free)."""
+class Timed(session.PlantSession):
+    """PlantSession that notes the time from instantiate to the end of close (terminate, free)."""
 
     spans: list[float] = []
 
@@ -218,14 +218,14 @@ def full_loop(plant, run, python_loop: bool = False) -> dict:
     """One simulate(): per-step loop cost and three real-time factors. python_loop: with the
     compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
     Timed.spans.clear()
-    original, master.PlantFMU = master.PlantFMU, Timed
+    original, master.PlantSession = master.PlantSession, Timed
     saved = os.environ.get("TOGGLE_COSIM_KERNEL")
     if python_loop:
         os.environ["TOGGLE_COSIM_KERNEL"] = "0"
     try:
         outcome = master.simulate(run, plant)
     finally:
-        master.PlantFMU = original
+        master.PlantSession = original
         if python_loop:
             if saved is None:
                 os.environ.pop("TOGGLE_COSIM_KERNEL", None)
@@ -278,7 +278,7 @@ def six_runs_process(fmu: Path, folder: Path, supervised: bool = True) -> dict:
     return {"to_last_file": last - started, "process": ended - started, "files": len(written)}
 
 
-IMPORTS = ("import toggle_cosim.cli, toggle_cosim.master, toggle_cosim.plant, toggle_cosim.scenario, "
+IMPORTS = ("import toggle_cosim.cli, toggle_cosim.cosim.master, toggle_cosim.plant, toggle_cosim.scenario, "
            "toggle_cosim.traces, toggle_cosim.summary")
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import load_scenario
 

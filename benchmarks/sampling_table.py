@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.compare import compare_traces
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.plant import check_plant
 from toggle_cosim.references import tolerances_for
 from toggle_cosim.scenario import Run, load_scenario

@@ -9,7 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from toggle_cosim import compiled_loop
+from toggle_cosim.cosim import compiled_loop
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -197,7 +197,7 @@ def test_statistics_are_read_by_name_when_the_model_description_declares_them(ve
 
 
 def test_the_plant_fmu_statistics_reach_the_run_record(plant_fmu):
-    from toggle_cosim.master import simulate
+    from toggle_cosim.cosim.master import simulate
     from toggle_cosim.plant import check_plant
     from toggle_cosim.scenario import load_scenario
 

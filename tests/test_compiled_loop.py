@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim import compiled_loop
+from toggle_cosim.cosim import compiled_loop
 from toggle_cosim.control import laws, nominal, translate
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.controller import VSCController
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import load_scenario

@@ -18,7 +18,7 @@ import pytest
 import yaml
 from fmpy.fmi1 import FMICallException
 
-from toggle_cosim import fmu_io, master
+from toggle_cosim.cosim import master, session
 from toggle_cosim.fmu_export import build_fmu
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import runs_from_document
@@ -57,13 +57,13 @@ def _nominal(**plant: object):
 
 def _count_frees(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     freed: list[int] = []
-    original = fmu_io.PlantFMU.close
+    original = session.PlantSession.close
 
-    def close(self: fmu_io.PlantFMU) -> None:
+    def close(self: session.PlantSession) -> None:
         original(self)
         freed.append(1)
 
-    monkeypatch.setattr(fmu_io.PlantFMU, "close", close)
+    monkeypatch.setattr(session.PlantSession, "close", close)
     return freed
 
 
@@ -90,16 +90,16 @@ def test_each_error_status_of_a_step(plant_fmu: Path, monkeypatch: pytest.Monkey
     plant = check_plant(plant_fmu)
     clean = master.simulate(_nominal(), plant)
     freed = _count_frees(monkeypatch)
-    original = fmu_io.PlantFMU.do_step
+    original = session.PlantSession.do_step
     failed: list[float] = []
 
-    def do_step(self: fmu_io.PlantFMU, t: float, h: float) -> None:
+    def do_step(self: session.PlantSession, t: float, h: float) -> None:
         if abs(t - 0.1) < 1e-12 and h == 0.0005 and not failed:
             failed.append(t)
             raise FMICallException(function="fmi2DoStep", status=status)
         original(self, t, h)
 
-    monkeypatch.setattr(fmu_io.PlantFMU, "do_step", do_step)
+    monkeypatch.setattr(session.PlantSession, "do_step", do_step)
     outcome = master.simulate(_nominal(), plant)
     assert failed == [pytest.approx(0.1)] and freed == [1]
     if retried:
@@ -115,16 +115,16 @@ def test_each_error_status_of_a_step(plant_fmu: Path, monkeypatch: pytest.Monkey
 
 def test_non_finite_outputs_end_the_run(plant_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    original = fmu_io.PlantFMU.read_outputs
+    original = session.PlantSession.read_outputs
     calls = [0]
 
-    def read_outputs(self: fmu_io.PlantFMU, into: np.ndarray) -> None:
+    def read_outputs(self: session.PlantSession, into: np.ndarray) -> None:
         original(self, into)
         calls[0] += 1
         if calls[0] > 300:
             into[:] = np.nan
 
-    monkeypatch.setattr(fmu_io.PlantFMU, "read_outputs", read_outputs)
+    monkeypatch.setattr(session.PlantSession, "read_outputs", read_outputs)
     freed = _count_frees(monkeypatch)
     outcome = master.simulate(_nominal(), check_plant(plant_fmu))
     assert not outcome.complete and freed == [1]

@@ -544,7 +544,7 @@ def test_fmi3_plant_under_the_master_matches_the_stored_reference(plant3_fmu: Pa
     """The FMI 3.0 build, run by the same master and controller as the FMI 2.0 one, stays in
     the funnel of the reference trace recorded with the FMI 2.0 build."""
     from toggle_cosim import references
-    from toggle_cosim.master import simulate
+    from toggle_cosim.cosim.master import simulate
     from toggle_cosim.plant import check_plant
     from toggle_cosim.scenario import load_scenario
 

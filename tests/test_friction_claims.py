@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from toggle_cosim.friction_claims import friction_claims
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import load_scenario
 

@@ -1,7 +1,7 @@
 """An independent check of the co-simulation master: the same plant FMU under a master that
 does not use fmpy.
 
-`toggle_cosim.master.simulate` runs a paper run closed loop (plant FMU through fmpy, the VSC in
+`toggle_cosim.cosim.master.simulate` runs a paper run closed loop (plant FMU through fmpy, the VSC in
 Python) and records the input sequence it applied: iq_ref (the controller's output) and F_E,
 one value per communication point t_k = k T_s. That sequence is then replayed *open loop* into
 the same FMU under ecos (`ecospy`, Python bindings of the C++ co-simulation engine ecos; its own
@@ -43,7 +43,7 @@ import numpy as np
 import pytest
 
 from toggle_cosim.compare import DEFAULT_TOLERANCE, compare_traces, format_table
-from toggle_cosim.master import RunOutcome, _plant_settings, simulate
+from toggle_cosim.cosim.master import RunOutcome, plant_settings, simulate
 from toggle_cosim.plant import PlantInterface, check_plant
 from toggle_cosim.scenario import Run, load_scenario
 from toggle_cosim.traces import Trace
@@ -123,7 +123,7 @@ def replay_under_ecos(ecospy, plant: PlantInterface, run: Run, iq_ref: np.ndarra
     n = run.steps
     assert len(iq_ref) == len(F_E) == n + 1
     settings: dict[str, float | bool] = {}
-    for name, value in _plant_settings(run, plant):  # m_B, mu, x_B0, idealCurrentLoop, ... as the master sets them
+    for name, value in plant_settings(run, plant):  # m_B, mu, x_B0, idealCurrentLoop, ... as the master sets them
         settings[f"{INSTANCE}::{name}"] = value if isinstance(value, bool) else float(value)
     settings[f"{INSTANCE}::iq_ref"] = 0.0  # the master's inputs during initialisation
     settings[f"{INSTANCE}::F_E"] = float(run.plant.F_E)

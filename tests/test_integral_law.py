@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import ScenarioError, load_scenario, runs_from_document
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from toggle_cosim.controller import hitting_time
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.parameters import ControllerGains
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import load_scenario, runs_from_document

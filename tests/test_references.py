@@ -11,7 +11,7 @@ from junitparser import JUnitXml
 
 from toggle_cosim import references
 from toggle_cosim.analysis.reference_reports import write_reference_reports
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.plant import check_plant
 from toggle_cosim.scenario import load_scenario
 

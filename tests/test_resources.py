@@ -61,7 +61,7 @@ def test_unusable_output_folders_are_refused_before_any_run(tmp_path: Path, plan
 @pytest.mark.parametrize(("parameters", "needle"), [({"no_such_thing": 1.0}, "has no variable 'no_such_thing'"),
                                                     ({"solver.relTol": True}, "write a number"),
                                                     ({"x_B": 0.3}, "not a parameter")])
-def test_plant_settings_are_checked_before_any_run(tmp_path: Path, plant_fmu: Path, parameters: dict, needle: str) -> None:
+def testplant_settings_are_checked_before_any_run(tmp_path: Path, plant_fmu: Path, parameters: dict, needle: str) -> None:
     out = tmp_path / "out"
     plant = {**BASE["plant"], "parameters": parameters}
     line = _bad_input(["run", str(_scenario(tmp_path, plant=plant)), "--fmu", str(plant_fmu), "--out", str(out)])

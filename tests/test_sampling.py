@@ -18,7 +18,7 @@ import pytest
 
 from toggle_cosim.analysis.sampling import REFERENCE_GRID, RESULT_GRID, SpanMismatch, check_points
 from toggle_cosim.compare import DEFAULT_TOLERANCE, CompareInputError, Tolerance, compare_traces
-from toggle_cosim.master import simulate
+from toggle_cosim.cosim.master import simulate
 from toggle_cosim.plant import check_plant
 from toggle_cosim.references import tolerances_for
 from toggle_cosim.traces import Trace

@@ -104,9 +104,9 @@ def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tm
 
 def test_the_paper_runs_stay_bit_identical_under_supervision(plant_fmu: Path, tmp_path: Path) -> None:
     """The supervised child writes the same numbers the unsupervised loop does."""
-    from toggle_cosim.master import simulate
+    from toggle_cosim.cosim.master import simulate
     from toggle_cosim.scenario import load_scenario
-    from toggle_cosim.supervision import simulate_supervised
+    from toggle_cosim.cosim.supervision import simulate_supervised
 
     plant = check_plant(plant_fmu)
     for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):

@@ -226,10 +226,10 @@ def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path
     import os
 
     if os.environ.get("TOGGLE_COSIM_SUPERVISE", "1") == "0":
-        from toggle_cosim.master import simulate
+        from toggle_cosim.cosim.master import simulate
 
         return simulate(run, plant, progress)
-    from toggle_cosim.supervision import simulate_supervised
+    from toggle_cosim.cosim.supervision import simulate_supervised
 
     return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
 

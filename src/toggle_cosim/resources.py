@@ -57,7 +57,7 @@ class TraceEstimate:
 
 
 def estimate(run, plant) -> TraceEstimate:  # noqa: ANN001
-    from toggle_cosim.master import trace_names
+    from toggle_cosim.cosim.master import trace_names
 
     return TraceEstimate(run.steps + 1, len(trace_names(plant)), int(run.resolved.get("record_every", 1)))
 

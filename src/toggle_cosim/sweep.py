@@ -467,7 +467,7 @@ def _file_key(path: Path) -> tuple[str, int, int]:
 def _sha256(path: Path) -> str:
     key = _file_key(path)
     if key not in _sha_cache:
-        from toggle_cosim.master import file_sha256
+        from toggle_cosim.cosim.master import file_sha256
 
         _sha_cache[key] = file_sha256(path)
     return _sha_cache[key]
@@ -518,7 +518,7 @@ def run_case(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None = None,
     Never raises for a failure of the case: the row has status "failed" and the reason. The case
     runs supervised (`supervision`): a crash or hang of the plant, or `time_limit` (default: the
     case's time_limit key, else max(30 s, 20 x t_end)) exceeded, is a failed row."""
-    from toggle_cosim.supervision import simulate_supervised
+    from toggle_cosim.cosim.supervision import simulate_supervised
 
     started = time.perf_counter()
     row: dict[str, Any] = {
@@ -1021,7 +1021,7 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
 
     from toggle_cosim.plant_settings import SettingError, check_settings
 
-    from toggle_cosim.master import trace_names
+    from toggle_cosim.cosim.master import trace_names
     from toggle_cosim.resources import max_output
 
     if sweep.cases:  # each case's trace buffer (8 bytes a value while it runs) within the output limit

@@ -1,5 +1,5 @@
 /* toggle-cosim: the co-simulation loop in C, a skeleton with no physics and no control law.
-   compiled_loop.py puts the law in front of it: the struct law_t and the function law_step,
+   cosim/compiled_loop.py puts the law in front of it: the struct law_t and the function law_step,
    both generated from their Python definition (control/laws.py, control/translate.py).
    Per sample: read the FMU's outputs into the trace row, call law_step, record, set the
    inputs, doStep. */
@@ -13,13 +13,14 @@ typedef int (*get3_t)(void *, const unsigned int *, size_t, double *, size_t);
 typedef int (*set3_t)(void *, const unsigned int *, size_t, const double *, size_t);
 typedef int (*step3_t)(void *, double, double, bool, bool *, bool *, bool *, double *);
 
-/* Its ctypes mirror is built in compiled_loop.py from the same field lists. */
+/* Its ctypes mirror is built in cosim/compiled_loop.py from the same field lists. */
 typedef struct {
     void *get, *set, *step, *component;
     const unsigned int *out_vr, *in_vr;
     double *data;
     long fmi3, n_out, ncols, i_x, i_v, col_u, n;
     long k, fault, status;  /* next sample; the failed FMI function (1 get, 2 set, 3 step), its status */
+    long no_prior;          /* doStep's noSetFMUStatePriorToCurrentPoint: 1 only if no checkpoint is restored */
     double T_s, F_E, z;     /* z: the law's state (an integrator) at sample k */
     law_t law;
 } kernel_t;
@@ -71,8 +72,8 @@ int kernel_run(kernel_t *s, long k_end) {
         status = s->fmi3 ? ((set3_t)s->set)(s->component, s->in_vr, 2, in, 2)
                          : ((set2_t)s->set)(s->component, s->in_vr, 2, in);
         if (status > 1) { s->k = k; s->fault = 2; s->status = status; return FMI_FAILED; }
-        status = s->fmi3 ? ((step3_t)s->step)(s->component, t, s->T_s, true, &event, &terminate, &early, &last)
-                         : ((step2_t)s->step)(s->component, t, s->T_s, 1);
+        status = s->fmi3 ? ((step3_t)s->step)(s->component, t, s->T_s, s->no_prior != 0, &event, &terminate, &early, &last)
+                         : ((step2_t)s->step)(s->component, t, s->T_s, s->no_prior != 0);
         if (status > 1) { s->k = k; s->fault = 3; s->status = status; return FMI_FAILED; }
     }
     s->k = k_end;

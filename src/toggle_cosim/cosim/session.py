@@ -1,21 +1,27 @@
-"""A thin, allocation-free wrapper over an FMI 2.0 or 3.0 Co-Simulation FMU for the master loop.
+"""One instance of a plant FMU (FMI 2.0 or 3.0 Co-Simulation), with a public API for the master.
+
+    instantiate -> set_value ... -> enter_initialization -> write_inputs -> exit_initialization
+    -> (read_outputs, write_inputs, do_step)* -> close
 
 fmpy's `FMU2Slave.getReal([..])` builds ctypes arrays on every call, and each of its `fmi2*`
 methods goes through a Python `_call` that looks the function up, optionally logs, and checks
-the status. Here the value-reference arrays and value buffers are built once, and each call
-goes straight to the FMU's C function (the ctypes function fmpy loaded, with its argument
-types), checking the status as fmpy does: anything worse than a warning raises fmpy's
-`FMICallException` naming the function.
+the status. Here the value-reference arrays and value buffers are built once, and the hot
+calls go straight to the FMU's C functions (bound here from fmpy's loaded library `dll` with
+their FMI prototypes), checking the status as fmpy does: anything worse than a warning raises
+fmpy's `FMICallException` naming the function.
 
-The master can also run whole stretches of its loop in C over this wrapper: see
-`toggle_cosim.compiled_loop`.
+`c_functions()` hands the same pointers and buffers to the compiled loop (`compiled_loop`).
+`no_set_state_prior_to_current_point` is the flag passed to every doStep; it stays False
+(history kept) unless a checkpoint policy that never restores sets it True (`retry`).
 """
 
 from __future__ import annotations
 
 import ctypes
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from fmpy import extract
@@ -23,14 +29,49 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
-from toggle_cosim.compiled_loop import CompiledLoop, kernel_library
-from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.plant import PlantInterface
 
 _WARNING = 1  # fmi2Warning == fmi3Warning: a status above it is a failure, as fmpy's _call says
+_VR, _DOUBLES = ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_double)
+_BOOL_OUT = ctypes.POINTER(ctypes.c_bool)
+# The FMI prototypes of the three hot functions (fmi2FunctionTypes.h, fmi3FunctionTypes.h).
+_PROTOTYPES = {
+    "fmi2GetReal": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES),
+    "fmi2SetReal": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES),
+    "fmi2DoStep": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int),
+    "fmi3GetFloat64": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES, ctypes.c_size_t),
+    "fmi3SetFloat64": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES, ctypes.c_size_t),
+    "fmi3DoStep": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_bool,
+                                   _BOOL_OUT, _BOOL_OUT, _BOOL_OUT, _DOUBLES),
+}
 
 
-class PlantFMU:
+@dataclass(frozen=True)
+class FunctionNames:
+    """The FMI names of the hot functions, for error messages (fmi2GetReal / fmi3GetFloat64, ...)."""
+
+    get: str
+    set: str
+    step: str
+
+
+@dataclass(frozen=True)
+class CFunctions:
+    """What the compiled loop needs to call the FMU from C: addresses of the three functions,
+    the instance, and the value-reference arrays (kept alive by `owner`)."""
+
+    get: int
+    set: int
+    step: int
+    component: int
+    out_vr: int
+    in_vr: int
+    fmi3: bool
+    names: FunctionNames
+    owner: Any
+
+
+class PlantSession:
     """One instance of a plant FMU: set parameters, initialise, then read/write/step."""
 
     def __init__(self, plant: PlantInterface, instance_name: str, outputs: list[str], inputs: list[str]) -> None:
@@ -58,12 +99,11 @@ class PlantFMU:
         self._in_val = (ctypes.c_double * len(inputs))()
         self._n_in = len(inputs)
         prefix = "fmi3" if self.is_fmi3 else "fmi2"
-        self._get_name = f"{prefix}GetFloat64" if self.is_fmi3 else "fmi2GetReal"
-        self._set_name = f"{prefix}SetFloat64" if self.is_fmi3 else "fmi2SetReal"
-        self._step_name = f"{prefix}DoStep"
-        self._get = self._c_function(self._get_name)
-        self._set = self._c_function(self._set_name)
-        self._step = self._c_function(self._step_name)
+        self.function_names = FunctionNames(get=f"{prefix}GetFloat64" if self.is_fmi3 else "fmi2GetReal",
+                                            set=f"{prefix}SetFloat64" if self.is_fmi3 else "fmi2SetReal",
+                                            step=f"{prefix}DoStep")
+        names = self.function_names
+        self._get, self._set, self._step = (self._c_function(name) for name in (names.get, names.set, names.step))
         if self.is_fmi3:  # doStep's output arguments, built once
             self._event = ctypes.c_bool()
             self._terminate = ctypes.c_bool()
@@ -73,14 +113,21 @@ class PlantFMU:
                                   ctypes.byref(self._early), ctypes.byref(self._last_time))
         self._component = None
         self._saved = None  # the checkpoint, an fmi2FMUstate / fmi3FMUState
+        # False: the FMU keeps its history (a checkpoint before the current point may be restored).
+        self.no_set_state_prior_to_current_point = False
 
-    def _c_function(self, name: str):  # noqa: ANN202 - a ctypes function pointer
-        """The FMU's C function as fmpy loaded it (argument and result types set), or the
-        fmpy method of that name if this fmpy keeps them elsewhere."""
-        found = getattr(self.fmu, "_functions", {}).get(name)
-        return found if found is not None else getattr(self.fmu, name)
+    def _c_function(self, name: str):  # noqa: ANN202 - a ctypes function pointer, or None
+        """The FMU's exported C function `name` with its FMI prototype, or None if not exported."""
+        try:
+            return _PROTOTYPES[name]((name, self.fmu.dll))
+        except (AttributeError, TypeError):
+            return None
 
     # -- life cycle ---------------------------------------------------------------------------
+    @property
+    def is_instantiated(self) -> bool:
+        return self._instantiated
+
     def instantiate(self, start: float, stop: float) -> None:
         if self.is_fmi3:
             self.fmu.instantiate(visible=False, loggingOn=False)
@@ -158,7 +205,7 @@ class PlantFMU:
         else:
             status = self._get(self._component, self._out_vr, self._n_out, self._out_val)
         if status is not None and status > _WARNING:
-            raise FMICallException(function=self._get_name, status=status)
+            raise FMICallException(function=self.function_names.get, status=status)
         into[:] = self._out_view
 
     def write_inputs(self, values: tuple[float, ...]) -> None:
@@ -170,25 +217,36 @@ class PlantFMU:
         else:
             status = self._set(self._component, self._in_vr, self._n_in, buffer)
         if status is not None and status > _WARNING:
-            raise FMICallException(function=self._set_name, status=status)
+            raise FMICallException(function=self.function_names.set, status=status)
 
     def do_step(self, t: float, h: float) -> None:
+        """One doStep from t over h, with `no_set_state_prior_to_current_point` as the flag."""
+        keep = self.no_set_state_prior_to_current_point
         if self.is_fmi3:
-            status = self._step(self._component, t, h, True, *self._step_outputs)
+            status = self._step(self._component, t, h, keep, *self._step_outputs)
         else:
-            status = self._step(self._component, t, h, 1)
+            status = self._step(self._component, t, h, 1 if keep else 0)
         if status is not None and status > _WARNING:
-            raise FMICallException(function=self._step_name, status=status)
+            raise FMICallException(function=self.function_names.step, status=status)
 
-    # -- the compiled loop --------------------------------------------------------------------
-    def compiled_loop(self, data: np.ndarray, n_out: int, i_x: int, i_v: int, col_u: int, n: int,
-                      T_s: float, F_E: float, law: LawParameters, z: float = 0.0) -> CompiledLoop | None:
-        """The loop in C over this instance, or None when it cannot be had (no compiler, the
-        FMU's C functions not reachable, TOGGLE_COSIM_KERNEL=0). See `CompiledLoop`."""
-        library = kernel_library()
-        functions = getattr(self.fmu, "_functions", {})
-        names = (self._get_name, self._set_name, self._step_name)
-        if library is None or self._component is None or any(name not in functions for name in names):
+    # -- for the compiled loop and the run record ---------------------------------------------
+    def c_functions(self) -> CFunctions | None:
+        """The addresses the compiled loop calls, or None (not instantiated, or a function not exported)."""
+        functions = (self._get, self._set, self._step)
+        if self._component is None or any(f is None for f in functions):
             return None
-        return CompiledLoop(library, self, [functions[name] for name in names], data, n_out, i_x, i_v, col_u,
-                            n, T_s, F_E, law, z)
+        get, set_, step = (ctypes.cast(f, ctypes.c_void_p).value for f in functions)
+        return CFunctions(get=get, set=set_, step=step, component=self._component,
+                          out_vr=ctypes.addressof(self._out_vr), in_vr=ctypes.addressof(self._in_vr),
+                          fmi3=self.is_fmi3, names=self.function_names, owner=(self, functions))
+
+    def solver_statistics(self) -> dict[str, int] | str:
+        """The plant solver's cumulative counts (toggle_cosim.analysis.solver_stats), read now."""
+        from toggle_cosim.analysis.solver_stats import NOT_EXPOSED, read_solver_statistics
+
+        if not self._instantiated:
+            return NOT_EXPOSED
+        try:
+            return read_solver_statistics(self.fmu, self.plant.model_description)
+        except Exception as error:  # noqa: BLE001 - a run's record never fails for its statistics
+            return f"unreadable ({error})"

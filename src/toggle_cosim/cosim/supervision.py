@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim import master
+from toggle_cosim.cosim import master, outcome as outcomes
 from toggle_cosim.plant import PlantInterface
 from toggle_cosim.scenario import Run
 from toggle_cosim.traces import Trace
@@ -104,9 +104,9 @@ def _limit_memory() -> None:
 
 def _warm_up() -> None:
     """Work each child would repeat, done once in the parent before forking."""
-    master._installed_versions()
+    outcomes.installed_versions()
     with contextlib.suppress(Exception):
-        from toggle_cosim.compiled_loop import kernel_library
+        from toggle_cosim.cosim.compiled_loop import kernel_library
 
         kernel_library()
 
@@ -169,7 +169,7 @@ def _map_buffer(path: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndar
 
 def simulate_supervised(run: Run, plant: PlantInterface, *, time_limit: float | None = None,
                         progress: Callable[[float], None] | None = None, scratch: Path | None = None,
-                        capture_log: bool = False) -> master.RunOutcome:
+                        capture_log: bool = False) -> outcomes.RunOutcome:
     """`master.simulate` in a supervised child process; never raises for anything the plant does.
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
@@ -257,7 +257,7 @@ def simulate_supervised(run: Run, plant: PlantInterface, *, time_limit: float | 
             sys.stdout.write(log)
         record["wall_time_s"] = wall
         # the trace is a view of the map, which it keeps alive
-        return master.RunOutcome(run, trace, complete, child_reason, wall, loop_s, summary, record, child_interrupted)
+        return outcomes.RunOutcome(run, trace, complete, child_reason, wall, loop_s, summary, record, child_interrupted)
     if reason is None:
         if answer is not None and answer[0] == "error":
             reason = f"the plant could not be run: {answer[1]}"
@@ -272,8 +272,8 @@ def simulate_supervised(run: Run, plant: PlantInterface, *, time_limit: float | 
     at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
     reason = f"{reason}{at}"
     status_word = "interrupted" if interrupted else "failed"
-    record = master.run_record(run, plant, status_word, reason, rows, wall, wall)
-    return master.RunOutcome(run, trace, False, reason, wall, wall, None, record, interrupted)
+    record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall)
+    return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, interrupted)
 
 
 def _answer(chunks: list[bytes]) -> tuple | None:
