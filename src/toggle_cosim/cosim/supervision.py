@@ -263,7 +263,7 @@ def simulate_supervised(run: Run, plant: PlantInterface, *, time_limit: float | 
             reason = f"the plant could not be run: {answer[1]}"
         elif status is not None and os.WIFSIGNALED(status):
             number = os.WTERMSIG(status)
-            name = signal.Signals(number).name if number in signal.Signals._value2member_map_ else f"signal {number}"
+            name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
             reason = f"the plant process was killed by {name}"
         elif status is not None:
             reason = f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"

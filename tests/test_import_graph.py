@@ -1,0 +1,136 @@
+"""The package's import graph, read from its `import` statements (AST): no module imports
+itself back through others, and the co-simulation parts reach no private attribute of another
+object. A graph with a cycle must be reported, so the finder is checked on a known cycle."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+SRC = Path(__file__).resolve().parent.parent / "src"
+
+
+def _modules(root: Path) -> dict[str, Path]:
+    found = {}
+    for path in root.rglob("*.py"):
+        parts = list(path.relative_to(root.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        found[".".join(parts)] = path
+    return found
+
+
+def _imported(name: str, path: Path, modules: dict[str, Path], lazy: bool) -> set[str]:
+    """The package's modules `name` imports: at import time (module level, also under `if`
+    and `try`, e.g. TYPE_CHECKING), and with `lazy` also those imported inside functions."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    nodes: list[ast.AST] = []
+    pending: list[ast.AST] = list(tree.body)
+    while pending:
+        node = pending.pop()
+        nodes.append(node)
+        if lazy or not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            pending.extend(ast.iter_child_nodes(node))
+    named: set[str] = set()
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            named.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                prefix = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(prefix + ([base] if base else []))
+            named.update(f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base for alias in node.names)
+    found = set()
+    for module in named:
+        while module and module not in modules:
+            module = module.rpartition(".")[0]
+        if module and module != name:
+            found.add(module)
+    return found
+
+
+def import_graph(root: Path, lazy: bool = False) -> dict[str, set[str]]:
+    modules = _modules(root)
+    return {name: _imported(name, path, modules, lazy) for name, path in modules.items()}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_cycle_finder_finds_a_cycle(tmp_path: Path) -> None:
+    package = tmp_path / "pkg"
+    (package / "sub").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "sub" / "__init__.py").write_text("")
+    (package / "a.py").write_text("from pkg.sub import b\n")
+    (package / "sub" / "b.py").write_text("from ..c import thing\n")
+    (package / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import pkg.a\n")
+    (package / "d.py").write_text("def later():\n    from pkg import a\n")
+    graph = import_graph(package)
+    assert graph["pkg.c"] == {"pkg.a"} and graph["pkg.d"] == set()
+    assert cycles(graph) == [["pkg.a", "pkg.c", "pkg.sub.b"]]
+    (package / "a.py").write_text("import pkg.d\n")
+    assert cycles(import_graph(package)) == []
+    assert cycles(import_graph(package, lazy=True)) == [["pkg.a", "pkg.d"]]
+
+
+def test_no_import_cycles_in_the_package() -> None:
+    graph = import_graph(SRC / "toggle_cosim")
+    assert len(graph) > 50 and "toggle_cosim.cosim.master" in graph
+    assert cycles(graph) == []
+
+
+def test_the_cosim_parts_import_each_other_one_way_only() -> None:
+    """Within cosim/ not even a function-level import closes a loop (session never imports
+    the compiled loop or the master), and the parts import no CLI or sweep."""
+    graph = {name: {m for m in imports if m.startswith("toggle_cosim.cosim")}
+             for name, imports in import_graph(SRC / "toggle_cosim", lazy=True).items()
+             if name.startswith("toggle_cosim.cosim")}
+    assert cycles(graph) == []
+    assert graph["toggle_cosim.cosim.session"] == set()
+    full = import_graph(SRC / "toggle_cosim", lazy=True)
+    for name in graph:
+        assert not full[name] & {"toggle_cosim.cli", "toggle_cosim.sweep"}, name
+
+
+def test_the_cosim_parts_touch_no_private_attribute_of_another_object() -> None:
+    """`x._name` only on self or cls (os._exit is public API)."""
+    found = []
+    for path in (SRC / "toggle_cosim" / "cosim").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+                owner = ast.unparse(node.value)
+                if owner not in ("self", "cls", "os"):
+                    found.append(f"{path.name}:{node.lineno} {ast.unparse(node)}")
+    assert found == []
