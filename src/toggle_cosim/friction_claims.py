@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from toggle_cosim.cosim.master import RunOutcome
+from toggle_cosim.cosim.outcome import RunOutcome
 
 MODELS = ("paper", "dissipative", "stick_slip")
 CASES = {"fig4_nominal": "nominal", "fig5_external_force": "external_force", "fig6_mass_variation": "mass_variation"}

@@ -34,7 +34,7 @@ from toggle_cosim.compare import (
     read_reference,
     write_reference,
 )
-from toggle_cosim.cosim.master import RunOutcome
+from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.scenario import Run
 from toggle_cosim.traces import Trace
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim.cosim.master import RunOutcome
+from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.traces import atomic_write
 
 

@@ -21,7 +21,7 @@ from collections.abc import Callable
 import numpy as np
 
 from toggle_cosim.controller import VSCController
-from toggle_cosim.cosim.outcome import RunOutcome, file_sha256, run_record
+from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.recorder import CONTROL_COLUMNS, ProgressHook, Recorder
 from toggle_cosim.cosim.retry import CheckpointPolicy
 from toggle_cosim.cosim.session import PlantSession
@@ -33,7 +33,7 @@ from toggle_cosim.plant import PlantInterface
 from toggle_cosim.scenario import Run
 from toggle_cosim.summary import summarize
 
-__all__ = ["RunOutcome", "file_sha256", "make_controller", "plant_settings", "simulate", "trace_names"]
+__all__ = ["RunOutcome", "make_controller", "plant_settings", "simulate", "trace_names"]
 INPUTS = ("iq_ref", "F_E")
 
 
