@@ -315,13 +315,18 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         )
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
-    record = run_record(run, plant, status, reason, rows, wall, loop_finished - loop_started, summary, retries)
+    record = run_record(run, plant, status, reason, rows, wall, loop_finished - loop_started, summary, retries,
+                        loop, solver_statistics)
     return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)
 
 
 def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None, rows: int, wall: float,
-               loop_seconds: float, summary: RunSummary | None = None, retries: list | None = None) -> dict[str, Any]:
-    """What run.json says about a run: status is "complete", "failed" or "interrupted"."""
+               loop_seconds: float, summary: RunSummary | None = None, retries: list | None = None,
+               loop: dict[str, Any] | None = None, solver_statistics: dict[str, int] | str | None = None,
+               ) -> dict[str, Any]:
+    """What run.json says about a run: status is "complete", "failed" or "interrupted"; `loop` says
+    which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
+    when the supervised child died before reporting them)."""
     return {
         "scenario": run.scenario,
         "variant": run.variant,
