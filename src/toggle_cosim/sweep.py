@@ -1036,8 +1036,11 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     for case in sweep.cases:  # each distinct setting of the plant, before any case runs
         plant_doc = case.document.get("plant") or {}
         settings = SimpleNamespace(current_loop=plant_doc.get("current_loop", "first_order"),
-                                   parameters=dict(plant_doc.get("parameters") or {}))
-        key = (settings.current_loop, repr(sorted(settings.parameters.items(), key=repr)))
+                                   parameters=dict(plant_doc.get("parameters") or {}),
+                                   friction_model=plant_doc.get("friction_model", "paper"),
+                                   mu=plant_doc.get("mu", 0.0), mu_s=plant_doc.get("mu_s"))
+        key = (settings.current_loop, settings.friction_model, repr(settings.mu), repr(settings.mu_s),
+               repr(sorted(settings.parameters.items(), key=repr)))
         if key in seen:
             continue
         seen.add(key)
