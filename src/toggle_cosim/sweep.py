@@ -1039,7 +1039,7 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
                                    parameters=dict(plant_doc.get("parameters") or {}),
                                    friction_model=plant_doc.get("friction_model", "paper"),
                                    mu=plant_doc.get("mu", 0.0), mu_s=plant_doc.get("mu_s"))
-        key = (settings.current_loop, settings.friction_model, settings.mu_s,
+        key = (settings.current_loop, settings.friction_model, repr(settings.mu), repr(settings.mu_s),
                repr(sorted(settings.parameters.items(), key=repr)))
         if key in seen:
             continue

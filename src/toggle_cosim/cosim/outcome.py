@@ -11,7 +11,6 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.analysis.solver_stats import NOT_EXPOSED
 from toggle_cosim.plant import PlantInterface
 from toggle_cosim.scenario import Run
 from toggle_cosim.summary import RunSummary
@@ -56,9 +55,11 @@ def installed_versions() -> tuple[tuple[str, str], ...]:
 
 def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None, rows: int, wall: float,
                loop_seconds: float, summary: RunSummary | None = None, retries: list | None = None,
-               loop: dict[str, Any] | None = None, solver_statistics: dict[str, int] | str = NOT_EXPOSED,
+               loop: dict[str, Any] | None = None, solver_statistics: dict[str, int] | str | None = None,
                ) -> dict[str, Any]:
-    """What run.json says about a run: status is "complete", "failed" or "interrupted"."""
+    """What run.json says about a run: status is "complete", "failed" or "interrupted"; `loop` says
+    which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
+    when the supervised child died before reporting them)."""
     return {
         "scenario": run.scenario,
         "variant": run.variant,
@@ -71,7 +72,7 @@ def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None,
         "reason": reason,
         "samples": rows,
         "retries": retries or [],
-        "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},
+        "loop": loop,
         "wall_time_s": wall,
         "loop_time_s": loop_seconds,
         "real_time_factor": max(rows - 1, 0) * run.T_s / max(loop_seconds, 1e-12),

@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import faulthandler
+import gc
 import io
 import mmap
 import os
@@ -116,6 +117,7 @@ def _child(run: Run, plant: PlantInterface, buffer: np.ndarray, progress_slot: n
     """The child's whole life: run, send the outcome (no trace) back, exit without cleanup."""
     code = 0
     try:
+        gc.disable()  # a collection would touch, and so copy, the whole inherited heap; the child lives briefly
         faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides about interrupts
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
