@@ -196,8 +196,9 @@ def test_the_compiled_stepper_hands_a_sample_back_to_python() -> None:
     hook = ProgressHook(hooked.append, N, T_S, N * T_S)
     fake = FakeCompiledLoop(PythonStepper(session, python.controller, recorder, python.timing, state), back_at=17)
     compiled = CompiledStepper(fake, session, recorder, python.timing, state, [hook])
-    stepper = HandOver(python, compiled, "")
+    stepper = HandOver(python, compiled)
     assert stepper.loop["kind"] == "compiled"
+    assert HandOver(python, "no C compiler").loop == {"kind": "python", "reason": "no C compiler"}
     policy = CheckpointPolicy(saving=True)
     assert python.advance(0, 1) == 1
     reads_before = session.reads

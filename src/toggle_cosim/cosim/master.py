@@ -115,12 +115,10 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         loop_started = clock.perf_counter()
         k = python.advance(0, 1)  # the first sample starts the controller (S0, T_h)
         if k == 1 and n > 0:
-            compiled = CompiledStepper.build(session, recorder, timing, state, state.controller.law, hooks)
-            if isinstance(compiled, CompiledStepper):
-                policy.configure(compiled.loop)
-            stepper = HandOver(python, compiled if isinstance(compiled, CompiledStepper) else None,
-                               compiled if isinstance(compiled, str) else "")
-            loop = stepper.loop
+            stepper = HandOver(python, CompiledStepper.build(session, recorder, timing, state, state.controller.law,
+                                                             hooks))
+            if stepper.compiled is not None:
+                policy.configure(stepper.compiled.loop)
             try:
                 policy.drive(stepper, session, recorder, k, n, run.T_s)
             finally:

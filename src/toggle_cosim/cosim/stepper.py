@@ -162,11 +162,13 @@ class CompiledStepper:
 class HandOver:
     """The compiled stepper, if there is one, then the Python stepper from a handed-back sample."""
 
-    def __init__(self, python: PythonStepper, compiled: CompiledStepper | None, why_python: str) -> None:
-        self.python, self.compiled = python, compiled
+    def __init__(self, python: PythonStepper, compiled: CompiledStepper | str) -> None:
+        """`compiled`: the compiled stepper, or why there is none (`CompiledStepper.build`)."""
+        self.python = python
+        self.compiled = compiled if isinstance(compiled, CompiledStepper) else None
         self.loop: dict[str, Any] = (
-            {"kind": "compiled", "reason": "generated from control.laws; C compiler available"} if compiled
-            else {"kind": "python", "reason": why_python})
+            {"kind": "compiled", "reason": "generated from control.laws; C compiler available"} if self.compiled
+            else {"kind": "python", "reason": compiled})
 
     def advance(self, k: int, stop: int) -> int:
         if self.compiled is None:
