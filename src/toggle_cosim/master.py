@@ -315,12 +315,15 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         )
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
-    record = run_record(run, plant, status, reason, rows, wall, loop_finished - loop_started, summary, retries)
+    record = run_record(run, plant, status, reason, rows, wall, loop_finished - loop_started, summary, retries,
+                        loop, solver_statistics)
     return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)
 
 
 def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None, rows: int, wall: float,
-               loop_seconds: float, summary: RunSummary | None = None, retries: list | None = None) -> dict[str, Any]:
+               loop_seconds: float, summary: RunSummary | None = None, retries: list | None = None,
+               loop: dict[str, Any] | None = None, solver_statistics: dict[str, int] | str = NOT_EXPOSED,
+               ) -> dict[str, Any]:
     """What run.json says about a run: status is "complete", "failed" or "interrupted"."""
     return {
         "scenario": run.scenario,
@@ -334,7 +337,7 @@ def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None,
         "reason": reason,
         "samples": rows,
         "retries": retries or [],
-        "loop": loop,
+        "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},
         "wall_time_s": wall,
         "loop_time_s": loop_seconds,
         "real_time_factor": max(rows - 1, 0) * run.T_s / max(loop_seconds, 1e-12),
