@@ -234,7 +234,9 @@ def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path
     return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
 
 
-def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None) -> list:  # noqa: ANN001
+def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None) -> list:  # noqa: ANN001
+    """Run each (run, plant) pair supervised, write its files, print a line; `on_written(outcome)`
+    after each run's files are written."""
     from toggle_cosim.resources import check_runs
 
     check_runs(pairs, out)
@@ -262,6 +264,8 @@ def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None) -> 
         )
         click.echo(f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
         outcomes.append(outcome)
+        if on_written is not None:
+            on_written(outcome)
         if outcome.interrupted:
             click.echo(f"interrupted: {label} written as interrupted; {len(pairs) - number} run(s) not started", err=True)
             raise KeyboardInterrupt
@@ -360,18 +364,35 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             _build(DEFAULT_SOURCE, name, path)
     files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
     pairs = _load_runs(files, fmu)
-    outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit)
-    for name in PAPER_SCENARIOS:
-        click.echo(f"wrote {_plot_scenario(out / name, None)}")
-    extra = scenarios / "friction_models.yaml"
-    if extra.is_file():  # the claims re-checked under the dissipative and stick-slip models
-        try:
-            extra_pairs = _load_runs([extra], fmu)
-        except InputError as error:  # e.g. a plant without the friction models: the paper's runs stand
-            click.echo(f"skipped {extra}: {error.message}", err=True)
-            extra_pairs = []
-        outcomes = [*outcomes, *_execute(extra_pairs, out, quiet=False)]
-    summary = write_summary(outcomes, out / "summary.md")
+    from toggle_cosim.figure_worker import FigureWorker
+
+    figures = FigureWorker()  # matplotlib loads and each figure is drawn beside the runs
+    try:
+        left = {name: sum(1 for run, _ in pairs if run.scenario == name) for name in PAPER_SCENARIOS}
+
+        def written(outcome) -> None:  # noqa: ANN001 - a scenario's figure once all its runs are written
+            left[outcome.run.scenario] -= 1
+            if left[outcome.run.scenario] == 0:
+                figures.submit(out / outcome.run.scenario)
+
+        outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit, on_written=written)
+        extra = scenarios / "friction_models.yaml"
+        if extra.is_file():  # the claims re-checked under the dissipative and stick-slip models
+            try:
+                extra_pairs = _load_runs([extra], fmu)
+            except InputError as error:  # e.g. a plant without the friction models: the paper's runs stand
+                click.echo(f"skipped {extra}: {error.message}", err=True)
+                extra_pairs = []
+            outcomes = [*outcomes, *_execute(extra_pairs, out, quiet=False)]
+        summary = write_summary(outcomes, out / "summary.md")
+        lines = figures.results()
+    except BaseException:
+        figures.stop()
+        raise
+    for line in lines:
+        if line.startswith("error: "):
+            raise InputError(line.removeprefix("error: "))
+        click.echo(line)
     click.echo(f"wrote {summary}; total {time.perf_counter() - started:.1f} s")
     _failed(outcomes)
 
