@@ -47,7 +47,9 @@ def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, tar
         ax.set_xlabel("t [s]")
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
+        # fixed corners: x_B and λ2 settle high after an early dip (lower right is free), the other
+        # panels settle low after early peaks; loc="best" searches every vertex, ~25 % of the figure
+        ax.legend(fontsize=7, loc="lower right" if key in ("x_B", "lambda2") else "upper right")
     figure.suptitle(title)
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
