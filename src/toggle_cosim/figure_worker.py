@@ -26,7 +26,7 @@ class FigureWorker:
     def submit(self, folder: Path) -> None:
         """Draw `folder`'s figure (its runs' trace.csv and run.json are written)."""
         assert self._process.stdin is not None
-        self._process.stdin.write(f"{Path(folder).resolve()}\n")
+        self._process.stdin.write(f"{folder}\n")  # the child works in this folder too
         self._process.stdin.flush()
         self._submitted += 1
 
