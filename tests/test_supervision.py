@@ -173,15 +173,25 @@ def _interrupt(command: list[str], delay: float, number: int, out: Path) -> tupl
     return process.returncode, time.monotonic() - sent, stderr
 
 
-SIGNAL_POINTS = [(0.15 + 0.2 * k, signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(12)]
+def _signal_points(duration: float) -> list[tuple[float, signal.Signals]]:
+    """12 moments spread from start-up to 90 % of the command's uninterrupted duration,
+    SIGINT and SIGTERM in turn."""
+    return [(duration * (0.04 + 0.078 * k), signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(12)]
+
+
+def _duration(command: list[str]) -> float:
+    started = time.monotonic()
+    subprocess.run(command, capture_output=True, check=False, timeout=120)
+    return time.monotonic() - started
 
 
 def test_interrupts_at_any_moment_of_a_multi_variant_run(plant_fmu: Path, tmp_path: Path) -> None:
-    """SIGINT/SIGTERM at 12 moments from start-up to the last runs of six: exit 130 within 2 s,
+    """SIGINT/SIGTERM at 12 moments from start-up to the last of six runs: exit 130 within 2 s,
     no traceback, whole files only, the interrupted run recorded as interrupted."""
     files = [str(ROOT / "scenarios" / f"{name}.yaml") for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")]
     interrupted = 0
-    for number, (delay, which) in enumerate(SIGNAL_POINTS):
+    whole = _duration(_command("run", *files, "--fmu", str(plant_fmu), "--out", str(tmp_path / "whole"), "-q"))
+    for number, (delay, which) in enumerate(_signal_points(whole)):
         out = tmp_path / f"out{number}"
         code, took, stderr = _interrupt(_command("run", *files, "--fmu", str(plant_fmu), "--out", str(out), "-q"),
                                         delay, which, out)
@@ -202,9 +212,11 @@ def test_interrupts_at_any_moment_of_a_sweep(plant_fmu: Path, tmp_path: Path) ->
     base = {k: v for k, v in SCENARIO.items() if k != "variants"}
     base["t_end"] = 1.0
     (tmp_path / "base.yaml").write_text(yaml.safe_dump(base, sort_keys=False))
+    (tmp_path / "whole.yaml").write_text(yaml.safe_dump(
+        {"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": "whole"}))
+    whole = _duration(_command("sweep", str(tmp_path / "whole.yaml"), "--fmu", str(plant_fmu), "--workers", "2"))
     interrupted = 0
-    for number, (delay, which) in enumerate(SIGNAL_POINTS):
-        delay *= 2.0
+    for number, (delay, which) in enumerate(_signal_points(whole)):
         sweep = {"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": f"out{number}"}
         path = tmp_path / f"sweep{number}.yaml"
         path.write_text(yaml.safe_dump(sweep, sort_keys=False))

@@ -58,36 +58,48 @@ class _Commands(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):  # noqa: ANN001, ANN201
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
-        interrupts.install()
+        old_handlers = interrupts.install()
         try:
-            result = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+            try:
+                result = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+            except SystemExit:
+                interrupts.ignore()  # done: a signal during the interpreter's teardown changes nothing
+                raise
+            interrupts.ignore()
         except (KeyboardInterrupt, click.exceptions.Abort):
             interrupts.ignore()
             click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
             interrupts.exit_interrupted()
         except click.UsageError as error:  # one line, like every other bad input
+            interrupts.ignore()  # the work is over: from here the process only ends
             command = error.ctx.command_path if error.ctx is not None else "toggle-cosim"
             click.echo(f"error: {' '.join(error.format_message().split())} (see '{command} --help')", err=True)
             sys.exit(2)
         except click.ClickException as error:
+            interrupts.ignore()  # the work is over: from here the process only ends
             error.show()
             sys.exit(error.exit_code)
         except click.exceptions.Exit as error:
+            interrupts.ignore()  # the work is over: from here the process only ends
             sys.exit(error.exit_code)
         except SystemExit:
             raise
         except OSError as error:  # a file system problem found late (e.g. a disk that filled up): one line
+            interrupts.ignore()  # the work is over: from here the process only ends
             if interrupts.is_interrupt(error):
                 interrupts.exit_interrupted()
             where = f"{error.filename}: " if error.filename else ""
             click.echo(f"error: {where}{error.strerror or error} (check the path, its permissions and free space)", err=True)
             sys.exit(2)
         except BaseException as error:
+            interrupts.ignore()
             if not interrupts.is_interrupt(error):  # e.g. a SystemError from a C call the signal landed in
                 raise
-            interrupts.ignore()
             click.echo("interrupted (exit 130): finished runs are kept; run the command again for the rest", err=True)
             interrupts.exit_interrupted()
+        finally:
+            if not interrupts.running_as_program():
+                interrupts.restore(old_handlers)  # in-process (tests): give the caller its handlers back
         sys.exit(result if isinstance(result, int) else 0)
 
 

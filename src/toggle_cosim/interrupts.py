@@ -64,10 +64,16 @@ def restore(old: dict[int, object]) -> None:
 def ignore() -> None:
     """From here on the process is ending: further signals change nothing (main thread only), and
     helper threads that fail while it ends (a process pool whose workers were killed) stay quiet."""
+    if not _program:  # imported (a test, a notebook): the caller's handlers come back afterwards
+        return
     if threading.current_thread() is threading.main_thread():
         for number in (signal.SIGINT, signal.SIGTERM):
             signal.signal(number, signal.SIG_IGN)
     threading.excepthook = lambda args: None
+
+
+def running_as_program() -> bool:
+    return _program
 
 
 def is_interrupt(error: BaseException) -> bool:
