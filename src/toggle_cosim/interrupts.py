@@ -44,11 +44,27 @@ def install_for_start_up() -> None:
             signal.signal(number, _handler)
 
 
+_default_unraisable = sys.unraisablehook
+
+
+def _unraisable(info: object) -> None:
+    """An interrupt that landed in a callback (a weakref callback during an import, a __del__)
+    cannot propagate from there: send the signal again, to land in ordinary code."""
+    error = getattr(info, "exc_value", None)
+    if isinstance(error, KeyboardInterrupt) and threading.current_thread() is threading.main_thread():
+        name = str(error) if str(error) in ("SIGINT", "SIGTERM") else "SIGINT"
+        signal.raise_signal(getattr(signal, name))
+        return
+    _default_unraisable(info)  # type: ignore[arg-type]
+
+
 def install() -> dict[int, object]:
     """SIGINT and SIGTERM raise KeyboardInterrupt (main thread only); returns the old handlers."""
     global _starting
     if threading.current_thread() is not threading.main_thread():
         return {}
+    if _program:
+        sys.unraisablehook = _unraisable
     _starting = False
     old = {}
     for number in (signal.SIGINT, signal.SIGTERM):
