@@ -525,7 +525,7 @@ def main() -> int:
         table.add("  Python interpreter start-up", f"{interp:.2f} s", "python -c pass")
         table.add("  importing toggle_cosim (cli, master, plant, ...)", f"{imports:.2f} s", "numpy, fmpy, jsonschema, ...")
         table.add("  six simulate() calls", f"{sims:.2f} s", "measured in this process")
-        table.add("  writing six trace.csv (np.savetxt, %.17g)", f"{sum(w[0] for w in writes):.2f} s",
+        table.add("  writing six trace.csv (csv_rows, %.17g)", f"{sum(w[0] for w in writes):.2f} s",
                   "traces.write_csv, measured in this process")
         table.add("  writing six run.json", f"{sum(w[1] for w in writes):.2f} s")
         table.add("real-time factor, six runs together", f"{rtf_six:.1f}", f"{simulated:g} simulated s")

@@ -169,7 +169,7 @@ def _interrupt(command: list[str], delay: float, number: int, out: Path) -> tupl
         if code not in (0, 1):
             break
         shutil.rmtree(out, ignore_errors=True)
-        delay *= 0.6
+        delay = max(EARLIEST, delay * 0.6)
     return code, took, stderr
 
 
@@ -186,10 +186,14 @@ def _interrupt_once(command: list[str], delay: float, number: int) -> tuple[int,
     return process.returncode, time.monotonic() - sent, stderr
 
 
+EARLIEST = 0.15  # s: before this the interpreter itself is starting (no program code runs yet to catch a signal)
+
+
 def _signal_points(duration: float) -> list[tuple[float, signal.Signals]]:
-    """12 moments spread from start-up to 90 % of the command's uninterrupted duration,
-    SIGINT and SIGTERM in turn."""
-    return [(duration * (0.04 + 0.078 * k), signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(12)]
+    """12 moments spread from start-up (EARLIEST) to 90 % of the command's uninterrupted
+    duration, SIGINT and SIGTERM in turn."""
+    last = max(0.9 * duration, EARLIEST + 0.11)
+    return [(EARLIEST + (last - EARLIEST) * k / 11, signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(12)]
 
 
 def _duration(command: list[str]) -> float:

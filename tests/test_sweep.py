@@ -155,8 +155,8 @@ def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
     axes = {"plant.F_E": {"linspace": [0, 150, 8]}, "plant.m_B": {"values": [4.43, 8.86]}, "plant.mu": {"values": [0.0, 0.2]}}
     path = write_sweep(tmp_path, axes, base)
     parts = tmp_path / "out" / "parts"
-    code = f"import sys; from toggle_cosim.sweep import main; sys.exit(main([{str(path)!r}, '--workers', '1', '--fmu', {str(plant_fmu)!r}]))"
-    process = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(plant_fmu)]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                start_new_session=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and len(list(parts.glob("*.parquet"))) < 5:
@@ -237,7 +237,7 @@ def test_unreachable_scheduler_is_bad_input(tmp_path, plant_fmu, capsys):
 
 
 def test_module_docstring_example_is_a_valid_sweep(tmp_path):
-    import toggle_cosim.sweep as module
+    import toggle_cosim.experiments.sweep_spec as module
 
     example = textwrap.dedent(module.__doc__.split("\n\n")[1])
     document = yaml.safe_load(example)
@@ -250,7 +250,8 @@ def test_module_docstring_example_is_a_valid_sweep(tmp_path):
 
 
 def test_a_worker_without_the_fmu_file_uses_the_bytes_sent_along(tmp_path, plant_fmu):
-    from toggle_cosim.sweep import _resolve_fmu, _sha256
+    from toggle_cosim.experiments.sweep_worker import file_sha256_cached as _sha256
+    from toggle_cosim.experiments.sweep_worker import resolve_fmu as _resolve_fmu
 
     sha = _sha256(plant_fmu)
     data = plant_fmu.read_bytes()

@@ -144,9 +144,9 @@ def _build(source: Path, model: str, output: Path, fmi_version: str = "2.0", int
 
     root = _project_of(source)
     source = _inside_project(source, "Modelica source", "--source", root)
-    output = _inside_project(output, "FMU output", "--output", root)
+    output = _inside_project(output, "FMU output", "--out", root)
     if output.suffix != ".fmu":
-        raise InputError(f"{output}: an FMU file name must end in .fmu (fix --output)")
+        raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
     try:
         report = build_fmu(source, model, output, fmi_version=fmi_version, interfaces=interfaces)
     except (ModelCompileError, FMUBuildError) as error:
@@ -163,7 +163,7 @@ def _build(source: Path, model: str, output: Path, fmi_version: str = "2.0", int
 @click.option("--source", type=click.Path(path_type=Path), default=DEFAULT_SOURCE, show_default=True,
               help="Modelica package directory (or a .mo file).")
 @click.option("--model", default=None, help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first).")
-@click.option("--output", "-o", type=click.Path(path_type=Path), default=None,
+@click.option("--out", "-o", "output", type=click.Path(path_type=Path), default=None,
               help=f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).")
 @click.option("--fmi-version", type=click.Choice(["2.0", "3.0"]), default="2.0", show_default=True,
               help="FMI version of the FMU(s); 3.0 FMUs get a '3' after their default file name.")
@@ -246,7 +246,9 @@ def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path
     return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
 
 
-def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None) -> list:  # noqa: ANN001
+def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None) -> list:  # noqa: ANN001
+    """Run each (run, plant) pair supervised, write its files, print a line; `on_written(outcome)`
+    after each run's files are written."""
     from toggle_cosim.resources import check_runs
 
     check_runs(pairs, out)
@@ -274,6 +276,8 @@ def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None) -> 
         )
         click.echo(f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
         outcomes.append(outcome)
+        if on_written is not None:
+            on_written(outcome)
         if outcome.interrupted:
             click.echo(f"interrupted: {label} written as interrupted; {len(pairs) - number} run(s) not started", err=True)
             raise KeyboardInterrupt
@@ -345,12 +349,12 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
 
 @main.command()
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--output", "-o", type=click.Path(path_type=Path), default=None,
+@click.option("--out", "-o", "output", type=click.Path(path_type=Path), default=None,
               help="PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
 def plot(results: tuple[Path, ...], output: Path | None) -> None:
     """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
     if output is not None and len(results) > 1:
-        raise InputError("--output names one file, so give one RESULTS folder with it")
+        raise InputError("--out names one file, so give one RESULTS folder with it")
     for folder in results:
         click.echo(f"wrote {_plot_scenario(folder, output)}")
 
@@ -372,18 +376,35 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             _build(DEFAULT_SOURCE, name, path)
     files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
     pairs = _load_runs(files, fmu)
-    outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit)
-    for name in PAPER_SCENARIOS:
-        click.echo(f"wrote {_plot_scenario(out / name, None)}")
-    extra = scenarios / "friction_models.yaml"
-    if extra.is_file():  # the claims re-checked under the dissipative and stick-slip models
-        try:
-            extra_pairs = _load_runs([extra], fmu)
-        except InputError as error:  # e.g. a plant without the friction models: the paper's runs stand
-            click.echo(f"skipped {extra}: {error.message}", err=True)
-            extra_pairs = []
-        outcomes = [*outcomes, *_execute(extra_pairs, out, quiet=False)]
-    summary = write_summary(outcomes, out / "summary.md")
+    from toggle_cosim.figure_worker import FigureWorker
+
+    figures = FigureWorker()  # matplotlib loads and each figure is drawn beside the runs
+    try:
+        left = {name: sum(1 for run, _ in pairs if run.scenario == name) for name in PAPER_SCENARIOS}
+
+        def written(outcome) -> None:  # noqa: ANN001 - a scenario's figure once all its runs are written
+            left[outcome.run.scenario] -= 1
+            if left[outcome.run.scenario] == 0:
+                figures.submit(out / outcome.run.scenario)
+
+        outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit, on_written=written)
+        extra = scenarios / "friction_models.yaml"
+        if extra.is_file():  # the claims re-checked under the dissipative and stick-slip models
+            try:
+                extra_pairs = _load_runs([extra], fmu)
+            except InputError as error:  # e.g. a plant without the friction models: the paper's runs stand
+                click.echo(f"skipped {extra}: {error.message}", err=True)
+                extra_pairs = []
+            outcomes = [*outcomes, *_execute(extra_pairs, out, quiet=False)]
+        summary = write_summary(outcomes, out / "summary.md")
+        lines = figures.results()
+    except BaseException:
+        figures.stop()
+        raise
+    for line in lines:
+        if line.startswith("error: "):
+            raise InputError(line.removeprefix("error: "))
+        click.echo(line)
     click.echo(f"wrote {summary}; total {time.perf_counter() - started:.1f} s")
     _failed(outcomes)
 
@@ -477,18 +498,22 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
 
 @main.command()
 @click.argument("sweep_file", type=click.Path(path_type=Path))
+@click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
+              help="Output folder (default: the sweep file's output: key, else out/sweeps/<name> under the current folder).")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool).")
 @click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
 @click.option("--case-timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
               help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).")
-def sweep(sweep_file: Path, scheduler: str | None, workers: int | None, fmu: Path | None, retry_failed: bool,
-          case_timeout: float | None) -> None:
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+def sweep(sweep_file: Path, out: Path | None, scheduler: str | None, workers: int | None, fmu: Path | None,
+          retry_failed: bool, case_timeout: float | None, quiet: bool) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
-    from toggle_cosim.sweep import run_sweep
+    from toggle_cosim.experiments.sweep_run import run_sweep
 
-    code = run_sweep(sweep_file, scheduler, workers, fmu, retry_failed=retry_failed, case_timeout=case_timeout)
+    code = run_sweep(sweep_file, scheduler, workers, fmu, output=out, retry_failed=retry_failed,
+                     progress=not quiet, case_timeout=case_timeout)
     if code == interrupts.EXIT_INTERRUPTED:
         interrupts.exit_interrupted()
     sys.exit(code)

@@ -72,17 +72,19 @@ def recorded_rows(samples: int, every: int = 1) -> np.ndarray:
 
 def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
     """FMI cross-check CSV: a header of quoted names, "time" first, then one row per sample
-    (every `every`-th sample and the last one: the scenario key record_every), in chunks."""
+    (every `every`-th sample and the last one: the scenario key record_every), in chunks; the
+    rows are the bytes np.savetxt(fmt="%.17g", delimiter=",") writes (`csv_rows`)."""
+    from toggle_cosim.csv_rows import format_rows
 
     def write(stream: Any) -> None:
         stream.write(",".join(f'"{name}"' for name in trace.names) + "\n")
         if every <= 1:
             for start in range(0, trace.data.shape[0], CHUNK_ROWS):
-                np.savetxt(stream, trace.data[start : start + CHUNK_ROWS], delimiter=",", fmt="%.17g")
+                stream.write(format_rows(trace.data[start : start + CHUNK_ROWS]))
             return
         kept = recorded_rows(trace.data.shape[0], every)
         for start in range(0, kept.size, CHUNK_ROWS):
-            np.savetxt(stream, trace.data[kept[start : start + CHUNK_ROWS]], delimiter=",", fmt="%.17g")
+            stream.write(format_rows(trace.data[kept[start : start + CHUNK_ROWS]]))
 
     atomic_write(Path(path), write)
 

@@ -1,0 +1,74 @@
+"""The paper suite end to end: `toggle-cosim paper --skip-build` in a fresh process, from process
+start to the last file written, against the sum of its runs' simulate() calls.
+
+    .venv/bin/python benchmarks/paper_suite.py [--repeat 3] [--fmu fmus/ToggleLSM.fmu]
+
+Each repetition runs the suite twice, interleaved: supervised (every run in a forked child, the
+default) and with TOGGLE_COSIM_SUPERVISE=0 (in-process simulate()). The runs' own wall times come
+from their run.json (`wall_time_s`: the supervised call, fork included; or simulate() itself).
+Printed: per repetition the time to the last file, the sums of the runs' wall times, and the
+ratios; the target of issue 12 is "process start to last file <= 4 x the simulate() calls".
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def command() -> list[str]:
+    script = Path(sys.executable).parent / "toggle-cosim"
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "toggle_cosim.cli"]
+
+
+def suite(fmu: Path, out: Path, supervised: bool) -> dict[str, float]:
+    shutil.rmtree(out, ignore_errors=True)
+    env = {**os.environ, "TOGGLE_COSIM_SUPERVISE": "1" if supervised else "0"}
+    started = time.time()
+    result = subprocess.run([*command(), "paper", "--skip-build", "--fmu", str(fmu), "--out", str(out)], cwd=ROOT,
+                            capture_output=True, text=True, check=False, env=env)
+    ended = time.time()
+    if result.returncode != 0:
+        raise SystemExit(f"toggle-cosim paper failed ({result.returncode}): {result.stderr.strip()[-500:]}")
+    files = [p for p in out.rglob("*") if p.is_file()]
+    records = [json.loads(p.read_text()) for p in out.rglob("run.json")]
+    return {"to_last_file": max(p.stat().st_mtime for p in files) - started, "process": ended - started,
+            "runs": len(records), "runs_wall": sum(r["wall_time_s"] for r in records)}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--fmu", type=Path, default=ROOT / "fmus" / "ToggleLSM.fmu")
+    args = parser.parse_args()
+    if not args.fmu.is_file():
+        raise SystemExit(f"error: {args.fmu}: no such FMU; build it first with 'toggle-cosim build'")
+    ratios, supervision = [], []
+    with tempfile.TemporaryDirectory() as folder:
+        for number in range(1, args.repeat + 1):
+            on = suite(args.fmu.resolve(), Path(folder) / "on", True)
+            off = suite(args.fmu.resolve(), Path(folder) / "off", False)
+            ratio = on["to_last_file"] / off["runs_wall"]
+            ratios.append(ratio)
+            supervision.append(on["runs_wall"] - off["runs_wall"])
+            print(f"[{number}] {on['runs']} runs: start -> last file {on['to_last_file']:.2f} s (exit {on['process']:.2f} s); "
+                  f"simulate() in-process {off['runs_wall']:.2f} s, supervised calls {on['runs_wall']:.2f} s; "
+                  f"ratio {ratio:.1f} x simulate() ({on['to_last_file'] / on['runs_wall']:.1f} x the supervised calls); "
+                  f"unsupervised suite: start -> last file {off['to_last_file']:.2f} s")
+    print(f"median ratio {statistics.median(ratios):.1f} x (target <= 4); supervision adds "
+          f"{statistics.median(supervision):.2f} s over the runs (median)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,101 @@
+"""Heat maps of a sweep's figures of merit over two of its axes (matplotlib, Agg)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+HEATMAP_DIR = "heatmaps"
+
+PANELS = (
+    ("final_error_m", "|final error| [mm]", lambda v: abs(v) * 1e3, "viridis"),
+    ("settling_time_s", "settling time (2 %) [s]", lambda v: v, "viridis"),
+    ("peak_iq_ref_A", "peak |i_q*| [A]", lambda v: v, "magma"),
+    ("overshoot_percent", "overshoot [%]", lambda v: v, "viridis"),
+    ("fric_share_start", "E_fric/E_in at 10 % stroke [%]", lambda v: v * 100, "cividis"),
+    ("fric_share_end", "E_fric/E_in at t_end [%]", lambda v: v * 100, "cividis"),
+)
+
+
+def _label(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.=-]+", "_", text).strip("_") or "all"
+
+
+def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.sweep_spec.Sweep
+    """One PNG per combination of the other axes: heat maps of the figures of merit over the two
+    chosen axes. A failed case is a crossed cell; a run that never settles is a grey cell."""
+    if sweep.heatmap is None or table.empty:
+        return []
+    import matplotlib
+    import numpy as np
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    x, y = sweep.heatmap
+    others = [k for k in sweep.axes if k not in (x, y)]
+    if len(sweep.variants) > 1 and "variant" not in (x, y):
+        others.insert(0, "variant")
+    folder = sweep.output / HEATMAP_DIR
+    written = []
+    groups = table.groupby(others, sort=True, dropna=False) if others else [((), table)]
+    for key, group in groups:
+        key = key if isinstance(key, tuple) else (key,)
+        tag = ", ".join(f"{k} = {_label(v)}" for k, v in zip(others, key, strict=True))
+        xs = sorted(group[x].dropna().unique(), key=lambda v: (isinstance(v, str), v))
+        ys = sorted(group[y].dropna().unique(), key=lambda v: (isinstance(v, str), v))
+        xi = {v: i for i, v in enumerate(xs)}
+        yi = {v: i for i, v in enumerate(ys)}
+        figure, axes = plt.subplots(2, 3, figsize=(16, 9), constrained_layout=True)
+        annotate = len(xs) * len(ys) <= 100
+        rows_i = np.array([yi[v] for v in group[y]], dtype=int)
+        cols_j = np.array([xi[v] for v in group[x]], dtype=int)
+        ok = (group["status"] == "ok").to_numpy()
+        failed = np.zeros((len(ys), len(xs)), dtype=bool)
+        failed[rows_i[~ok], cols_j[~ok]] = True
+        for ax, (column, title, transform, cmap) in zip(axes.flat, PANELS, strict=True):
+            grid = np.full((len(ys), len(xs)), np.nan)
+            values = transform(group[column].to_numpy(dtype=float, na_value=np.nan))
+            grid[rows_i[ok], cols_j[ok]] = values[ok]
+            colormap = plt.get_cmap(cmap).with_extremes(bad="0.85")
+            image = ax.imshow(np.ma.masked_invalid(grid), origin="lower", aspect="auto", cmap=colormap,
+                              interpolation="nearest")
+            figure.colorbar(image, ax=ax, shrink=0.9)
+            for i, j in zip(*np.nonzero(failed), strict=True):
+                ax.text(j, i, "✗", ha="center", va="center", color="red", fontsize=9)
+            if annotate:
+                finite = grid[np.isfinite(grid)]
+                middle = (finite.min() + finite.max()) / 2 if finite.size else 0
+                for (i, j), value in np.ndenumerate(grid):
+                    if np.isfinite(value):
+                        ax.text(j, i, f"{value:.3g}", ha="center", va="center", fontsize=6,
+                                color="white" if value < middle else "black")
+                    elif not failed[i, j] and column == "settling_time_s":
+                        ax.text(j, i, "n/s", ha="center", va="center", fontsize=6, color="0.3")
+            step_x = max(1, len(xs) // 12)
+            step_y = max(1, len(ys) // 12)
+            ax.set_xticks(range(0, len(xs), step_x), [_label(v) for v in xs[::step_x]], rotation=45, fontsize=8)
+            ax.set_yticks(range(0, len(ys), step_y), [_label(v) for v in ys[::step_y]], fontsize=8)
+            ax.set_xlabel(x)
+            ax.set_ylabel(y)
+            ax.set_title(title)
+        n_failed = int((group["status"] != "ok").sum())
+        figure.suptitle(f"{sweep.name}{': ' + tag if tag else ''}  ({len(group)} cases, {n_failed} failed ✗,"
+                        " grey: no value / never settled)")
+        name = "heatmap" + ("_" + _slug("_".join(f"{k}={_label(v)}" for k, v in zip(others, key, strict=True))) if others else "")
+        path = folder / f"{name}.png"
+        folder.mkdir(parents=True, exist_ok=True)
+        partial = folder / f".{name}.partial.png"
+        figure.savefig(partial, dpi=100)
+        plt.close(figure)
+        partial.replace(path)
+        written.append(path)
+    return written
+

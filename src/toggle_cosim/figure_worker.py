@@ -1,0 +1,72 @@
+"""Figures drawn beside the runs: a child Python process that imports matplotlib while the
+parent simulates, and draws a scenario's nine-panel figure as soon as its traces are written.
+
+Drawing a figure costs several times a paper run (matplotlib's import alone ~0.9 s, each figure
+~1 s and more), and the parent spends a run mostly waiting for its supervised plant process;
+so `toggle-cosim paper` hands each results folder to this worker and collects the file names at
+the end. The protocol: one folder a line on the child's stdin; on its stdout "wrote PATH" or
+"error: MESSAGE" (one line each, in order). End of input ends the child.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+
+class FigureWorker:
+    """The child process, from the parent's side."""
+
+    def __init__(self) -> None:
+        self._process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.figure_worker"], stdin=subprocess.PIPE,
+                                         stdout=subprocess.PIPE, text=True, bufsize=1)
+        self._submitted = 0
+
+    def submit(self, folder: Path) -> None:
+        """Draw `folder`'s figure (its runs' trace.csv and run.json are written)."""
+        assert self._process.stdin is not None
+        self._process.stdin.write(f"{folder}\n")  # the child works in this folder too
+        self._process.stdin.flush()
+        self._submitted += 1
+
+    def results(self) -> list[str]:
+        """Wait for every figure: the child's lines ("wrote PATH" or "error: MESSAGE"), in order."""
+        output, _ = self._process.communicate()
+        lines = output.splitlines()
+        if self._process.returncode != 0 or len(lines) != self._submitted:
+            lines.append(f"error: the figure process ended with status {self._process.returncode} "
+                         f"after {len(lines)} of {self._submitted} figures")
+        return lines
+
+    def stop(self) -> None:
+        """End the child now (the command is failing or interrupted: its figures are not wanted);
+        a figure being written is removed, not left half-written."""
+        if self._process.poll() is None:
+            self._process.terminate()
+        try:
+            self._process.communicate(timeout=2)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.communicate()
+
+
+def _serve() -> int:
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # an interrupt is the parent's; end of input ends us
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(130))  # from stop(): a partial PNG is removed on the way out
+    from toggle_cosim.cli import InputError, _plot_scenario
+    from toggle_cosim import plots  # noqa: F401 - matplotlib's import, while the parent runs
+
+    for line in sys.stdin:
+        folder = Path(line.rstrip("\n"))
+        try:
+            print(f"wrote {_plot_scenario(folder, None)}", flush=True)
+        except InputError as error:
+            print(f"error: {' '.join(error.message.split())}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_serve())
