@@ -51,8 +51,8 @@ FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
 from toggle_cosim.cosim import compiled_loop, master, session  # noqa: E402
 from toggle_cosim.fmu_export import build_fmu  # noqa: E402
-from toggle_cosim.plant import check_plant  # noqa: E402
-from toggle_cosim.scenario import load_scenario, runs_from_document  # noqa: E402
+from toggle_cosim.plant.contract import check_plant  # noqa: E402
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document  # noqa: E402
 
 # ------------------------------------------------------------------------------------------
 # A tiny C driver: the FMU's own C functions in a C loop, no Python per step.
@@ -278,8 +278,8 @@ def six_runs_process(fmu: Path, folder: Path, supervised: bool = True) -> dict:
     return {"to_last_file": last - started, "process": ended - started, "files": len(written)}
 
 
-IMPORTS = ("import toggle_cosim.cli, toggle_cosim.cosim.master, toggle_cosim.plant, toggle_cosim.scenario, "
-           "toggle_cosim.traces, toggle_cosim.summary")
+IMPORTS = ("import toggle_cosim.cli, toggle_cosim.cosim.master, toggle_cosim.plant.contract, toggle_cosim.experiments.scenario, "
+           "toggle_cosim.files.traces, toggle_cosim.analysis.summary")
 
 
 def python_start() -> dict:
@@ -294,7 +294,7 @@ def python_start() -> dict:
 
 def writing(outcome, folder: Path) -> tuple[float, float]:
     """Seconds to write one run's trace.csv and run.json as the CLI does."""
-    from toggle_cosim.traces import write_csv, write_json
+    from toggle_cosim.files.traces import write_csv, write_json
 
     t0 = time.perf_counter()
     write_csv(folder / "trace.csv", outcome.trace)

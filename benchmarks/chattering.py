@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant import check_plant
-from toggle_cosim.scenario import load_scenario
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -13,7 +13,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from toggle_cosim.sweep import read_results
+from toggle_cosim.experiments.sweep import read_results
 
 
 def _settling(values) -> str:  # noqa: ANN001 - a pandas Series

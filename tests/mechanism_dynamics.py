@@ -1,6 +1,6 @@
 """Constrained dynamics of the toggle mechanism, eqs. (17) and (18), for the tests: the full
 5×5 system, joint forces, energies and powers, and the controller's nominal model seen
-through `MechanismParameters`. Moved here from `toggle_cosim.mechanism` (only tests use it);
+through `MechanismParameters`. Moved here from `toggle_cosim.physics.mechanism` (only tests use it);
 the mass-matrix terms are `toggle_cosim.control.nominal.mass_terms`, their one definition.
 
 Formulation (the same as the Modelica plant ``ToggleLSM.ToggleMechanism``)
@@ -53,8 +53,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from toggle_cosim.control.nominal import mass_terms, nominal_reduced, theta1_omega1
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.mechanism import _dependent_rates
-from toggle_cosim.parameters import MechanismParameters
+from toggle_cosim.physics.mechanism import _dependent_rates
+from toggle_cosim.physics.parameters import MechanismParameters
 
 FloatArray = NDArray[np.float64]
 

@@ -1,9 +1,9 @@
 """Independent reference evaluation of eq. (18) of Fung, Wu & Chen (2001) for the toggle mechanism.
 
 Self-contained (numpy only; does NOT import toggle_cosim) so that it can check both
-``toggle_cosim.mechanism`` and the Modelica/FMU plant.
+``toggle_cosim.physics.mechanism`` and the Modelica/FMU plant.
 
-It is built differently from ``toggle_cosim.mechanism``:
+It is built differently from ``toggle_cosim.physics.mechanism``:
 
 * every material point (centres of mass of links 3 and 5, sliders B and C) is described as a
   generic sum of rotating vectors, p(q) = Σ_k L_k (cos ψ_k, sin ψ_k) with ψ_k = a_k·q + c_k;

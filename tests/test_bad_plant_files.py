@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from toggle_cosim.cli import main
-from toggle_cosim.plant import ContractError, check_plant
+from toggle_cosim.plant.contract import ContractError, check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "fig4_nominal.yaml"

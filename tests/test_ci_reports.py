@@ -22,8 +22,8 @@ from toggle_cosim.analysis.solver_stats import (
     write_statistics_file,
 )
 from toggle_cosim.analysis.tolerance_files import applicable_tolerance_files
-from toggle_cosim.compare import run_compare, write_reference
-from toggle_cosim.traces import Trace, write_csv, write_json
+from toggle_cosim.analysis.compare import run_compare, write_reference
+from toggle_cosim.files.traces import Trace, write_csv, write_json
 
 ROOT = Path(__file__).resolve().parent.parent
 T = np.linspace(0.0, 1.0, 1001)
@@ -198,8 +198,8 @@ def test_statistics_are_read_by_name_when_the_model_description_declares_them(ve
 
 def test_the_plant_fmu_statistics_reach_the_run_record(plant_fmu):
     from toggle_cosim.cosim.master import simulate
-    from toggle_cosim.plant import check_plant
-    from toggle_cosim.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
+    from toggle_cosim.experiments.scenario import load_scenario
 
     plant = check_plant(plant_fmu)
     names = {v.name for v in plant.model_description.modelVariables}

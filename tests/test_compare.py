@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.compare import (
+from toggle_cosim.analysis.compare import (
     DEFAULT_TOLERANCE,
     CompareInputError,
     Tolerance,
@@ -26,7 +26,7 @@ from toggle_cosim.compare import (
     write_reference,
     write_report,
 )
-from toggle_cosim.traces import Trace, read_csv, write_csv
+from toggle_cosim.files.traces import Trace, read_csv, write_csv
 
 T = np.linspace(0.0, 1.0, 1001)
 SINE = np.sin(2 * np.pi * T)  # range 2, peak at t = 0.25

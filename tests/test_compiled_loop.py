@@ -18,11 +18,11 @@ import pytest
 from toggle_cosim.cosim import compiled_loop
 from toggle_cosim.control import laws, nominal, translate
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.controller import VSCController
+from toggle_cosim.control.controller import VSCController
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.parameters import ControllerGains, MechanismParameters
-from toggle_cosim.plant import check_plant
-from toggle_cosim.scenario import load_scenario
+from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith("sweep"))

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from toggle_cosim.controller import ControllerState, VSCController, hitting_time
+from toggle_cosim.control.controller import ControllerState, VSCController, hitting_time
 from mechanism_dynamics import dynamics, slider_B
-from toggle_cosim.mechanism import initial_state, state_from_theta1, theta1_from_xB
-from toggle_cosim.motor import thrust_constant
-from toggle_cosim.parameters import ControllerGains, MechanismParameters, MotorParameters
+from toggle_cosim.physics.mechanism import initial_state, state_from_theta1, theta1_from_xB
+from toggle_cosim.physics.motor import thrust_constant
+from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters, MotorParameters
 
 X_START, X_END = 0.2329, 0.3199
 TS = 0.5e-3

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
 
-from toggle_cosim.controller import ControllerGains, VSCController
+from toggle_cosim.control.controller import ControllerGains, VSCController
 from toggle_cosim.cosim import compiled_loop
 from toggle_cosim.cosim.recorder import CONTROL_COLUMNS, ProgressHook, Recorder
 from toggle_cosim.cosim.retry import RETRY_SUBSTEPS, CheckpointPolicy, RetryFailed
 from toggle_cosim.cosim.session import FunctionNames
 from toggle_cosim.cosim.stepper import CompiledStepper, HandOver, LoopState, PythonStepper, StepFailed, Timing
-from toggle_cosim.parameters import MechanismParameters
+from toggle_cosim.physics.parameters import MechanismParameters
 
 T_S, N, F_E = 0.001, 30, 5.0
 NAMES = ("time", "x_B", "v_B", *CONTROL_COLUMNS)

@@ -10,8 +10,8 @@ import struct
 import numpy as np
 import pytest
 
-from toggle_cosim import csv_rows
-from toggle_cosim.traces import Trace, write_csv
+from toggle_cosim.files import csv_rows
+from toggle_cosim.files.traces import Trace, write_csv
 
 
 def savetxt(data: np.ndarray) -> str:

@@ -20,9 +20,9 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.cosim import master, session
 from toggle_cosim.fmu_export import build_fmu
-from toggle_cosim.plant import check_plant
-from toggle_cosim.scenario import runs_from_document
-from toggle_cosim.traces import read_csv
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.scenario import runs_from_document
+from toggle_cosim.files.traces import read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 FAULT_MODEL = '''within ToggleLSM;

@@ -543,10 +543,10 @@ def test_simulate_fmu_runs_it_like_the_fmi2_build(plant3_fmu: Path, plant_fmu: P
 def test_fmi3_plant_under_the_master_matches_the_stored_reference(plant3_fmu: Path) -> None:
     """The FMI 3.0 build, run by the same master and controller as the FMI 2.0 one, stays in
     the funnel of the reference trace recorded with the FMI 2.0 build."""
-    from toggle_cosim import references
+    from toggle_cosim.experiments import references
     from toggle_cosim.cosim.master import simulate
-    from toggle_cosim.plant import check_plant
-    from toggle_cosim.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
+    from toggle_cosim.experiments.scenario import load_scenario
 
     for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):
         outcome = simulate(run, check_plant(plant3_fmu))

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from toggle_cosim.friction_claims import friction_claims
+from toggle_cosim.analysis.friction_claims import friction_claims
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant import check_plant
-from toggle_cosim.scenario import load_scenario
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from test_plant_fmu import Plant
-from toggle_cosim.friction import FRICTION_MODELS, friction_settings
-from toggle_cosim.scenario import ScenarioError, runs_from_document
+from toggle_cosim.plant.friction import FRICTION_MODELS, friction_settings
+from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 
 F_E = 100.0  # N, the load of Fig. 5
 

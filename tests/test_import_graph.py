@@ -121,7 +121,7 @@ def test_the_cosim_parts_import_each_other_one_way_only() -> None:
     assert graph["toggle_cosim.cosim.session"] == set()
     full = import_graph(SRC / "toggle_cosim", lazy=True)
     for name in graph:
-        assert not full[name] & {"toggle_cosim.cli", "toggle_cosim.sweep"}, name
+        assert not full[name] & {"toggle_cosim.cli", "toggle_cosim.experiments.sweep"}, name
 
 
 def test_the_cosim_parts_touch_no_private_attribute_of_another_object() -> None:

@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant import check_plant
-from toggle_cosim.scenario import ScenarioError, load_scenario, runs_from_document
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, runs_from_document
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "integral_load.yaml"

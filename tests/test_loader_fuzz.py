@@ -15,13 +15,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from toggle_cosim import bounded_files, fmu_archive, yaml_loader
-from toggle_cosim.bounded_files import InputFileError, read_bounded
-from toggle_cosim.compare import CompareInputError, load_tolerances, read_trace
-from toggle_cosim.plant import ContractError, check_plant
-from toggle_cosim.scenario import ScenarioError, load_scenario
-from toggle_cosim.sweep import SweepError, load_sweep
-from toggle_cosim.traces import read_csv
+from toggle_cosim.files import bounded as bounded_files, yaml_loader
+
+from toggle_cosim.plant import archive as fmu_archive
+from toggle_cosim.files.bounded import InputFileError, read_bounded
+from toggle_cosim.analysis.compare import CompareInputError, load_tolerances, read_trace
+from toggle_cosim.plant.contract import ContractError, check_plant
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
+from toggle_cosim.experiments.sweep import SweepError, load_sweep
+from toggle_cosim.files.traces import read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 FUZZ = settings(max_examples=40, deadline=2000, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.controller import hitting_time
+from toggle_cosim.control.controller import hitting_time
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.parameters import ControllerGains
-from toggle_cosim.plant import check_plant
-from toggle_cosim.scenario import load_scenario, runs_from_document
+from toggle_cosim.physics.parameters import ControllerGains
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")

@@ -14,8 +14,8 @@ import pytest
 import scipy.io
 
 from toggle_cosim.analysis.trace_formats import read_any_trace, read_mat_trace
-from toggle_cosim.compare import CompareInputError, run_compare
-from toggle_cosim.traces import Trace, write_csv
+from toggle_cosim.analysis.compare import CompareInputError, run_compare
+from toggle_cosim.files.traces import Trace, write_csv
 
 
 def _char_matrix(strings: list[str]) -> np.ndarray:

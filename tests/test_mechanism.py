@@ -38,7 +38,7 @@ from mechanism_dynamics import (
     theta1_state_from_slider,
     velocity_ratios,
 )
-from toggle_cosim.mechanism import (
+from toggle_cosim.physics.mechanism import (
     dependent_angles,
     initial_state,
     state_from_slider,
@@ -46,8 +46,8 @@ from toggle_cosim.mechanism import (
     theta1_from_xB,
     xB_from_theta1,
 )
-from toggle_cosim.motor import thrust_constant
-from toggle_cosim.parameters import MechanismParameters, MotorParameters
+from toggle_cosim.physics.motor import thrust_constant
+from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
 
 X_START, X_END = 0.2329, 0.3199
 P0 = MechanismParameters()

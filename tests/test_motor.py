@@ -7,8 +7,8 @@ import math
 import pytest
 from scipy.integrate import quad
 
-from toggle_cosim.motor import airgap_flux_density_per_ampere, mmf_per_ampere, thrust_constant
-from toggle_cosim.parameters import MotorParameters
+from toggle_cosim.physics.motor import airgap_flux_density_per_ampere, mmf_per_ampere, thrust_constant
+from toggle_cosim.physics.parameters import MotorParameters
 
 MU0 = 1.25663706212e-6  # any value: it cancels between eqs. (14) and (16)
 

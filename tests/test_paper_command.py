@@ -43,7 +43,7 @@ def test_an_interrupt_leaves_no_partial_file_and_no_figure_process(plant_fmu: Pa
     while time.monotonic() < deadline and not (out / "fig4_nominal" / "no_friction" / "run.json").exists():
         time.sleep(0.01)
     children = psutil.Process(process.pid).children(recursive=True)
-    assert any("toggle_cosim.figure_worker" in " ".join(c.cmdline()) for c in children if c.is_running())
+    assert any("toggle_cosim.analysis.figure_worker" in " ".join(c.cmdline()) for c in children if c.is_running())
     time.sleep(0.3)  # the first figure is being drawn now
     process.send_signal(signal.SIGINT)
     _, stderr = process.communicate(timeout=30)

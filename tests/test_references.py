@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 from junitparser import JUnitXml
 
-from toggle_cosim import references
+from toggle_cosim.experiments import references
 from toggle_cosim.analysis.reference_reports import write_reference_reports
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant import check_plant
-from toggle_cosim.scenario import load_scenario
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 FOLDER = ROOT / "scenarios" / "references"

@@ -13,7 +13,7 @@ import yaml
 from click.testing import CliRunner
 
 from toggle_cosim.cli import main
-from toggle_cosim.traces import read_csv
+from toggle_cosim.files.traces import read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE = {

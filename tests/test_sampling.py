@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from toggle_cosim.analysis.sampling import REFERENCE_GRID, RESULT_GRID, SpanMismatch, check_points
-from toggle_cosim.compare import DEFAULT_TOLERANCE, CompareInputError, Tolerance, compare_traces
+from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, CompareInputError, Tolerance, compare_traces
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant import check_plant
-from toggle_cosim.references import tolerances_for
-from toggle_cosim.traces import Trace
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.references import tolerances_for
+from toggle_cosim.files.traces import Trace
 
 ROOT = Path(__file__).resolve().parent.parent
 _spec = importlib.util.spec_from_file_location("sampling_table", ROOT / "benchmarks" / "sampling_table.py")
@@ -178,8 +178,8 @@ def test_the_readme_compare_command_passes_on_a_fresh_run_and_fails_a_changed_on
     """`toggle-cosim compare out/fig4_nominal/friction/trace.csv scenarios/references/fig4_nominal/
     friction_ref.csv`: the full-resolution run against the stored reference (every 10th sample),
     with the shipped tolerances.yaml found beside the reference."""
-    from toggle_cosim.compare import run_compare
-    from toggle_cosim.traces import write_csv
+    from toggle_cosim.analysis.compare import run_compare
+    from toggle_cosim.files.traces import write_csv
 
     reference = ROOT / "scenarios" / "references" / "fig4_nominal" / "friction_ref.csv"
     write_csv(tmp_path / "fresh" / "trace.csv", runs["unchanged"])

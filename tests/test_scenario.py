@@ -1,6 +1,6 @@
 """Scenario files: the shipped ones load as expected, and every kind of bad file gives one clear line.
 
-The contract of `load_scenario` (see `toggle_cosim.scenario`): a bad file raises `ScenarioError`
+The contract of `load_scenario` (see `toggle_cosim.experiments.scenario`): a bad file raises `ScenarioError`
 whose str() is ONE line that starts with the file path, names the offending key and says what is
 allowed. The CLI prints that line after "error: " (see tests/test_scenario_fuzz.py).
 """
@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 import yaml
 
-from toggle_cosim.parameters import MechanismParameters
-from toggle_cosim.scenario import ScenarioError, load_scenario, toggle_limit
+from toggle_cosim.physics.parameters import MechanismParameters
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, toggle_limit
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ROOT / "scenarios"

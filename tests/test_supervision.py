@@ -28,9 +28,9 @@ from click.testing import CliRunner
 
 from fault_plants import fault_environment, make_faulty_fmu
 from toggle_cosim.cli import main
-from toggle_cosim.plant import check_plant
-from toggle_cosim.sweep import run_sweep
-from toggle_cosim.traces import read_csv
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments.sweep import run_sweep
+from toggle_cosim.files.traces import read_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 T_FAULT = 0.1
@@ -106,7 +106,7 @@ def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tm
 def test_the_paper_runs_stay_bit_identical_under_supervision(plant_fmu: Path, tmp_path: Path) -> None:
     """The supervised child writes the same numbers the unsupervised loop does."""
     from toggle_cosim.cosim.master import simulate
-    from toggle_cosim.scenario import load_scenario
+    from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.cosim.supervision import simulate_supervised
 
     plant = check_plant(plant_fmu)

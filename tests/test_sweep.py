@@ -17,7 +17,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 
-from toggle_cosim.sweep import METRICS, execute_sweep, load_sweep, read_results, run_sweep
+from toggle_cosim.experiments.sweep import METRICS, execute_sweep, load_sweep, read_results, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 

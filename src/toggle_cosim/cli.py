@@ -183,9 +183,9 @@ def build(source: Path, model: str | None, output: Path | None, fmi_version: str
 
 
 def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
-    from toggle_cosim.plant import ContractError, check_plant
-    from toggle_cosim.plant_probe import ProbeError, probe_binary
-    from toggle_cosim.scenario import ScenarioError, load_scenario
+    from toggle_cosim.plant.contract import ContractError, check_plant
+    from toggle_cosim.plant.probe import ProbeError, probe_binary
+    from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 
     runs = []
     for path in scenarios:
@@ -206,7 +206,7 @@ def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
             except (ContractError, ProbeError) as error:
                 raise InputError(str(error)) from error
     pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
-    from toggle_cosim.plant_settings import SettingError, check_settings
+    from toggle_cosim.plant.settings import SettingError, check_settings
 
     for run, plant in pairs:  # every name and value the run sets, before any run starts
         try:
@@ -217,7 +217,7 @@ def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
 
 
 def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
-    from toggle_cosim.traces import write_csv, write_json
+    from toggle_cosim.files.traces import write_csv, write_json
 
     folder = out / outcome.run.scenario / (outcome.run.variant or "run")
     with interrupts.deferred():  # both files whole, or an interrupt waits for them
@@ -249,7 +249,7 @@ def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path
 def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None) -> list:  # noqa: ANN001
     """Run each (run, plant) pair supervised, write its files, print a line; `on_written(outcome)`
     after each run's files are written."""
-    from toggle_cosim.resources import check_runs
+    from toggle_cosim.experiments.resources import check_runs
 
     check_runs(pairs, out)
     outcomes = []
@@ -309,7 +309,7 @@ def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, t
 
 def _read_record(path: Path) -> dict:
     """A run.json: a regular file of at most JSON_LIMIT bytes holding a JSON object."""
-    from toggle_cosim.bounded_files import JSON_LIMIT, read_text_bounded
+    from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
 
     record = json.loads(read_text_bounded(path, JSON_LIMIT, "run record"))
     if not isinstance(record, dict):
@@ -318,9 +318,9 @@ def _read_record(path: Path) -> dict:
 
 
 def _plot_scenario(folder: Path, output: Path | None) -> Path:
-    from toggle_cosim.plant import OUTPUTS
-    from toggle_cosim.plots import nine_panel_figure
-    from toggle_cosim.traces import read_csv
+    from toggle_cosim.plant.contract import OUTPUTS
+    from toggle_cosim.analysis.plots import nine_panel_figure
+    from toggle_cosim.files.traces import read_csv
 
     runs = sorted(p for p in folder.iterdir() if (p / "trace.csv").is_file()) if folder.is_dir() else []
     if not runs:
@@ -367,7 +367,7 @@ def plot(results: tuple[Path, ...], output: Path | None) -> None:
 @_TIME_LIMIT
 def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: float | None) -> None:
     """The main job: build the FMU, run the paper's six runs, write traces, figures and a summary."""
-    from toggle_cosim.report import write_summary
+    from toggle_cosim.analysis.report import write_summary
 
     started = time.perf_counter()
     if not skip_build:
@@ -376,7 +376,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             _build(DEFAULT_SOURCE, name, path)
     files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
     pairs = _load_runs(files, fmu)
-    from toggle_cosim.figure_worker import FigureWorker
+    from toggle_cosim.analysis.figure_worker import FigureWorker
 
     figures = FigureWorker()  # matplotlib loads and each figure is drawn beside the runs
     try:
@@ -426,7 +426,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
 def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | None, junit: Path | None,
             summary: Path | None, fail_on_solver_change: bool) -> None:
     """Compare RESULT with REFERENCE (CSV or Modelica .mat traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
-    from toggle_cosim.compare import run_compare
+    from toggle_cosim.analysis.compare import run_compare
 
     sys.exit(run_compare(result, reference, tolerances, out, junit=junit, summary=summary,
                          fail_on_solver_change=fail_on_solver_change))
@@ -449,8 +449,8 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
                junit: Path | None, summary: Path | None, fail_on_solver_change: bool, time_limit: float | None) -> None:
     """Check the shipped runs against their stored reference traces (or --update them)."""
     from toggle_cosim.analysis.reference_reports import write_reference_reports
-    from toggle_cosim import references as refs
-    from toggle_cosim.compare import CompareInputError, format_table
+    from toggle_cosim.experiments import references as refs
+    from toggle_cosim.analysis.compare import CompareInputError, format_table
 
     for path, what in ((junit, "JUnit report"), (summary, "Markdown summary")):
         if path is not None and path.is_dir():
@@ -459,7 +459,7 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     pairs = _load_runs(files, fmu)
-    from toggle_cosim.resources import check_runs
+    from toggle_cosim.experiments.resources import check_runs
 
     check_runs(pairs, folder if update else None)
     failures: list[str] = []

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from toggle_cosim.analysis.solver_stats import SolverCheck
-from toggle_cosim.compare import ComparisonResult, VariableResult
-from toggle_cosim.traces import atomic_write
+from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
+from toggle_cosim.files.traces import atomic_write
 
 __all__ = ["CheckedTrace", "failure_message", "markdown_summary", "write_junit", "write_markdown_summary"]
 

@@ -20,9 +20,9 @@ from toggle_cosim.analysis.solver_stats import (
 from toggle_cosim.analysis.tolerance_files import tolerances_for_reference
 from toggle_cosim.analysis.trace_formats import read_any_trace
 from toggle_cosim.analysis.csv_traces import CompareInputError
-from toggle_cosim.bounded_files import JSON_LIMIT, read_text_bounded
+from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
 from toggle_cosim.analysis.reference_files import _check_span, _reference_paths, read_options
-from toggle_cosim.compare import ComparisonResult, compare_traces, format_table, write_report
+from toggle_cosim.analysis.compare import ComparisonResult, compare_traces, format_table, write_report
 
 __all__ = ["plots_of", "run_compare", "trace_label"]
 

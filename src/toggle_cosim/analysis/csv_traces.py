@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim.traces import Trace
+from toggle_cosim.files.traces import Trace
 
 __all__ = ["CompareInputError", "check_trace", "read_trace"]
 
@@ -40,7 +40,7 @@ def read_trace(path: Path | str) -> Trace:
         raise CompareInputError(f"{path}: no such file; check the path (traces are written by `toggle-cosim run`)")
     if path.is_dir():
         raise CompareInputError(f"{path}: is a directory, not a CSV file; give the trace's .csv file")
-    from toggle_cosim.bounded_files import CSV_LIMIT, InputFileError, read_bounded
+    from toggle_cosim.files.bounded import CSV_LIMIT, InputFileError, read_bounded
 
     try:
         raw = read_bounded(path, CSV_LIMIT, "trace CSV")  # a regular file, at most CSV_LIMIT bytes

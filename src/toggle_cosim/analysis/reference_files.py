@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from toggle_cosim.analysis.csv_traces import CompareInputError, _check_trace, _float_or_none, read_trace
-from toggle_cosim.traces import Trace, atomic_write, write_csv
+from toggle_cosim.files.traces import Trace, atomic_write, write_csv
 
 __all__ = ["read_options", "read_reference", "write_reference"]
 
@@ -61,7 +61,7 @@ def read_options(path: Path | str) -> dict[str, float | str]:
             f"{path}: no such file; a reference needs its options file beside it "
             "(StartTime, StopTime, StepSize, RelTol)"
         )
-    from toggle_cosim.bounded_files import YAML_LIMIT, InputFileError, read_text_bounded
+    from toggle_cosim.files.bounded import YAML_LIMIT, InputFileError, read_text_bounded
 
     try:
         text = read_text_bounded(path, YAML_LIMIT, "options file", encoding="utf-8-sig")

@@ -1,6 +1,6 @@
 """Where the funnel is checked: a verdict that does not depend on how the two traces were sampled.
 
-The funnel of `toggle_cosim.compare` is built from the reference's samples, joined by straight
+The funnel of `toggle_cosim.analysis.compare` is built from the reference's samples, joined by straight
 lines. A reference that keeps only every 10th sample of a run therefore cannot show a peak that
 falls between two of its samples, while a result written at every sample does show it: checked
 at the result's own samples, the same run would fail against its own decimated copy.

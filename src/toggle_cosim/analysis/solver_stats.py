@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.bounded_files import JSON_LIMIT, read_text_bounded
-from toggle_cosim.traces import atomic_write
+from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
+from toggle_cosim.files.traces import atomic_write
 
 __all__ = [
     "NOT_EXPOSED",

@@ -4,14 +4,14 @@ For a reference `<folder>/<name>_ref.csv` (or any trace used as a reference) the
 `<folder>/../tolerances.yaml` and `<folder>/tolerances.yaml` apply, in that order: the parent
 folder's file holds the defaults of a collection of references (`scenarios/references/`), the
 reference's own folder adds or overrides entries for its scenario. `--tolerances FILE` replaces
-both. Each file is read by `toggle_cosim.compare.load_tolerances`.
+both. Each file is read by `toggle_cosim.analysis.compare.load_tolerances`.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from toggle_cosim.compare import DEFAULT_TOLERANCE, Tolerance, load_tolerances
+from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, Tolerance, load_tolerances
 
 __all__ = ["TOLERANCE_FILE", "applicable_tolerance_files", "merged_tolerances", "tolerances_for_reference"]
 

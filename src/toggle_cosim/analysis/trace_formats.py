@@ -1,7 +1,7 @@
 """Trace files from other tools: FMPy / FMI cross-check CSV, and Modelica MAT v4 result files.
 
 * `.csv`: the FMI cross-check layout that FMPy's `write_csv` also writes (a header of quoted
-  names, "time" first): `toggle_cosim.compare.read_trace`.
+  names, "time" first): `toggle_cosim.analysis.compare.read_trace`.
 * `.mat`: the result file layout of Dymola and OpenModelica (MATLAB v4 matrices `Aclass`,
   `name`, `description`, `dataInfo`, `data_1` for parameters, `data_2` for trajectories), read
   with BuildingsPy's output-file reader (`buildingspy.io.outputfile.Reader`, which wraps DyMat).
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.analysis.csv_traces import CompareInputError, read_trace
-from toggle_cosim.traces import Trace
+from toggle_cosim.files.traces import Trace
 
 __all__ = ["read_any_trace", "read_mat_trace"]
 

@@ -15,7 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
-from toggle_cosim.traces import Trace
+from toggle_cosim.files.traces import Trace
 
 CONTROL_COLUMNS = ("iq_ref", "F_E", "S", "phase", "e")
 

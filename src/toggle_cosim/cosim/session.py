@@ -29,7 +29,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
-from toggle_cosim.plant import PlantInterface
+from toggle_cosim.plant.contract import PlantInterface
 
 _WARNING = 1  # fmi2Warning == fmi3Warning: a status above it is a failure, as fmpy's _call says
 _VR, _DOUBLES = ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_double)

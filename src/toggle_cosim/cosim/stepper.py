@@ -22,7 +22,7 @@ from typing import Any, Protocol
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.controller import ControllerState, VSCController
+from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop, kernel_library, kernel_reason
 from toggle_cosim.cosim.recorder import Recorder, StepHook
 from toggle_cosim.cosim.session import PlantSession

@@ -41,9 +41,9 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.cosim import master, outcome as outcomes
-from toggle_cosim.plant import PlantInterface
-from toggle_cosim.scenario import Run
-from toggle_cosim.traces import Trace
+from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.experiments.scenario import Run
+from toggle_cosim.files.traces import Trace
 
 PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process as forked
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)

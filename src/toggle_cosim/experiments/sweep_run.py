@@ -27,7 +27,7 @@ from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, ResultStore, read_results
 from toggle_cosim.experiments.sweep_worker import file_sha256_cached
-from toggle_cosim.scenario import runs_from_document
+from toggle_cosim.experiments.scenario import runs_from_document
 
 MANIFEST_FILE = "sweep.json"
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -70,13 +70,13 @@ def _exclusive(folder: Path) -> Iterator[None]:
 
 
 def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
-    from toggle_cosim.plant import ContractError, check_plant
+    from toggle_cosim.plant.contract import ContractError, check_plant
 
     chosen = fmu if fmu is not None else sweep.fmu
     if chosen is None:
         raise SweepError(f"{sweep.path}: no fmu: key here or in the base scenario, and no --fmu option (name the plant FMU)")
     chosen = Path(chosen).resolve()
-    from toggle_cosim.plant_probe import ProbeError, probe_binary
+    from toggle_cosim.plant.probe import ProbeError, probe_binary
 
     try:
         plant = check_plant(chosen)
@@ -91,10 +91,10 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     for name in sorted(names):
         if name not in plant.references:
             raise SweepError(f"{sweep.base}: key plant.parameters.{name}: the plant FMU has no variable {name!r}")
-    from toggle_cosim.plant_settings import SettingError, check_settings
+    from toggle_cosim.plant.settings import SettingError, check_settings
 
     from toggle_cosim.cosim.master import trace_names
-    from toggle_cosim.resources import max_output
+    from toggle_cosim.experiments.resources import max_output
 
     if sweep.cases:  # each case's trace buffer (8 bytes a value while it runs) within the output limit
         biggest = max(sweep.cases, key=lambda c: c.parameters["t_end"] / c.parameters["T_s"])
@@ -204,7 +204,7 @@ def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None
 
 
 def _write_manifest(sweep: Sweep, result: SweepResult, fmu: Path, sha: str, scheduler: str | None, workers: int | None) -> None:
-    from toggle_cosim.traces import write_json
+    from toggle_cosim.files.traces import write_json
 
     write_json(sweep.output / MANIFEST_FILE, {
         "sweep": sweep.name, "sweep_file": str(sweep.path), "base": str(sweep.base), "mode": sweep.mode,

@@ -39,9 +39,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.scenario import SCHEMA as SCENARIO_SCHEMA
-from toggle_cosim.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
-from toggle_cosim.summary import RunSummary
+from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
+from toggle_cosim.analysis.summary import RunSummary
 
 STANDARD_PARAMETERS = ("plant.F_E", "plant.m_B", "plant.mu", "T_s", "t_end")
 METRICS = (*RunSummary.__dataclass_fields__, "fric_share_end")
@@ -247,7 +247,7 @@ def _schema_message(error: Any) -> str:  # a jsonschema.ValidationError
 
 
 def _read_yaml(path: Path, what: str) -> Any:
-    from toggle_cosim.yaml_loader import YamlError, load_yaml
+    from toggle_cosim.files.yaml_loader import YamlError, load_yaml
 
     try:
         return load_yaml(path, what)

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
-from toggle_cosim.scenario import runs_from_document
+from toggle_cosim.experiments.scenario import runs_from_document
 
 _capture = threading.local()
 _plant_cache: dict[tuple[str, int, int], Any] = {}
@@ -73,7 +73,7 @@ def file_sha256_cached(path: Path) -> str:
 
 
 def _plant(path: Path) -> Any:
-    from toggle_cosim.plant import check_plant
+    from toggle_cosim.plant.contract import check_plant
 
     key = _file_key(path)
     if key not in _plant_cache:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.traces import atomic_write
+from toggle_cosim.files.traces import atomic_write
 
 
 def _cell(value: float | None, scale: float = 1.0, fmt: str = ".3f") -> str:
@@ -36,7 +36,7 @@ def summary_table(outcomes: Sequence[RunOutcome]) -> str:
 
 
 def write_summary(outcomes: Sequence[RunOutcome], path: Path) -> Path:
-    from toggle_cosim.friction_claims import friction_claims
+    from toggle_cosim.analysis.friction_claims import friction_claims
 
     paper_runs = [o for o in outcomes if o.run.scenario != "friction_models"]
     text = "# Results of the paper's runs\n\n" + summary_table(paper_runs) + "\n" + paper_claims(paper_runs)

@@ -19,7 +19,7 @@ class FigureWorker:
     """The child process, from the parent's side."""
 
     def __init__(self) -> None:
-        self._process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.figure_worker"], stdin=subprocess.PIPE,
+        self._process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.analysis.figure_worker"], stdin=subprocess.PIPE,
                                          stdout=subprocess.PIPE, text=True, bufsize=1)
         self._submitted = 0
 
@@ -57,7 +57,7 @@ def _serve() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # an interrupt is the parent's; end of input ends us
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(130))  # from stop(): a partial PNG is removed on the way out
     from toggle_cosim.cli import InputError, _plot_scenario
-    from toggle_cosim import plots  # noqa: F401 - matplotlib's import, while the parent runs
+    from toggle_cosim.analysis import plots  # noqa: F401 - matplotlib's import, while the parent runs
 
     for line in sys.stdin:
         folder = Path(line.rstrip("\n"))

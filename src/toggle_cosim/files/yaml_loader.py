@@ -19,7 +19,7 @@ from typing import Any
 import yaml
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
-from toggle_cosim.bounded_files import YAML_LIMIT, InputFileError, read_bounded
+from toggle_cosim.files.bounded import YAML_LIMIT, InputFileError, read_bounded
 
 MAX_ALIASES = 100
 MAX_DEPTH = 32

@@ -74,7 +74,7 @@ def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
     """FMI cross-check CSV: a header of quoted names, "time" first, then one row per sample
     (every `every`-th sample and the last one: the scenario key record_every), in chunks; the
     rows are the bytes np.savetxt(fmt="%.17g", delimiter=",") writes (`csv_rows`)."""
-    from toggle_cosim.csv_rows import format_rows
+    from toggle_cosim.files.csv_rows import format_rows
 
     def write(stream: Any) -> None:
         stream.write(",".join(f'"{name}"' for name in trace.names) + "\n")
@@ -92,7 +92,7 @@ def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
 def read_csv(path: Path) -> Trace:
     """Read a CSV written by `write_csv` (or any cross-check CSV with a header row): a regular
     file of at most `bounded_files.CSV_LIMIT` bytes. Raises ValueError (or InputFileError) naming it."""
-    from toggle_cosim.bounded_files import CSV_LIMIT, read_text_bounded
+    from toggle_cosim.files.bounded import CSV_LIMIT, read_text_bounded
 
     path = Path(path)
     text = read_text_bounded(path, CSV_LIMIT, "trace CSV")

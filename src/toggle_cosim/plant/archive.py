@@ -14,7 +14,7 @@ import zipfile
 import zlib
 from pathlib import Path
 
-from toggle_cosim.bounded_files import MODEL_DESCRIPTION_LIMIT, MiB
+from toggle_cosim.files.bounded import MODEL_DESCRIPTION_LIMIT, MiB
 
 MEMBER_LIMIT = 256 * MiB
 TOTAL_LIMIT = 512 * MiB

@@ -20,7 +20,7 @@ import warnings
 import zipfile
 from pathlib import Path
 
-from toggle_cosim.plant import PlantInterface, _platform_binary_folders
+from toggle_cosim.plant.contract import PlantInterface, _platform_binary_folders
 
 PROBE_SECONDS = 10.0
 FMI2 = ("fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",

@@ -33,7 +33,7 @@ class MotorParameters:
     """Flat single-sided PMLSM of the paper's section 2.1 and section 4.
 
     All values except ``K`` are the paper's (section 4). The thrust constant
-    ``K_f = F_C / i_q`` follows from eqs. (2), (13)-(16); see :func:`toggle_cosim.motor.thrust_constant`.
+    ``K_f = F_C / i_q`` follows from eqs. (2), (13)-(16); see :func:`toggle_cosim.physics.motor.thrust_constant`.
 
     Attributes:
         tau: pole pitch τ [m].

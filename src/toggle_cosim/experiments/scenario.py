@@ -31,7 +31,7 @@ from typing import Any, Literal
 
 import jsonschema
 
-from toggle_cosim.parameters import ControllerGains, MechanismParameters
+from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 
 _NUMBER = {"type": "number"}
 _POSITIVE = {"type": "number", "exclusiveMinimum": 0}
@@ -372,7 +372,7 @@ def runs_from_document(document: Any, source: Path | None = None) -> list[Run]:
 
 def load_scenario(path: Path) -> list[Run]:
     """Read and validate a scenario file (`yaml_loader`). Raises ScenarioError with 'FILE: problem'."""
-    from toggle_cosim.yaml_loader import YamlError, load_yaml
+    from toggle_cosim.files.yaml_loader import YamlError, load_yaml
 
     path = Path(path)
     try:

@@ -86,7 +86,7 @@ def check_plant(path: Path) -> PlantInterface:
         raise ContractError(f"{path}: not a regular file (give the .fmu file itself)")
     if not zipfile.is_zipfile(path):
         raise ContractError(f"{path}: not an FMU (not a zip archive)")
-    from toggle_cosim.fmu_archive import ArchiveError, read_model_description as read_archive
+    from toggle_cosim.plant.archive import ArchiveError, read_model_description as read_archive
 
     try:
         names, description = read_archive(path)  # names, sizes and data checked before anything is used

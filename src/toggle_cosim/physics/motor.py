@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-from .parameters import MotorParameters
+from toggle_cosim.physics.parameters import MotorParameters
 
 __all__ = ["thrust_constant", "mmf_per_ampere", "airgap_flux_density_per_ampere"]
 

@@ -10,7 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from toggle_cosim.traces import Trace  # noqa: E402
+from toggle_cosim.files.traces import Trace  # noqa: E402
 
 PANELS = (
     ("(a) position of slider B", "x_B", "x_B [m]"),

@@ -1,6 +1,6 @@
 """Kinematics of the toggle mechanism, eq. (26) and the loop closures.
 
-Pure functions of floats and :class:`~toggle_cosim.parameters.MechanismParameters`.
+Pure functions of floats and :class:`~toggle_cosim.physics.parameters.MechanismParameters`.
 q = (θ1, θ2, θ5): lever, link 3 (A→B), link 5 (D→C)::
 
     A = r1 (cos θ1, sin θ1)             B = A + r3 (cos θ2, sin θ2)
@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from .parameters import MechanismParameters
+from toggle_cosim.physics.parameters import MechanismParameters
 
 __all__ = [
     "theta1_from_xB",

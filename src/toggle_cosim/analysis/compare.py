@@ -52,7 +52,7 @@ import numpy as np
 from toggle_cosim.analysis.csv_traces import CompareInputError, _check_trace, _float_or_none, read_trace
 from toggle_cosim.analysis.reference_files import read_options, read_reference, write_reference
 from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
-from toggle_cosim.traces import Trace, atomic_write, write_csv
+from toggle_cosim.files.traces import Trace, atomic_write, write_csv
 
 __all__ = [
     "DEFAULT_TOLERANCE",
@@ -441,7 +441,7 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     """
     import jsonschema
 
-    from toggle_cosim.yaml_loader import YamlError, load_yaml
+    from toggle_cosim.files.yaml_loader import YamlError, load_yaml
 
     path = Path(path)
     if not path.is_file():

@@ -31,11 +31,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
-from .control.laws import error_terms, law_step
-from .control.parameters import INTEGRAL, OBJECTIVE_THETA1, OBJECTIVE_XB, PAPER, LawParameters
-from .mechanism import theta1_from_xB
-from .motor import thrust_constant
-from .parameters import ControllerGains, MechanismParameters, MotorParameters
+from toggle_cosim.control.laws import error_terms, law_step
+from toggle_cosim.control.parameters import INTEGRAL, OBJECTIVE_THETA1, OBJECTIVE_XB, PAPER, LawParameters
+from toggle_cosim.physics.mechanism import theta1_from_xB
+from toggle_cosim.physics.motor import thrust_constant
+from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters, MotorParameters
 
 __all__ = ["VSCController", "ControllerState", "ControlOutput", "hitting_time"]
 

@@ -27,7 +27,7 @@ from toggle_cosim.analysis.solver_stats import (
     write_statistics_file,
 )
 from toggle_cosim.analysis.tolerance_files import TOLERANCE_FILE, merged_tolerances
-from toggle_cosim.compare import (
+from toggle_cosim.analysis.compare import (
     ComparisonResult,
     Tolerance,
     compare_traces,
@@ -35,8 +35,8 @@ from toggle_cosim.compare import (
     write_reference,
 )
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.scenario import Run
-from toggle_cosim.traces import Trace
+from toggle_cosim.experiments.scenario import Run
+from toggle_cosim.files.traces import Trace
 
 DECIMATION = 10
 REFERENCE_RELTOL = 1e-8  # the FMU's default solver.relTol, recorded in the .opt file

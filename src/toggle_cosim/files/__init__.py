@@ -1,0 +1,1 @@
+"""Reading and writing files: bounded reads, the one YAML loader, traces."""

@@ -1,0 +1,1 @@
+"""Physics in Python: parameters, the PMLSM thrust constant, the mechanism's kinematics."""

@@ -1,0 +1,1 @@
+"""The plant: the interface contract, its checks, and what a run sets on it."""
