@@ -2,7 +2,7 @@
 
 Source: R.-F. Fung, J.-W. Wu, D.-S. Chen, "A variable structure control toggle mechanism
 driven by a linear synchronous motor with joint Coulomb friction", J. Sound Vib. (2001),
-referred to below as "the paper", and ``shared/spec/mechanism.md`` for the values the paper
+referred to below as "the paper", and ``docs/model.md`` for the values the paper
 does not give (its mechanism parameters come from its reference [8], which we do not have).
 
 Every value marked **assumed** is our choice, not the paper's.
@@ -79,7 +79,7 @@ class MotorParameters:
 
 @dataclass(frozen=True)
 class MechanismParameters:
-    """Geometry and inertia of the toggle mechanism (spec ``mechanism.md``), eqs. (17), (18), (26).
+    """Geometry and inertia of the toggle mechanism (``docs/model.md``), eqs. (17), (18), (26).
 
     Geometry and inertia are **assumed** (the paper takes them from its reference [8], which is
     not available); ``mB`` (4.43 kg nominal, 8.86 kg in the paper's variation case) and ``mu``
