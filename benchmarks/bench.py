@@ -50,9 +50,9 @@ T_S_SWEEP = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
 FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
 from toggle_cosim.cosim import compiled_loop, master, session  # noqa: E402
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document  # noqa: E402
 from toggle_cosim.fmu_export import build_fmu  # noqa: E402
 from toggle_cosim.plant.contract import check_plant  # noqa: E402
-from toggle_cosim.experiments.scenario import load_scenario, runs_from_document  # noqa: E402
 
 # ------------------------------------------------------------------------------------------
 # A tiny C driver: the FMU's own C functions in a C loop, no Python per step.
@@ -101,16 +101,27 @@ def compile_driver(folder: Path) -> ctypes.CDLL | None:
         return None
     source, library = folder / "driver.c", folder / "driver.so"
     source.write_text(DRIVER_C)
-    result = subprocess.run([compiler, "-O2", "-fPIC", "-shared", "-o", str(library), str(source)],
-                            capture_output=True, text=True, check=False)
+    result = subprocess.run(
+        [compiler, "-O2", "-fPIC", "-shared", "-o", str(library), str(source)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if result.returncode != 0:
         print(f"(no C driver: {result.stderr.strip()[:200]})", file=sys.stderr)
         return None
     lib = ctypes.CDLL(str(library))
     lib.drive.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_long, ctypes.c_double, ctypes.c_long]
     lib.drive.restype = ctypes.c_long
-    lib.replay.argtypes = [ctypes.c_void_p] * 6 + [ctypes.c_double, ctypes.c_void_p, ctypes.c_long, ctypes.c_void_p,
-                                                   ctypes.c_long, ctypes.c_double, ctypes.c_long]
+    lib.replay.argtypes = [ctypes.c_void_p] * 6 + [
+        ctypes.c_double,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_double,
+        ctypes.c_long,
+    ]
     lib.replay.restype = ctypes.c_long
     return lib
 
@@ -142,7 +153,6 @@ def open_fmu(plant, run, inputs=FIXED_INPUTS, stop: float | None = None) -> sess
     fmu.write_inputs(inputs)
     fmu.exit_initialization()
     return fmu
-
 
 
 def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
@@ -186,9 +196,21 @@ def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
             out = (ctypes.c_double * len(names))()
             u = np.ascontiguousarray(inputs_trace[:n], dtype=np.float64)
             started = time.perf_counter()
-            done = driver.replay(address["fmi2DoStep"], address["fmi2SetReal"], address["fmi2GetReal"], c,
-                                 ctypes.addressof(vr_in), u.ctypes.data, run.plant.F_E, ctypes.addressof(vr_out),
-                                 len(names), ctypes.addressof(out), 0, h, n)
+            done = driver.replay(
+                address["fmi2DoStep"],
+                address["fmi2SetReal"],
+                address["fmi2GetReal"],
+                c,
+                ctypes.addressof(vr_in),
+                u.ctypes.data,
+                run.plant.F_E,
+                ctypes.addressof(vr_out),
+                len(names),
+                ctypes.addressof(out),
+                0,
+                h,
+                n,
+            )
             elapsed = time.perf_counter() - started
             if done != n:
                 raise RuntimeError(f"replay failed at step {done}")
@@ -268,8 +290,13 @@ def six_runs_process(fmu: Path, folder: Path, supervised: bool = True) -> dict:
     files = [str(SCENARIOS / f"{name}.yaml") for name in PAPER]
     env = {**os.environ, "TOGGLE_COSIM_SUPERVISE": "1" if supervised else "0"}
     started = time.time()
-    result = subprocess.run([*cli_command(), "run", *files, "--fmu", str(fmu), "--out", str(out), "-q"],
-                            capture_output=True, text=True, check=False, env=env)
+    result = subprocess.run(
+        [*cli_command(), "run", *files, "--fmu", str(fmu), "--out", str(out), "-q"],
+        capture_output=True,
+        text=True,
+        check=False,
+        env=env,
+    )
     ended = time.time()
     if result.returncode != 0:
         raise RuntimeError(f"toggle-cosim run failed: {result.stderr.strip()}")
@@ -278,8 +305,10 @@ def six_runs_process(fmu: Path, folder: Path, supervised: bool = True) -> dict:
     return {"to_last_file": last - started, "process": ended - started, "files": len(written)}
 
 
-IMPORTS = ("import toggle_cosim.cli, toggle_cosim.cosim.master, toggle_cosim.plant.contract, toggle_cosim.experiments.scenario, "
-           "toggle_cosim.files.traces, toggle_cosim.analysis.summary")
+IMPORTS = (
+    "import toggle_cosim.cli, toggle_cosim.cosim.master, toggle_cosim.plant.contract, toggle_cosim.experiments.scenario, "
+    "toggle_cosim.files.traces, toggle_cosim.analysis.summary"
+)
 
 
 def python_start() -> dict:
@@ -377,8 +406,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions and shorter runs (< 1 min)")
     parser.add_argument("--json", type=Path, default=None, help="also write every figure to this JSON file")
-    parser.add_argument("--fmu", type=Path, default=None,
-                        help="use this FMU for the runs (the build is still timed unless --skip-build)")
+    parser.add_argument(
+        "--fmu",
+        type=Path,
+        default=None,
+        help="use this FMU for the runs (the build is still timed unless --skip-build)",
+    )
     parser.add_argument("--skip-build", action="store_true", help="do not time the build (needs --fmu)")
     args = parser.parse_args()
     if args.skip_build and args.fmu is None:
@@ -397,12 +430,18 @@ def main() -> int:
         table.section("Machine")
         table.add("CPU cores (os.cpu_count)", str(os.cpu_count()))
         table.add("Python", platform.python_version(), platform.platform())
-        table.add("load average at start (1 min)", f"{os.getloadavg()[0]:.2f}",
-                  "other processes share the cores: compare ratios, not absolutes")
+        table.add(
+            "load average at start (1 min)",
+            f"{os.getloadavg()[0]:.2f}",
+            "other processes share the cores: compare ratios, not absolutes",
+        )
         compiled = compiled_loop.kernel_available()
         loop_kind = "compiled" if compiled else "python"
-        table.add("co-simulation loop", loop_kind,
-                  "generated from control/laws.py" if compiled else f"why not compiled: {compiled_loop.kernel_reason()}")
+        table.add(
+            "co-simulation loop",
+            loop_kind,
+            "generated from control/laws.py" if compiled else f"why not compiled: {compiled_loop.kernel_reason()}",
+        )
         figures["loop"] = loop_kind
         figures["loop_reason"] = None if compiled else compiled_loop.kernel_reason()
 
@@ -455,38 +494,60 @@ def main() -> int:
                 res["C"].append(fmu_alone(plant, run, "C", driver))
                 res["replay"].append(fmu_alone(plant, run, "replay", driver, loop["u"]))
         b = {k: best(v) for k, v in res.items() if v}
-        figures["per_step_0p5ms"] = {k: {"best_s": best(v), "median_s": statistics.median(v)} for k, v in res.items() if v}
+        figures["per_step_0p5ms"] = {
+            k: {"best_s": best(v), "median_s": statistics.median(v)} for k, v in res.items() if v
+        }
         fixed = f"fixed inputs iq_ref = {FIXED_INPUTS[0]:g} A, F_E = {FIXED_INPUTS[1]:g} N"
         table.add("FMU alone: doStep via fmpy's wrapper (_call)", us(b["fmpy"]), fixed)
-        table.add("FMU alone: doStep via the raw ctypes function", us(b["ctypes"]), "Python loop; the issue's 'FMU alone'")
+        table.add(
+            "FMU alone: doStep via the raw ctypes function", us(b["ctypes"]), "Python loop; the issue's 'FMU alone'"
+        )
         if "C" in b:
             table.add("FMU alone: doStep from a C driver", us(b["C"]), "raw C cost, no Python at all")
-            table.add("FMU share of the loop: get outputs, set inputs, doStep", us(b["replay"]),
-                      "C driver replaying the loop's iq_ref")
-        table.add("full co-simulation loop (as shipped)", us(b["loop"]), f"{loop_kind}: read, control, set, step, record")
+            table.add(
+                "FMU share of the loop: get outputs, set inputs, doStep",
+                us(b["replay"]),
+                "C driver replaying the loop's iq_ref",
+            )
+        table.add(
+            "full co-simulation loop (as shipped)", us(b["loop"]), f"{loop_kind}: read, control, set, step, record"
+        )
         table.add("full co-simulation loop, Python path", us(b["python"]), "TOGGLE_COSIM_KERNEL=0")
         ratio = b["loop"] / b["ctypes"]
-        table.add("ratio full loop / FMU alone (ctypes)", f"{ratio:.2f}", "the master's overhead, as the issue defines it")
+        table.add(
+            "ratio full loop / FMU alone (ctypes)", f"{ratio:.2f}", "the master's overhead, as the issue defines it"
+        )
         table.add("ratio Python-path loop / FMU alone (ctypes)", f"{b['python'] / b['ctypes']:.2f}")
         if "C" in b:
-            table.add("ratio full loop / FMU alone (C driver)", f"{b['loop'] / b['C']:.2f}",
-                      "strict: includes the FMU's output evaluation and the restart after each input change")
-            table.add("ratio full loop / FMU share of the loop", f"{b['loop'] / b['replay']:.2f}",
-                      "the master's own overhead (controller, trace, calls)")
+            table.add(
+                "ratio full loop / FMU alone (C driver)",
+                f"{b['loop'] / b['C']:.2f}",
+                "strict: includes the FMU's output evaluation and the restart after each input change",
+            )
+            table.add(
+                "ratio full loop / FMU share of the loop",
+                f"{b['loop'] / b['replay']:.2f}",
+                "the master's own overhead (controller, trace, calls)",
+            )
             table.add("master's own cost per step (loop - FMU share)", us(b["loop"] - b["replay"]))
         figures["ratio_loop_over_ctypes"] = ratio
         detail = f"{us(b['loop'])} / {us(b['ctypes'])} = {ratio:.2f}"
         if "C" in b:
-            detail += (f"; strict, against the C driver: {b['loop'] / b['C']:.2f} (doStep only), "
-                       f"{b['loop'] / b['replay']:.2f} (the FMU's whole share)")
+            detail += (
+                f"; strict, against the C driver: {b['loop'] / b['C']:.2f} (doStep only), "
+                f"{b['loop'] / b['replay']:.2f} (the FMU's whole share)"
+            )
         table.check("full loop <= 1.5 x FMU alone per step at T_s = 0.5 ms", ratio <= 1.5, detail)
         if "C" in b:
             strict = b["loop"] / b["C"]
             figures["ratio_loop_over_C"] = strict
-            table.check("(stricter) full loop <= 1.5 x doStep alone from the C driver", strict <= 1.5,
-                        f"{us(b['loop'])} / {us(b['C'])} = {strict:.2f}; of the {us(b['loop'] - b['C'])} difference "
-                        f"{us(b['replay'] - b['C'])} is FMU work the loop causes (output evaluation, restart after "
-                        f"each input change) and {us(b['loop'] - b['replay'])} the master's own")
+            table.check(
+                "(stricter) full loop <= 1.5 x doStep alone from the C driver",
+                strict <= 1.5,
+                f"{us(b['loop'])} / {us(b['C'])} = {strict:.2f}; of the {us(b['loop'] - b['C'])} difference "
+                f"{us(b['replay'] - b['C'])} is FMU work the loop causes (output evaluation, restart after "
+                f"each input change) and {us(b['loop'] - b['replay'])} the master's own",
+            )
 
         # ---------------------------------------------------------------- paper runs
         table.section("Real-time factor of each paper run (simulated s / wall s, best of repetitions)")
@@ -506,11 +567,14 @@ def main() -> int:
             worst_inst = min(worst_inst, f["rtf_inst"])
             table.add(f"  {r.label}", f"{f['rtf_loop']:.0f} / {f['rtf_inst']:.0f} / {f['rtf_simulate']:.0f}")
         figures["paper_rtf"] = {k: {kk: max(vv) for kk, vv in v.items()} for k, v in rtf.items()}
-        table.check("each paper run's loop (instantiate to terminate) RTF >= 20", worst_inst >= 20,
-                    f"lowest {worst_inst:.0f}")
+        table.check(
+            "each paper run's loop (instantiate to terminate) RTF >= 20", worst_inst >= 20, f"lowest {worst_inst:.0f}"
+        )
 
         # ---------------------------------------------------------------- six runs, fresh process
-        table.section("Six paper runs together: `toggle-cosim run <fig4 fig5 fig6> --fmu .. --out .. -q`, fresh process")
+        table.section(
+            "Six paper runs together: `toggle-cosim run <fig4 fig5 fig6> --fmu .. --out .. -q`, fresh process"
+        )
         six = [six_runs_process(fmu, folder) for _ in range(max(2, reps // 2))]
         starts = [python_start() for _ in range(max(2, reps // 2))]
         fastest = min(six, key=lambda s: s["to_last_file"])
@@ -520,40 +584,69 @@ def main() -> int:
         imports = best(s["with_imports"] for s in starts) - interp
         sims = sum(o.wall_seconds for o in outcomes.values())
         writes = [writing(o, folder / "w" / str(i)) for i, o in enumerate(outcomes.values())]
-        table.add("process start -> last file written", f"{fastest['to_last_file']:.2f} s",
-                  f"{fastest['files']} files; the process exits {fastest['process'] - fastest['to_last_file']:.2f} s later")
+        table.add(
+            "process start -> last file written",
+            f"{fastest['to_last_file']:.2f} s",
+            f"{fastest['files']} files; the process exits {fastest['process'] - fastest['to_last_file']:.2f} s later",
+        )
         table.add("  Python interpreter start-up", f"{interp:.2f} s", "python -c pass")
-        table.add("  importing toggle_cosim (cli, master, plant, ...)", f"{imports:.2f} s", "numpy, fmpy, jsonschema, ...")
+        table.add(
+            "  importing toggle_cosim (cli, master, plant, ...)", f"{imports:.2f} s", "numpy, fmpy, jsonschema, ..."
+        )
         table.add("  six simulate() calls", f"{sims:.2f} s", "measured in this process")
-        table.add("  writing six trace.csv (csv_rows, %.17g)", f"{sum(w[0] for w in writes):.2f} s",
-                  "traces.write_csv, measured in this process")
+        table.add(
+            "  writing six trace.csv (csv_rows, %.17g)",
+            f"{sum(w[0] for w in writes):.2f} s",
+            "traces.write_csv, measured in this process",
+        )
         table.add("  writing six run.json", f"{sum(w[1] for w in writes):.2f} s")
         table.add("real-time factor, six runs together", f"{rtf_six:.1f}", f"{simulated:g} simulated s")
-        figures["six_runs"] = {"to_last_file_s": fastest["to_last_file"], "process_s": fastest["process"],
-                               "interpreter_s": interp, "imports_s": imports, "simulate_s": sims,
-                               "write_csv_s": sum(w[0] for w in writes), "write_json_s": sum(w[1] for w in writes),
-                               "rtf": rtf_six}
+        figures["six_runs"] = {
+            "to_last_file_s": fastest["to_last_file"],
+            "process_s": fastest["process"],
+            "interpreter_s": interp,
+            "imports_s": imports,
+            "simulate_s": sims,
+            "write_csv_s": sum(w[0] for w in writes),
+            "write_json_s": sum(w[1] for w in writes),
+            "rtf": rtf_six,
+        }
         table.check("six runs together, process start to last file, RTF >= 5", rtf_six >= 5, f"{rtf_six:.1f}")
 
         # ---------------------------------------------------------------- supervision
         table.section("Supervision: the six paper runs end to end, each plant in a supervised child vs in-process")
-        pairs = [(six_runs_process(fmu, folder, True), six_runs_process(fmu, folder, False))
-                 for _ in range(max(3, reps // 2))]  # interleaved: load elsewhere hits both alike
+        pairs = [
+            (six_runs_process(fmu, folder, True), six_runs_process(fmu, folder, False))
+            for _ in range(max(3, reps // 2))
+        ]  # interleaved: load elsewhere hits both alike
         supervised_s = best(p[0]["process"] for p in pairs)
         unsupervised_s = best(p[1]["process"] for p in pairs)
         supervision_ratio = supervised_s / unsupervised_s
-        table.add("supervised (fork per run, time limit, shared trace buffer)", f"{supervised_s:.2f} s", "process start to exit")
+        table.add(
+            "supervised (fork per run, time limit, shared trace buffer)",
+            f"{supervised_s:.2f} s",
+            "process start to exit",
+        )
         table.add("unsupervised (TOGGLE_COSIM_SUPERVISE=0)", f"{unsupervised_s:.2f} s", "process start to exit")
         table.add("ratio supervised / unsupervised", f"{supervision_ratio:.3f}")
-        figures["supervision"] = {"supervised_s": supervised_s, "unsupervised_s": unsupervised_s,
-                                  "ratio": supervision_ratio}
-        table.check("supervised paper suite <= 1.5 x unsupervised", supervision_ratio <= 1.5, f"{supervision_ratio:.3f}")
+        figures["supervision"] = {
+            "supervised_s": supervised_s,
+            "unsupervised_s": unsupervised_s,
+            "ratio": supervision_ratio,
+        }
+        table.check(
+            "supervised paper suite <= 1.5 x unsupervised", supervision_ratio <= 1.5, f"{supervision_ratio:.3f}"
+        )
 
         # ---------------------------------------------------------------- T_s sweep
-        table.section(f"Cost vs number of steps: T_s from 2 ms to 0.05 ms over {sweep_t_end:g} simulated s "
-                      "(fig4_nominal/friction)")
-        table.text(f"{'T_s':>8} {'steps':>6} {'loop/step':>11} {'FMU C/step':>11} {'FMU share':>11} {'master':>9} "
-                   f"{'loop/FMU':>8} {'loop per sim. s':>16}")
+        table.section(
+            f"Cost vs number of steps: T_s from 2 ms to 0.05 ms over {sweep_t_end:g} simulated s "
+            "(fig4_nominal/friction)"
+        )
+        table.text(
+            f"{'T_s':>8} {'steps':>6} {'loop/step':>11} {'FMU C/step':>11} {'FMU share':>11} {'master':>9} "
+            f"{'loop/FMU':>8} {'loop per sim. s':>16}"
+        )
         sweep = {}
         sweep_runs = {T_s: run_with(T_s, sweep_t_end) for T_s in T_S_SWEEP}
         timings: dict[float, dict[str, list[float]]] = {T_s: {"loop": [], "C": [], "share": []} for T_s in T_S_SWEEP}
@@ -568,14 +661,26 @@ def main() -> int:
             lp = best(timings[T_s]["loop"])
             c = best(timings[T_s]["C"]) if driver is not None else float("nan")
             share = best(timings[T_s]["share"]) if driver is not None else float("nan")
-            sweep[T_s] = {"steps": r.steps, "loop_s": lp, "fmu_C_s": c, "fmu_share_s": share,
-                          "master_s": lp - share, "loop_per_sim_s": lp / T_s}
-            table.text(f"{T_s * 1e3:>6g} ms {r.steps:>6d} {us(lp):>11} {us(c):>11} {us(share):>11} "
-                       f"{us(lp - share):>9} {lp / c:>8.2f} {lp / T_s * 1e3:>11.2f} ms/s")
-        table.text("FMU C/step: doStep alone, fixed inputs; FMU share: the FMU's work in the loop (outputs, inputs, "
-                   "doStep) replayed in C;")
-        table.text("master = loop - FMU share. Larger T_s: more FMU internal steps per doStep, so the cost per step "
-                   "grows while the")
+            sweep[T_s] = {
+                "steps": r.steps,
+                "loop_s": lp,
+                "fmu_C_s": c,
+                "fmu_share_s": share,
+                "master_s": lp - share,
+                "loop_per_sim_s": lp / T_s,
+            }
+            table.text(
+                f"{T_s * 1e3:>6g} ms {r.steps:>6d} {us(lp):>11} {us(c):>11} {us(share):>11} "
+                f"{us(lp - share):>9} {lp / c:>8.2f} {lp / T_s * 1e3:>11.2f} ms/s"
+            )
+        table.text(
+            "FMU C/step: doStep alone, fixed inputs; FMU share: the FMU's work in the loop (outputs, inputs, "
+            "doStep) replayed in C;"
+        )
+        table.text(
+            "master = loop - FMU share. Larger T_s: more FMU internal steps per doStep, so the cost per step "
+            "grows while the"
+        )
         table.text("cost per simulated second falls; the master's share per step stays flat.")
         figures["sweep"] = {f"{k * 1e3:g} ms": v for k, v in sweep.items()}
         fine = [sweep[T]["loop_s"] for T in (2e-4, 1e-4, 5e-5)]
@@ -586,15 +691,28 @@ def main() -> int:
         loop_total = np.array([v["loop_s"] * v["steps"] for v in sweep.values()])
         b_fit, a_fit = np.polyfit(steps, master_total, 1)
         misfit = float(np.max(np.abs(master_total - (a_fit + b_fit * steps)) / loop_total))
-        table.add("loop cost per step at T_s <= 0.2 ms", f"{us(min(fine))} .. {us(max(fine))}",
-                  f"spread {fine_spread * 100:.1f} % over 4x the steps (one FMU internal step per doStep there)")
-        table.add("master's cost per run = a + b N, fitted", f"b = {us(b_fit)}",
-                  f"a = {a_fit * 1e6:.0f} us per run; largest misfit {misfit * 100:.1f} % of the run's loop cost")
-        figures["linearity"] = {"fine_spread": fine_spread, "master_per_step_s": b_fit, "master_per_run_s": a_fit,
-                                "master_misfit": misfit}
-        table.check("cost linear in the number of steps (within 10 %)", fine_spread <= 0.10 and misfit <= 0.10,
-                    f"loop cost per step at T_s <= 0.2 ms within {fine_spread * 100:.1f} %; the master's cost "
-                    f"is a + b N within {misfit * 100:.1f} % of a run's cost over all six T_s")
+        table.add(
+            "loop cost per step at T_s <= 0.2 ms",
+            f"{us(min(fine))} .. {us(max(fine))}",
+            f"spread {fine_spread * 100:.1f} % over 4x the steps (one FMU internal step per doStep there)",
+        )
+        table.add(
+            "master's cost per run = a + b N, fitted",
+            f"b = {us(b_fit)}",
+            f"a = {a_fit * 1e6:.0f} us per run; largest misfit {misfit * 100:.1f} % of the run's loop cost",
+        )
+        figures["linearity"] = {
+            "fine_spread": fine_spread,
+            "master_per_step_s": b_fit,
+            "master_per_run_s": a_fit,
+            "master_misfit": misfit,
+        }
+        table.check(
+            "cost linear in the number of steps (within 10 %)",
+            fine_spread <= 0.10 and misfit <= 0.10,
+            f"loop cost per step at T_s <= 0.2 ms within {fine_spread * 100:.1f} %; the master's cost "
+            f"is a + b N within {misfit * 100:.1f} % of a run's cost over all six T_s",
+        )
 
         # ---------------------------------------------------------------- parallel
         table.section(f"Parallel runs: a batch of {batch} paper runs (simulate() only), ProcessPoolExecutor")
@@ -608,16 +726,35 @@ def main() -> int:
         t2 = max(t for t, _ in through[2])
         cpu1 = min(c for _, c in through[1])
         cpu2 = min(c for _, c in through[2])
-        table.add("1 worker", f"{t1:.1f} runs/s", f"{t1 * 1.5:.0f} simulated s per wall s; CPU {cpu1 * 1e3:.1f} ms per run")
-        table.add("2 workers", f"{t2:.1f} runs/s", f"{t2 * 1.5:.0f} simulated s per wall s; CPU {cpu2 * 1e3:.1f} ms per run")
-        table.add("speed-up, 2 workers vs 1", f"{t2 / t1:.2f}",
-                  f"{os.cpu_count()} cores; load average {load[0]:.2f} before, {load[1]:.2f} after")
-        table.add("CPU per run, 1 worker / 2 workers", f"{cpu1 / cpu2:.2f}",
-                  "1.00: the runs do not slow each other down; the rest is cores taken by others")
-        figures["parallel"] = {"runs_per_s_1": t1, "runs_per_s_2": t2, "speedup": t2 / t1,
-                               "cpu_per_run_1_s": cpu1, "cpu_per_run_2_s": cpu2, "load_average": load}
-        table.check("two parallel runs >= 1.7 x the throughput of one", t2 / t1 >= 1.7,
-                    f"{t2 / t1:.2f} (load average {max(load):.2f} on {os.cpu_count()} cores)")
+        table.add(
+            "1 worker", f"{t1:.1f} runs/s", f"{t1 * 1.5:.0f} simulated s per wall s; CPU {cpu1 * 1e3:.1f} ms per run"
+        )
+        table.add(
+            "2 workers", f"{t2:.1f} runs/s", f"{t2 * 1.5:.0f} simulated s per wall s; CPU {cpu2 * 1e3:.1f} ms per run"
+        )
+        table.add(
+            "speed-up, 2 workers vs 1",
+            f"{t2 / t1:.2f}",
+            f"{os.cpu_count()} cores; load average {load[0]:.2f} before, {load[1]:.2f} after",
+        )
+        table.add(
+            "CPU per run, 1 worker / 2 workers",
+            f"{cpu1 / cpu2:.2f}",
+            "1.00: the runs do not slow each other down; the rest is cores taken by others",
+        )
+        figures["parallel"] = {
+            "runs_per_s_1": t1,
+            "runs_per_s_2": t2,
+            "speedup": t2 / t1,
+            "cpu_per_run_1_s": cpu1,
+            "cpu_per_run_2_s": cpu2,
+            "load_average": load,
+        }
+        table.check(
+            "two parallel runs >= 1.7 x the throughput of one",
+            t2 / t1 >= 1.7,
+            f"{t2 / t1:.2f} (load average {max(load):.2f} on {os.cpu_count()} cores)",
+        )
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.experiments.scenario import load_scenario
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -35,13 +35,18 @@ def main() -> int:
         worst, where = 0.0, None
         for F_E in np.linspace(0.0, 150.0, 16):
             for m_B in np.linspace(4.43, 8.86, 9):
-                run = dataclasses.replace(base, plant=dataclasses.replace(base.plant, F_E=float(F_E), m_B=float(m_B)),
-                                          controller=dataclasses.replace(base.controller, law=law))
+                run = dataclasses.replace(
+                    base,
+                    plant=dataclasses.replace(base.plant, F_E=float(F_E), m_B=float(m_B)),
+                    controller=dataclasses.replace(base.controller, law=law),
+                )
                 outcome = simulate(run, plant)
                 tv = total_variation_per_second(outcome.trace.column("iq_ref"), outcome.trace.time)
                 if tv > worst:
                     worst, where = tv, (float(F_E), float(m_B))
-        print(f"{law}: largest total variation of i_q* {worst:.2f} A/s, at F_E = {where[0]:g} N, m_B = {where[1]:.4g} kg")
+        print(
+            f"{law}: largest total variation of i_q* {worst:.2f} A/s, at F_E = {where[0]:g} N, m_B = {where[1]:.4g} kg"
+        )
     return 0
 
 

@@ -35,15 +35,25 @@ def suite(fmu: Path, out: Path, supervised: bool) -> dict[str, float]:
     shutil.rmtree(out, ignore_errors=True)
     env = {**os.environ, "TOGGLE_COSIM_SUPERVISE": "1" if supervised else "0"}
     started = time.time()
-    result = subprocess.run([*command(), "paper", "--skip-build", "--fmu", str(fmu), "--out", str(out)], cwd=ROOT,
-                            capture_output=True, text=True, check=False, env=env)
+    result = subprocess.run(
+        [*command(), "paper", "--skip-build", "--fmu", str(fmu), "--out", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+        env=env,
+    )
     ended = time.time()
     if result.returncode != 0:
         raise SystemExit(f"toggle-cosim paper failed ({result.returncode}): {result.stderr.strip()[-500:]}")
     files = [p for p in out.rglob("*") if p.is_file()]
     records = [json.loads(p.read_text()) for p in out.rglob("run.json")]
-    return {"to_last_file": max(p.stat().st_mtime for p in files) - started, "process": ended - started,
-            "runs": len(records), "runs_wall": sum(r["wall_time_s"] for r in records)}
+    return {
+        "to_last_file": max(p.stat().st_mtime for p in files) - started,
+        "process": ended - started,
+        "runs": len(records),
+        "runs_wall": sum(r["wall_time_s"] for r in records),
+    }
 
 
 def main() -> int:
@@ -61,12 +71,16 @@ def main() -> int:
             ratio = on["to_last_file"] / off["runs_wall"]
             ratios.append(ratio)
             supervision.append(on["runs_wall"] - off["runs_wall"])
-            print(f"[{number}] {on['runs']} runs: start -> last file {on['to_last_file']:.2f} s (exit {on['process']:.2f} s); "
-                  f"simulate() in-process {off['runs_wall']:.2f} s, supervised calls {on['runs_wall']:.2f} s; "
-                  f"ratio {ratio:.1f} x simulate() ({on['to_last_file'] / on['runs_wall']:.1f} x the supervised calls); "
-                  f"unsupervised suite: start -> last file {off['to_last_file']:.2f} s")
-    print(f"median ratio {statistics.median(ratios):.1f} x (target <= 4); supervision adds "
-          f"{statistics.median(supervision):.2f} s over the runs (median)")
+            print(
+                f"[{number}] {on['runs']} runs: start -> last file {on['to_last_file']:.2f} s (exit {on['process']:.2f} s); "
+                f"simulate() in-process {off['runs_wall']:.2f} s, supervised calls {on['runs_wall']:.2f} s; "
+                f"ratio {ratio:.1f} x simulate() ({on['to_last_file'] / on['runs_wall']:.1f} x the supervised calls); "
+                f"unsupervised suite: start -> last file {off['to_last_file']:.2f} s"
+            )
+    print(
+        f"median ratio {statistics.median(ratios):.1f} x (target <= 4); supervision adds "
+        f"{statistics.median(supervision):.2f} s over the runs (median)"
+    )
     return 0
 
 

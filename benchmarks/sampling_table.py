@@ -19,10 +19,10 @@ import numpy as np
 
 from toggle_cosim.analysis.compare import compare_traces
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.experiments.references import tolerances_for
 from toggle_cosim.experiments.scenario import Run, load_scenario
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 RATIOS = (1, 3, 7, 10)
@@ -42,8 +42,9 @@ def perturbations(run: Run) -> dict[str, Run]:
     gains = run.controller.gains
     return {
         "mu 0.2 -> 0.25": dataclasses.replace(run, plant=dataclasses.replace(run.plant, mu=0.25)),
-        "gain C +5 %": dataclasses.replace(run, controller=dataclasses.replace(
-            run.controller, gains=dataclasses.replace(gains, C=gains.C * 1.05))),
+        "gain C +5 %": dataclasses.replace(
+            run, controller=dataclasses.replace(run.controller, gains=dataclasses.replace(gains, C=gains.C * 1.05))
+        ),
     }
 
 

@@ -21,11 +21,15 @@ def _settling(values) -> str:  # noqa: ANN001 - a pandas Series
 
 
 def law_table(table) -> str:  # noqa: ANN001 - a pandas DataFrame
-    lines = ["| F_E [N] | law | max abs final error [mm] | settling (2 %) [s] | peak abs i_q* [A] |",
-             "|---|---|---|---|---|"]
+    lines = [
+        "| F_E [N] | law | max abs final error [mm] | settling (2 %) [s] | peak abs i_q* [A] |",
+        "|---|---|---|---|---|",
+    ]
     for (force, law), group in table.groupby(["plant.F_E", "controller.law"], sort=True):
-        lines.append(f"| {force:g} | {law} | {group['final_error_m'].abs().max() * 1e3:.4f} | "
-                     f"{_settling(group['settling_time_s'])} | {group['peak_iq_ref_A'].max():.2f} |")
+        lines.append(
+            f"| {force:g} | {law} | {group['final_error_m'].abs().max() * 1e3:.4f} | "
+            f"{_settling(group['settling_time_s'])} | {group['peak_iq_ref_A'].max():.2f} |"
+        )
     return "\n".join(lines)
 
 
@@ -33,19 +37,26 @@ def friction_table(table) -> str:  # noqa: ANN001
     """One row per control law and friction model (the law column only where the sweep has it)."""
     keys = [key for key in ("controller.law", "plant.friction_model") if key in table.columns]
     head = " | ".join({"controller.law": "law", "plant.friction_model": "friction model"}[key] for key in keys)
-    lines = [f"| {head} | complete | abs final error [mm] | settles within 2 % | peak abs i_q* [A] | E_fric [J] |",
-             "|" + "---|" * (len(keys) + 5)]
+    lines = [
+        f"| {head} | complete | abs final error [mm] | settles within 2 % | peak abs i_q* [A] | E_fric [J] |",
+        "|" + "---|" * (len(keys) + 5),
+    ]
     for values, group in table.groupby(keys, sort=True):
         values = values if isinstance(values, tuple) else (values,)
         ok = group[group["status"] == "ok"]
         error = ok["final_error_m"].abs() * 1e3
         settled = ok[ok["settling_time_s"].notna()]
-        when = f"F_E ≤ {settled['plant.F_E'].max():g} N" if len(settled) < len(group) else \
-            f"≤ {settled['settling_time_s'].max():.3f} s"
-        lines.append(f"| {' | '.join(str(v) for v in values)} | {len(ok)}/{len(group)} | "
-                     f"{error.min():.4f} … {error.max():.4f} | {len(settled)} of {len(group)} ({when}) | "
-                     f"{ok['peak_iq_ref_A'].min():.2f} … {ok['peak_iq_ref_A'].max():.2f} | "
-                     f"from {ok['E_fric_J'].min():.4f} |")
+        when = (
+            f"F_E ≤ {settled['plant.F_E'].max():g} N"
+            if len(settled) < len(group)
+            else f"≤ {settled['settling_time_s'].max():.3f} s"
+        )
+        lines.append(
+            f"| {' | '.join(str(v) for v in values)} | {len(ok)}/{len(group)} | "
+            f"{error.min():.4f} … {error.max():.4f} | {len(settled)} of {len(group)} ({when}) | "
+            f"{ok['peak_iq_ref_A'].min():.2f} … {ok['peak_iq_ref_A'].max():.2f} | "
+            f"from {ok['E_fric_J'].min():.4f} |"
+        )
     return "\n".join(lines)
 
 

@@ -35,11 +35,18 @@ _FUNCTIONS = [
     ("fmi2GetTypesPlatform", "const char*", ""),
     ("fmi2GetVersion", "const char*", ""),
     ("fmi2SetDebugLogging", "fmi2Status", "fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]"),
-    ("fmi2Instantiate", "fmi2Component", "fmi2String name, fmi2Type type, fmi2String guid, fmi2String location, "
-     "const fmi2CallbackFunctions* functions, fmi2Boolean visible, fmi2Boolean logging"),
+    (
+        "fmi2Instantiate",
+        "fmi2Component",
+        "fmi2String name, fmi2Type type, fmi2String guid, fmi2String location, "
+        "const fmi2CallbackFunctions* functions, fmi2Boolean visible, fmi2Boolean logging",
+    ),
     ("fmi2FreeInstance", "void", "fmi2Component c"),
-    ("fmi2SetupExperiment", "fmi2Status", "fmi2Component c, fmi2Boolean tolDef, fmi2Real tol, fmi2Real start, "
-     "fmi2Boolean stopDef, fmi2Real stop"),
+    (
+        "fmi2SetupExperiment",
+        "fmi2Status",
+        "fmi2Component c, fmi2Boolean tolDef, fmi2Real tol, fmi2Real start, fmi2Boolean stopDef, fmi2Real stop",
+    ),
     ("fmi2EnterInitializationMode", "fmi2Status", "fmi2Component c"),
     ("fmi2ExitInitializationMode", "fmi2Status", "fmi2Component c"),
     ("fmi2Terminate", "fmi2Status", "fmi2Component c"),
@@ -56,12 +63,22 @@ _FUNCTIONS = [
     ("fmi2SerializedFMUstateSize", "fmi2Status", "fmi2Component c, fmi2FMUstate s, size_t* size"),
     ("fmi2SerializeFMUstate", "fmi2Status", "fmi2Component c, fmi2FMUstate s, fmi2Byte b[], size_t size"),
     ("fmi2DeSerializeFMUstate", "fmi2Status", "fmi2Component c, const fmi2Byte b[], size_t size, fmi2FMUstate* s"),
-    ("fmi2GetDirectionalDerivative", "fmi2Status", "fmi2Component c, const fmi2ValueReference u[], size_t nu, "
-     "const fmi2ValueReference z[], size_t nz, const fmi2Real dv[], fmi2Real df[]"),
-    ("fmi2SetRealInputDerivatives", "fmi2Status", "fmi2Component c, const fmi2ValueReference vr[], size_t n, "
-     "const fmi2Integer order[], const fmi2Real v[]"),
-    ("fmi2GetRealOutputDerivatives", "fmi2Status", "fmi2Component c, const fmi2ValueReference vr[], size_t n, "
-     "const fmi2Integer order[], fmi2Real v[]"),
+    (
+        "fmi2GetDirectionalDerivative",
+        "fmi2Status",
+        "fmi2Component c, const fmi2ValueReference u[], size_t nu, "
+        "const fmi2ValueReference z[], size_t nz, const fmi2Real dv[], fmi2Real df[]",
+    ),
+    (
+        "fmi2SetRealInputDerivatives",
+        "fmi2Status",
+        "fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], const fmi2Real v[]",
+    ),
+    (
+        "fmi2GetRealOutputDerivatives",
+        "fmi2Status",
+        "fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer order[], fmi2Real v[]",
+    ),
     ("fmi2CancelStep", "fmi2Status", "fmi2Component c"),
     ("fmi2GetStatus", "fmi2Status", "fmi2Component c, const fmi2StatusKind k, fmi2Status* v"),
     ("fmi2GetRealStatus", "fmi2Status", "fmi2Component c, const fmi2StatusKind k, fmi2Real* v"),
@@ -181,8 +198,12 @@ def make_faulty_fmu(plant: Path, out: Path) -> Path:
         source = Path(scratch) / "shim.c"
         source.write_text(shim_source())
         library = Path(scratch) / file
-        subprocess.run([compiler, "-shared", "-fPIC", "-O1", "-I", str(HEADERS), "-o", str(library), str(source),
-                        "-ldl", "-lm"], check=True, capture_output=True, text=True)
+        subprocess.run(
+            [compiler, "-shared", "-fPIC", "-O1", "-I", str(HEADERS), "-o", str(library), str(source), "-ldl", "-lm"],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
         shim = library.read_bytes()
     out.parent.mkdir(parents=True, exist_ok=True)
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -192,8 +213,15 @@ def make_faulty_fmu(plant: Path, out: Path) -> Path:
     return out
 
 
-def fault_environment(kind: str, time: float, plant_references: dict[str, int], min_F_E: float = -1e300) -> dict[str, str]:
+def fault_environment(
+    kind: str, time: float, plant_references: dict[str, int], min_F_E: float = -1e300
+) -> dict[str, str]:
     """The environment that makes the shim misbehave (merged into os.environ)."""
-    return {**os.environ, "TOGGLE_FAULT_KIND": kind, "TOGGLE_FAULT_TIME": repr(time),
-            "TOGGLE_FAULT_MIN_FE": repr(min_F_E), "TOGGLE_FAULT_FE_VR": str(plant_references["F_E"]),
-            "TOGGLE_COSIM_PLANT_MEMORY": "512M"}
+    return {
+        **os.environ,
+        "TOGGLE_FAULT_KIND": kind,
+        "TOGGLE_FAULT_TIME": repr(time),
+        "TOGGLE_FAULT_MIN_FE": repr(min_F_E),
+        "TOGGLE_FAULT_FE_VR": str(plant_references["F_E"]),
+        "TOGGLE_COSIM_PLANT_MEMORY": "512M",
+    }

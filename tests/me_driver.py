@@ -39,9 +39,12 @@ class ModelExchangeRun:
         self.description = read_model_description(self.fmu)
         self.unzipped = extract(self.fmu)
         self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
-        self.model = FMU2Model(guid=self.description.guid, unzipDirectory=self.unzipped,
-                               modelIdentifier=self.description.modelExchange.modelIdentifier,
-                               instanceName="me-run")
+        self.model = FMU2Model(
+            guid=self.description.guid,
+            unzipDirectory=self.unzipped,
+            modelIdentifier=self.description.modelExchange.modelIdentifier,
+            instanceName="me-run",
+        )
         self.model.instantiate()
         self.model.setupExperiment(startTime=0.0)
         self.model.enterInitializationMode()

@@ -90,37 +90,48 @@ def positions(q: ArrayLike, p: MechanismParameters) -> Points:
     D = p.r4 * np.array([math.cos(t1 + p.phi), math.sin(t1 + p.phi)])
     e5 = np.array([math.cos(t5), math.sin(t5)])
     return Points(
-        O=np.zeros(2), A=A, B=A + p.r3 * e2, D=D, C=D + p.r5 * e5,
-        G3=A + 0.5 * p.r3 * e2, G5=D + 0.5 * p.r5 * e5,
+        O=np.zeros(2),
+        A=A,
+        B=A + p.r3 * e2,
+        D=D,
+        C=D + p.r5 * e5,
+        G3=A + 0.5 * p.r3 * e2,
+        G5=D + 0.5 * p.r5 * e5,
     )
 
 
 def constraint_residuals(q: ArrayLike, p: MechanismParameters) -> FloatArray:
     """Φ(q) = (Φ1, Φ2) [m]."""
     t1, t2, t5 = np.asarray(q, dtype=float)
-    return np.array([
-        p.r1 * math.sin(t1) + p.r3 * math.sin(t2) - p.f,
-        p.h - p.r4 * math.sin(t1 + p.phi) - p.r5 * math.sin(t5),
-    ])
+    return np.array(
+        [
+            p.r1 * math.sin(t1) + p.r3 * math.sin(t2) - p.f,
+            p.h - p.r4 * math.sin(t1 + p.phi) - p.r5 * math.sin(t5),
+        ]
+    )
 
 
 def constraint_jacobian(q: ArrayLike, p: MechanismParameters) -> FloatArray:
     """Φ_q = [[r1 cos θ1, r3 cos θ2, 0], [−r4 cos(θ1+φ), 0, −r5 cos θ5]] (2×3)."""
     t1, t2, t5 = np.asarray(q, dtype=float)
-    return np.array([
-        [p.r1 * math.cos(t1), p.r3 * math.cos(t2), 0.0],
-        [-p.r4 * math.cos(t1 + p.phi), 0.0, -p.r5 * math.cos(t5)],
-    ])
+    return np.array(
+        [
+            [p.r1 * math.cos(t1), p.r3 * math.cos(t2), 0.0],
+            [-p.r4 * math.cos(t1 + p.phi), 0.0, -p.r5 * math.cos(t5)],
+        ]
+    )
 
 
 def gamma(q: ArrayLike, qd: ArrayLike, p: MechanismParameters) -> FloatArray:
     """γ = −(Φ_q q̇)_q q̇ = (r1 sin θ1 ω1² + r3 sin θ2 ω2², −r4 sin(θ1+φ) ω1² − r5 sin θ5 ω5²)."""
     t1, t2, t5 = np.asarray(q, dtype=float)
     w1, w2, w5 = np.asarray(qd, dtype=float)
-    return np.array([
-        p.r1 * math.sin(t1) * w1 * w1 + p.r3 * math.sin(t2) * w2 * w2,
-        -p.r4 * math.sin(t1 + p.phi) * w1 * w1 - p.r5 * math.sin(t5) * w5 * w5,
-    ])
+    return np.array(
+        [
+            p.r1 * math.sin(t1) * w1 * w1 + p.r3 * math.sin(t2) * w2 * w2,
+            -p.r4 * math.sin(t1 + p.phi) * w1 * w1 - p.r5 * math.sin(t5) * w5 * w5,
+        ]
+    )
 
 
 def friction_signs(qd: ArrayLike) -> FloatArray:
@@ -136,28 +147,48 @@ def friction_matrix(q: ArrayLike, sgn: ArrayLike, p: MechanismParameters) -> Flo
     t1, t2, t5 = np.asarray(q, dtype=float)
     g1, g2, g5 = np.asarray(sgn, dtype=float)
     mu = p.mu
-    return np.array([
-        [-mu * g1 * p.r1 * math.sin(t1), mu * g1 * p.r4 * math.sin(t1 + p.phi)],
-        [-mu * g2 * p.r3 * math.sin(t2), 0.0],
-        [0.0, mu * g5 * p.r5 * math.sin(t5)],
-    ])
+    return np.array(
+        [
+            [-mu * g1 * p.r1 * math.sin(t1), mu * g1 * p.r4 * math.sin(t1 + p.phi)],
+            [-mu * g2 * p.r3 * math.sin(t2), 0.0],
+            [0.0, mu * g5 * p.r5 * math.sin(t5)],
+        ]
+    )
 
 
 def _mass_terms(t1: float, t2: float, t5: float, p: MechanismParameters) -> tuple[float, ...]:
     """M(q) entries and their non-zero partial derivatives from the one definition,
     `toggle_cosim.control.nominal.mass_terms`, with the sines and cosines of θ1, θ1+φ, θ2, θ5."""
-    return mass_terms(math.sin(t1), math.cos(t1), math.sin(t1 + p.phi), math.cos(t1 + p.phi),
-                      math.sin(t2), math.cos(t2), math.sin(t5), math.cos(t5),
-                      p.J2, p.J3, p.J5, p.m3, p.m5, p.mB, p.mC, p.r1, p.r3, p.r4, p.r5)
+    return mass_terms(
+        math.sin(t1),
+        math.cos(t1),
+        math.sin(t1 + p.phi),
+        math.cos(t1 + p.phi),
+        math.sin(t2),
+        math.cos(t2),
+        math.sin(t5),
+        math.cos(t5),
+        p.J2,
+        p.J3,
+        p.J5,
+        p.m3,
+        p.m5,
+        p.mB,
+        p.mC,
+        p.r1,
+        p.r3,
+        p.r4,
+        p.r5,
+    )
 
 
 def mass_matrix(q: ArrayLike, p: MechanismParameters) -> FloatArray:
     """Mass matrix M(q) of eq. (18) from the kinetic energy T of the five moving bodies::
 
-        M11 = J2 + m3 r1² + m5 r4² + mB r1² sin²θ1 + mC r4² sin²(θ1+φ)
-        M12 = m3 r1 (r3/2) cos(θ1−θ2) + mB r1 r3 sin θ1 sin θ2
-        M15 = m5 r4 (r5/2) cos(θ1+φ−θ5) + mC r4 r5 sin(θ1+φ) sin θ5
-        M22 = J3 + m3 r3²/4 + mB r3² sin²θ2,   M55 = J5 + m5 r5²/4 + mC r5² sin²θ5,   M25 = 0
+    M11 = J2 + m3 r1² + m5 r4² + mB r1² sin²θ1 + mC r4² sin²(θ1+φ)
+    M12 = m3 r1 (r3/2) cos(θ1−θ2) + mB r1 r3 sin θ1 sin θ2
+    M15 = m5 r4 (r5/2) cos(θ1+φ−θ5) + mC r4 r5 sin(θ1+φ) sin θ5
+    M22 = J3 + m3 r3²/4 + mB r3² sin²θ2,   M55 = J5 + m5 r5²/4 + mC r5² sin²θ5,   M25 = 0
     """
     t1, t2, t5 = np.asarray(q, dtype=float)
     M11, M12, M15, M22, M55 = _mass_terms(t1, t2, t5, p)[:5]
@@ -167,28 +198,32 @@ def mass_matrix(q: ArrayLike, p: MechanismParameters) -> FloatArray:
 def velocity_terms(q: ArrayLike, qd: ArrayLike, p: MechanismParameters) -> FloatArray:
     """Velocity terms N(q, q̇) = Ṁ q̇ − ∂T/∂q of eq. (18), from the Christoffel symbols of M::
 
-        N1 = ½ ∂M11/∂θ1 ω1² + ∂M12/∂θ2 ω2² + ∂M15/∂θ5 ω5²
-        N2 = ∂M12/∂θ1 ω1² + ½ ∂M22/∂θ2 ω2²
-        N5 = ∂M15/∂θ1 ω1² + ½ ∂M55/∂θ5 ω5²
+    N1 = ½ ∂M11/∂θ1 ω1² + ∂M12/∂θ2 ω2² + ∂M15/∂θ5 ω5²
+    N2 = ∂M12/∂θ1 ω1² + ½ ∂M22/∂θ2 ω2²
+    N5 = ∂M15/∂θ1 ω1² + ½ ∂M55/∂θ5 ω5²
     """
     t1, t2, t5 = np.asarray(q, dtype=float)
     w1, w2, w5 = np.asarray(qd, dtype=float)
     _, _, _, _, _, d11_1, d12_1, d12_2, d15_1, d15_5, d22_2, d55_5 = _mass_terms(t1, t2, t5, p)
-    return np.array([
-        0.5 * d11_1 * w1 * w1 + d12_2 * w2 * w2 + d15_5 * w5 * w5,
-        d12_1 * w1 * w1 + 0.5 * d22_2 * w2 * w2,
-        d15_1 * w1 * w1 + 0.5 * d55_5 * w5 * w5,
-    ])
+    return np.array(
+        [
+            0.5 * d11_1 * w1 * w1 + d12_2 * w2 * w2 + d15_5 * w5 * w5,
+            d12_1 * w1 * w1 + 0.5 * d22_2 * w2 * w2,
+            d15_1 * w1 * w1 + 0.5 * d55_5 * w5 * w5,
+        ]
+    )
 
 
 def gravity_gradient(q: ArrayLike, p: MechanismParameters) -> FloatArray:
     """∂V/∂q for V = m3 g y_G3 + m5 g y_G5."""
     t1, t2, t5 = np.asarray(q, dtype=float)
-    return p.g * np.array([
-        p.m3 * p.r1 * math.cos(t1) + p.m5 * p.r4 * math.cos(t1 + p.phi),
-        p.m3 * 0.5 * p.r3 * math.cos(t2),
-        p.m5 * 0.5 * p.r5 * math.cos(t5),
-    ])
+    return p.g * np.array(
+        [
+            p.m3 * p.r1 * math.cos(t1) + p.m5 * p.r4 * math.cos(t1 + p.phi),
+            p.m3 * 0.5 * p.r3 * math.cos(t2),
+            p.m5 * 0.5 * p.r5 * math.cos(t5),
+        ]
+    )
 
 
 def generalized_forces(q: ArrayLike, qd: ArrayLike, F_C: float, F_E: float, p: MechanismParameters) -> FloatArray:
@@ -337,9 +372,19 @@ class JointForces:
         return {k: self.mu * v for k, v in self.normal().items()}
 
 
-def _rod_and_slider_pins(length: float, m_rod: float, J_rod: float, theta: float, alpha: float,
-                         a_centre: FloatArray, m_slider: float, a_slider: float, f_slider: float,
-                         torque: float, g: float) -> tuple[FloatArray, FloatArray]:
+def _rod_and_slider_pins(
+    length: float,
+    m_rod: float,
+    J_rod: float,
+    theta: float,
+    alpha: float,
+    a_centre: FloatArray,
+    m_slider: float,
+    a_slider: float,
+    f_slider: float,
+    torque: float,
+    g: float,
+) -> tuple[FloatArray, FloatArray]:
     """Pin forces of a uniform rod (link 3 or 5) driving a slider (B or C) at its far end E.
 
     Slider: F_x = m_slider a_slider − f_slider (force of the rod on the slider). Rod moment about
@@ -430,8 +475,12 @@ def energies(q: ArrayLike, qd: ArrayLike, p: MechanismParameters) -> Energy:
     vC = vD + p.r5 * w5 * e5p
     T = 0.5 * (
         p.J2 * w1 * w1
-        + p.m3 * float(vG3 @ vG3) + p.J3 * w2 * w2 + p.mB * vB[0] ** 2
-        + p.m5 * float(vG5 @ vG5) + p.J5 * w5 * w5 + p.mC * vC[0] ** 2
+        + p.m3 * float(vG3 @ vG3)
+        + p.J3 * w2 * w2
+        + p.mB * vB[0] ** 2
+        + p.m5 * float(vG5 @ vG5)
+        + p.J5 * w5 * w5
+        + p.mC * vC[0] ** 2
     )
     pts = positions((t1, t2, t5), p)
     V = p.g * (p.m3 * pts.G3[1] + p.m5 * pts.G5[1])
@@ -470,7 +519,6 @@ def powers(
     return Powers(P_in=-F_C * vC, P_load=F_E * vB, P_fric=P_fric)
 
 
-
 # --------------------------------------------------------------------------------------------
 # The controller's nominal model (toggle_cosim.control.nominal) seen through MechanismParameters
 # --------------------------------------------------------------------------------------------
@@ -479,10 +527,38 @@ def powers(
 @functools.lru_cache(maxsize=64)
 def _law(p: MechanismParameters, K_f: float = 1.0) -> LawParameters:
     """The nominal mechanism `p` as the law functions read it (gains irrelevant here)."""
-    return LawParameters(law=0.0, objective=0.0, target=0.0, C=1.0, Q=1.0, P=1.0, delta=1.0, beta=1.0, C_I=1.0, K_I=0.0,
-                         i_max=math.inf, T_s=1.0, K_f=K_f, t0=0.0, T_h=0.0, r1=p.r1, r3=p.r3, r4=p.r4, r5=p.r5,
-                         f=p.f, h=p.h, phi=p.phi, m3=p.m3, m5=p.m5, mB=p.mB, mC=p.mC, J2=p.J2,
-                         J3=p.m3 * p.r3 * p.r3 / 12.0, J5=p.m5 * p.r5 * p.r5 / 12.0, g=p.g)
+    return LawParameters(
+        law=0.0,
+        objective=0.0,
+        target=0.0,
+        C=1.0,
+        Q=1.0,
+        P=1.0,
+        delta=1.0,
+        beta=1.0,
+        C_I=1.0,
+        K_I=0.0,
+        i_max=math.inf,
+        T_s=1.0,
+        K_f=K_f,
+        t0=0.0,
+        T_h=0.0,
+        r1=p.r1,
+        r3=p.r3,
+        r4=p.r4,
+        r5=p.r5,
+        f=p.f,
+        h=p.h,
+        phi=p.phi,
+        m3=p.m3,
+        m5=p.m5,
+        mB=p.mB,
+        mC=p.mC,
+        J2=p.J2,
+        J3=p.m3 * p.r3 * p.r3 / 12.0,
+        J5=p.m5 * p.r5 * p.r5 / 12.0,
+        g=p.g,
+    )
 
 
 def theta1_state_from_slider(x_B: float, v_B: float, p: MechanismParameters) -> tuple[float, float]:

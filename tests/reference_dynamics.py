@@ -87,8 +87,14 @@ def _jdot_qd(terms: Terms, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return out
 
 
-def _model(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
-           params: Mapping[str, float], sgn: Sequence[float] | None) -> dict[str, Any]:
+def _model(
+    q: Sequence[float],
+    qd: Sequence[float],
+    F_C: float,
+    F_E: float,
+    params: Mapping[str, float],
+    sgn: Sequence[float] | None,
+) -> dict[str, Any]:
     q = np.asarray(q, dtype=float)
     qd = np.asarray(qd, dtype=float)
     s = np.sign(qd) if sgn is None else np.asarray(sgn, dtype=float)
@@ -120,9 +126,14 @@ def _model(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
     return dict(q=q, qd=qd, s=s, pts=pts, J=J, Jdq=Jdq, M=M, Q=Q, Phi_q=Phi_q, gamma=gam, QfT=QfT, J3=J3, J5=J5)
 
 
-def reference_accelerations(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
-                            params: Mapping[str, float], sgn: Sequence[float] | None = None
-                            ) -> tuple[np.ndarray, np.ndarray]:
+def reference_accelerations(
+    q: Sequence[float],
+    qd: Sequence[float],
+    F_C: float,
+    F_E: float,
+    params: Mapping[str, float],
+    sgn: Sequence[float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """(q̈, λ) of eq. (18): M q̈ + (Φ_qᵀ + Q_fᵀ) λ = Q, Φ_q q̈ = γ, by the Schur complement."""
     d = _model(q, qd, F_C, F_E, params, sgn)
     M, Q, Phi_q, gam = d["M"], d["Q"], d["Phi_q"], d["gamma"]
@@ -138,9 +149,14 @@ def _cross(u: np.ndarray, v: np.ndarray) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
 
 
-def reference_joint_forces(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
-                           params: Mapping[str, float], sgn: Sequence[float] | None = None
-                           ) -> dict[str, Any]:
+def reference_joint_forces(
+    q: Sequence[float],
+    qd: Sequence[float],
+    F_C: float,
+    F_E: float,
+    params: Mapping[str, float],
+    sgn: Sequence[float] | None = None,
+) -> dict[str, Any]:
     """Pin forces from all Newton–Euler equations at once.
 
     Unknowns: F12 (ground on lever at O), F23 (lever on link 3 at A), F34 (link 3 on slider B),
@@ -175,22 +191,29 @@ def reference_joint_forces(q: Sequence[float], qd: Sequence[float], F_C: float, 
 
     O = np.zeros(2)
     # Lever: 0 = F12 − F23 − F25 − (0, m2 g);  J2 θ̈1 = A×(−F23) + D×(−F25) + τ1
-    force(0, "F12", 1.0); force(0, "F23", -1.0); force(0, "F25", -1.0)
+    force(0, "F12", 1.0)
+    force(0, "F23", -1.0)
+    force(0, "F25", -1.0)
     b[0:2] = [0.0, m2 * g]
-    moment(2, pts["A"] - O, "F23", -1.0); moment(2, pts["D"] - O, "F25", -1.0)
+    moment(2, pts["A"] - O, "F23", -1.0)
+    moment(2, pts["D"] - O, "F25", -1.0)
     b[2] = params["J2"] * qdd[0] - tau[0]
     # Link 3: m3 a_G3 = F23 − F34 − (0, m3 g);  J3 θ̈2 = (A−G3)×F23 + (B−G3)×(−F34) + τ2
-    force(3, "F23", 1.0); force(3, "F34", -1.0)
+    force(3, "F23", 1.0)
+    force(3, "F34", -1.0)
     b[3:5] = m3 * acc["G3"] + np.array([0.0, m3 * g])
-    moment(5, pts["A"] - pts["G3"], "F23", 1.0); moment(5, pts["B"] - pts["G3"], "F34", -1.0)
+    moment(5, pts["A"] - pts["G3"], "F23", 1.0)
+    moment(5, pts["B"] - pts["G3"], "F34", -1.0)
     b[5] = d["J3"] * qdd[1] - tau[1]
     # Slider B (x): mB a_Bx = F34x − F_E
     A[6, idx["F34"]] = 1.0
     b[6] = mB * acc["B"][0] + F_E
     # Link 5: m5 a_G5 = F25 − F56 − (0, m5 g);  J5 θ̈5 = (D−G5)×F25 + (C−G5)×(−F56) + τ5
-    force(7, "F25", 1.0); force(7, "F56", -1.0)
+    force(7, "F25", 1.0)
+    force(7, "F56", -1.0)
     b[7:9] = m5 * acc["G5"] + np.array([0.0, m5 * g])
-    moment(9, pts["D"] - pts["G5"], "F25", 1.0); moment(9, pts["C"] - pts["G5"], "F56", -1.0)
+    moment(9, pts["D"] - pts["G5"], "F25", 1.0)
+    moment(9, pts["C"] - pts["G5"], "F56", -1.0)
     b[9] = d["J5"] * qdd[2] - tau[2]
     # Slider C (x): mC a_Cx = F56x − F_C
     A[10, idx["F56"]] = 1.0
@@ -198,7 +221,7 @@ def reference_joint_forces(q: Sequence[float], qd: Sequence[float], F_C: float, 
 
     x, *_ = np.linalg.lstsq(A, b, rcond=None)
     residual = float(np.max(np.abs(A @ x - b)))
-    out: dict[str, Any] = {name: x[i:i + 2].copy() for name, i in idx.items()}
+    out: dict[str, Any] = {name: x[i : i + 2].copy() for name, i in idx.items()}
     out["normal"] = {name[1:]: float(np.linalg.norm(out[name])) for name in idx}
     out["friction"] = {k: params["mu"] * v for k, v in out["normal"].items()}
     out["qdd"], out["lam"], out["residual"] = qdd, lam, residual
@@ -214,8 +237,14 @@ def reference_energy(q: Sequence[float], qd: Sequence[float], params: Mapping[st
     return {"T": T, "V": float(V), "E": T + float(V)}
 
 
-def reference_powers(q: Sequence[float], qd: Sequence[float], F_C: float, F_E: float,
-                     params: Mapping[str, float], sgn: Sequence[float] | None = None) -> dict[str, float]:
+def reference_powers(
+    q: Sequence[float],
+    qd: Sequence[float],
+    F_C: float,
+    F_E: float,
+    params: Mapping[str, float],
+    sgn: Sequence[float] | None = None,
+) -> dict[str, float]:
     """P_in = −F_C ẋ_C (thrust power), P_load = F_E ẋ_B, P_fric = q̇ᵀ Q_fᵀ λ (signed)."""
     d = _model(q, qd, F_C, F_E, params, sgn)
     _, lam = reference_accelerations(q, qd, F_C, F_E, params, sgn)

@@ -40,21 +40,42 @@ def _cases(plant_fmu: Path, folder: Path) -> dict[str, tuple[Path, str]]:
         "missing": (folder / "absent.fmu", "no such FMU file"),
         "not a zip": (not_zip, "not a zip archive"),
         "no modelDescription": (empty_zip, "no modelDescription.xml"),
-        "FMI 1.0": (_rewrite(plant_fmu, folder / "fmi1.fmu", lambda xml: xml.replace('fmiVersion="2.0"', 'fmiVersion="1.0"')),
-                    "FMI version 1.0 is not supported"),
-        "no binary": (_rewrite(plant_fmu, folder / "nobinary.fmu", drop=lambda name: name.startswith("binaries/")),
-                      "no binary for this platform"),
-        "Model Exchange only": (_rewrite(plant_fmu, folder / "me.fmu",
-                                         lambda xml: re.sub(r"<CoSimulation\b.*?</CoSimulation>\s*", "", xml, flags=re.S)),
-                                "does not support Co-Simulation"),
-        "foreign": (_rewrite(plant_fmu, folder / "foreign.fmu", lambda xml: xml.replace('name="lambda2"', 'name="lambda_two"')),
-                    "missing contract variable 'lambda2'"),
-        "wrong unit": (_rewrite(plant_fmu, folder / "unit.fmu",
-                                lambda xml: re.sub(r'(name="x_B".*?unit=")m(")', r"\1mm\2", xml, count=1, flags=re.S)),
-                       "variable 'x_B' has unit 'mm'"),
-        "wrong causality": (_rewrite(plant_fmu, folder / "causality.fmu",
-                                     lambda xml: re.sub(r'(name="F_E"[^>]*causality=")input(")', r"\1output\2", xml)),
-                            "variable 'F_E' has causality"),
+        "FMI 1.0": (
+            _rewrite(plant_fmu, folder / "fmi1.fmu", lambda xml: xml.replace('fmiVersion="2.0"', 'fmiVersion="1.0"')),
+            "FMI version 1.0 is not supported",
+        ),
+        "no binary": (
+            _rewrite(plant_fmu, folder / "nobinary.fmu", drop=lambda name: name.startswith("binaries/")),
+            "no binary for this platform",
+        ),
+        "Model Exchange only": (
+            _rewrite(
+                plant_fmu,
+                folder / "me.fmu",
+                lambda xml: re.sub(r"<CoSimulation\b.*?</CoSimulation>\s*", "", xml, flags=re.S),
+            ),
+            "does not support Co-Simulation",
+        ),
+        "foreign": (
+            _rewrite(plant_fmu, folder / "foreign.fmu", lambda xml: xml.replace('name="lambda2"', 'name="lambda_two"')),
+            "missing contract variable 'lambda2'",
+        ),
+        "wrong unit": (
+            _rewrite(
+                plant_fmu,
+                folder / "unit.fmu",
+                lambda xml: re.sub(r'(name="x_B".*?unit=")m(")', r"\1mm\2", xml, count=1, flags=re.S),
+            ),
+            "variable 'x_B' has unit 'mm'",
+        ),
+        "wrong causality": (
+            _rewrite(
+                plant_fmu,
+                folder / "causality.fmu",
+                lambda xml: re.sub(r'(name="F_E"[^>]*causality=")input(")', r"\1output\2", xml),
+            ),
+            "variable 'F_E' has causality",
+        ),
     }
 
 

@@ -17,9 +17,21 @@ ROOT = Path(__file__).resolve().parent.parent
 def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_path: Path) -> None:
     figures_file = tmp_path / "bench.json"
     result = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "bench.py"), "--quick", "--skip-build", "--fmu", str(plant_fmu),
-         "--json", str(figures_file)],
-        capture_output=True, text=True, timeout=600, check=False)
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "bench.py"),
+            "--quick",
+            "--skip-build",
+            "--fmu",
+            str(plant_fmu),
+            "--json",
+            str(figures_file),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert result.returncode == 0, result.stderr[-2000:]
     figures = json.loads(figures_file.read_text())
     if compiled_loop.kernel_available():

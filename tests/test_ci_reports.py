@@ -12,6 +12,7 @@ import pytest
 import yaml
 from junitparser import Failure, JUnitXml
 
+from toggle_cosim.analysis.compare import run_compare, write_reference
 from toggle_cosim.analysis.solver_stats import (
     NOT_EXPOSED,
     STATISTICS,
@@ -22,7 +23,6 @@ from toggle_cosim.analysis.solver_stats import (
     write_statistics_file,
 )
 from toggle_cosim.analysis.tolerance_files import applicable_tolerance_files
-from toggle_cosim.analysis.compare import run_compare, write_reference
 from toggle_cosim.files.traces import Trace, write_csv, write_json
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -60,8 +60,10 @@ def test_tolerance_files_beside_the_reference_apply_without_a_flag(layout, capsy
     assert run_compare(result, reference) == 0
     out = capsys.readouterr().out
     assert f"tolerances: {reference.parent.parent / 'tolerances.yaml'}, {reference.parent / 'tolerances.yaml'}" in out
-    assert applicable_tolerance_files(reference) == [reference.parent.parent / "tolerances.yaml",
-                                                     reference.parent / "tolerances.yaml"]
+    assert applicable_tolerance_files(reference) == [
+        reference.parent.parent / "tolerances.yaml",
+        reference.parent / "tolerances.yaml",
+    ]
     # --tolerances replaces both
     explicit = layout["root"] / "strict.yaml"
     explicit.write_text("default: {rtol: 1.0e-3}\n")
@@ -137,15 +139,20 @@ def test_solver_statistics_change_warns_by_default_and_fails_with_the_flag(layou
     reference, root = layout["reference"], layout["root"]
     run = root / "ok" / "trace.csv"
     write_csv(run, REFERENCE)
-    write_statistics_file(statistics_path(reference), {"solver.steps": 100, "solver.rejectedSteps": 0,
-                                                       "solver.events": 4})
+    write_statistics_file(
+        statistics_path(reference), {"solver.steps": 100, "solver.rejectedSteps": 0, "solver.events": 4}
+    )
     assert statistics_path(reference).name == "M_ref_solver.json"
-    write_json(run.with_name("run.json"), {"solver_statistics": {"solver.steps": 100, "solver.rejectedSteps": 0,
-                                                                 "solver.events": 4}})
+    write_json(
+        run.with_name("run.json"),
+        {"solver_statistics": {"solver.steps": 100, "solver.rejectedSteps": 0, "solver.events": 4}},
+    )
     assert run_compare(run, reference) == 0
     assert "solver: solver statistics unchanged" in capsys.readouterr().out
-    write_json(run.with_name("run.json"), {"solver_statistics": {"solver.steps": 140, "solver.rejectedSteps": 0,
-                                                                 "solver.events": 4}})
+    write_json(
+        run.with_name("run.json"),
+        {"solver_statistics": {"solver.steps": 140, "solver.rejectedSteps": 0, "solver.events": 4}},
+    )
     junit = root / "solver.xml"
     assert run_compare(run, reference, junit=junit) == 0
     assert "warning: solver.steps: 100 -> 140 (+40.0%)" in capsys.readouterr().out
@@ -198,8 +205,8 @@ def test_statistics_are_read_by_name_when_the_model_description_declares_them(ve
 
 def test_the_plant_fmu_statistics_reach_the_run_record(plant_fmu):
     from toggle_cosim.cosim.master import simulate
-    from toggle_cosim.plant.contract import check_plant
     from toggle_cosim.experiments.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
 
     plant = check_plant(plant_fmu)
     names = {v.name for v in plant.model_description.modelVariables}

@@ -137,7 +137,7 @@ def test_reference_spike_narrower_than_the_time_tube_is_not_required_of_the_resu
     # edges cross below the pulse. Plateau of 2 samples (1 ms): they cross at -h, the pulse is
     # swallowed; 3 samples (2 ms): they cross half way up at t = 0.301; 5 samples: full height.
     pulse = STEP.copy()
-    pulse[300:300 + samples] = 1.0
+    pulse[300 : 300 + samples] = 1.0
     comparison = compare_traces(trace(s=STEP), trace(s=pulse), {}, STEP_TOL)
     s = comparison["s"]
     assert s.max_error == pytest.approx(expected_error, abs=1e-9)
@@ -265,7 +265,8 @@ def test_result_over_another_time_span_is_bad_input(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.splitlines() == [
         f"error: {res}: time ends at 0.90000000000000002 s but the reference {ref} ends at 1 s, "
-        "more than the time tolerance (0.001 s) apart; rerun over the reference's time span"]
+        "more than the time tolerance (0.001 s) apart; rerun over the reference's time span"
+    ]
 
 
 def test_report_dir_that_is_a_file_is_bad_input(files, capsys):
@@ -352,8 +353,9 @@ def test_report_writes_envelopes_and_png_only_for_failing_variables(tmp_path):
         np.testing.assert_allclose(envelope.column("reference"), reference().column(name))
         # Where the result lies above the funnel, the error is its distance to the upper edge.
         above = envelope.column("result") > envelope.column("upper")
-        np.testing.assert_allclose(envelope.column("error")[above],
-                                   (envelope.column("result") - envelope.column("upper"))[above], atol=1e-12)
+        np.testing.assert_allclose(
+            envelope.column("error")[above], (envelope.column("result") - envelope.column("upper"))[above], atol=1e-12
+        )
     summary = (tmp_path / "out" / "summary.csv").read_text().splitlines()
     assert summary[0].startswith("variable,passed,max_error,time_of_max_error")
     assert [line.split(",")[:2] for line in summary[1:]] == [["a", "0"], ["b", "1"], ["c", "0"]]
@@ -386,20 +388,31 @@ def test_reference_opt_round_trip(tmp_path):
 
 
 def test_reads_cross_check_repository_style_options(tmp_path):
-    path = write(tmp_path / "M_ref.opt",
-                 "StepSize,0.001\nStartTime,0\nStopTime,1.5   // in seconds\nRelTol,1e-4\nOutputIntervalLength,0.001\n"
-                 "SolverType, FixedStep\n\n")
-    assert read_options(path) == {"StepSize": 1e-3, "StartTime": 0.0, "StopTime": 1.5, "RelTol": 1e-4,
-                                  "OutputIntervalLength": 1e-3, "SolverType": "FixedStep"}
+    path = write(
+        tmp_path / "M_ref.opt",
+        "StepSize,0.001\nStartTime,0\nStopTime,1.5   // in seconds\nRelTol,1e-4\nOutputIntervalLength,0.001\n"
+        "SolverType, FixedStep\n\n",
+    )
+    assert read_options(path) == {
+        "StepSize": 1e-3,
+        "StartTime": 0.0,
+        "StopTime": 1.5,
+        "RelTol": 1e-4,
+        "OutputIntervalLength": 1e-3,
+        "SolverType": "FixedStep",
+    }
 
 
-@pytest.mark.parametrize("text, phrase", [
-    ("StartTime, 0\nStopTime, 1\nStepSize, 0.001\n", "lacks RelTol"),
-    ("StartTime, 0\nStopTime, soon\nStepSize, 0.001\nRelTol, 1e-4\n", "StopTime is 'soon', not a number"),
-    ("StartTime, 1\nStopTime, 1\nStepSize, 0.001\nRelTol, 1e-4\n", "is not after StartTime"),
-    ("StartTime 0\nStopTime, 1\nStepSize, 0.001\nRelTol, 1e-4\n", "line 1 is not 'Name, value'"),
-    ("StartTime, 0\nStartTime, 0\nStopTime, 1\nStepSize, 0.001\nRelTol, 1e-4\n", "StartTime is given twice"),
-])
+@pytest.mark.parametrize(
+    "text, phrase",
+    [
+        ("StartTime, 0\nStopTime, 1\nStepSize, 0.001\n", "lacks RelTol"),
+        ("StartTime, 0\nStopTime, soon\nStepSize, 0.001\nRelTol, 1e-4\n", "StopTime is 'soon', not a number"),
+        ("StartTime, 1\nStopTime, 1\nStepSize, 0.001\nRelTol, 1e-4\n", "is not after StartTime"),
+        ("StartTime 0\nStopTime, 1\nStepSize, 0.001\nRelTol, 1e-4\n", "line 1 is not 'Name, value'"),
+        ("StartTime, 0\nStartTime, 0\nStopTime, 1\nStepSize, 0.001\nRelTol, 1e-4\n", "StartTime is given twice"),
+    ],
+)
 def test_bad_options_file(tmp_path, text, phrase):
     path = write(tmp_path / "M_ref.opt", text)
     with pytest.raises(CompareInputError) as caught:
@@ -420,7 +433,8 @@ def test_run_compare_checks_the_result_against_the_opt_span(tmp_path, capsys):
     assert run_compare(early, tmp_path / "M_ref.csv") == 2
     assert capsys.readouterr().err.splitlines() == [
         f"error: {early}: time ends at 0.5 s but {tmp_path / 'M_ref.opt'} gives StopTime 1 s; "
-        "run over the reference's time span"]
+        "run over the reference's time span"
+    ]
     full = tmp_path / "full.csv"
     write_csv(full, trace(a=SINE))
     assert run_compare(full, tmp_path / "M_ref.csv") == 0

@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.cosim import compiled_loop
 from toggle_cosim.control import laws, nominal, translate
-from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.parameters import LawParameters
+from toggle_cosim.cosim import compiled_loop
 from toggle_cosim.cosim.master import simulate
+from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.plant.contract import check_plant
-from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith("sweep"))
@@ -31,8 +31,9 @@ SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.
 def _runs() -> list:
     runs = [run for path in SCENARIOS for run in load_scenario(path)]
     fig5 = load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0]
-    theta1 = dataclasses.replace(fig5, variant="theta1_objective",
-                                 controller=dataclasses.replace(fig5.controller, objective="theta1"))
+    theta1 = dataclasses.replace(
+        fig5, variant="theta1_objective", controller=dataclasses.replace(fig5.controller, objective="theta1")
+    )
     return [*runs, theta1]
 
 
@@ -44,8 +45,9 @@ def _bits(a: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("run", RUNS, ids=lambda run: run.label)
-def test_compiled_and_python_loops_agree_bit_for_bit(run, plant_fmu: Path, no_gravity_fmu: Path,
-                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+def test_compiled_and_python_loops_agree_bit_for_bit(
+    run, plant_fmu: Path, no_gravity_fmu: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     plant = check_plant(no_gravity_fmu if "NoGravity" in str(run.fmu) else plant_fmu)
     compiled = simulate(run, plant)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
@@ -62,9 +64,15 @@ def test_compiled_and_python_loops_agree_bit_for_bit(run, plant_fmu: Path, no_gr
 
 
 def _law(law: float, objective: float) -> LawParameters:
-    controller = VSCController(gains=ControllerGains(C=5.0), nominal=MechanismParameters(mu=0.0),
-                               objective="x_B" if objective == 0.0 else "theta1",
-                               law="paper" if law == 0.0 else "integral", C_I=12.0, K_I=40.0, i_max=6.0)
+    controller = VSCController(
+        gains=ControllerGains(C=5.0),
+        nominal=MechanismParameters(mu=0.0),
+        objective="x_B" if objective == 0.0 else "theta1",
+        law="paper" if law == 0.0 else "integral",
+        C_I=12.0,
+        K_I=40.0,
+        i_max=6.0,
+    )
     return controller.law_parameters(t0=0.0, T_h=0.03)
 
 
@@ -144,7 +152,8 @@ def test_the_generated_source_has_the_law_once_and_no_hand_written_physics() -> 
     assert [n for n, _ in compiled_loop._law_struct()._fields_] == fields
     assert not (ROOT / "src" / "toggle_cosim" / "compiled_loop.c").exists()
     # the nominal mass terms exist once in the sources: control/nominal.py
-    hits = [p.name for p in (ROOT / "src").rglob("*.py") if "M11 = J2 +" in p.read_text()] + \
-           [p.name for p in (ROOT / "src").rglob("*.c") if "M11" in p.read_text()]
+    hits = [p.name for p in (ROOT / "src").rglob("*.py") if "M11 = J2 +" in p.read_text()] + [
+        p.name for p in (ROOT / "src").rglob("*.c") if "M11" in p.read_text()
+    ]
     assert hits == ["nominal.py"]
     assert nominal.mass_terms.__module__ == "toggle_cosim.control.nominal"

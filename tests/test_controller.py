@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from mechanism_dynamics import dynamics, slider_B
 from scipy.integrate import solve_ivp
 
 from toggle_cosim.control.controller import ControllerState, VSCController, hitting_time
-from mechanism_dynamics import dynamics, slider_B
 from toggle_cosim.physics.mechanism import initial_state, state_from_theta1, theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters, MotorParameters

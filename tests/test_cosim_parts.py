@@ -238,8 +238,9 @@ def test_the_policy_sets_the_flag_in_the_compiled_loop_and_the_skeleton_passes_i
     from toggle_cosim.cosim.session import CFunctions
 
     functions = CFunctions(0, 0, 0, 0, 0, 0, False, MockSession.function_names, None)
-    loop = compiled_loop.CompiledLoop(library, functions, np.zeros((N + 1, len(NAMES))), 2, 1, 2, 3, N, T_S, F_E,
-                                      _controller().law_parameters())
+    loop = compiled_loop.CompiledLoop(
+        library, functions, np.zeros((N + 1, len(NAMES))), 2, 1, 2, 3, N, T_S, F_E, _controller().law_parameters()
+    )
     assert loop.no_set_state_prior_to_current_point is False  # the safe default
     CheckpointPolicy(saving=False).configure(loop)
     assert loop.no_set_state_prior_to_current_point is True

@@ -21,10 +21,38 @@ def savetxt(data: np.ndarray) -> str:
 
 
 def awkward() -> np.ndarray:
-    values = [0.0, -0.0, 1.0, -1.0, 0.1, 1 / 3, 2.0**-25, 2.0**-24, 2.0**-1074, -(2.0**-1074), 2.2250738585072014e-308,
-              1.7976931348623157e308, -1.7976931348623157e308, 1e16, 1e17, 9007199254740993.0, 123456789012345678.0,
-              1e-5, 1e-4, 0.0001, 12345.0, -150.0, 5e-324, 1e300, 1e-300, np.inf, -np.inf, np.nan, -np.nan,
-              struct.unpack("<d", struct.pack("<Q", 0xFFF8000000000001))[0]]
+    values = [
+        0.0,
+        -0.0,
+        1.0,
+        -1.0,
+        0.1,
+        1 / 3,
+        2.0**-25,
+        2.0**-24,
+        2.0**-1074,
+        -(2.0**-1074),
+        2.2250738585072014e-308,
+        1.7976931348623157e308,
+        -1.7976931348623157e308,
+        1e16,
+        1e17,
+        9007199254740993.0,
+        123456789012345678.0,
+        1e-5,
+        1e-4,
+        0.0001,
+        12345.0,
+        -150.0,
+        5e-324,
+        1e300,
+        1e-300,
+        np.inf,
+        -np.inf,
+        np.nan,
+        -np.nan,
+        struct.unpack("<d", struct.pack("<Q", 0xFFF8000000000001))[0],
+    ]
     values += [float(2.0**-k) for k in range(1, 80)] + [float(5.0**k) for k in range(1, 30)]
     values += [float(k) * 0.5 for k in range(-50, 50)]
     pad = (-len(values)) % 7
@@ -41,8 +69,11 @@ def random_data(seed: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("route", ["c", "python"])
-@pytest.mark.parametrize("data", [awkward(), random_data(1), random_data(2), np.zeros((0, 35)), np.ones((1, 1))],
-                         ids=["awkward", "random1", "random2", "empty", "one"])
+@pytest.mark.parametrize(
+    "data",
+    [awkward(), random_data(1), random_data(2), np.zeros((0, 35)), np.ones((1, 1))],
+    ids=["awkward", "random1", "random2", "empty", "one"],
+)
 def test_the_rows_are_savetxts_bytes(route: str, data: np.ndarray, monkeypatch: pytest.MonkeyPatch) -> None:
     if route == "python":
         monkeypatch.setenv("TOGGLE_COSIM_FAST_CSV", "0")

@@ -19,13 +19,13 @@ import yaml
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.cosim import master, session
-from toggle_cosim.fmu_export import build_fmu
-from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.files.traces import read_csv
+from toggle_cosim.fmu_export import build_fmu
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
-FAULT_MODEL = '''within ToggleLSM;
+FAULT_MODEL = """within ToggleLSM;
 model PlantWithFault "Test only: the plant, with a derivative that is not finite after t_fault"
   extends Plant;
   parameter Real t_fault(unit = "s") = 0.2 "Time after which the model has no finite derivative";
@@ -33,7 +33,7 @@ model PlantWithFault "Test only: the plant, with a derivative that is not finite
 equation
   der(clock) = 1 / sqrt(t_fault - time);
 end PlantWithFault;
-'''
+"""
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +82,9 @@ def test_an_fmu_fault_ends_the_run_cleanly_after_a_retry(fault_fmu: Path, monkey
 
 
 @pytest.mark.parametrize("status, retried", [(2, True), (3, True), (4, False)])
-def test_each_error_status_of_a_step(plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, status: int, retried: bool) -> None:
+def test_each_error_status_of_a_step(
+    plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, status: int, retried: bool
+) -> None:
     """A mock failure of one doStep at t = 0.1 s with Discard (2), Error (3) or Fatal (4): Discard
     and Error are retried from the saved state and the run completes with the same trace as an
     undisturbed run; Fatal is not retried and ends the run, trace kept up to the fault."""
@@ -104,8 +106,13 @@ def test_each_error_status_of_a_step(plant_fmu: Path, monkeypatch: pytest.Monkey
     assert failed == [pytest.approx(0.1)] and freed == [1]
     if retried:
         assert outcome.complete, outcome.reason
-        assert outcome.record["retries"] == [{"t": pytest.approx(0.1), "error": f"fmi2DoStep failed with status {status} "
-                                              f"({['ok', 'warning', 'discard', 'error', 'fatal'][status]})."}]
+        assert outcome.record["retries"] == [
+            {
+                "t": pytest.approx(0.1),
+                "error": f"fmi2DoStep failed with status {status} "
+                f"({['ok', 'warning', 'discard', 'error', 'fatal'][status]}).",
+            }
+        ]
         assert np.max(np.abs(outcome.trace.column("x_B") - clean.trace.column("x_B"))) < 1e-9
     else:
         assert not outcome.complete and "status 4 (fatal)" in outcome.reason
@@ -145,8 +152,24 @@ def test_sigterm_writes_a_complete_file_marked_interrupted(plant_fmu: Path, tmp_
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     env = {**os.environ, "TOGGLE_COSIM_KERNEL": "0", "TMPDIR": str(scratch)}  # the Python loop
-    process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.cli", "run", str(scenario), "--fmu", str(plant_fmu),
-                                "--out", str(out), "-q"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "toggle_cosim.cli",
+            "run",
+            str(scenario),
+            "--fmu",
+            str(plant_fmu),
+            "--out",
+            str(out),
+            "-q",
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 60
     while not list(scratch.glob("toggle-cosim-run-*")):  # the supervised run has started
         assert time.monotonic() < deadline and process.poll() is None, "the run never started"
@@ -167,9 +190,15 @@ def test_sigkill_leaves_no_truncated_csv(plant_fmu: Path, tmp_path: Path) -> Non
     """SIGKILL cannot be caught: what is left is either nothing or whole files, never a
     truncated CSV under the final name (files are written under a temporary name first)."""
     out = tmp_path / "out"
-    runs = [str(ROOT / "scenarios" / f"{name}.yaml") for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")]
-    process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.cli", "run", *runs, "--fmu", str(plant_fmu),
-                                "--out", str(out), "-q"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    runs = [
+        str(ROOT / "scenarios" / f"{name}.yaml")
+        for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
+    ]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "toggle_cosim.cli", "run", *runs, "--fmu", str(plant_fmu), "--out", str(out), "-q"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     time.sleep(1.2)
     process.kill()
     process.wait(timeout=30)

@@ -31,7 +31,6 @@ from fmpy.fmi2 import FMU2Slave  # noqa: E402
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64, fmi3FMUState, fmi3ValueReference  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
-
 ROOT = Path(__file__).resolve().parent.parent
 HEADERS = ROOT / "src" / "toggle_cosim" / "fmu_export" / "fmi_headers"  # vendored, BSD-2-Clause
 SHELL = ROOT / "src" / "toggle_cosim" / "fmu_export" / "shell"
@@ -69,8 +68,9 @@ class Slave:
         self.log: list[tuple[int, str, str]] = []
         identifier = self.md.coSimulation.modelIdentifier
         if self.version == "3.0":
-            self.fmu = FMU3Slave(guid=token or self.md.guid, unzipDirectory=self.dir,
-                                 modelIdentifier=identifier, instanceName="test3")
+            self.fmu = FMU3Slave(
+                guid=token or self.md.guid, unzipDirectory=self.dir, modelIdentifier=identifier, instanceName="test3"
+            )
 
             def record(env, status, category, message):
                 self.log.append((status, category.decode(), message.decode()))
@@ -82,8 +82,9 @@ class Slave:
                 shutil.rmtree(self.dir, ignore_errors=True)
                 raise
         else:
-            self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
-                                 modelIdentifier=identifier, instanceName="test2")
+            self.fmu = FMU2Slave(
+                guid=self.md.guid, unzipDirectory=self.dir, modelIdentifier=identifier, instanceName="test2"
+            )
             self.fmu.instantiate()
         self.t = 0.0
 
@@ -170,10 +171,11 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
         names = set(archive.namelist())
         build_description = archive.read("sources/buildDescription.xml")
     assert f"binaries/{fmpy.platform_tuple}/ToggleLSM3{fmpy.sharedLibraryExtension}" in names
-    assert {"sources/solver.c", "sources/fmi3.c", "sources/model.c", "sources/solver.h",
-            "sources/md_model.h"} <= names
+    assert {"sources/solver.c", "sources/fmi3.c", "sources/model.c", "sources/solver.h", "sources/md_model.h"} <= names
     assert "sources/fmi2.c" not in names
-    schema = etree.XMLSchema(etree.parse(str(Path(fmpy.__file__).parent / "schema" / "fmi3" / "fmi3BuildDescription.xsd")))
+    schema = etree.XMLSchema(
+        etree.parse(str(Path(fmpy.__file__).parent / "schema" / "fmi3" / "fmi3BuildDescription.xsd"))
+    )
     document = etree.fromstring(build_description)
     assert schema.validate(document), schema.error_log
     assert [f.get("name") for f in document.iter("SourceFile")] == ["solver.c", "instance.c", "fmi3.c", "model.c"]
@@ -186,7 +188,11 @@ def test_archive_layout_and_descriptions(plant3_fmu: Path, plant3_build) -> None
     assert not md.coSimulation.hasEventMode
     (independent,) = [v for v in md.modelVariables if v.causality == "independent"]
     # time comes after the model's variables and the three solver settings
-    assert (independent.name, independent.type, independent.valueReference) == ("time", "Float64", plant3_build.variables + 3)
+    assert (independent.name, independent.type, independent.valueReference) == (
+        "time",
+        "Float64",
+        plant3_build.variables + 3,
+    )
     assert independent.start is None and independent.initial is None
     references = [v.valueReference for v in md.modelVariables]
     assert len(references) == len(set(references))
@@ -226,8 +232,9 @@ def test_every_fmi3_function_is_exported_and_nothing_of_fmi2(plant3_fmu: Path) -
         assert missing == []
         nm = shutil.which("nm")
         if nm:
-            symbols = subprocess.run([nm, "-D", "--defined-only", str(library)], capture_output=True,
-                                     text=True, check=True).stdout
+            symbols = subprocess.run(
+                [nm, "-D", "--defined-only", str(library)], capture_output=True, text=True, check=True
+            ).stdout
             exported = {line.split()[-1] for line in symbols.splitlines() if " T " in line}
             assert exported == set(declared)
     finally:
@@ -242,10 +249,27 @@ def test_fmi3_shell_compiles_with_strict_flags(tmp_path: Path) -> None:
         pytest.skip("no C compiler")
     (tmp_path / HEADER_NAME).write_text(settings_header())  # as the build writes it
     result = subprocess.run(
-        [cc, "-c", "-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-fPIC", "-O2",
-         "-fvisibility=hidden", f"-I{HEADERS}", f"-I{SHELL}", f"-I{tmp_path}", str(SHELL / "fmi3.c"), "-o",
-         str(tmp_path / "fmi3.o")],
-        capture_output=True, text=True, check=False,
+        [
+            cc,
+            "-c",
+            "-std=c99",
+            "-pedantic",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-fPIC",
+            "-O2",
+            "-fvisibility=hidden",
+            f"-I{HEADERS}",
+            f"-I{SHELL}",
+            f"-I{tmp_path}",
+            str(SHELL / "fmi3.c"),
+            "-o",
+            str(tmp_path / "fmi3.o"),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
     )
     assert result.returncode == 0, result.stderr
 
@@ -396,22 +420,24 @@ def test_wrong_instantiation_token_is_refused(plant3_fmu: Path) -> None:
     messages: list[str] = []
     md = read_model_description(str(plant3_fmu))
     unzipped = extract(str(plant3_fmu))
-    fmu = FMU3Slave(guid="{00000000-0000-0000-0000-000000000000}", unzipDirectory=unzipped,
-                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="wrong")
+    fmu = FMU3Slave(
+        guid="{00000000-0000-0000-0000-000000000000}",
+        unzipDirectory=unzipped,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="wrong",
+    )
     with pytest.raises(Exception, match="Failed to instantiate"):
         fmu.instantiate(logMessage=lambda env, status, category, message: messages.append(message.decode()))
-    assert any("instantiationToken {00000000-0000-0000-0000-000000000000} does not match" in m
-               for m in messages)
+    assert any("instantiationToken {00000000-0000-0000-0000-000000000000} does not match" in m for m in messages)
     with pytest.raises(Exception, match="Failed to instantiate"):  # hasEventMode="false"
         fmu.guid = md.guid
-        fmu.instantiate(eventModeUsed=True,
-                        logMessage=lambda env, status, category, message: messages.append(message.decode()))
+        fmu.instantiate(
+            eventModeUsed=True, logMessage=lambda env, status, category, message: messages.append(message.decode())
+        )
     assert any("eventModeUsed = true" in m for m in messages)
     # the FMU offers Model Exchange too: the same check of the token there
-    assert fmu.fmi3InstantiateModelExchange(b"me", b"{wrong}", None, False, False, None,
-                                            fmu.logMessage) is None
-    assert any("fmi3InstantiateModelExchange: instantiationToken {wrong} does not match" in m
-               for m in messages)
+    assert fmu.fmi3InstantiateModelExchange(b"me", b"{wrong}", None, False, False, None, fmu.logMessage) is None
+    assert any("fmi3InstantiateModelExchange: instantiationToken {wrong} does not match" in m for m in messages)
     fmu.freeLibrary()
     shutil.rmtree(unzipped, ignore_errors=True)
     # earlyReturnAllowed is accepted (the FMU just never returns early)
@@ -435,8 +461,7 @@ def test_start_values_and_what_is_settable_when(plant3_fmu: Path) -> None:
     # Step Mode: inputs and tunable settings yes; fixed parameters, calculated, computed no
     fmu.set(iq_ref=2.0, **{"solver.maxStep": 1e-4})
     assert fmu.get("solver.maxStep", "iq_ref") == [1e-4, 2.0]
-    refused = {"m_B": 5.0, "motor.K_f": 1.0, "x_B": 0.3, "motor.pi": 3.0, "F_E": math.nan,
-               "solver.relTol": 0.5}
+    refused = {"m_B": 5.0, "motor.K_f": 1.0, "x_B": 0.3, "motor.pi": 3.0, "F_E": math.nan, "solver.relTol": 0.5}
     for name, value in refused.items():
         with pytest.raises(FMICallException):
             fmu.set(**{name: value})
@@ -455,15 +480,19 @@ def test_start_values_and_what_is_settable_when(plant3_fmu: Path) -> None:
         fmu.fmu.fmi3GetFloat64(fmu.fmu.component, (fmi3ValueReference * 1)(*fmu.vr("x_B")), 1, values, 2)
     assert "nValues = 2 but nValueReferences = 1" in fmu.errors()
     # no variables of other types; nothing of the other interface types or capabilities
-    for call in (lambda: fmu.fmu.getInt32([0]), lambda: fmu.fmu.getString([0]),
-                 lambda: fmu.fmu.setUInt64([5], [1]), lambda: fmu.fmu.getFloat32([999]),
-                 fmu.fmu.enterEventMode, fmu.fmu.enterStepMode,
-                 lambda: fmu.fmu.getDirectionalDerivative([100], [5], [1.0]),
-                 lambda: fmu.fmu.getOutputDerivatives([100], [1]),
-                 lambda: fmu.fmu.fmi3EnterConfigurationMode(fmu.fmu.component),
-                 lambda: fmu.fmu.fmi3SetTime(fmu.fmu.component, 0.0),
-                 lambda: fmu.fmu.fmi3GetClock(fmu.fmu.component, (fmi3ValueReference * 1)(0), 1,
-                                              (fmi3Boolean * 1)())):
+    for call in (
+        lambda: fmu.fmu.getInt32([0]),
+        lambda: fmu.fmu.getString([0]),
+        lambda: fmu.fmu.setUInt64([5], [1]),
+        lambda: fmu.fmu.getFloat32([999]),
+        fmu.fmu.enterEventMode,
+        fmu.fmu.enterStepMode,
+        lambda: fmu.fmu.getDirectionalDerivative([100], [5], [1.0]),
+        lambda: fmu.fmu.getOutputDerivatives([100], [1]),
+        lambda: fmu.fmu.fmi3EnterConfigurationMode(fmu.fmu.component),
+        lambda: fmu.fmu.fmi3SetTime(fmu.fmu.component, 0.0),
+        lambda: fmu.fmu.fmi3GetClock(fmu.fmu.component, (fmi3ValueReference * 1)(0), 1, (fmi3Boolean * 1)()),
+    ):
         with pytest.raises(FMICallException):
             call()
     errors = fmu.errors()
@@ -529,9 +558,13 @@ def test_failed_step_leaves_an_error_state_that_reset_clears(plant3_fmu: Path) -
 
 
 def test_simulate_fmu_runs_it_like_the_fmi2_build(plant3_fmu: Path, plant_fmu: Path) -> None:
-    options = dict(stop_time=0.1, output_interval=1e-3, output=["x_B", "E_in", "lambda1"],
-                   start_values={"m_B": 8.86, "mu": 0.2, "idealCurrentLoop": True},
-                   input=np.array([(0.0, 4.0), (0.1, 4.0)], dtype=[("time", np.float64), ("iq_ref", np.float64)]))
+    options = dict(
+        stop_time=0.1,
+        output_interval=1e-3,
+        output=["x_B", "E_in", "lambda1"],
+        start_values={"m_B": 8.86, "mu": 0.2, "idealCurrentLoop": True},
+        input=np.array([(0.0, 4.0), (0.1, 4.0)], dtype=[("time", np.float64), ("iq_ref", np.float64)]),
+    )
     result3 = fmpy.simulate_fmu(str(plant3_fmu), **options)
     result2 = fmpy.simulate_fmu(str(plant_fmu), **options)
     assert len(result3) == 101 and result3["time"][-1] == pytest.approx(0.1)
@@ -543,10 +576,10 @@ def test_simulate_fmu_runs_it_like_the_fmi2_build(plant3_fmu: Path, plant_fmu: P
 def test_fmi3_plant_under_the_master_matches_the_stored_reference(plant3_fmu: Path) -> None:
     """The FMI 3.0 build, run by the same master and controller as the FMI 2.0 one, stays in
     the funnel of the reference trace recorded with the FMI 2.0 build."""
-    from toggle_cosim.experiments import references
     from toggle_cosim.cosim.master import simulate
-    from toggle_cosim.plant.contract import check_plant
+    from toggle_cosim.experiments import references
     from toggle_cosim.experiments.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
 
     for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):
         outcome = simulate(run, check_plant(plant3_fmu))

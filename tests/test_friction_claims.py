@@ -6,8 +6,8 @@ from pathlib import Path
 
 from toggle_cosim.analysis.friction_claims import friction_claims
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.experiments.scenario import load_scenario
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -17,8 +17,12 @@ def test_claims_table_under_the_friction_models(plant_fmu: Path) -> None:
     (the nominal run hands energy back), the two new models never do; claim (4)'s "more than half
     of the input at the start" fails under every model (about 5-7 % by 10 % of the stroke)."""
     plant = check_plant(plant_fmu)
-    runs = [run for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation", "friction_models")
-            for run in load_scenario(ROOT / "scenarios" / f"{name}.yaml") if not run.variant.startswith("theta1")]
+    runs = [
+        run
+        for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation", "friction_models")
+        for run in load_scenario(ROOT / "scenarios" / f"{name}.yaml")
+        if not run.variant.startswith("theta1")
+    ]
     text = friction_claims([simulate(run, plant) for run in runs])
     lines = text.splitlines()
     assert lines[2] == "| claim | paper | dissipative | stick_slip |"

@@ -14,16 +14,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from test_plant_fmu import Plant
-from toggle_cosim.plant.friction import FRICTION_MODELS, friction_settings
+
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
+from toggle_cosim.plant.friction import FRICTION_MODELS, friction_settings
 
 F_E = 100.0  # N, the load of Fig. 5
 
 
-def _stroke(fmu: Path, model: str, iq: float, seconds: float, load: float = F_E,
-            **extra: float | bool) -> dict[str, np.ndarray]:
+def _stroke(
+    fmu: Path, model: str, iq: float, seconds: float, load: float = F_E, **extra: float | bool
+) -> dict[str, np.ndarray]:
     """Open loop: constant i_q* and F_E from t = 0 (set before initialisation), sampled every ms."""
     plant = Plant(fmu, frictionModel=FRICTION_MODELS[model], mu=0.2, mu_s=0.2, iq_ref=iq, F_E=load, **extra)
     names = ("x_B", "v_B", "E_fric", "mechanism.stuck", "mechanism.T_st", "mechanism.T_s", "E_in", "E_mech", "E_load")
@@ -37,8 +38,9 @@ def _stroke(fmu: Path, model: str, iq: float, seconds: float, load: float = F_E,
 
 
 @pytest.mark.parametrize("model", ["dissipative", "stick_slip"])
-@pytest.mark.parametrize("iq, load, direction", [(3.0, 100.0, +1.0), (0.5, 100.0, -1.0), (0.3, 0.0, +1.0),
-                                                 (-0.3, 0.0, -1.0)])
+@pytest.mark.parametrize(
+    "iq, load, direction", [(3.0, 100.0, +1.0), (0.5, 100.0, -1.0), (0.3, 0.0, +1.0), (-0.3, 0.0, -1.0)]
+)
 def test_friction_energy_never_decreases(plant_fmu: Path, model: str, iq: float, load: float, direction: float) -> None:
     """Friction power mu sum_i |omega_i| |R_i| >= 0: E_fric is non-decreasing sample to sample
     (to 1e-12 J, rounding) on forward and backward strokes, with and without the 100 N load
@@ -88,7 +90,9 @@ def test_a_plant_without_frictionModel_runs_the_paper_model_only(tmp_path: Path)
         friction_settings("stick_slip", 0.2, 0.3, {"m_B", "mu"}, fmu)
     assert "plant.friction_model: stick_slip" in str(error.value) and "\n" not in str(error.value)
     assert friction_settings("stick_slip", 0.2, None, {"frictionModel", "mu_s"}, fmu) == [
-        ("frictionModel", 3.0), ("mu_s", 0.2)]
+        ("frictionModel", 3.0),
+        ("mu_s", 0.2),
+    ]
 
 
 def test_scenario_keys_friction_model_and_mu_s() -> None:
@@ -108,15 +112,17 @@ def test_a_foreign_plant_refuses_stick_slip_before_running(plant_fmu: Path, tmp_
     """Through the CLI, a plant FMU without `frictionModel` (here: ours with the parameter renamed):
     friction_model: paper runs; stick_slip is refused with one line, exit 2, nothing written."""
     from click.testing import CliRunner
-
     from test_bad_plant_files import _rewrite
+
     from toggle_cosim.cli import main
 
-    foreign = _rewrite(plant_fmu, tmp_path / "foreign.fmu",
-                       lambda xml: xml.replace('name="frictionModel"', 'name="frictionLaw"'))
+    foreign = _rewrite(
+        plant_fmu, tmp_path / "foreign.fmu", lambda xml: xml.replace('name="frictionModel"', 'name="frictionLaw"')
+    )
     scenario = tmp_path / "s.yaml"
-    text = ("name: s\nt_end: 0.01\nT_s: 0.0005\nstroke: {x_start: 0.2329, x_target: 0.3199}\n"
-            "plant: {friction_model: %s}\n")
+    text = (
+        "name: s\nt_end: 0.01\nT_s: 0.0005\nstroke: {x_start: 0.2329, x_target: 0.3199}\nplant: {friction_model: %s}\n"
+    )
     runner = CliRunner()
     scenario.write_text(text % "paper")
     result = runner.invoke(main, ["run", str(scenario), "--fmu", str(foreign), "--out", str(tmp_path / "ok")])
@@ -133,8 +139,9 @@ def test_a_foreign_plant_refuses_stick_slip_before_running(plant_fmu: Path, tmp_
 def _push_then_hold(fmu: Path, model: str, seconds: float) -> tuple[np.ndarray, np.ndarray]:
     """Ideal current loop, F_E = 100 N: 2.6 A for 50 ms (the mechanism breaks away forward), then
     1.9 A, below what moves it: it decelerates and comes to rest. x_B and `stuck` every ms."""
-    plant = Plant(fmu, frictionModel=FRICTION_MODELS[model], mu=0.2, mu_s=0.2, idealCurrentLoop=True,
-                  iq_ref=2.6, F_E=F_E)
+    plant = Plant(
+        fmu, frictionModel=FRICTION_MODELS[model], mu=0.2, mu_s=0.2, idealCurrentLoop=True, iq_ref=2.6, F_E=F_E
+    )
     rows = []
     try:
         for k in range(int(round(seconds / 1e-3))):

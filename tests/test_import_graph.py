@@ -114,9 +114,11 @@ def test_no_import_cycles_in_the_package() -> None:
 def test_the_cosim_parts_import_each_other_one_way_only() -> None:
     """Within cosim/ not even a function-level import closes a loop (session never imports
     the compiled loop or the master), and the parts import no CLI or sweep."""
-    graph = {name: {m for m in imports if m.startswith("toggle_cosim.cosim")}
-             for name, imports in import_graph(SRC / "toggle_cosim", lazy=True).items()
-             if name.startswith("toggle_cosim.cosim")}
+    graph = {
+        name: {m for m in imports if m.startswith("toggle_cosim.cosim")}
+        for name, imports in import_graph(SRC / "toggle_cosim", lazy=True).items()
+        if name.startswith("toggle_cosim.cosim")
+    }
     assert cycles(graph) == []
     assert graph["toggle_cosim.cosim.session"] == set()
     full = import_graph(SRC / "toggle_cosim", lazy=True)

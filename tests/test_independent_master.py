@@ -44,9 +44,9 @@ import pytest
 
 from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, compare_traces, format_table
 from toggle_cosim.cosim.master import RunOutcome, plant_settings, simulate
-from toggle_cosim.plant.contract import PlantInterface, check_plant
 from toggle_cosim.experiments.scenario import Run, load_scenario
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.plant.contract import PlantInterface, check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNS = ("fig4_nominal/friction", "fig5_external_force/no_friction")
@@ -63,14 +63,18 @@ def _load_ecospy():
     try:
         import ecospy
     except ModuleNotFoundError as error:  # a setup fault: the tests fail (in the `ecospy` fixture), not skip
-        return f"ecospy is not installed ({error}); it is a test dependency of toggle-cosim: " \
-               "pip install -e '.[test]' (scripts/setup does it)"
+        return (
+            f"ecospy is not installed ({error}); it is a test dependency of toggle-cosim: "
+            "pip install -e '.[test]' (scripts/setup does it)"
+        )
     except OSError as error:  # raised by ctypes.CDLL(libecosc.so) inside `import ecospy`
         if "cannot open shared object file" not in str(error):
             return f"ecospy is installed but its native library cannot be loaded ({error})"
-        pytest.skip(f"ecospy's native library cannot be loaded: a system library is missing ({error}); "
-                    "install it with scripts/install-system-deps (Debian: apt-get install libtbb12)",
-                    allow_module_level=True)
+        pytest.skip(
+            f"ecospy's native library cannot be loaded: a system library is missing ({error}); "
+            "install it with scripts/install-system-deps (Debian: apt-get install libtbb12)",
+            allow_module_level=True,
+        )
     return ecospy
 
 
@@ -111,8 +115,9 @@ def closed_loop(plant: PlantInterface) -> dict[str, RunOutcome]:
     return found
 
 
-def replay_under_ecos(ecospy, plant: PlantInterface, run: Run, iq_ref: np.ndarray, F_E: np.ndarray,
-                      delay: int = 0) -> Trace:
+def replay_under_ecos(
+    ecospy, plant: PlantInterface, run: Run, iq_ref: np.ndarray, F_E: np.ndarray, delay: int = 0
+) -> Trace:
     """Drive the plant FMU open loop under ecos with the input sequence of a closed-loop trace.
 
     iq_ref[k], F_E[k] are held over [t_k, t_k + T_s) (delay = 0, the master's convention);
@@ -171,8 +176,14 @@ def test_ecos_replay_agrees_with_the_fmpy_master(ecospy, plant: PlantInterface, 
     names = list(replay.names[1:])
     assert set(REQUIRED) <= set(names)
     reference = _reference(outcome, names)
-    comparison = compare_traces(replay, reference, {}, DEFAULT_TOLERANCE,
-                                result_label=f"ecos replay of {label}", reference_label=f"fmpy master {label}")
+    comparison = compare_traces(
+        replay,
+        reference,
+        {},
+        DEFAULT_TOLERANCE,
+        result_label=f"ecos replay of {label}",
+        reference_label=f"fmpy master {label}",
+    )
     differences = {name: float(np.max(np.abs(replay.column(name) - reference.column(name)))) for name in names}
     print(f"\n{label}: ecospy {ecospy_version()} vs fmpy master, max |difference| per variable:")
     print("  " + ", ".join(f"{name} {value:.1e}" for name, value in differences.items()))

@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, runs_from_document
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "integral_load.yaml"
@@ -88,8 +88,13 @@ def test_the_paper_law_stays_the_default(plant_fmu: Path) -> None:
 
 
 def test_bad_law_settings_are_rejected_with_the_key() -> None:
-    document = {"name": "x", "t_end": 0.1, "T_s": 0.0005, "stroke": {"x_start": 0.2329, "x_target": 0.3199},
-                "controller": {"law": "pid"}}
+    document = {
+        "name": "x",
+        "t_end": 0.1,
+        "T_s": 0.0005,
+        "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+        "controller": {"law": "pid"},
+    }
     with pytest.raises(ScenarioError, match="controller.law"):
         runs_from_document(document)
     document["controller"] = {"law": "integral", "i_max": 0}

@@ -15,15 +15,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from toggle_cosim.files import bounded as bounded_files, yaml_loader
-
-from toggle_cosim.plant import archive as fmu_archive
-from toggle_cosim.files.bounded import InputFileError, read_bounded
 from toggle_cosim.analysis.compare import CompareInputError, load_tolerances, read_trace
-from toggle_cosim.plant.contract import ContractError, check_plant
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 from toggle_cosim.experiments.sweep import SweepError, load_sweep
+from toggle_cosim.files import bounded as bounded_files
+from toggle_cosim.files import yaml_loader
+from toggle_cosim.files.bounded import InputFileError, read_bounded
 from toggle_cosim.files.traces import read_csv
+from toggle_cosim.plant import archive as fmu_archive
+from toggle_cosim.plant.contract import ContractError, check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 FUZZ = settings(max_examples=40, deadline=2000, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -56,7 +56,10 @@ def test_scenario_sweep_and_tolerance_loaders_fail_only_their_own_way(tmp_path: 
 
 
 @FUZZ
-@given(data=st.binary(max_size=300) | st.text(alphabet=st.sampled_from(list('"time,x_B0.123e-\n\r ')), max_size=200).map(str.encode))
+@given(
+    data=st.binary(max_size=300)
+    | st.text(alphabet=st.sampled_from(list('"time,x_B0.123e-\n\r ')), max_size=200).map(str.encode)
+)
 def test_trace_csv_readers_fail_only_their_own_way(tmp_path: Path, data: bytes) -> None:
     path = tmp_path / "trace.csv"
     path.write_bytes(data)
@@ -71,7 +74,9 @@ def test_trace_csv_readers_fail_only_their_own_way(tmp_path: Path, data: bytes) 
 
 
 @FUZZ
-@given(data=st.binary(max_size=200) | st.sampled_from([b"{}", b"[]", b'{"resolved": 1}', b'{"scenario": "x"}', b"null"]))
+@given(
+    data=st.binary(max_size=200) | st.sampled_from([b"{}", b"[]", b'{"resolved": 1}', b'{"scenario": "x"}', b"null"])
+)
 def test_plot_refuses_a_bad_run_json_in_one_line(tmp_path: Path, data: bytes) -> None:
     from click.testing import CliRunner
 
@@ -89,12 +94,25 @@ def test_plot_refuses_a_bad_run_json_in_one_line(tmp_path: Path, data: bytes) ->
 
 # ------------------------------------------------------------------------------- FMU archives
 
-NAMES = st.sampled_from(["modelDescription.xml", "/etc/passwd", "..\\evil.dll", "../outside.txt", "a/../../b",
-                         "C:/windows.dll", "binaries/linux64/x.so", "resources/ok.txt", "sources\\m.c"])
+NAMES = st.sampled_from(
+    [
+        "modelDescription.xml",
+        "/etc/passwd",
+        "..\\evil.dll",
+        "../outside.txt",
+        "a/../../b",
+        "C:/windows.dll",
+        "binaries/linux64/x.so",
+        "resources/ok.txt",
+        "sources\\m.c",
+    ]
+)
 
 
 @FUZZ
-@given(names=st.lists(NAMES, min_size=1, max_size=4, unique=True), flip=st.integers(0, 2000), seed=st.binary(max_size=64))
+@given(
+    names=st.lists(NAMES, min_size=1, max_size=4, unique=True), flip=st.integers(0, 2000), seed=st.binary(max_size=64)
+)
 def test_fmu_archives_are_refused_in_one_line(tmp_path: Path, names: list[str], flip: int, seed: bytes) -> None:
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -111,8 +129,9 @@ def test_fmu_archives_are_refused_in_one_line(tmp_path: Path, names: list[str], 
     assert str(info.value).startswith(f"{path}:")
 
 
-@pytest.mark.parametrize(("name", "needle"), [("/abs.txt", "absolute"), ("a\\b.txt", "backslash"),
-                                              ("x/../../up.txt", "'..'")])
+@pytest.mark.parametrize(
+    ("name", "needle"), [("/abs.txt", "absolute"), ("a\\b.txt", "backslash"), ("x/../../up.txt", "'..'")]
+)
 def test_archive_names_refused_before_extraction(tmp_path: Path, name: str, needle: str) -> None:
     path = tmp_path / "plant.fmu"
     with zipfile.ZipFile(path, "w") as archive:
@@ -149,6 +168,7 @@ def test_corrupt_deflate_data_is_refused(tmp_path: Path, plant_fmu: Path) -> Non
 
 # ------------------------------------------------------------------------------- bounded files
 
+
 def test_fifo_and_devices_are_refused_without_waiting(tmp_path: Path) -> None:
     fifo = tmp_path / "scenario.yaml"
     os.mkfifo(fifo)
@@ -176,8 +196,10 @@ def test_oversize_files_are_refused_naming_the_limit(tmp_path: Path) -> None:
 @pytest.mark.parametrize("loader", [load_scenario, load_sweep, load_tolerances])
 def test_alias_bombs_and_deep_nesting_are_refused_quickly(tmp_path: Path, loader) -> None:  # noqa: ANN001
     lines = ["a0: &a0 [x, x, x, x, x, x, x, x, x, x]"]
-    lines += [f"a{k}: &a{k} [*a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}]"
-              for k in range(1, 9)]
+    lines += [
+        f"a{k}: &a{k} [*a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}, *a{k - 1}]"
+        for k in range(1, 9)
+    ]
     bomb = tmp_path / "bomb.yaml"
     bomb.write_text("\n".join(lines) + "\n")
     deep = tmp_path / "deep.yaml"
@@ -215,8 +237,8 @@ def test_a_scenario_fifo_does_not_hang_the_command(tmp_path: Path) -> None:
 
     fifo = tmp_path / "s.yaml"
     os.mkfifo(fifo)
-    result = subprocess.run([sys.executable, "-m", "toggle_cosim.cli", "run", str(fifo)], capture_output=True,
-                            text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "toggle_cosim.cli", "run", str(fifo)], capture_output=True, text=True, timeout=60
+    )
     assert result.returncode == 2 and "not a regular file" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
-

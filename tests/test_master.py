@@ -12,9 +12,9 @@ import pytest
 
 from toggle_cosim.control.controller import hitting_time
 from toggle_cosim.cosim.master import simulate
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.physics.parameters import ControllerGains
 from toggle_cosim.plant.contract import check_plant
-from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
@@ -95,8 +95,12 @@ def test_friction_is_reported_with_its_sign_and_balances(outcomes: dict) -> None
     """E_in = dE_mech + E_fric + E_load along every paper run (to 1e-4 of E_in)."""
     for label, outcome in outcomes.items():
         trace = outcome.trace
-        balance = (trace.column("E_in") - (trace.column("E_mech") - trace.column("E_mech")[0])
-                   - trace.column("E_fric") - trace.column("E_load"))
+        balance = (
+            trace.column("E_in")
+            - (trace.column("E_mech") - trace.column("E_mech")[0])
+            - trace.column("E_fric")
+            - trace.column("E_load")
+        )
         assert np.max(np.abs(balance)) < 1e-4 * np.max(np.abs(trace.column("E_in"))), label
         if label.endswith("no_friction"):
             assert np.all(trace.column("E_fric") == 0.0)

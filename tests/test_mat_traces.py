@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import scipy.io
 
-from toggle_cosim.analysis.trace_formats import read_any_trace, read_mat_trace
 from toggle_cosim.analysis.compare import CompareInputError, run_compare
+from toggle_cosim.analysis.trace_formats import read_any_trace, read_mat_trace
 from toggle_cosim.files.traces import Trace, write_csv
 
 
@@ -24,8 +24,9 @@ def _char_matrix(strings: list[str]) -> np.ndarray:
     return np.ascontiguousarray(np.array([list(s.ljust(width)) for s in strings], dtype="U1").T)
 
 
-def write_modelica_mat(path: Path, time: np.ndarray, trajectories: dict[str, np.ndarray],
-                       parameters: dict[str, float]) -> Path:
+def write_modelica_mat(
+    path: Path, time: np.ndarray, trajectories: dict[str, np.ndarray], parameters: dict[str, float]
+) -> Path:
     """A Dymola-style result file: variable 1 is Time (abscissa), then parameters (block 1),
     then trajectories (block 2); dataInfo row 0 = block, row 1 = column (1-based, signed)."""
     names = ["Time", *parameters, *trajectories]
@@ -34,15 +35,20 @@ def write_modelica_mat(path: Path, time: np.ndarray, trajectories: dict[str, np.
     info += [[2, 2 + i, 0, -1] for i in range(len(trajectories))]
     data_1 = np.vstack([[time[0], time[-1]], *[[v, v] for v in parameters.values()]])
     data_2 = np.vstack([time, *trajectories.values()])
-    scipy.io.savemat(str(path), {
-        "Aclass": np.array([list("Atrajectory"), list("1.1        "), list("           "), list("binTrans   ")],
-                           dtype="U1"),
-        "name": _char_matrix(names),
-        "description": _char_matrix([f"description of {n}" for n in names]),
-        "dataInfo": np.ascontiguousarray(np.array(info, dtype=np.int32).T),
-        "data_1": data_1,
-        "data_2": data_2,
-    }, format="4")
+    scipy.io.savemat(
+        str(path),
+        {
+            "Aclass": np.array(
+                [list("Atrajectory"), list("1.1        "), list("           "), list("binTrans   ")], dtype="U1"
+            ),
+            "name": _char_matrix(names),
+            "description": _char_matrix([f"description of {n}" for n in names]),
+            "dataInfo": np.ascontiguousarray(np.array(info, dtype=np.int32).T),
+            "data_1": data_1,
+            "data_2": data_2,
+        },
+        format="4",
+    )
     return path
 
 
@@ -51,8 +57,7 @@ T = np.linspace(0.0, 1.5, 301)
 
 def test_a_modelica_result_file_reads_as_a_trace_with_parameters_as_constant_columns(tmp_path):
     x = 0.2329 + 0.05 * (1 - np.cos(np.pi * T / 1.5))
-    path = write_modelica_mat(tmp_path / "Plant_res.mat", T, {"x_B": x, "v_B": np.gradient(x, T)},
-                              {"m_B": 4.43})
+    path = write_modelica_mat(tmp_path / "Plant_res.mat", T, {"x_B": x, "v_B": np.gradient(x, T)}, {"m_B": 4.43})
     trace = read_mat_trace(path)
     assert trace.names[0] == "time"
     assert set(trace.names[1:]) == {"x_B", "v_B", "m_B"}
@@ -75,7 +80,9 @@ def test_compare_holds_a_csv_run_against_a_mat_reference_from_another_tool(tmp_p
     fine = np.linspace(0.0, 1.5, 3001)
     write_csv(tmp_path / "trace.csv", Trace(("time", "x_B"), np.column_stack([fine, np.sin(2 * np.pi * fine / 1.5)])))
     assert run_compare(tmp_path / "trace.csv", mat) == 0
-    write_csv(tmp_path / "off.csv", Trace(("time", "x_B"), np.column_stack([fine, 1.01 * np.sin(2 * np.pi * fine / 1.5)])))
+    write_csv(
+        tmp_path / "off.csv", Trace(("time", "x_B"), np.column_stack([fine, 1.01 * np.sin(2 * np.pi * fine / 1.5)]))
+    )
     assert run_compare(tmp_path / "off.csv", mat) == 1
     assert "x_B" in capsys.readouterr().out
     # the other way round: the tool's file as RESULT, with more variables than our reference has

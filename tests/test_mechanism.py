@@ -12,14 +12,6 @@ import timeit
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-
-from reference_dynamics import (
-    reference_accelerations,
-    reference_energy,
-    reference_joint_forces,
-    reference_powers,
-)
 from mechanism_dynamics import (
     constraint_jacobian,
     constraint_residuals,
@@ -38,6 +30,14 @@ from mechanism_dynamics import (
     theta1_state_from_slider,
     velocity_ratios,
 )
+from reference_dynamics import (
+    reference_accelerations,
+    reference_energy,
+    reference_joint_forces,
+    reference_powers,
+)
+from scipy.integrate import solve_ivp
+
 from toggle_cosim.physics.mechanism import (
     dependent_angles,
     initial_state,
@@ -59,7 +59,9 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
-def _random_states(n: int, seed: int = 20010301) -> list[tuple[np.ndarray, np.ndarray, float, float, MechanismParameters]]:
+def _random_states(
+    n: int, seed: int = 20010301
+) -> list[tuple[np.ndarray, np.ndarray, float, float, MechanismParameters]]:
     """Random consistent states: θ1 in the stroke, ω1 ∈ [−10, 10] rad/s, ω2, ω5 from Φ_q q̇ = 0,
     F_C ∈ [−500, 500] N, F_E ∈ [0, 150] N, μ ∈ {0, 0.2}."""
     rng = np.random.default_rng(seed)
@@ -160,11 +162,13 @@ def test_friction_matrix_matches_eq17() -> None:
     Qf = friction_matrix(q, sgn, P0)
     t1, t2, t5 = q
     mu, r1, r3, r4, r5, phi = P0.mu, P0.r1, P0.r3, P0.r4, P0.r5, P0.phi
-    expected = np.array([
-        [-mu * r1 * math.sin(t1), mu * r4 * math.sin(t1 + phi)],
-        [mu * r3 * math.sin(t2), 0.0],
-        [0.0, mu * r5 * math.sin(t5)],
-    ])
+    expected = np.array(
+        [
+            [-mu * r1 * math.sin(t1), mu * r4 * math.sin(t1 + phi)],
+            [mu * r3 * math.sin(t2), 0.0],
+            [0.0, mu * r5 * math.sin(t5)],
+        ]
+    )
     assert np.allclose(Qf, expected, rtol=0, atol=1e-16)
     # sgn(0) = 0: no friction in a joint whose rate is zero
     assert np.all(friction_matrix(q, np.zeros(3), P0) == 0.0)
@@ -276,7 +280,9 @@ def test_slider_C_and_powers_match_reference() -> None:
         _, lam = dynamics(q, qd, F_C, F_E, p)
         pw = powers(q, qd, lam, F_C, F_E, p)
         ref = reference_powers(q, qd, F_C, F_E, p.as_dict())
-        assert (pw.P_in, pw.P_load, pw.P_fric) == pytest.approx((ref["P_in"], ref["P_load"], ref["P_fric"]), rel=1e-10, abs=1e-12)
+        assert (pw.P_in, pw.P_load, pw.P_fric) == pytest.approx(
+            (ref["P_in"], ref["P_load"], ref["P_fric"]), rel=1e-10, abs=1e-12
+        )
         assert pw.P_in == pytest.approx(-F_C * slider_C(q, qd, np.zeros(3), p)[1], rel=1e-14)
 
 
@@ -329,7 +335,18 @@ def test_energy_balance_with_friction_and_load() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("r1", 0.0), ("r3", -0.27), ("r5", 0.0), ("mB", 0.0), ("mC", -1.0), ("m3", 0.0), ("J2", 0.0), ("mu", -0.1), ("g", -9.81), ("h", float("inf"))],
+    [
+        ("r1", 0.0),
+        ("r3", -0.27),
+        ("r5", 0.0),
+        ("mB", 0.0),
+        ("mC", -1.0),
+        ("m3", 0.0),
+        ("J2", 0.0),
+        ("mu", -0.1),
+        ("g", -9.81),
+        ("h", float("inf")),
+    ],
 )
 def test_mechanism_parameter_validation(field: str, value: float) -> None:
     """Invalid mechanism parameters raise ValueError naming the field."""

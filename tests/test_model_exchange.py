@@ -90,9 +90,21 @@ def test_model_structure_lists_states_derivatives_and_their_dependencies(plant_v
     (eq. (18)); every state and der(x) is an initial unknown."""
     md = read_model_description(str(plant_variants["2.0", "both"]))
     derivatives = {u.variable.name: u for u in md.derivatives}
-    assert list(derivatives) == [f"der({s})" for s in (
-        "motor.i_lag", "mechanism.theta1", "mechanism.theta2", "mechanism.theta5", "mechanism.omega1",
-        "mechanism.omega2", "mechanism.omega5", "mechanism.E_in", "mechanism.E_load", "mechanism.E_fric")]
+    assert list(derivatives) == [
+        f"der({s})"
+        for s in (
+            "motor.i_lag",
+            "mechanism.theta1",
+            "mechanism.theta2",
+            "mechanism.theta5",
+            "mechanism.omega1",
+            "mechanism.omega2",
+            "mechanism.omega5",
+            "mechanism.E_in",
+            "mechanism.E_load",
+            "mechanism.E_fric",
+        )
+    ]
     assert [v.name for v in derivatives["der(mechanism.theta1)"].dependencies] == ["mechanism.omega1"]
     assert sorted(v.name for v in derivatives["der(motor.i_lag)"].dependencies) == ["iq_ref", "motor.i_lag"]
     (x_b,) = [u for u in md.outputs if u.variable.name == "x_B"]
@@ -191,8 +203,9 @@ def test_closed_loop_model_exchange_matches_co_simulation(plant_variants):
     md = read_model_description(path)
     vr = {v.name: v.valueReference for v in md.modelVariables}
     unzipped = extract(path)
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName="cs")
+    slave = FMU2Slave(
+        guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="cs"
+    )
     slave.instantiate()
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
@@ -236,8 +249,10 @@ def test_closed_loop_model_exchange_matches_co_simulation(plant_variants):
 @pytest.fixture(scope="session")
 def small_fmus(tmp_path_factory):
     folder = tmp_path_factory.mktemp("small")
-    return {name: build_fmu(SMALL, f"ExchangeModels.{name}", folder / f"{name}.fmu").fmu.path
-            for name in ("BouncingBall", "VanDerPol")}
+    return {
+        name: build_fmu(SMALL, f"ExchangeModels.{name}", folder / f"{name}.fmu").fmu.path
+        for name in ("BouncingBall", "VanDerPol")
+    }
 
 
 def _ball(t: np.ndarray, g: float = 9.81, e: float = 0.8, h0: float = 1.0) -> np.ndarray:
@@ -261,8 +276,13 @@ def test_bouncing_ball_matches_the_analytic_flight(small_fmus, fmi_type):
     """Three impacts in 2 s (t = 0.4515, 1.1741, 1.7521 s); h within 1e-6 m of the analytic
     parabolas at every output point, for CS and for ME under CVODE; the CS FMU counts the
     three reinit events in solver.events."""
-    result = simulate_fmu(str(small_fmus["BouncingBall"]), fmi_type=fmi_type, relative_tolerance=1e-10,
-                          output=["h", "v", "solver.events"], record_events=False)
+    result = simulate_fmu(
+        str(small_fmus["BouncingBall"]),
+        fmi_type=fmi_type,
+        relative_tolerance=1e-10,
+        output=["h", "v", "solver.events"],
+        record_events=False,
+    )
     assert result["time"][-1] == pytest.approx(2.0)
     assert np.max(np.abs(result["h"] - _ball(result["time"]))) < 1e-6
     assert result["solver.events"][-1] == 3
@@ -272,10 +292,16 @@ def test_bouncing_ball_matches_the_analytic_flight(small_fmus, fmi_type):
 def test_van_der_pol_matches_scipy(small_fmus, fmi_type):
     """mu = 1 from (2, 0) over 10 s (the default experiment): x within 1e-6 of scipy's DOP853
     at rtol 1e-12."""
-    result = simulate_fmu(str(small_fmus["VanDerPol"]), fmi_type=fmi_type, relative_tolerance=1e-10,
-                          output=["x", "y"])
-    reference = solve_ivp(lambda t, z: [z[1], (1 - z[0] ** 2) * z[1] - z[0]], (0.0, 10.0), [2.0, 0.0],
-                          method="DOP853", rtol=1e-12, atol=1e-12, t_eval=result["time"])
+    result = simulate_fmu(str(small_fmus["VanDerPol"]), fmi_type=fmi_type, relative_tolerance=1e-10, output=["x", "y"])
+    reference = solve_ivp(
+        lambda t, z: [z[1], (1 - z[0] ** 2) * z[1] - z[0]],
+        (0.0, 10.0),
+        [2.0, 0.0],
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        t_eval=result["time"],
+    )
     assert np.max(np.abs(result["x"] - reference.y[0])) < 1e-6
     assert np.max(np.abs(result["y"] - reference.y[1])) < 1e-6
 
@@ -291,16 +317,20 @@ def test_without_an_experiment_annotation_there_is_no_stop_time():
     """Nothing model-specific in the generic build: a model without the annotation gets only
     the shell's tolerance (solver.relTol's default) in <DefaultExperiment>."""
     from modelica import lang
-
     from toggle_cosim.fmu_export.experiment import ExperimentError, experiment_of
 
-    plain = lang.parse('model M Real x(start = 1); equation der(x) = -x; end M;').find("M")
+    plain = lang.parse("model M Real x(start = 1); equation der(x) = -x; end M;").find("M")
     assert experiment_of(plain, "M").attributes(default_tolerance=1e-8) == {"tolerance": "1e-08"}
     annotated = lang.parse(
         "model M Real x(start = 1); equation der(x) = -x; "
-        "annotation(experiment(StartTime = 0, StopTime = 3, Tolerance = 1e-6, Interval = 0.1)); end M;").find("M")
+        "annotation(experiment(StartTime = 0, StopTime = 3, Tolerance = 1e-6, Interval = 0.1)); end M;"
+    ).find("M")
     assert experiment_of(annotated, "M").attributes(default_tolerance=1e-8) == {
-        "startTime": "0.0", "stopTime": "3.0", "tolerance": "1e-06", "stepSize": "0.1"}
+        "startTime": "0.0",
+        "stopTime": "3.0",
+        "tolerance": "1e-06",
+        "stepSize": "0.1",
+    }
     bad = lang.parse('model M Real x; equation der(x) = -x; annotation(experiment(StopTime = "x")); end M;').find("M")
     with pytest.raises(ExperimentError, match="StopTime"):
         experiment_of(bad, "M")
@@ -309,9 +339,12 @@ def test_without_an_experiment_annotation_there_is_no_stop_time():
 @pytest.mark.parametrize("name, variable", [("BouncingBall", "h"), ("VanDerPol", "x")])
 def test_small_models_agree_as_model_exchange_and_co_simulation(small_fmus, name, variable):
     """The same FMU, both interfaces, on the default experiment's output grid: within 1e-6."""
-    runs = {kind: simulate_fmu(str(small_fmus[name]), fmi_type=kind, relative_tolerance=1e-10, output=[variable],
-                               record_events=False)
-            for kind in ("CoSimulation", "ModelExchange")}
+    runs = {
+        kind: simulate_fmu(
+            str(small_fmus[name]), fmi_type=kind, relative_tolerance=1e-10, output=[variable], record_events=False
+        )
+        for kind in ("CoSimulation", "ModelExchange")
+    }
     cs, me = runs["CoSimulation"], runs["ModelExchange"]
     np.testing.assert_allclose(me["time"], cs["time"], rtol=0, atol=1e-12)
     assert np.max(np.abs(me[variable] - cs[variable])) < 1e-6

@@ -59,8 +59,9 @@ def test_x_dependent_field_would_give_a_different_constant() -> None:
     m = MotorParameters()
     sigma_m = m.B_r / MU0
     half = m.alpha * m.tau / 2.0
-    integral, _ = quad(lambda x: _bx1(x, m.G, m) * math.sin(math.pi * x / m.tau - m.gamma0), -half, half,
-                       epsabs=0, epsrel=1e-13)
+    integral, _ = quad(
+        lambda x: _bx1(x, m.G, m) * math.sin(math.pi * x / m.tau - m.gamma0), -half, half, epsabs=0, epsrel=1e-13
+    )
     F_x_dep = m.P_m * m.L_A * sigma_m * integral
     ratio = (m.alpha * math.pi / 2 + math.sin(m.alpha * math.pi) / 2) / (2 * math.sin(m.alpha * math.pi / 2))
     assert F_x_dep == pytest.approx(ratio * thrust_constant(m), rel=1e-9)
@@ -79,7 +80,16 @@ def test_thrust_constant_scaling() -> None:
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("tau", 0.0), ("B_r", -1.0), ("L_m", 0.0), ("G", -0.001), ("alpha", 1.5), ("alpha", 0.0), ("K", 0.0), ("W", float("nan"))],
+    [
+        ("tau", 0.0),
+        ("B_r", -1.0),
+        ("L_m", 0.0),
+        ("G", -0.001),
+        ("alpha", 1.5),
+        ("alpha", 0.0),
+        ("K", 0.0),
+        ("W", float("nan")),
+    ],
 )
 def test_motor_parameter_validation(field: str, value: float) -> None:
     """Invalid motor parameters raise ValueError naming the field."""

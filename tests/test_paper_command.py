@@ -17,7 +17,17 @@ PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
 
 
 def _paper(plant_fmu: Path, out: Path) -> list[str]:
-    return [sys.executable, "-m", "toggle_cosim.cli", "paper", "--skip-build", "--fmu", str(plant_fmu), "--out", str(out)]
+    return [
+        sys.executable,
+        "-m",
+        "toggle_cosim.cli",
+        "paper",
+        "--skip-build",
+        "--fmu",
+        str(plant_fmu),
+        "--out",
+        str(out),
+    ]
 
 
 def test_paper_writes_runs_figures_and_summary(plant_fmu: Path, tmp_path: Path) -> None:
@@ -37,8 +47,9 @@ def test_paper_writes_runs_figures_and_summary(plant_fmu: Path, tmp_path: Path) 
 def test_an_interrupt_leaves_no_partial_file_and_no_figure_process(plant_fmu: Path, tmp_path: Path) -> None:
     psutil = pytest.importorskip("psutil")
     out = tmp_path / "out"
-    process = subprocess.Popen(_paper(plant_fmu, out), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True)
+    process = subprocess.Popen(
+        _paper(plant_fmu, out), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not (out / "fig4_nominal" / "no_friction" / "run.json").exists():
         time.sleep(0.01)

@@ -18,11 +18,23 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
-
 from reference_dynamics import reference_accelerations, reference_joint_forces
 
-MECHANISM = dict(r1=0.10, r3=0.27, r4=0.10, r5=0.27, f=0.0, h=0.10, phi=math.radians(166.0),
-                 m2=0.8, J2=0.003, m3=0.3, m5=0.3, mC=1.5, g=9.81)
+MECHANISM = dict(
+    r1=0.10,
+    r3=0.27,
+    r4=0.10,
+    r5=0.27,
+    f=0.0,
+    h=0.10,
+    phi=math.radians(166.0),
+    m2=0.8,
+    J2=0.003,
+    m3=0.3,
+    m5=0.3,
+    mC=1.5,
+    g=9.81,
+)
 
 
 class Plant:
@@ -33,8 +45,12 @@ class Plant:
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.dir = extract(str(path))
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="test")
+        self.fmu = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.dir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName="test",
+        )
         self.fmu.instantiate()
         self.fmu.setupExperiment(startTime=0.0)
         for name, value in parameters.items():
@@ -101,7 +117,9 @@ def test_initial_angles_of_eq_26(plant_fmu: Path) -> None:
         assert abs(phi1) < 1e-14 and abs(phi2) < 1e-14
 
 
-def _open_loop(plant_fmu: Path, t_end: float = 0.3, h: float = 5e-4, **parameters: float | bool) -> dict[str, np.ndarray]:
+def _open_loop(
+    plant_fmu: Path, t_end: float = 0.3, h: float = 5e-4, **parameters: float | bool
+) -> dict[str, np.ndarray]:
     """A 0.3 s open-loop run: a current command that accelerates, then brakes the mechanism."""
     plant = Plant(plant_fmu, **parameters)
     names = ("x_B", "Phi1", "Phi2", "E_in", "E_mech", "E_fric", "E_load", "v_B")
@@ -146,10 +164,28 @@ def test_fmu_matches_independent_numpy_evaluation(plant_fmu: Path) -> None:
     (built from body Jacobians and solved by a Schur complement) to 1e-8 relative, at states the
     FMU reaches under random inputs, masses, friction and loads."""
     rng = np.random.default_rng(2001)
-    names = ("mechanism.theta1", "mechanism.theta2", "mechanism.theta5", "mechanism.omega1",
-             "mechanism.omega2", "mechanism.omega5", "mechanism.alpha1", "mechanism.alpha2",
-             "mechanism.alpha5", "lambda1", "lambda2", "F_C", "mechanism.sgn1", "mechanism.sgn2",
-             "mechanism.sgn5", "N12", "N23", "N34", "N25", "N56")
+    names = (
+        "mechanism.theta1",
+        "mechanism.theta2",
+        "mechanism.theta5",
+        "mechanism.omega1",
+        "mechanism.omega2",
+        "mechanism.omega5",
+        "mechanism.alpha1",
+        "mechanism.alpha2",
+        "mechanism.alpha5",
+        "lambda1",
+        "lambda2",
+        "F_C",
+        "mechanism.sgn1",
+        "mechanism.sgn2",
+        "mechanism.sgn5",
+        "N12",
+        "N23",
+        "N34",
+        "N25",
+        "N56",
+    )
     checked = 0
     for trial in range(6):
         m_B = rng.uniform(3.0, 9.0)
@@ -184,7 +220,9 @@ def test_unreachable_start_is_an_error_status_not_a_crash(plant_fmu: Path) -> No
     md = read_model_description(str(plant_fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     unzipped = extract(str(plant_fmu))
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bad")
+    fmu = FMU2Slave(
+        guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bad"
+    )
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.setReal([vr["x_B0"]], [0.5])

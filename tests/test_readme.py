@@ -91,16 +91,21 @@ def test_the_set_up_block_activates_the_environment() -> None:
 def test_inline_python_commands_name_the_projects_interpreter() -> None:
     """`python benchmarks/...` in the prose would run the system's Python (3.11 here)."""
     text = README.read_text(encoding="utf-8")
-    bare = [m.group(0) for m in re.finditer(r"`(?:[^`]*\s)?python3? [^`]*`", text) if ".venv/bin/python" not in m.group(0)]
+    bare = [
+        m.group(0) for m in re.finditer(r"`(?:[^`]*\s)?python3? [^`]*`", text) if ".venv/bin/python" not in m.group(0)
+    ]
     assert not bare, bare
 
 
-@pytest.mark.parametrize("arguments", [
-    ["sweep", "s.yaml", "--output", "x"],  # the old argparse-only spelling
-    ["build", "--output", "x.fmu"],
-    ["runn", "s.yaml"],
-    ["run", "s.yaml", "--no-such-option"],
-])
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["sweep", "s.yaml", "--output", "x"],  # the old argparse-only spelling
+        ["build", "--output", "x.fmu"],
+        ["runn", "s.yaml"],
+        ["run", "s.yaml", "--no-such-option"],
+    ],
+)
 def test_the_check_fails_for_a_wrong_example(arguments: list[str]) -> None:
     with pytest.raises(click.UsageError):
         dry_parse(arguments)

@@ -25,11 +25,16 @@ def test_fmi2_source_files_rebuild_to_the_same_trace(plant_fmu: Path) -> None:
         assert archive.read("modelDescription.xml").decode().count("<SourceFiles>") == 2
     unzipped = Path(extract(str(plant_fmu)))
     try:
-        shipped = {kind: simulate_fmu(str(unzipped), fmi_type=kind, **RUN) for kind in ("CoSimulation", "ModelExchange")}
+        shipped = {
+            kind: simulate_fmu(str(unzipped), fmi_type=kind, **RUN) for kind in ("CoSimulation", "ModelExchange")
+        }
         shutil.rmtree(unzipped / "binaries")
         build_platform_binary(str(unzipped))
-        assert any((unzipped / "binaries").rglob("*.so")) or any((unzipped / "binaries").rglob("*.dll")) \
+        assert (
+            any((unzipped / "binaries").rglob("*.so"))
+            or any((unzipped / "binaries").rglob("*.dll"))
             or any((unzipped / "binaries").rglob("*.dylib"))
+        )
         for kind, before in shipped.items():
             after = simulate_fmu(str(unzipped), fmi_type=kind, **RUN)
             np.testing.assert_array_equal(after["x_B"], before["x_B"])  # bit for bit

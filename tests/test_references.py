@@ -9,16 +9,22 @@ from pathlib import Path
 import pytest
 from junitparser import JUnitXml
 
-from toggle_cosim.experiments import references
 from toggle_cosim.analysis.reference_reports import write_reference_reports
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.experiments import references
 from toggle_cosim.experiments.scenario import load_scenario
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 FOLDER = ROOT / "scenarios" / "references"
-SHIPPED = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation", "swap_no_gravity", "integral_load",
-           "friction_models")
+SHIPPED = (
+    "fig4_nominal",
+    "fig5_external_force",
+    "fig6_mass_variation",
+    "swap_no_gravity",
+    "integral_load",
+    "friction_models",
+)
 
 
 def _runs():
@@ -51,15 +57,19 @@ def test_a_perturbed_model_parameter_fails_the_check_and_names_the_variables(pla
     assert all(message.startswith("fig4_nominal/friction: ") for message in checked.failures)
 
     junit, summary = write_reference_reports(
-        [(checked, outcome.trace, references.reference_stem(FOLDER, run))], tmp_path, tmp_path / "junit.xml",
-        tmp_path / "summary.md")
+        [(checked, outcome.trace, references.reference_stem(FOLDER, run))],
+        tmp_path,
+        tmp_path / "junit.xml",
+        tmp_path / "summary.md",
+    )
     xml = JUnitXml.fromfile(str(junit))
     # one case per variable, and one for the solver statistics stored beside the reference: the
     # changed friction changes the integrator's work, a warning (not a failure) without the flag
     assert checked.solver is not None and checked.solver.changed
     assert (xml.tests, xml.failures) == (len(checked.comparison.variables) + 1, len(failed))
-    assert sorted(p.stem.removesuffix("_funnel") for p in (tmp_path / "fig4_nominal" / "friction").glob("*.png")) \
-        == sorted(failed)
+    assert sorted(
+        p.stem.removesuffix("_funnel") for p in (tmp_path / "fig4_nominal" / "friction").glob("*.png")
+    ) == sorted(failed)
     assert "| fig4_nominal/friction | reference samples | 34 |" in summary.read_text()
 
 

@@ -43,7 +43,9 @@ def _bad_input(args: list[str]) -> str:
 def test_a_run_too_big_to_record_is_refused_before_it_starts(tmp_path: Path, plant_fmu: Path) -> None:
     """t_end = 100 s at T_s = 1 us: 1e8 samples of 35 columns, about 84 GB of CSV."""
     out = tmp_path / "out"
-    line = _bad_input(["run", str(_scenario(tmp_path, t_end=100, T_s=1e-6)), "--fmu", str(plant_fmu), "--out", str(out)])
+    line = _bad_input(
+        ["run", str(_scenario(tmp_path, t_end=100, T_s=1e-6)), "--fmu", str(plant_fmu), "--out", str(out)]
+    )
     assert "100000000 steps x 35 columns" in line and "GB" in line and "2.00 GB output limit" in line
     assert "raise T_s" in line and not out.exists()
 
@@ -54,14 +56,24 @@ def test_unusable_output_folders_are_refused_before_any_run(tmp_path: Path, plan
     blocker.write_text("x")
     out = {"file": blocker, "long": tmp_path / ("a" * 300), "nested-file": blocker / "sub"}[case]
     line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out)])
-    assert {"file": "is an existing file", "long": "longer than the file system allows",
-            "nested-file": "is an existing file"}[case] in line
+    assert {
+        "file": "is an existing file",
+        "long": "longer than the file system allows",
+        "nested-file": "is an existing file",
+    }[case] in line
 
 
-@pytest.mark.parametrize(("parameters", "needle"), [({"no_such_thing": 1.0}, "has no variable 'no_such_thing'"),
-                                                    ({"solver.relTol": True}, "write a number"),
-                                                    ({"x_B": 0.3}, "not a parameter")])
-def testplant_settings_are_checked_before_any_run(tmp_path: Path, plant_fmu: Path, parameters: dict, needle: str) -> None:
+@pytest.mark.parametrize(
+    ("parameters", "needle"),
+    [
+        ({"no_such_thing": 1.0}, "has no variable 'no_such_thing'"),
+        ({"solver.relTol": True}, "write a number"),
+        ({"x_B": 0.3}, "not a parameter"),
+    ],
+)
+def testplant_settings_are_checked_before_any_run(
+    tmp_path: Path, plant_fmu: Path, parameters: dict, needle: str
+) -> None:
     out = tmp_path / "out"
     plant = {**BASE["plant"], "parameters": parameters}
     line = _bad_input(["run", str(_scenario(tmp_path, plant=plant)), "--fmu", str(plant_fmu), "--out", str(out)])
@@ -70,8 +82,9 @@ def testplant_settings_are_checked_before_any_run(tmp_path: Path, plant_fmu: Pat
 
 def test_record_every_thins_the_csv_and_keeps_the_last_sample(tmp_path: Path, plant_fmu: Path) -> None:
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path, record_every=7)), "--fmu", str(plant_fmu),
-                                       "--out", str(out), "-q"])
+    result = CliRunner().invoke(
+        main, ["run", str(_scenario(tmp_path, record_every=7)), "--fmu", str(plant_fmu), "--out", str(out), "-q"]
+    )
     assert result.exit_code == 0, result.output
     trace = read_csv(out / "small" / "run" / "trace.csv")
     record = json.loads((out / "small" / "run" / "run.json").read_text())
@@ -82,7 +95,9 @@ def test_record_every_thins_the_csv_and_keeps_the_last_sample(tmp_path: Path, pl
 
 def test_written_files_follow_the_umask(tmp_path: Path, plant_fmu: Path) -> None:
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    result = CliRunner().invoke(
+        main, ["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out), "-q"]
+    )
     assert result.exit_code == 0, result.output
     mask = os.umask(0)
     os.umask(mask)
@@ -95,8 +110,10 @@ def test_the_time_limit_key_ends_a_slow_run_as_failed(tmp_path: Path, plant_fmu:
     """solver.maxStep = 1e-7 s makes the plant far slower than real time; time_limit: 1 stops it."""
     out = tmp_path / "out"
     plant = {**BASE["plant"], "parameters": {"solver.maxStep": 1e-7}}
-    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path, plant=plant, time_limit=1)), "--fmu",
-                                       str(plant_fmu), "--out", str(out), "-q"])
+    result = CliRunner().invoke(
+        main,
+        ["run", str(_scenario(tmp_path, plant=plant, time_limit=1)), "--fmu", str(plant_fmu), "--out", str(out), "-q"],
+    )
     assert result.exit_code == 1, result.output
     record = json.loads((out / "small" / "run" / "run.json").read_text())
     assert record["status"] == "failed" and record["reason"].startswith("time limit 1 s exceeded at t = ")
@@ -118,8 +135,9 @@ def test_a_plant_binary_that_cannot_serve_is_bad_input(tmp_path: Path, plant_fmu
         if compiler is None:
             pytest.skip("no C compiler")
         (tmp_path / "empty.c").write_text("int not_an_fmu(void) { return 0; }\n")
-        subprocess.run([compiler, "-shared", "-fPIC", "-o", str(tmp_path / "empty.so"), str(tmp_path / "empty.c")],
-                       check=True)
+        subprocess.run(
+            [compiler, "-shared", "-fPIC", "-o", str(tmp_path / "empty.so"), str(tmp_path / "empty.c")], check=True
+        )
         data = (tmp_path / "empty.so").read_bytes()
     fmu = tmp_path / "bad.fmu"
     with zipfile.ZipFile(plant_fmu) as source, zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as target:

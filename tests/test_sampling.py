@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.analysis.sampling import REFERENCE_GRID, RESULT_GRID, SpanMismatch, check_points
 from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, CompareInputError, Tolerance, compare_traces
+from toggle_cosim.analysis.sampling import REFERENCE_GRID, RESULT_GRID, SpanMismatch, check_points
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.experiments.references import tolerances_for
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 _spec = importlib.util.spec_from_file_location("sampling_table", ROOT / "benchmarks" / "sampling_table.py")

@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 import yaml
 
-from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, toggle_limit
+from toggle_cosim.physics.parameters import MechanismParameters
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ROOT / "scenarios"
@@ -166,7 +166,9 @@ def test_fmu_is_relative_to_the_file_and_absolute_is_kept(tmp_path: Path) -> Non
 
 
 def test_unknown_top_level_key(tmp_path: Path) -> None:
-    message = one_line_error(write_doc(tmp_path, mutated(speed=3)), "unknown key speed", "allowed here:", "t_end", "stroke")
+    message = one_line_error(
+        write_doc(tmp_path, mutated(speed=3)), "unknown key speed", "allowed here:", "t_end", "stroke"
+    )
     assert "(top level)" not in message
 
 
@@ -284,8 +286,14 @@ def test_start_outside_the_reach(tmp_path: Path, x_start: float) -> None:
     """The linkage is singular at the folded (x_B = r3 - r1 = 0.17 m) and the toggle position
     (r1 + r3 = 0.37 m): a start within 10 mm of either is refused, not run into huge currents."""
     path = write_doc(tmp_path, mutated(stroke__x_start=x_start))
-    one_line_error(path, "key stroke.x_start", "outside the working range", "between 0.1800 m and 0.3600 m",
-                   "folded position 0.1700 m", "toggle position 0.3700 m")
+    one_line_error(
+        path,
+        "key stroke.x_start",
+        "outside the working range",
+        "between 0.1800 m and 0.3600 m",
+        "folded position 0.1700 m",
+        "toggle position 0.3700 m",
+    )
 
 
 @pytest.mark.parametrize("x_start", [0.18, 0.36])
@@ -299,8 +307,16 @@ def test_zero_length_stroke_is_refused(tmp_path: Path) -> None:
     one_line_error(path, "key stroke.x_target", "of x_start", "needs a length")
 
 
-@pytest.mark.parametrize(("name", "own"), [("m_B", "plant.m_B"), ("mu", "plant.mu"), ("K", "plant.K"),
-                                           ("idealCurrentLoop", "plant.current_loop"), ("x_B0", "stroke.x_start")])
+@pytest.mark.parametrize(
+    ("name", "own"),
+    [
+        ("m_B", "plant.m_B"),
+        ("mu", "plant.mu"),
+        ("K", "plant.K"),
+        ("idealCurrentLoop", "plant.current_loop"),
+        ("x_B0", "stroke.x_start"),
+    ],
+)
 def test_plant_parameters_may_not_bypass_their_own_keys(tmp_path: Path, name: str, own: str) -> None:
     path = write_doc(tmp_path, mutated(plant__parameters={name: True}))
     one_line_error(path, f"key plant.parameters.{name}", f"set {own} instead")
@@ -417,8 +433,18 @@ def test_yaml_syntax_error_gives_line_and_column(tmp_path: Path, text: str, wher
 @pytest.mark.parametrize(
     "scalar",
     [
-        "!!int abc", "!!float abc", "!!int '0b'", "!!int ':'", "!!int ''", "!!float ''", "!!int '_'",
-        "!!bool maybe", "!!bool ''", "!!timestamp abc", "!!timestamp 2001-13-45", "!!timestamp 2001-02-30",
+        "!!int abc",
+        "!!float abc",
+        "!!int '0b'",
+        "!!int ':'",
+        "!!int ''",
+        "!!float ''",
+        "!!int '_'",
+        "!!bool maybe",
+        "!!bool ''",
+        "!!timestamp abc",
+        "!!timestamp 2001-13-45",
+        "!!timestamp 2001-02-30",
         "9" * 5000,
     ],
 )
@@ -521,7 +547,12 @@ def test_recursive_alias(tmp_path: Path, text: str) -> None:
 @pytest.mark.parametrize("where", ["junk", "t_end"])
 def test_alias_bomb_is_refused_quickly(tmp_path: Path, where: str) -> None:
     """Nine levels of ten aliases: a 1 KB file that expands to 10**9 values."""
-    lines = ["name: fig", "T_s: 0.0005", "stroke: {x_start: 0.2329, x_target: 0.3199}", "a0: &a0 [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]"]
+    lines = [
+        "name: fig",
+        "T_s: 0.0005",
+        "stroke: {x_start: 0.2329, x_target: 0.3199}",
+        "a0: &a0 [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]",
+    ]
     lines += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 10)}]" for i in range(1, 9)]
     lines.append(f"{where}: *a8")
     started = time.perf_counter()

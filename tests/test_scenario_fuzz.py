@@ -22,9 +22,9 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from toggle_cosim.experiments.scenario import Run, ScenarioError, load_scenario, toggle_limit
 from toggle_cosim.files.yaml_loader import Dumper  # quotes '1e5' as YAML 1.2 needs
 from toggle_cosim.physics.parameters import MechanismParameters
-from toggle_cosim.experiments.scenario import Run, ScenarioError, load_scenario, toggle_limit
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE_TEXT = (ROOT / "scenarios" / "fig4_nominal.yaml").read_text(encoding="utf-8")
@@ -149,14 +149,79 @@ def mutated_documents(draw: st.DrawFn) -> Any:
 # odd YAML spliced into the shipped text, where a value or a line goes
 YAML_TOKENS = st.sampled_from(
     [
-        ".nan", ".inf", "-.inf", ".NaN", "1.0e+400", "-1.0e+400", "0x" + "f" * 4000, "9" * 5000, "0b" + "1" * 5000,
-        "0o777", "1_000", "190:20:30", "-0", "0", "1e3", "2001-12-14", "2001-12-14t21:59:43.10-05:00",
-        "!!int abc", "!!float abc", "!!int ''", "!!float ''", "!!int '0b'", "!!int ':'", "!!bool ''", "!!timestamp abc", "!!timestamp 2001-13-45", "!!binary '@@@'", "!!binary aGk=",
-        "!!set {a, b}", "!!omap [a: 1]", "!!pairs [a: 1]", "!!str", "!!null x", "!!bool maybe", "!!python/name:os.system",
-        "!!map [1]", "!!seq {a: 1}", "&a [*a]", "&b {k: *b}", "*undefined", "&x", "[", "]", "{", "}", "|", ">",
-        "'unterminated", '"\\x00"', '"\\N\\L\\P"', '"\\uD800"', "~", "", "null", "yes", "no", "on", "off",
-        "? [a, b]", ": x", "- a", "--- b", "...", "%YAML 1.1", "# comment", "\t1", "a: b: c", "@", "`", "!",
-        "[" * 300 + "]" * 300, "{a: " * 300 + "1" + "}" * 300, "x" * 10_000,
+        ".nan",
+        ".inf",
+        "-.inf",
+        ".NaN",
+        "1.0e+400",
+        "-1.0e+400",
+        "0x" + "f" * 4000,
+        "9" * 5000,
+        "0b" + "1" * 5000,
+        "0o777",
+        "1_000",
+        "190:20:30",
+        "-0",
+        "0",
+        "1e3",
+        "2001-12-14",
+        "2001-12-14t21:59:43.10-05:00",
+        "!!int abc",
+        "!!float abc",
+        "!!int ''",
+        "!!float ''",
+        "!!int '0b'",
+        "!!int ':'",
+        "!!bool ''",
+        "!!timestamp abc",
+        "!!timestamp 2001-13-45",
+        "!!binary '@@@'",
+        "!!binary aGk=",
+        "!!set {a, b}",
+        "!!omap [a: 1]",
+        "!!pairs [a: 1]",
+        "!!str",
+        "!!null x",
+        "!!bool maybe",
+        "!!python/name:os.system",
+        "!!map [1]",
+        "!!seq {a: 1}",
+        "&a [*a]",
+        "&b {k: *b}",
+        "*undefined",
+        "&x",
+        "[",
+        "]",
+        "{",
+        "}",
+        "|",
+        ">",
+        "'unterminated",
+        '"\\x00"',
+        '"\\N\\L\\P"',
+        '"\\uD800"',
+        "~",
+        "",
+        "null",
+        "yes",
+        "no",
+        "on",
+        "off",
+        "? [a, b]",
+        ": x",
+        "- a",
+        "--- b",
+        "...",
+        "%YAML 1.1",
+        "# comment",
+        "\t1",
+        "a: b: c",
+        "@",
+        "`",
+        "!",
+        "[" * 300 + "]" * 300,
+        "{a: " * 300 + "1" + "}" * 300,
+        "x" * 10_000,
     ]
 )
 
@@ -207,17 +272,28 @@ def valid_documents(draw: st.DrawFn) -> dict[str, Any]:
     """Scenarios inside every limit, with 0 to 3 variants."""
     T_s = draw(st.sampled_from([0.0005, 0.001, 0.002, 0.01]))
     steps = draw(st.integers(1, 5000))
-    plant = draw(st.fixed_dictionaries({}, optional={
-        "F_E": st.floats(-10000, 10000),
-        "m_B": st.floats(0.001, 1000),
-        "mu": st.floats(0, 1),
-        "current_loop": st.sampled_from(["first_order", "ideal"]),
-        "K": st.floats(1e-3, 1e6),
-        "parameters": st.dictionaries(st.from_regex(r"[A-Za-z_][A-Za-z0-9_.]{0,8}", fullmatch=True).filter(
-                                          lambda name: name not in ("m_B", "mu", "K", "idealCurrentLoop", "x_B0")),
-                                      st.booleans() | st.floats(-1e6, 1e6) | st.integers(-10, 10), max_size=3),
-    }))
-    gains = draw(st.fixed_dictionaries({}, optional={k: st.floats(1e-3, 1e3) for k in ("C", "Q", "P", "delta", "beta")}))
+    plant = draw(
+        st.fixed_dictionaries(
+            {},
+            optional={
+                "F_E": st.floats(-10000, 10000),
+                "m_B": st.floats(0.001, 1000),
+                "mu": st.floats(0, 1),
+                "current_loop": st.sampled_from(["first_order", "ideal"]),
+                "K": st.floats(1e-3, 1e6),
+                "parameters": st.dictionaries(
+                    st.from_regex(r"[A-Za-z_][A-Za-z0-9_.]{0,8}", fullmatch=True).filter(
+                        lambda name: name not in ("m_B", "mu", "K", "idealCurrentLoop", "x_B0")
+                    ),
+                    st.booleans() | st.floats(-1e6, 1e6) | st.integers(-10, 10),
+                    max_size=3,
+                ),
+            },
+        )
+    )
+    gains = draw(
+        st.fixed_dictionaries({}, optional={k: st.floats(1e-3, 1e3) for k in ("C", "Q", "P", "delta", "beta")})
+    )
     document: dict[str, Any] = {
         "name": draw(NAMES),
         "t_end": steps * T_s,
@@ -226,11 +302,20 @@ def valid_documents(draw: st.DrawFn) -> dict[str, Any]:
         "plant": plant,
         "controller": {"objective": draw(st.sampled_from(["x_B", "theta1"])), "gains": gains},
     }
-    variants = draw(st.dictionaries(NAMES, st.fixed_dictionaries({}, optional={
-        "plant": st.fixed_dictionaries({}, optional={"mu": st.floats(0, 1), "m_B": st.floats(0.001, 1000)}),
-        "stroke": st.fixed_dictionaries({}, optional={"x_target": TARGET}),
-        "description": st.text(max_size=20),
-    }), max_size=3))
+    variants = draw(
+        st.dictionaries(
+            NAMES,
+            st.fixed_dictionaries(
+                {},
+                optional={
+                    "plant": st.fixed_dictionaries({}, optional={"mu": st.floats(0, 1), "m_B": st.floats(0.001, 1000)}),
+                    "stroke": st.fixed_dictionaries({}, optional={"x_target": TARGET}),
+                    "description": st.text(max_size=20),
+                },
+            ),
+            max_size=3,
+        )
+    )
     if variants:
         document["variants"] = variants
     return document
@@ -252,11 +337,19 @@ def test_valid_documents_load_with_the_values_written(folder: Path, document: di
         assert run.plant.mu == plant.get("mu", 0.2) and run.plant.m_B == plant.get("m_B", 4.43)
         assert run.plant.F_E == plant.get("F_E", 0.0)
         assert dict(run.plant.parameters) == plant.get("parameters", {})
-        assert run.controller.gains.as_dict() == {"C": 5.0, "Q": 4.0, "P": 50.0, "delta": 0.25, "beta": 65.0,
-                                                  **document["controller"]["gains"]}
+        assert run.controller.gains.as_dict() == {
+            "C": 5.0,
+            "Q": 4.0,
+            "P": 50.0,
+            "delta": 0.25,
+            "beta": 65.0,
+            **document["controller"]["gains"],
+        }
     items = list(document.items())
     k = rotation % len(items)
-    again = check_loader(write(folder, yaml.dump(dict(items[k:] + items[:k]), Dumper=Dumper, sort_keys=False).encode("utf-8")))
+    again = check_loader(
+        write(folder, yaml.dump(dict(items[k:] + items[:k]), Dumper=Dumper, sort_keys=False).encode("utf-8"))
+    )
     assert again is not None
     assert [(r.label, r.t_end, r.T_s, r.x_start, r.x_target, r.plant, r.controller) for r in runs] == [
         (r.label, r.t_end, r.T_s, r.x_start, r.x_target, r.plant, r.controller) for r in again
@@ -282,7 +375,11 @@ CHARACTERS = st.characters(codec=None, categories=None) | st.sampled_from(
     text=st.one_of(
         st.text(CHARACTERS, max_size=500),
         st.builds(lambda c, n: c * n, st.text(CHARACTERS, min_size=1, max_size=3), st.integers(1000, 50_000)),
-        st.builds(lambda a, b: BASE_TEXT[: len(BASE_TEXT) * a // 100] + b, st.integers(0, 100), st.text(CHARACTERS, max_size=50)),
+        st.builds(
+            lambda a, b: BASE_TEXT[: len(BASE_TEXT) * a // 100] + b,
+            st.integers(0, 100),
+            st.text(CHARACTERS, max_size=50),
+        ),
     ),
     encoding=st.sampled_from(["utf-8", "utf-8-sig", "latin-1", "utf-16", "surrogatepass"]),
 )
@@ -364,7 +461,9 @@ def test_cli_second_file_bad_nothing_written(tmp_path: Path) -> None:
 
     bad = tmp_path / "bad.yaml"
     bad.write_text(BASE_TEXT.replace("mu: 0.0", "mu: 5"), encoding="utf-8")
-    result = CliRunner().invoke(main, ["run", str(ROOT / "scenarios" / "fig4_nominal.yaml"), str(bad), "--out", str(tmp_path / "out")])
+    result = CliRunner().invoke(
+        main, ["run", str(ROOT / "scenarios" / "fig4_nominal.yaml"), str(bad), "--out", str(tmp_path / "out")]
+    )
     assert result.exit_code == 2
     assert result.stderr.startswith(f"error: {bad}: key variants.no_friction.plant.mu:")
     assert not (tmp_path / "out").exists()

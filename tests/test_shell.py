@@ -50,9 +50,7 @@ SHELL = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "fmu_expo
 FMI_HEADERS = Path(__file__).resolve().parents[1] / "src" / "toggle_cosim" / "fmu_export" / "fmi_headers"
 CC = shutil.which("gcc")
 
-pytestmark = pytest.mark.skipif(
-    CC is None or not sys.platform.startswith("linux"), reason="needs gcc on Linux"
-)
+pytestmark = pytest.mark.skipif(CC is None or not sys.platform.startswith("linux"), reason="needs gcc on Linux")
 
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
 # md_settings.h is written from toggle_cosim.fmu_export.shell_settings (as the build does)
@@ -148,9 +146,19 @@ end Mass;
     parameters_c="p[1] = 2.0 * p[0];",
     start_c="(void)p; y[0] = 1.0; y[1] = 0.0; w[7] = 0.0;",
     defaults_c="p[0] = 2.0; p[2] = 0.1; p[3] = 1.0; p[4] = 0.0;",
-    expect=("k2 = p[1];", "friction = p[3];", "u = p[4];", "s = w[7];", "out[5] = x;",
-            "out[8] = y_;", "(friction ? mu * s : 0.0)", "z[0] = v;", "z[1] = -v;",
-            "w[7] = 1.0;", "w[7] = -1.0;"),
+    expect=(
+        "k2 = p[1];",
+        "friction = p[3];",
+        "u = p[4];",
+        "s = w[7];",
+        "out[5] = x;",
+        "out[8] = y_;",
+        "(friction ? mu * s : 0.0)",
+        "z[0] = v;",
+        "z[1] = -v;",
+        "w[7] = 1.0;",
+        "w[7] = -1.0;",
+    ),
 )
 
 REL = Spec(
@@ -185,8 +193,7 @@ end Rel;
     parameters_c="(void)p;",
     start_c="(void)p; (void)w; y[0] = 1.0; y[1] = 0.0; y[2] = 0.0;",
     defaults_c="p[0] = 0.5;",
-    expect=("z[0] = x - a;", "der_e = w[7] > 0.5 ? 1.0 : 0.0;", "w[7] = 1.0 - w[7];",
-            "out[3] = e;", "out[5] = der_e;"),
+    expect=("z[0] = x - a;", "der_e = w[7] > 0.5 ? 1.0 : 0.0;", "w[7] = 1.0 - w[7];", "out[3] = e;", "out[5] = der_e;"),
 )
 
 ZENO = Spec(
@@ -304,14 +311,13 @@ MODELS = {spec.name: spec for spec in (MASS, REL, BALL, CASCADE, ZENO, BAD)}
 
 def generate_c(spec: Spec) -> str:
     """cgen's translation unit for `spec.source`, as the build makes it."""
-    from modelica import lang, sim
     from modelica.sim import cgen
+
+    from modelica import lang, sim
 
     flat = sim.flatten(lang.parse(spec.source), spec.name)
     variables = tuple(
-        dataclasses.replace(v, variability="parameter", causality="none")
-        if v.causality == "input"
-        else v
+        dataclasses.replace(v, variability="parameter", causality="none") if v.causality == "input" else v
         for v in flat.variables
     )
     system = sim.causalize(dataclasses.replace(flat, variables=variables))
@@ -357,8 +363,7 @@ def tables_c(spec: Spec, guid: str) -> str:
 
 _MD_ATTRS = {
     "parameter": ('causality="parameter" variability="fixed" initial="exact"', True),
-    "calculated": ('causality="calculatedParameter" variability="fixed" initial="calculated"',
-                   False),
+    "calculated": ('causality="calculatedParameter" variability="fixed" initial="calculated"', False),
     "input": ('causality="input" variability="continuous"', True),
     "state": ('causality="local" variability="continuous" initial="exact"', True),
     "discrete": ('causality="local" variability="discrete" initial="exact"', True),
@@ -374,14 +379,13 @@ def model_description(spec: Spec, guid: str) -> str:
         value = ("true" if v.start else "false") if v.type == "Boolean" else repr(v.start)
         start = f' start="{value}"' if has_start else ""
         rows.append(
-            f'    <ScalarVariable name="{v.name}" valueReference="{vr}" {attrs}>'
-            f"<{v.type}{start}/></ScalarVariable>"
+            f'    <ScalarVariable name="{v.name}" valueReference="{vr}" {attrs}><{v.type}{start}/></ScalarVariable>'
         )
         if v.kind == "output":
             outputs.append(vr + 1)
         if v.kind in ("output", "calculated"):
             initial.append(vr + 1)
-    for i, (name, default) in enumerate(zip(SETTINGS, SETTING_DEFAULTS)):
+    for i, (name, default) in enumerate(zip(SETTINGS, SETTING_DEFAULTS, strict=True)):
         unit = ' unit="s"' if name == "solver.maxStep" else ""
         rows.append(
             f'    <ScalarVariable name="{name}" valueReference="{len(spec.variables) + i}" '
@@ -474,8 +478,7 @@ def build(tmp_path_factory, shell_objects):
         # generated code: looser flags (unused parameters, __attribute__((unused)))
         _run([CC, "-c", "-std=c99", *COMMON, str(work / "model.c"), "-o", str(model_o)])
         library = work / f"{name}{fmpy.sharedLibraryExtension}"
-        _run([CC, "-shared", *(str(o) for o in shell_objects), str(model_o), "-lm", "-o",
-              str(library)])
+        _run([CC, "-shared", *(str(o) for o in shell_objects), str(model_o), "-lm", "-o", str(library)])
         fmu = work / f"{name}.fmu"
         with zipfile.ZipFile(fmu, "w") as zf:
             zf.writestr("modelDescription.xml", model_description(spec, guid))
@@ -549,9 +552,7 @@ class Slave:
             fmi2CallbackAllocateMemoryTYPE(allocate),
             fmi2CallbackFreeMemoryTYPE(release),
         )
-        self.callbacks.logger, self.callbacks.allocateMemory, self.callbacks.freeMemory = (
-            self._keep
-        )
+        self.callbacks.logger, self.callbacks.allocateMemory, self.callbacks.freeMemory = self._keep
         addLoggerProxy(ctypes.byref(self.callbacks))  # formats the variadic message
         self.fmu = FMU2Slave(
             guid=self.guid or self.built.guid,
@@ -564,10 +565,7 @@ class Slave:
 
     def vr(self, *names: str) -> list[int]:
         spec = self.built.spec
-        return [
-            len(spec.variables) + SETTINGS.index(n) if n in SETTINGS else spec.vr(n)
-            for n in names
-        ]
+        return [len(spec.variables) + SETTINGS.index(n) if n in SETTINGS else spec.vr(n) for n in names]
 
     def get(self, *names: str) -> list[float]:
         return self.fmu.getReal(self.vr(*names))
@@ -629,9 +627,7 @@ def mass_analytic(t: float, k2: float = 4.0, mu: float = 0.1, x0: float = 1.0):
         xn = 2.0 * centre - xn
     centre = -mu * (-1.0 if n % 2 == 0 else 1.0) / k2
     tau = t - n * half
-    return centre + (xn - centre) * math.cos(omega * tau), -(xn - centre) * omega * math.sin(
-        omega * tau
-    )
+    return centre + (xn - centre) * math.cos(omega * tau), -(xn - centre) * omega * math.sin(omega * tau)
 
 
 # ---------------------------------------------------------------------------------------
@@ -646,16 +642,26 @@ def test_only_fmi2_functions_are_exported(build):
     if nm is None:
         pytest.skip("needs nm")
     library = build("Mass").library
-    out = subprocess.run([nm, "-D", "--defined-only", str(library)], capture_output=True,
-                         text=True, check=True).stdout
+    out = subprocess.run([nm, "-D", "--defined-only", str(library)], capture_output=True, text=True, check=True).stdout
     exported = {line.split()[-1] for line in out.splitlines() if line.strip()}
     assert exported, out
     assert all(name.startswith("fmi2") for name in exported), exported
-    for required in ("fmi2Instantiate", "fmi2DoStep", "fmi2GetFMUstate", "fmi2CancelStep",
-                     "fmi2GetRealStatus", "fmi2DeSerializeFMUstate", "fmi2EnterEventMode",
-                     "fmi2GetDerivatives", "fmi2SetTime", "fmi2GetEventIndicators",
-                     "fmi2SetContinuousStates", "fmi2NewDiscreteStates",
-                     "fmi2CompletedIntegratorStep", "fmi2GetNominalsOfContinuousStates"):
+    for required in (
+        "fmi2Instantiate",
+        "fmi2DoStep",
+        "fmi2GetFMUstate",
+        "fmi2CancelStep",
+        "fmi2GetRealStatus",
+        "fmi2DeSerializeFMUstate",
+        "fmi2EnterEventMode",
+        "fmi2GetDerivatives",
+        "fmi2SetTime",
+        "fmi2GetEventIndicators",
+        "fmi2SetContinuousStates",
+        "fmi2NewDiscreteStates",
+        "fmi2CompletedIntegratorStep",
+        "fmi2GetNominalsOfContinuousStates",
+    ):
         assert required in exported
     assert "MD_INFO" not in exported and "rhs" not in exported
 
@@ -666,8 +672,9 @@ def test_model_exchange_refused_when_the_description_offers_co_simulation_only(b
     from fmpy.fmi2 import FMU2Model
 
     built = build("Mass")
-    model = FMU2Model(guid=built.guid, unzipDirectory=str(built.unzipped),
-                      modelIdentifier=built.spec.name, instanceName="me")
+    model = FMU2Model(
+        guid=built.guid, unzipDirectory=str(built.unzipped), modelIdentifier=built.spec.name, instanceName="me"
+    )
     with pytest.raises(Exception, match="Failed to instantiate"):
         model.instantiate(loggingOn=True)
     model.freeLibrary()
@@ -736,17 +743,14 @@ def test_relation_latch_events_both_ways(build):
     pi/3 (falling), 5pi/3 (rising), 7pi/3 (falling). The latch starts true (x(0) = 1)."""
     # tight tolerances, so that what is measured is the event location and not the
     # integration error in x (about 1e-9 at the default relTol)
-    slave = Slave(build("Rel"), logging=True).start(
-        **{"solver.relTol": 1e-11, "solver.absTol": 1e-13}
-    )
+    slave = Slave(build("Rel"), logging=True).start(**{"solver.relTol": 1e-11, "solver.absTol": 1e-13})
     assert slave.get("der(e)") == [1.0]
     data = slave.run(10.0, 0.05, "e", "x", "der(e)")
     times = np.array([t for t, _ in slave.events()])
     expected = np.array([1, 5, 7]) * math.pi / 3
     assert len(times) == 3
     error = np.max(np.abs(times - expected))
-    print(f"relation latch: max event time error {error:.3g} s, e(10) - pi = "
-          f"{data[-1, 0] - math.pi:.3g}")
+    print(f"relation latch: max event time error {error:.3g} s, e(10) - pi = {data[-1, 0] - math.pi:.3g}")
     assert error < 1e-10
     assert abs(data[-1, 0] - math.pi) < 1e-9
     assert abs(data[-1, 1] - math.cos(10.0)) < 1e-9
@@ -955,26 +959,36 @@ def test_misuse_is_refused_without_damage(build):
     built = build("Mass")
     slave = Slave(built)
     # wrong state: before initialisation
-    for call in (lambda: slave.fmu.doStep(0.0, 0.1), lambda: slave.get("x"),
-                 slave.fmu.exitInitializationMode, slave.fmu.terminate):
+    for call in (
+        lambda: slave.fmu.doStep(0.0, 0.1),
+        lambda: slave.get("x"),
+        slave.fmu.exitInitializationMode,
+        slave.fmu.terminate,
+    ):
         with pytest.raises(FMICallException):
             call()
     assert "not allowed in instantiated" in slave.errors()
     # solver settings: validated, readable, tunable (settable before and during the run)
-    for name, bad in (("solver.relTol", 0.5), ("solver.relTol", 0.0), ("solver.absTol", 0.0),
-                      ("solver.maxStep", -1.0)):
+    for name, bad in (("solver.relTol", 0.5), ("solver.relTol", 0.0), ("solver.absTol", 0.0), ("solver.maxStep", -1.0)):
         with pytest.raises(FMICallException):
             slave.set(**{name: bad})
     slave.set(**{"solver.maxStep": 0.05})
     slave.start(stop=1.0)
     assert slave.get(*SETTINGS) == [1e-8, 1e-10, 0.05]
-    for call in (slave.fmu.enterInitializationMode, slave.fmu.exitInitializationMode,
-                 lambda: slave.fmu.setupExperiment(startTime=0.0)):
+    for call in (
+        slave.fmu.enterInitializationMode,
+        slave.fmu.exitInitializationMode,
+        lambda: slave.fmu.setupExperiment(startTime=0.0),
+    ):
         with pytest.raises(FMICallException):
             call()
     # not settable, not finite, unknown, not provided
     refused = {
-        "x": 0.3, "k2": 1.0, "y": 1.0, "k": 1.0, "solver.relTol": 0.5,  # k: fixed when running
+        "x": 0.3,
+        "k2": 1.0,
+        "y": 1.0,
+        "k": 1.0,
+        "solver.relTol": 0.5,  # k: fixed when running
         "u": float("nan"),
     }
     for name, value in refused.items():
@@ -1019,8 +1033,15 @@ def test_misuse_is_refused_without_damage(build):
     probe = Slave(built)
     instantiate = probe.fmu.dll.fmi2Instantiate
     instantiate.restype = ctypes.c_void_p
-    instantiate.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p,
-                            ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
+    instantiate.argtypes = [
+        ctypes.c_char_p,
+        ctypes.c_int,
+        ctypes.c_char_p,
+        ctypes.c_char_p,
+        ctypes.c_void_p,
+        ctypes.c_int,
+        ctypes.c_int,
+    ]
     callbacks = ctypes.addressof(probe.callbacks)
     name = probe.name.encode()
     for fmu_type, guid, functions, reason in (

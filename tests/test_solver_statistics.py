@@ -25,8 +25,9 @@ def _run(fmu, read_statistics: bool, version: str = "2.0"):
     types = {v.name: v.type for v in md.modelVariables}
     unzipped = extract(str(fmu))
     cls = FMU2Slave if version == "2.0" else FMU3Slave
-    slave = cls(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
-                instanceName="stats")
+    slave = cls(
+        guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="stats"
+    )
     slave.instantiate()
     if version == "2.0":
         slave.setupExperiment(startTime=0.0)

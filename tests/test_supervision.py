@@ -11,7 +11,6 @@ t_fault: 201 at T_s = 0.5 ms), that no temporary folder is left and that the oth
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import signal
 import subprocess
@@ -25,12 +24,12 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 from click.testing import CliRunner
-
 from fault_plants import fault_environment, make_faulty_fmu
+
 from toggle_cosim.cli import main
-from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.experiments.sweep import run_sweep
 from toggle_cosim.files.traces import read_csv
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 T_FAULT = 0.1
@@ -87,8 +86,9 @@ def _scenario(folder: Path) -> Path:
 def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
     scratch = fault(kind)
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(faulty_fmu), "--out", str(out),
-                                       "-q", "--time-limit", "2"])
+    result = CliRunner().invoke(
+        main, ["run", str(_scenario(tmp_path)), "--fmu", str(faulty_fmu), "--out", str(out), "-q", "--time-limit", "2"]
+    )
     assert result.exit_code == 1, result.output
     assert "Traceback" not in result.output
     hit = json.loads((out / "faulty" / "hit" / "run.json").read_text())
@@ -106,8 +106,8 @@ def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tm
 def test_the_paper_runs_stay_bit_identical_under_supervision(plant_fmu: Path, tmp_path: Path) -> None:
     """The supervised child writes the same numbers the unsupervised loop does."""
     from toggle_cosim.cosim.master import simulate
-    from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.cosim.supervision import simulate_supervised
+    from toggle_cosim.experiments.scenario import load_scenario
 
     plant = check_plant(plant_fmu)
     for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):
@@ -205,13 +205,17 @@ def _duration(command: list[str]) -> float:
 def test_interrupts_at_any_moment_of_a_multi_variant_run(plant_fmu: Path, tmp_path: Path) -> None:
     """SIGINT/SIGTERM at 12 moments from start-up to the last of six runs: exit 130 within 2 s,
     no traceback, whole files only, the interrupted run recorded as interrupted."""
-    files = [str(ROOT / "scenarios" / f"{name}.yaml") for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")]
+    files = [
+        str(ROOT / "scenarios" / f"{name}.yaml")
+        for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
+    ]
     interrupted = 0
     whole = _duration(_command("run", *files, "--fmu", str(plant_fmu), "--out", str(tmp_path / "whole"), "-q"))
     for number, (delay, which) in enumerate(_signal_points(whole)):
         out = tmp_path / f"out{number}"
-        code, took, stderr = _interrupt(_command("run", *files, "--fmu", str(plant_fmu), "--out", str(out), "-q"),
-                                        delay, which, out)
+        code, took, stderr = _interrupt(
+            _command("run", *files, "--fmu", str(plant_fmu), "--out", str(out), "-q"), delay, which, out
+        )
         assert "Traceback" not in stderr, stderr
         if code == 0:  # finished before the signal
             continue
@@ -229,16 +233,21 @@ def test_interrupts_at_any_moment_of_a_sweep(plant_fmu: Path, tmp_path: Path) ->
     base = {k: v for k, v in SCENARIO.items() if k != "variants"}
     base["t_end"] = 1.0
     (tmp_path / "base.yaml").write_text(yaml.safe_dump(base, sort_keys=False))
-    (tmp_path / "whole.yaml").write_text(yaml.safe_dump(
-        {"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": "whole"}))
+    (tmp_path / "whole.yaml").write_text(
+        yaml.safe_dump({"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": "whole"})
+    )
     whole = _duration(_command("sweep", str(tmp_path / "whole.yaml"), "--fmu", str(plant_fmu), "--workers", "2"))
     interrupted = 0
     for number, (delay, which) in enumerate(_signal_points(whole)):
         sweep = {"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": f"out{number}"}
         path = tmp_path / f"sweep{number}.yaml"
         path.write_text(yaml.safe_dump(sweep, sort_keys=False))
-        code, took, stderr = _interrupt(_command("sweep", str(path), "--fmu", str(plant_fmu), "--workers", "2"),
-                                        delay, which, tmp_path / f"out{number}")
+        code, took, stderr = _interrupt(
+            _command("sweep", str(path), "--fmu", str(plant_fmu), "--workers", "2"),
+            delay,
+            which,
+            tmp_path / f"out{number}",
+        )
         assert "Traceback" not in stderr, stderr
         if code in (0, 1):
             continue

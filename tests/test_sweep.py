@@ -28,7 +28,11 @@ BASE = {
     "T_s": 0.0005,
     "stroke": {"x_start": 0.2329, "x_target": 0.3199},
     "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2, "current_loop": "first_order"},
-    "controller": {"objective": "x_B", "nominal_m_B": 4.43, "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
+    "controller": {
+        "objective": "x_B",
+        "nominal_m_B": 4.43,
+        "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65},
+    },
 }
 AXES_8 = {
     "plant.F_E": {"values": [0, 50]},
@@ -112,10 +116,18 @@ def test_failed_case_is_recorded_and_the_sweep_goes_on(tmp_path, plant_fmu, caps
     [
         ({"plant.F_X": {"values": [1]}}, {}, "axis plant.F_X: unknown scenario key 'F_X' under plant"),
         ({"plant.mu": {"values": [0.2, 1.5]}}, {}, "case 1 (plant.mu=1.5): key plant.mu: 1.5 is out of range"),
-        ({"plant.mu": {"values": [0.2]}, "plant.F_E": {"values": [0, 1]}}, {"mode": "zip"}, "mode zip: every axis needs the same number"),
+        (
+            {"plant.mu": {"values": [0.2]}, "plant.F_E": {"values": [0, 1]}},
+            {"mode": "zip"},
+            "mode zip: every axis needs the same number",
+        ),
         ({"plant.mu": {"values": [0.2, 0.2]}}, {}, "cases 0 and 1 are the same co-simulation"),
         ({"plant.mu": {"linspace": [0, 1]}}, {}, "key axes.plant.mu.linspace"),
-        ({"plant.mu": {"values": [0.2]}}, {"heatmap": {"x": "plant.mu", "y": "T_s"}}, "key heatmap.y: 'T_s' is not an axis"),
+        (
+            {"plant.mu": {"values": [0.2]}},
+            {"heatmap": {"x": "plant.mu", "y": "T_s"}},
+            "key heatmap.y: 'T_s' is not an axis",
+        ),
         ({"plant.parameters.nothing": {"values": [1.0]}}, {}, "the plant FMU has no variable 'nothing'"),
         ({"controller.gains": {"values": [1.0]}}, {}, "a group of keys"),
     ],
@@ -152,12 +164,15 @@ def test_shipped_sweep_is_valid():
 
 def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
     base = {**BASE, "t_end": 1.5}  # ~0.1 s a case, one worker: the kill lands midway
-    axes = {"plant.F_E": {"linspace": [0, 150, 8]}, "plant.m_B": {"values": [4.43, 8.86]}, "plant.mu": {"values": [0.0, 0.2]}}
+    axes = {
+        "plant.F_E": {"linspace": [0, 150, 8]},
+        "plant.m_B": {"values": [4.43, 8.86]},
+        "plant.mu": {"values": [0.0, 0.2]},
+    }
     path = write_sweep(tmp_path, axes, base)
     parts = tmp_path / "out" / "parts"
     command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(plant_fmu)]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               start_new_session=True)
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and len(list(parts.glob("*.parquet"))) < 5:
         time.sleep(0.005)
@@ -221,8 +236,14 @@ def test_dask_local_cluster_gives_the_same_table_as_the_pool(pool_run, tmp_path,
     parameters = ["case", "variant", *sweep.parameter_columns, "status", "fmu_sha256"]
     pd.testing.assert_frame_equal(table[parameters], reference[parameters])
     for column in (*METRICS, "samples"):
-        np.testing.assert_allclose(table[column].to_numpy(float), reference[column].to_numpy(float),
-                                   rtol=0, atol=1e-12, equal_nan=True, err_msg=column)
+        np.testing.assert_allclose(
+            table[column].to_numpy(float),
+            reference[column].to_numpy(float),
+            rtol=0,
+            atol=1e-12,
+            equal_nan=True,
+            err_msg=column,
+        )
     assert sorted(p.name for p in result.figures) == ["heatmap_plant.mu=0.2.png", "heatmap_plant.mu=0.png"]
 
 

@@ -89,7 +89,9 @@ class _Commands(click.Group):
             if interrupts.is_interrupt(error):
                 interrupts.exit_interrupted()
             where = f"{error.filename}: " if error.filename else ""
-            click.echo(f"error: {where}{error.strerror or error} (check the path, its permissions and free space)", err=True)
+            click.echo(
+                f"error: {where}{error.strerror or error} (check the path, its permissions and free space)", err=True
+            )
             sys.exit(2)
         except BaseException as error:
             interrupts.ignore()
@@ -125,8 +127,10 @@ def _project_of(source: Path) -> Path:
     for folder in (resolved, *resolved.parents):
         if (folder / "pyproject.toml").is_file():
             return folder
-    raise InputError(f"{source}: the Modelica source lies in no project (no pyproject.toml above it); "
-                     "the build only reads and writes inside a project")
+    raise InputError(
+        f"{source}: the Modelica source lies in no project (no pyproject.toml above it); "
+        "the build only reads and writes inside a project"
+    )
 
 
 def _inside_project(path: Path, what: str, option: str, root: Path | None = None) -> Path:
@@ -134,8 +138,10 @@ def _inside_project(path: Path, what: str, option: str, root: Path | None = None
     root = root or project_root()
     resolved = path.resolve()
     if not resolved.is_relative_to(root):
-        raise InputError(f"{path}: the {what} lies outside the project {root}; the build only reads and writes "
-                         f"inside it (give a path under it with {option})")
+        raise InputError(
+            f"{path}: the {what} lies outside the project {root}; the build only reads and writes "
+            f"inside it (give a path under it with {option})"
+        )
     return resolved
 
 
@@ -160,15 +166,36 @@ def _build(source: Path, model: str, output: Path, fmi_version: str = "2.0", int
 
 
 @main.command()
-@click.option("--source", type=click.Path(path_type=Path), default=DEFAULT_SOURCE, show_default=True,
-              help="Modelica package directory (or a .mo file).")
+@click.option(
+    "--source",
+    type=click.Path(path_type=Path),
+    default=DEFAULT_SOURCE,
+    show_default=True,
+    help="Modelica package directory (or a .mo file).",
+)
 @click.option("--model", default=None, help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first).")
-@click.option("--out", "-o", "output", type=click.Path(path_type=Path), default=None,
-              help=f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).")
-@click.option("--fmi-version", type=click.Choice(["2.0", "3.0"]), default="2.0", show_default=True,
-              help="FMI version of the FMU(s); 3.0 FMUs get a '3' after their default file name.")
-@click.option("--interfaces", type=click.Choice(["both", "cs", "me"]), default="both", show_default=True,
-              help="Interface types the FMU offers: Co-Simulation and Model Exchange in one FMU, or one of them.")
+@click.option(
+    "--out",
+    "-o",
+    "output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help=f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).",
+)
+@click.option(
+    "--fmi-version",
+    type=click.Choice(["2.0", "3.0"]),
+    default="2.0",
+    show_default=True,
+    help="FMI version of the FMU(s); 3.0 FMUs get a '3' after their default file name.",
+)
+@click.option(
+    "--interfaces",
+    type=click.Choice(["both", "cs", "me"]),
+    default="both",
+    show_default=True,
+    help="Interface types the FMU offers: Co-Simulation and Model Exchange in one FMU, or one of them.",
+)
 def build(source: Path, model: str | None, output: Path | None, fmi_version: str, interfaces: str) -> None:
     """Compile the Modelica source into FMI 2.0 or 3.0 FMUs (Co-Simulation and/or Model Exchange)."""
     suffix = "3" if fmi_version == "3.0" else ""
@@ -183,9 +210,9 @@ def build(source: Path, model: str | None, output: Path | None, fmi_version: str
 
 
 def _load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
+    from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.probe import ProbeError, probe_binary
-    from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 
     runs = []
     for path in scenarios:
@@ -272,14 +299,20 @@ def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_
         s = outcome.summary
         detail = (
             f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
-            f"T_h {s.hitting_time_s:.4f} s" if s and s.final_error_m is not None else "no summary"
+            f"T_h {s.hitting_time_s:.4f} s"
+            if s and s.final_error_m is not None
+            else "no summary"
         )
-        click.echo(f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}")
+        click.echo(
+            f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}"
+        )
         outcomes.append(outcome)
         if on_written is not None:
             on_written(outcome)
         if outcome.interrupted:
-            click.echo(f"interrupted: {label} written as interrupted; {len(pairs) - number} run(s) not started", err=True)
+            click.echo(
+                f"interrupted: {label} written as interrupted; {len(pairs) - number} run(s) not started", err=True
+            )
             raise KeyboardInterrupt
     return outcomes
 
@@ -291,13 +324,19 @@ def _failed(outcomes) -> None:  # noqa: ANN001
 
 
 _TIME_LIMIT = click.option(
-    "--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
-    help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).")
+    "--time-limit",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    metavar="SECONDS",
+    help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).",
+)
 
 
 @main.command()
 @click.argument("scenarios", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the scenarios' fmu: key).")
+@click.option(
+    "--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the scenarios' fmu: key)."
+)
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True, help="Output folder.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
 @_TIME_LIMIT
@@ -318,9 +357,9 @@ def _read_record(path: Path) -> dict:
 
 
 def _plot_scenario(folder: Path, output: Path | None) -> Path:
-    from toggle_cosim.plant.contract import OUTPUTS
     from toggle_cosim.analysis.plots import nine_panel_figure
     from toggle_cosim.files.traces import read_csv
+    from toggle_cosim.plant.contract import OUTPUTS
 
     runs = sorted(p for p in folder.iterdir() if (p / "trace.csv").is_file()) if folder.is_dir() else []
     if not runs:
@@ -335,22 +374,34 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
             title = f"{record['scenario']}: {record.get('description', '')}"
         except (OSError, ValueError, KeyError, TypeError) as error:
             detail = f"missing key {error}" if isinstance(error, KeyError) else " ".join(str(error).split())
-            raise InputError(f"{run_dir}: unreadable results ({detail}); run it again with 'toggle-cosim run'") from error
+            raise InputError(
+                f"{run_dir}: unreadable results ({detail}); run it again with 'toggle-cosim run'"
+            ) from error
         missing = [name for name in needed if name not in trace.names]
         if missing:
-            raise InputError(f"{run_dir / 'trace.csv'}: no column {missing[0]!r} (the figure needs {', '.join(needed[:5])}, ...);"
-                             " run it again with 'toggle-cosim run'")
+            raise InputError(
+                f"{run_dir / 'trace.csv'}: no column {missing[0]!r} (the figure needs {', '.join(needed[:5])}, ...);"
+                " run it again with 'toggle-cosim run'"
+            )
         traces[run_dir.name] = trace
     try:
         return nine_panel_figure(traces, title, output or folder / "figure.png", target)
     except OSError as error:
-        raise InputError(f"{output or folder / 'figure.png'}: cannot write the figure ({error.strerror or error})") from error
+        raise InputError(
+            f"{output or folder / 'figure.png'}: cannot write the figure ({error.strerror or error})"
+        ) from error
 
 
 @main.command()
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--out", "-o", "output", type=click.Path(path_type=Path), default=None,
-              help="PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
+@click.option(
+    "--out",
+    "-o",
+    "output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.",
+)
 def plot(results: tuple[Path, ...], output: Path | None) -> None:
     """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
     if output is not None and len(results) > 1:
@@ -412,24 +463,54 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
 @main.command()
 @click.argument("result", type=click.Path(path_type=Path))
 @click.argument("reference", type=click.Path(path_type=Path))
-@click.option("--tolerances", type=click.Path(path_type=Path), default=None,
-              help="YAML: {variable: {atol, rtol, ttol}, default: {...}} (default: the tolerances.yaml files "
-                   "in the reference's folder and its parent).")
-@click.option("--out", type=click.Path(path_type=Path), default=None,
-              help="Folder for the envelopes and plots of failing variables.")
-@click.option("--junit", type=click.Path(path_type=Path), default=None,
-              help="Write a JUnit XML report: one test case per variable.")
-@click.option("--summary", type=click.Path(path_type=Path), default=None,
-              help="Write a Markdown table (for a CI job summary).")
-@click.option("--fail-on-solver-change", is_flag=True,
-              help="A change of the stored solver statistics fails (default: a warning).")
-def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | None, junit: Path | None,
-            summary: Path | None, fail_on_solver_change: bool) -> None:
+@click.option(
+    "--tolerances",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="YAML: {variable: {atol, rtol, ttol}, default: {...}} (default: the tolerances.yaml files "
+    "in the reference's folder and its parent).",
+)
+@click.option(
+    "--out",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Folder for the envelopes and plots of failing variables.",
+)
+@click.option(
+    "--junit",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Write a JUnit XML report: one test case per variable.",
+)
+@click.option(
+    "--summary", type=click.Path(path_type=Path), default=None, help="Write a Markdown table (for a CI job summary)."
+)
+@click.option(
+    "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
+)
+def compare(
+    result: Path,
+    reference: Path,
+    tolerances: Path | None,
+    out: Path | None,
+    junit: Path | None,
+    summary: Path | None,
+    fail_on_solver_change: bool,
+) -> None:
     """Compare RESULT with REFERENCE (CSV or Modelica .mat traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
     from toggle_cosim.analysis.compare import run_compare
 
-    sys.exit(run_compare(result, reference, tolerances, out, junit=junit, summary=summary,
-                         fail_on_solver_change=fail_on_solver_change))
+    sys.exit(
+        run_compare(
+            result,
+            reference,
+            tolerances,
+            out,
+            junit=junit,
+            summary=summary,
+            fail_on_solver_change=fail_on_solver_change,
+        )
+    )
 
 
 @main.command()
@@ -437,20 +518,38 @@ def compare(result: Path, reference: Path, tolerances: Path | None, out: Path | 
 @click.option("--update", is_flag=True, help="Rewrite the stored references from fresh runs (review the diff!).")
 @click.option("--folder", type=click.Path(path_type=Path), default=DEFAULT_REFERENCES, show_default=True)
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU for every scenario.")
-@click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT / "references", show_default=True,
-              help="Folder for the reports: junit.xml, summary.md, plots of failing variables.")
-@click.option("--junit", type=click.Path(path_type=Path), default=None, help="JUnit XML report (default: OUT/junit.xml).")
-@click.option("--summary", type=click.Path(path_type=Path), default=None,
-              help="Markdown summary (default: OUT/summary.md).")
-@click.option("--fail-on-solver-change", is_flag=True,
-              help="A change of the stored solver statistics fails (default: a warning).")
+@click.option(
+    "--out",
+    type=click.Path(path_type=Path),
+    default=DEFAULT_OUT / "references",
+    show_default=True,
+    help="Folder for the reports: junit.xml, summary.md, plots of failing variables.",
+)
+@click.option(
+    "--junit", type=click.Path(path_type=Path), default=None, help="JUnit XML report (default: OUT/junit.xml)."
+)
+@click.option(
+    "--summary", type=click.Path(path_type=Path), default=None, help="Markdown summary (default: OUT/summary.md)."
+)
+@click.option(
+    "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
+)
 @_TIME_LIMIT
-def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Path | None, out: Path,
-               junit: Path | None, summary: Path | None, fail_on_solver_change: bool, time_limit: float | None) -> None:
+def references(
+    scenarios: tuple[Path, ...],
+    update: bool,
+    folder: Path,
+    fmu: Path | None,
+    out: Path,
+    junit: Path | None,
+    summary: Path | None,
+    fail_on_solver_change: bool,
+    time_limit: float | None,
+) -> None:
     """Check the shipped runs against their stored reference traces (or --update them)."""
+    from toggle_cosim.analysis.compare import CompareInputError, format_table
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim.experiments import references as refs
-    from toggle_cosim.analysis.compare import CompareInputError, format_table
 
     for path, what in ((junit, "JUnit report"), (summary, "Markdown summary")):
         if path is not None and path.is_dir():
@@ -489,8 +588,9 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
             failures += checked.solver_changes
         checks.append((checked, outcome.trace, refs.reference_stem(folder, run)))
     if not update:
-        written = write_reference_reports(checks, out, junit or out / "junit.xml", summary or out / "summary.md",
-                                          fail_on_solver_change)
+        written = write_reference_reports(
+            checks, out, junit or out / "junit.xml", summary or out / "summary.md", fail_on_solver_change
+        )
         click.echo(f"reports: {', '.join(str(path) for path in written)}")
     if failures:
         raise RunFailed("; ".join(failures))
@@ -498,22 +598,50 @@ def references(scenarios: tuple[Path, ...], update: bool, folder: Path, fmu: Pat
 
 @main.command()
 @click.argument("sweep_file", type=click.Path(path_type=Path))
-@click.option("--out", "-o", type=click.Path(path_type=Path), default=None,
-              help="Output folder (default: the sweep file's output: key, else out/sweeps/<name> under the current folder).")
-@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool).")
+@click.option(
+    "--out",
+    "-o",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Output folder (default: the sweep file's output: key, else out/sweeps/<name> under the current folder).",
+)
+@click.option(
+    "--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool)."
+)
 @click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
-@click.option("--case-timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
-              help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).")
+@click.option(
+    "--case-timeout",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    metavar="SECONDS",
+    help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",
+)
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
-def sweep(sweep_file: Path, out: Path | None, scheduler: str | None, workers: int | None, fmu: Path | None,
-          retry_failed: bool, case_timeout: float | None, quiet: bool) -> None:
+def sweep(
+    sweep_file: Path,
+    out: Path | None,
+    scheduler: str | None,
+    workers: int | None,
+    fmu: Path | None,
+    retry_failed: bool,
+    case_timeout: float | None,
+    quiet: bool,
+) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
     from toggle_cosim.experiments.sweep_run import run_sweep
 
-    code = run_sweep(sweep_file, scheduler, workers, fmu, output=out, retry_failed=retry_failed,
-                     progress=not quiet, case_timeout=case_timeout)
+    code = run_sweep(
+        sweep_file,
+        scheduler,
+        workers,
+        fmu,
+        output=out,
+        retry_failed=retry_failed,
+        progress=not quiet,
+        case_timeout=case_timeout,
+    )
     if code == interrupts.EXIT_INTERRUPTED:
         interrupts.exit_interrupted()
     sys.exit(code)

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from toggle_cosim.analysis.solver_stats import SolverCheck
 from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
+from toggle_cosim.analysis.solver_stats import SolverCheck
 from toggle_cosim.files.traces import atomic_write
 
 __all__ = ["CheckedTrace", "failure_message", "markdown_summary", "write_junit", "write_markdown_summary"]
@@ -43,8 +43,10 @@ class CheckedTrace:
 
 def failure_message(variable: VariableResult) -> str:
     when = "-" if variable.time_of_max_error is None else f"{variable.time_of_max_error:.6g} s"
-    return (f"max error {variable.max_error:.3e} at t = {when} (funnel ±{variable.half_height:.3g} in value, "
-            f"±{variable.half_width:.3g} s in time)")
+    return (
+        f"max error {variable.max_error:.3e} at t = {when} (funnel ±{variable.half_height:.3g} in value, "
+        f"±{variable.half_width:.3g} s in time)"
+    )
 
 
 def write_junit(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
@@ -60,7 +62,8 @@ def write_junit(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
             if not variable.passed:
                 failure = Failure(failure_message(variable), type_="OutsideFunnel")
                 failure.text = failure_message(variable) + (
-                    f"\nplot: {check.plots[variable.name]}" if variable.name in check.plots else "")
+                    f"\nplot: {check.plots[variable.name]}" if variable.name in check.plots else ""
+                )
                 case.result = [failure]
             suite.add_testcase(case)
         if check.solver is not None and check.solver.changed:
@@ -89,19 +92,26 @@ def write_junit(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
 
 def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = None) -> str:
     """A Markdown report: one row per trace, then one row per failing variable (with its plot)."""
-    lines = ["| trace | checked at | variables | passed | failed | solver statistics | verdict |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| trace | checked at | variables | passed | failed | solver statistics | verdict |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for check in checks:
         total = len(check.comparison.variables)
         failed = len(check.comparison.failed)
         solver = "-" if check.solver is None else check.solver.status
         verdict = "pass" if check.passed else "**FAIL**"
-        lines.append(f"| {check.label} | {check.comparison.grid} | {total} | {total - failed} | {failed} | {solver} "
-                     f"| {verdict} |")
+        lines.append(
+            f"| {check.label} | {check.comparison.grid} | {total} | {total - failed} | {failed} | {solver} "
+            f"| {verdict} |"
+        )
     failing = [(check, v) for check in checks for v in check.comparison.variables if not v.passed]
     if failing:
-        lines += ["", "| trace | variable | max error | at t [s] | funnel (value, time) | plot |",
-                  "|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            "| trace | variable | max error | at t [s] | funnel (value, time) | plot |",
+            "|---|---|---|---|---|---|",
+        ]
         for check, v in failing:
             when = "-" if v.time_of_max_error is None else f"{v.time_of_max_error:.6g}"
             plot = check.plots.get(v.name)
@@ -109,8 +119,10 @@ def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = No
             if plot is not None:
                 target = os.path.relpath(plot, link_base) if link_base is not None else str(plot)
                 shown = f"[{Path(plot).name}]({target})"
-            lines.append(f"| {check.label} | `{v.name}` | {v.max_error:.3e} | {when} | ±{v.half_height:.3g}, "
-                         f"±{v.half_width:.3g} s | {shown} |")
+            lines.append(
+                f"| {check.label} | `{v.name}` | {v.max_error:.3e} | {when} | ±{v.half_height:.3g}, "
+                f"±{v.half_width:.3g} s | {shown} |"
+            )
     changed = [check for check in checks if check.solver is not None and check.solver.changed]
     if changed:
         lines.append("")

@@ -161,16 +161,31 @@ class ComparisonResult:
 
 
 def _funnel(
-    t_ref: np.ndarray, y_ref: np.ndarray, t_res: np.ndarray, y_res: np.ndarray, half_width: float,
-    half_height: float, workdir: str, name: str,
+    t_ref: np.ndarray,
+    y_ref: np.ndarray,
+    t_res: np.ndarray,
+    y_res: np.ndarray,
+    half_width: float,
+    half_height: float,
+    workdir: str,
+    name: str,
 ) -> Envelope:
     import pyfunnel
 
     log = io.StringIO()
     with contextlib.redirect_stdout(log):  # pyfunnel prints its warnings
         status = pyfunnel.compareAndReport(
-            xReference=t_ref.tolist(), yReference=y_ref.tolist(), xTest=t_res.tolist(), yTest=y_res.tolist(),
-            outputDirectory=workdir, atolx=half_width, atoly=half_height, ltolx=0.0, ltoly=0.0, rtolx=0.0, rtoly=0.0,
+            xReference=t_ref.tolist(),
+            yReference=y_ref.tolist(),
+            xTest=t_res.tolist(),
+            yTest=y_res.tolist(),
+            outputDirectory=workdir,
+            atolx=half_width,
+            atoly=half_height,
+            ltolx=0.0,
+            ltoly=0.0,
+            rtolx=0.0,
+            rtoly=0.0,
         )
     if status != 0:
         detail = " ".join(log.getvalue().split()) or f"status {status}"
@@ -188,27 +203,37 @@ def _funnel(
             f"variable {name!r}: the funnel library returned {error.size} errors for {y_res.size} samples"
         )
     return Envelope(
-        lower_time=lower_t, lower=lower, upper_time=upper_t, upper=upper, time=t_res.copy(), result=y_res.copy(),
-        lower_at_result=np.interp(t_res, lower_t, lower), upper_at_result=np.interp(t_res, upper_t, upper),
+        lower_time=lower_t,
+        lower=lower,
+        upper_time=upper_t,
+        upper=upper,
+        time=t_res.copy(),
+        result=y_res.copy(),
+        lower_at_result=np.interp(t_res, lower_t, lower),
+        upper_at_result=np.interp(t_res, upper_t, upper),
         error=error,
     )
 
 
-def _between_samples(envelope: Envelope, low: np.ndarray, high: np.ndarray, ref_low: np.ndarray,
-                     ref_high: np.ndarray, half_height: float) -> Envelope:
+def _between_samples(
+    envelope: Envelope, low: np.ndarray, high: np.ndarray, ref_low: np.ndarray, ref_high: np.ndarray, half_height: float
+) -> Envelope:
     """Widen the check where a check point falls between two samples of a trace (see
     toggle_cosim.analysis.sampling): the result counts with every value between its neighbouring
     samples, the funnel also holds the reference's neighbouring values ± the value tube."""
     widened = (low != high) | np.isfinite(ref_low)
     if not np.any(widened):
         return envelope
-    lower = np.where(np.isfinite(ref_low), np.minimum(envelope.lower_at_result, ref_low - half_height),
-                     envelope.lower_at_result)
-    upper = np.where(np.isfinite(ref_high), np.maximum(envelope.upper_at_result, ref_high + half_height),
-                     envelope.upper_at_result)
+    lower = np.where(
+        np.isfinite(ref_low), np.minimum(envelope.lower_at_result, ref_low - half_height), envelope.lower_at_result
+    )
+    upper = np.where(
+        np.isfinite(ref_high), np.maximum(envelope.upper_at_result, ref_high + half_height), envelope.upper_at_result
+    )
     error = np.maximum(0.0, np.maximum(low - upper, lower - high))
-    return dataclasses.replace(envelope, lower_at_result=lower, upper_at_result=upper,
-                               error=np.where(widened, error, envelope.error))
+    return dataclasses.replace(
+        envelope, lower_at_result=lower, upper_at_result=upper, error=np.where(widened, error, envelope.error)
+    )
 
 
 def compare_traces(
@@ -254,12 +279,20 @@ def compare_traces(
 
     t_ref = np.asarray(reference.time, dtype=float)
     chosen = {name: tolerances.get(name, default) for name in selected}
-    sizes = {name: (chosen[name].half_height(np.asarray(reference.column(name), dtype=float)),
-                    chosen[name].half_width(t_ref)) for name in selected}
+    sizes = {
+        name: (
+            chosen[name].half_height(np.asarray(reference.column(name), dtype=float)),
+            chosen[name].half_width(t_ref),
+        )
+        for name in selected
+    }
     try:
-        points = check_points(np.asarray(result.time, dtype=float),
-                              np.column_stack([result.column(name) for name in selected]), t_ref,
-                              min(width for _, width in sizes.values()))
+        points = check_points(
+            np.asarray(result.time, dtype=float),
+            np.column_stack([result.column(name) for name in selected]),
+            t_ref,
+            min(width for _, width in sizes.values()),
+        )
     except SpanMismatch as error:
         raise CompareInputError(
             f"{result_label}: time {error.word} at {error.result_time:.17g} s but the reference {reference_label} "
@@ -272,17 +305,30 @@ def compare_traces(
             tolerance = chosen[name]
             y_ref = np.asarray(reference.column(name), dtype=float)
             half_height, half_width = sizes[name]
-            envelope = _funnel(t_ref, y_ref, points.time, points.values[:, column], half_width, half_height,
-                               workdir, name)
-            envelope = _between_samples(envelope, points.low[:, column], points.high[:, column],
-                                        *reference_range(points.time, t_ref, y_ref), half_height)
+            envelope = _funnel(
+                t_ref, y_ref, points.time, points.values[:, column], half_width, half_height, workdir, name
+            )
+            envelope = _between_samples(
+                envelope,
+                points.low[:, column],
+                points.high[:, column],
+                *reference_range(points.time, t_ref, y_ref),
+                half_height,
+            )
             worst = int(np.argmax(envelope.error))
             max_error = float(envelope.error[worst])
-            outcomes.append(VariableResult(
-                name=name, passed=max_error <= 0.0, max_error=max(max_error, 0.0),
-                time_of_max_error=float(envelope.time[worst]) if max_error > 0 else None,
-                tolerance=tolerance, half_height=half_height, half_width=half_width, envelope=envelope,
-            ))
+            outcomes.append(
+                VariableResult(
+                    name=name,
+                    passed=max_error <= 0.0,
+                    max_error=max(max_error, 0.0),
+                    time_of_max_error=float(envelope.time[worst]) if max_error > 0 else None,
+                    tolerance=tolerance,
+                    half_height=half_height,
+                    half_width=half_width,
+                    envelope=envelope,
+                )
+            )
     return ComparisonResult(variables=tuple(outcomes), passed=all(v.passed for v in outcomes), grid=points.grid)
 
 
@@ -323,16 +369,28 @@ def _plot(variable: VariableResult, reference: Trace, path: Path) -> None:
     FigureCanvasAgg(figure)
     top, bottom = figure.subplots(2, 1, sharex=True, height_ratios=(3, 1.4))
     grid = np.union1d(envelope.lower_time, envelope.upper_time)
-    top.fill_between(grid, np.interp(grid, envelope.lower_time, envelope.lower),
-                     np.interp(grid, envelope.upper_time, envelope.upper), color="C0", alpha=0.18, linewidth=0,
-                     label=f"funnel (±{variable.half_height:.3g}, ±{variable.half_width:.3g} s)")
+    top.fill_between(
+        grid,
+        np.interp(grid, envelope.lower_time, envelope.lower),
+        np.interp(grid, envelope.upper_time, envelope.upper),
+        color="C0",
+        alpha=0.18,
+        linewidth=0,
+        label=f"funnel (±{variable.half_height:.3g}, ±{variable.half_width:.3g} s)",
+    )
     top.plot(envelope.lower_time, envelope.lower, color="C0", linewidth=0.6)
     top.plot(envelope.upper_time, envelope.upper, color="C0", linewidth=0.6)
     top.plot(reference.time, reference.column(variable.name), color="k", linewidth=1.0, label="reference")
     top.plot(envelope.time, envelope.result, color="C3", linewidth=1.0, linestyle="--", label="result")
     outside = envelope.error > 0
-    top.plot(envelope.time[outside], envelope.result[outside], "o", color="C3", markersize=2.5,
-             label="result outside the funnel")
+    top.plot(
+        envelope.time[outside],
+        envelope.result[outside],
+        "o",
+        color="C3",
+        markersize=2.5,
+        label="result outside the funnel",
+    )
     top.set_ylabel(variable.name)
     top.grid(True, alpha=0.3)
     top.legend(fontsize=8, loc="best")
@@ -371,13 +429,33 @@ def write_report(
 
     def summary(stream: Any) -> None:
         writer = csv.writer(stream, lineterminator="\n")
-        writer.writerow(["variable", "passed", "max_error", "time_of_max_error", "half_height", "half_width",
-                         "atol", "rtol", "ttol"])
+        writer.writerow(
+            [
+                "variable",
+                "passed",
+                "max_error",
+                "time_of_max_error",
+                "half_height",
+                "half_width",
+                "atol",
+                "rtol",
+                "ttol",
+            ]
+        )
         for v in result.variables:
-            writer.writerow([v.name, int(v.passed), repr(v.max_error),
-                             "" if v.time_of_max_error is None else repr(v.time_of_max_error),
-                             repr(v.half_height), repr(v.half_width),
-                             repr(v.tolerance.atol), repr(v.tolerance.rtol), repr(v.tolerance.ttol)])
+            writer.writerow(
+                [
+                    v.name,
+                    int(v.passed),
+                    repr(v.max_error),
+                    "" if v.time_of_max_error is None else repr(v.time_of_max_error),
+                    repr(v.half_height),
+                    repr(v.half_width),
+                    repr(v.tolerance.atol),
+                    repr(v.tolerance.rtol),
+                    repr(v.tolerance.ttol),
+                ]
+            )
 
     atomic_write(out / "summary.csv", summary)
     written.append(out / "summary.csv")
@@ -390,9 +468,19 @@ def write_report(
             raise ValueError(f"{v.name}: the comparison kept no envelope; compare with compare_traces")
         stem = _file_stem(v.name, taken)
         reference_at = np.interp(envelope.time, reference_trace.time, reference_trace.column(v.name))
-        table = Trace(("time", "result", "reference", "lower", "upper", "error"), np.column_stack(
-            [envelope.time, envelope.result, reference_at, envelope.lower_at_result, envelope.upper_at_result,
-             envelope.error]))
+        table = Trace(
+            ("time", "result", "reference", "lower", "upper", "error"),
+            np.column_stack(
+                [
+                    envelope.time,
+                    envelope.result,
+                    reference_at,
+                    envelope.lower_at_result,
+                    envelope.upper_at_result,
+                    envelope.error,
+                ]
+            ),
+        )
         write_csv(out / f"{stem}_funnel.csv", table)
         _plot(v, reference_trace, out / f"{stem}_funnel.png")
         written += [out / f"{stem}_funnel.csv", out / f"{stem}_funnel.png"]
@@ -427,8 +515,10 @@ def _coerce_numbers(document: Any) -> Any:
     coerced = {}
     for key, entry in document.items():
         if isinstance(entry, dict):
-            entry = {k: (float(v) if isinstance(v, str) and _float_or_none(v) is not None
-                         and math.isfinite(float(v)) else v) for k, v in entry.items()}
+            entry = {
+                k: (float(v) if isinstance(v, str) and _float_or_none(v) is not None and math.isfinite(float(v)) else v)
+                for k, v in entry.items()
+            }
         coerced[key] = entry
     return coerced
 
@@ -464,7 +554,7 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
             raise CompareInputError(f"{path}: key {key!r} is not a variable name; quote it")
     document = _coerce_numbers(document)
     for key, entry in document.items():  # NaN and infinities pass a schema's number bounds
-        for name, value in (entry.items() if isinstance(entry, dict) else ()):
+        for name, value in entry.items() if isinstance(entry, dict) else ():
             if isinstance(value, float) and not math.isfinite(value):
                 raise CompareInputError(f"{path}: key '{key}.{name}': {value!r} is not a finite number; {_FIX}")
     validator = jsonschema.Draft202012Validator(TOLERANCE_SCHEMA)
@@ -483,8 +573,13 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
 # ----------------------------------------------------------------------------- command
 
 
-def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_path: Path | str | None = None,
-                out_dir: Path | str | None = None, **reports: Any) -> int:
+def run_compare(
+    result_path: Path | str,
+    reference_path: Path | str,
+    tolerance_path: Path | str | None = None,
+    out_dir: Path | str | None = None,
+    **reports: Any,
+) -> int:
     """`toggle-cosim compare`: see `toggle_cosim.analysis.compare_command.run_compare`."""
     from toggle_cosim.analysis.compare_command import run_compare as command
 

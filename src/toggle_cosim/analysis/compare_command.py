@@ -11,6 +11,9 @@ import sys
 from pathlib import Path
 
 from toggle_cosim.analysis.ci_reports import CheckedTrace, write_junit, write_markdown_summary
+from toggle_cosim.analysis.compare import ComparisonResult, compare_traces, format_table, write_report
+from toggle_cosim.analysis.csv_traces import CompareInputError
+from toggle_cosim.analysis.reference_files import _check_span, _reference_paths, read_options
 from toggle_cosim.analysis.solver_stats import (
     SolverCheck,
     compare_solver_statistics,
@@ -19,10 +22,7 @@ from toggle_cosim.analysis.solver_stats import (
 )
 from toggle_cosim.analysis.tolerance_files import tolerances_for_reference
 from toggle_cosim.analysis.trace_formats import read_any_trace
-from toggle_cosim.analysis.csv_traces import CompareInputError
 from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
-from toggle_cosim.analysis.reference_files import _check_span, _reference_paths, read_options
-from toggle_cosim.analysis.compare import ComparisonResult, compare_traces, format_table, write_report
 
 __all__ = ["plots_of", "run_compare", "trace_label"]
 
@@ -55,9 +55,16 @@ def _check_output(path: Path | None, what: str) -> None:
         raise CompareInputError(f"{path}: is a directory; give a file name for the {what}")
 
 
-def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_path: Path | str | None = None,
-                out_dir: Path | str | None = None, *, junit: Path | str | None = None,
-                summary: Path | str | None = None, fail_on_solver_change: bool = False) -> int:
+def run_compare(
+    result_path: Path | str,
+    reference_path: Path | str,
+    tolerance_path: Path | str | None = None,
+    out_dir: Path | str | None = None,
+    *,
+    junit: Path | str | None = None,
+    summary: Path | str | None = None,
+    fail_on_solver_change: bool = False,
+) -> int:
     """`toggle-cosim compare RESULT REFERENCE [--tolerances FILE] [--out DIR] [--junit XML] [--summary MD]`.
 
     Traces are CSV (FMI cross-check / FMPy) or Modelica MAT v4 result files. Without
@@ -86,8 +93,13 @@ def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_p
             slack = min(tolerances.get(name, default).ttol for name in reference.names[1:]) * span
             _check_span(result, options, str(result_path), opt_path, slack)
         comparison = compare_traces(
-            result, reference, tolerances, default, result_label=str(result_path),
-            reference_label=str(reference_path), tolerances_label=str(files[-1]) if files else "tolerances",
+            result,
+            reference,
+            tolerances,
+            default,
+            result_label=str(result_path),
+            reference_label=str(reference_path),
+            tolerances_label=str(files[-1]) if files else "tolerances",
         )
         stored = read_statistics_file(statistics_path(reference_path))
         current = _result_statistics(result_path)
@@ -98,26 +110,29 @@ def run_compare(result_path: Path | str, reference_path: Path | str, tolerance_p
         print(f"error: {error}", file=sys.stderr)
         return 2
     print(format_table(comparison))
-    print(f"checked at the {comparison.grid}; tolerances: "
-          + (", ".join(str(path) for path in files) if files else "built-in defaults"))
+    print(
+        f"checked at the {comparison.grid}; tolerances: "
+        + (", ".join(str(path) for path in files) if files else "built-in defaults")
+    )
     if solver is not None:
         word = "FAIL" if fail_on_solver_change and solver.changed else "warning" if solver.changed else "note"
         for line in solver.lines or ("solver statistics unchanged",):
             print(f"{word if solver.lines else 'solver'}: {line}")
-    check = CheckedTrace(trace_label(reference_path), comparison, solver=solver,
-                         solver_fails=fail_on_solver_change)
+    check = CheckedTrace(trace_label(reference_path), comparison, solver=solver, solver_fails=fail_on_solver_change)
     try:
         if out_dir is not None:
             written = write_report(comparison, Path(out_dir), result, reference)
-            check = CheckedTrace(check.label, comparison, plots_of(comparison, written), solver,
-                                 fail_on_solver_change)
+            check = CheckedTrace(check.label, comparison, plots_of(comparison, written), solver, fail_on_solver_change)
             print(f"report: {len(written)} files in {out_dir}")
         if junit is not None:
             print(f"junit: {write_junit([check], junit)}")
         if summary is not None:
             print(f"summary: {write_markdown_summary([check], summary)}")
     except OSError as error:
-        print(f"error: {error.filename or out_dir}: cannot write the report ({error.strerror or error}); "
-              "check the folder", file=sys.stderr)
+        print(
+            f"error: {error.filename or out_dir}: cannot write the report ({error.strerror or error}); "
+            "check the folder",
+            file=sys.stderr,
+        )
         return 2
     return 0 if check.passed else 1

@@ -100,9 +100,7 @@ def read_trace(path: Path | str) -> Trace:
         seen.add(name)
     if names[0] != "time":
         if "time" in names:
-            raise CompareInputError(
-                f'{path}: "time" is column {names.index("time") + 1}; it must be the first column'
-            )
+            raise CompareInputError(f'{path}: "time" is column {names.index("time") + 1}; it must be the first column')
         near = next((n for n in names if n.lower() == "time"), None)
         if near is not None:
             raise CompareInputError(f'{path}: no "time" column (found {near!r}); rename it to "time", lowercase')

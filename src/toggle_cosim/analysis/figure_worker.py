@@ -19,8 +19,13 @@ class FigureWorker:
     """The child process, from the parent's side."""
 
     def __init__(self) -> None:
-        self._process = subprocess.Popen([sys.executable, "-m", "toggle_cosim.analysis.figure_worker"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.PIPE, text=True, bufsize=1)
+        self._process = subprocess.Popen(
+            [sys.executable, "-m", "toggle_cosim.analysis.figure_worker"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            bufsize=1,
+        )
         self._submitted = 0
 
     def submit(self, folder: Path) -> None:
@@ -35,8 +40,10 @@ class FigureWorker:
         output, _ = self._process.communicate()
         lines = output.splitlines()
         if self._process.returncode != 0 or len(lines) != self._submitted:
-            lines.append(f"error: the figure process ended with status {self._process.returncode} "
-                         f"after {len(lines)} of {self._submitted} figures")
+            lines.append(
+                f"error: the figure process ended with status {self._process.returncode} "
+                f"after {len(lines)} of {self._submitted} figures"
+            )
         return lines
 
     def stop(self) -> None:
@@ -56,8 +63,8 @@ def _serve() -> int:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # an interrupt is the parent's; end of input ends us
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(130))  # from stop(): a partial PNG is removed on the way out
-    from toggle_cosim.cli import InputError, _plot_scenario
     from toggle_cosim.analysis import plots  # noqa: F401 - matplotlib's import, while the parent runs
+    from toggle_cosim.cli import InputError, _plot_scenario
 
     for line in sys.stdin:
         folder = Path(line.rstrip("\n"))

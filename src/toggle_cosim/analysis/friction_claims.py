@@ -41,8 +41,14 @@ def _claims_for(model: str, runs: Mapping[str, RunOutcome]) -> list[str]:
     hold = _late_mean(runs[_label("fig5_external_force", model)], "iq_ref")
     hold_nominal = _late_mean(nominal, "iq_ref")
     errors = {case: 1e3 * runs[_label(case, model)].summary.final_error_m for case in CASES}
-    ratios = [float(np.max(runs[_label(case, model)].trace.column(f"N{j}"))
-                    / np.max(runs[f"{case}/no_friction"].trace.column(f"N{j}"))) for case in CASES for j in JOINTS]
+    ratios = [
+        float(
+            np.max(runs[_label(case, model)].trace.column(f"N{j}"))
+            / np.max(runs[f"{case}/no_friction"].trace.column(f"N{j}"))
+        )
+        for case in CASES
+        for j in JOINTS
+    ]
     start = [runs[_label(case, model)].summary.fric_share_start for case in CASES]
     end = [_share_at_end(runs[_label(case, model)]) for case in CASES]
     e_fric = [runs[_label(case, model)].trace.column("E_fric") for case in CASES]
@@ -67,10 +73,18 @@ def friction_claims(outcomes: Sequence[RunOutcome]) -> str:
     if missing:
         return f"## The claims under the friction models\n\nNot checked: runs missing or incomplete: {', '.join(missing)}\n"
     cells = {model: _claims_for(model, runs) for model in MODELS}
-    claims = ("(1) i_q* almost the same with and without friction", "(2) much higher i_q* with F_E",
-              "(3) robust to F_E and m_B", "(4) friction raises joint forces, takes > 1/2 of the input at the start")
-    lines = ["## The claims under the friction models (mu = 0.2; stick_slip with mu_s = 0.2)", "",
-             "| claim | " + " | ".join(MODELS) + " |", "|---|---|---|---|"]
+    claims = (
+        "(1) i_q* almost the same with and without friction",
+        "(2) much higher i_q* with F_E",
+        "(3) robust to F_E and m_B",
+        "(4) friction raises joint forces, takes > 1/2 of the input at the start",
+    )
+    lines = [
+        "## The claims under the friction models (mu = 0.2; stick_slip with mu_s = 0.2)",
+        "",
+        "| claim | " + " | ".join(MODELS) + " |",
+        "|---|---|---|---|",
+    ]
     for row, claim in enumerate(claims):
         lines.append(f"| {claim} | " + " | ".join(cells[m][row] for m in MODELS) + " |")
     return "\n".join(lines) + "\n"

@@ -29,8 +29,9 @@ def _time_matches(a: float, b: float, span: float) -> bool:
     return abs(a - b) <= 1e-9 * max(abs(span), abs(a), abs(b), 1e-300)
 
 
-def write_reference(trace: Trace, path_stem: Path | str, start: float, stop: float, step: float,
-                    reltol: float) -> tuple[Path, Path]:
+def write_reference(
+    trace: Trace, path_stem: Path | str, start: float, stop: float, step: float, reltol: float
+) -> tuple[Path, Path]:
     """Store `trace` as a cross-check reference: <stem>_ref.csv and <stem>_ref.opt.
 
     path_stem is <folder>/<name> (a trailing _ref.csv or _ref.opt is dropped). step is the step
@@ -43,12 +44,18 @@ def write_reference(trace: Trace, path_stem: Path | str, start: float, stop: flo
     if not (math.isfinite(step) and step >= 0 and math.isfinite(reltol) and reltol >= 0):
         raise ValueError(f"StepSize ({step}) and RelTol ({reltol}) must be finite and >= 0")
     if not (_time_matches(trace.time[0], start, stop - start) and _time_matches(trace.time[-1], stop, stop - start)):
-        raise ValueError(f"the trace runs from {trace.time[0]} to {trace.time[-1]} s, not from StartTime {start} "
-                         f"to StopTime {stop} s")
+        raise ValueError(
+            f"the trace runs from {trace.time[0]} to {trace.time[-1]} s, not from StartTime {start} "
+            f"to StopTime {stop} s"
+        )
     csv_path, opt_path = _reference_paths(path_stem)
     write_csv(csv_path, trace)
-    lines = [f"StartTime, {float(start)!r}", f"StopTime, {float(stop)!r}", f"StepSize, {float(step)!r}",
-             f"RelTol, {float(reltol)!r}"]
+    lines = [
+        f"StartTime, {float(start)!r}",
+        f"StopTime, {float(stop)!r}",
+        f"StepSize, {float(step)!r}",
+        f"RelTol, {float(reltol)!r}",
+    ]
     atomic_write(opt_path, lambda stream: stream.write("\n".join(lines) + "\n"))
     return csv_path, opt_path
 
@@ -95,8 +102,9 @@ def read_options(path: Path | str) -> dict[str, float | str]:
     return options
 
 
-def _check_span(trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path,
-                slack: float = 0.0) -> None:
+def _check_span(
+    trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path, slack: float = 0.0
+) -> None:
     """The trace must run from StartTime to StopTime, within `slack` seconds (the time tolerance)."""
     start, stop = float(options["StartTime"]), float(options["StopTime"])
     for value, target, word in ((trace.time[0], start, "StartTime"), (trace.time[-1], stop, "StopTime")):

@@ -9,15 +9,20 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim.analysis.ci_reports import CheckedTrace, write_junit, write_markdown_summary
-from toggle_cosim.analysis.compare_command import plots_of
 from toggle_cosim.analysis.compare import read_reference, write_report
+from toggle_cosim.analysis.compare_command import plots_of
 from toggle_cosim.files.traces import Trace
 
 __all__ = ["write_reference_reports"]
 
 
-def write_reference_reports(checks: Sequence[tuple[Any, Trace, Path]], out: Path, junit: Path, summary: Path,
-                            fail_on_solver_change: bool = False) -> list[Path]:
+def write_reference_reports(
+    checks: Sequence[tuple[Any, Trace, Path]],
+    out: Path,
+    junit: Path,
+    summary: Path,
+    fail_on_solver_change: bool = False,
+) -> list[Path]:
     """checks: (ReferenceCheck, the run's trace, the reference's path stem) per run. Returns the
     report files written (the JUnit XML and the Markdown summary; the plots are linked from it)."""
     checked: list[CheckedTrace] = []

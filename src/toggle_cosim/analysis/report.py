@@ -52,8 +52,11 @@ def paper_claims(outcomes: Sequence[RunOutcome]) -> str:
     Needs the six paper runs (fig4/5/6 x friction/no_friction); says so when one is missing.
     """
     by_label = {o.run.label: o for o in outcomes}
-    needed = [f"{case}/{variant}" for case in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
-              for variant in ("friction", "no_friction")]
+    needed = [
+        f"{case}/{variant}"
+        for case in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
+        for variant in ("friction", "no_friction")
+    ]
     missing = [label for label in needed if label not in by_label or not by_label[label].complete]
     if missing:
         return f"Claims not checked: runs missing or incomplete: {', '.join(missing)}\n"
@@ -78,10 +81,18 @@ def paper_claims(outcomes: Sequence[RunOutcome]) -> str:
     errors = {label: by_label[label].summary.final_error_m for label in needed}
     joints = ("12", "23", "34", "25", "56")
     cases = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
-    ratios = [float(np.max(trace(f"{case}/friction").column(f"N{j}")) / np.max(trace(f"{case}/no_friction").column(f"N{j}")))
-              for case in cases for j in joints]
-    mean_ratios = [float(np.mean(trace(f"{case}/friction").column(f"N{j}")) / np.mean(trace(f"{case}/no_friction").column(f"N{j}")))
-                   for case in cases for j in joints]
+    ratios = [
+        float(np.max(trace(f"{case}/friction").column(f"N{j}")) / np.max(trace(f"{case}/no_friction").column(f"N{j}")))
+        for case in cases
+        for j in joints
+    ]
+    mean_ratios = [
+        float(
+            np.mean(trace(f"{case}/friction").column(f"N{j}")) / np.mean(trace(f"{case}/no_friction").column(f"N{j}"))
+        )
+        for case in cases
+        for j in joints
+    ]
     shares = {label: by_label[label].summary.fric_share_start for label in needed if label.endswith("/friction")}
     lines = [
         "## The paper's four claims, checked",

@@ -75,12 +75,17 @@ def read_statistics_file(path: Path | str) -> dict[str, int] | None:
     try:
         document = json.loads(read_text_bounded(path, JSON_LIMIT, "solver statistics file"))
     except (OSError, ValueError) as error:  # InputFileError and JSONDecodeError are ValueErrors
-        raise ValueError(f"{path}: unreadable solver statistics ({error}); rewrite it with "
-                         "`toggle-cosim references --update` or delete it") from error
+        raise ValueError(
+            f"{path}: unreadable solver statistics ({error}); rewrite it with "
+            "`toggle-cosim references --update` or delete it"
+        ) from error
     if not isinstance(document, dict) or not all(
-            isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) for k, v in document.items()):
-        raise ValueError(f"{path}: solver statistics must be a mapping of names to integers; rewrite it with "
-                         "`toggle-cosim references --update` or delete it")
+        isinstance(k, str) and isinstance(v, int) and not isinstance(v, bool) for k, v in document.items()
+    ):
+        raise ValueError(
+            f"{path}: solver statistics must be a mapping of names to integers; rewrite it with "
+            "`toggle-cosim references --update` or delete it"
+        )
     return document
 
 
@@ -100,8 +105,9 @@ class SolverCheck:
         return self.status == "changed"
 
 
-def compare_solver_statistics(reference: Mapping[str, int] | str | None,
-                              result: Mapping[str, int] | str | None) -> SolverCheck:
+def compare_solver_statistics(
+    reference: Mapping[str, int] | str | None, result: Mapping[str, int] | str | None
+) -> SolverCheck:
     """Compare counts exactly: the plant is deterministic, so any difference is a solver change."""
     if not isinstance(reference, Mapping) or not reference:
         return SolverCheck("unavailable", ("no solver statistics stored with the reference",))

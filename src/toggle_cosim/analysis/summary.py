@@ -26,8 +26,17 @@ class RunSummary:
         return asdict(self)
 
 
-def summarize(time: np.ndarray, x_B: np.ndarray, iq_ref: np.ndarray, E_in: np.ndarray, E_fric: np.ndarray,
-              x_start: float, x_target: float, hitting_time: float, S0: float) -> RunSummary:
+def summarize(
+    time: np.ndarray,
+    x_B: np.ndarray,
+    iq_ref: np.ndarray,
+    E_in: np.ndarray,
+    E_fric: np.ndarray,
+    x_start: float,
+    x_target: float,
+    hitting_time: float,
+    S0: float,
+) -> RunSummary:
     stroke = x_target - x_start
     error = x_target - x_B
     band = 0.02 * abs(stroke)

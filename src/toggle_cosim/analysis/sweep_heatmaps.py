@@ -65,8 +65,9 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
             values = transform(group[column].to_numpy(dtype=float, na_value=np.nan))
             grid[rows_i[ok], cols_j[ok]] = values[ok]
             colormap = plt.get_cmap(cmap).with_extremes(bad="0.85")
-            image = ax.imshow(np.ma.masked_invalid(grid), origin="lower", aspect="auto", cmap=colormap,
-                              interpolation="nearest")
+            image = ax.imshow(
+                np.ma.masked_invalid(grid), origin="lower", aspect="auto", cmap=colormap, interpolation="nearest"
+            )
             figure.colorbar(image, ax=ax, shrink=0.9)
             for i, j in zip(*np.nonzero(failed), strict=True):
                 ax.text(j, i, "✗", ha="center", va="center", color="red", fontsize=9)
@@ -75,8 +76,15 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
                 middle = (finite.min() + finite.max()) / 2 if finite.size else 0
                 for (i, j), value in np.ndenumerate(grid):
                     if np.isfinite(value):
-                        ax.text(j, i, f"{value:.3g}", ha="center", va="center", fontsize=6,
-                                color="white" if value < middle else "black")
+                        ax.text(
+                            j,
+                            i,
+                            f"{value:.3g}",
+                            ha="center",
+                            va="center",
+                            fontsize=6,
+                            color="white" if value < middle else "black",
+                        )
                     elif not failed[i, j] and column == "settling_time_s":
                         ax.text(j, i, "n/s", ha="center", va="center", fontsize=6, color="0.3")
             step_x = max(1, len(xs) // 12)
@@ -87,9 +95,13 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
             ax.set_ylabel(y)
             ax.set_title(title)
         n_failed = int((group["status"] != "ok").sum())
-        figure.suptitle(f"{sweep.name}{': ' + tag if tag else ''}  ({len(group)} cases, {n_failed} failed ✗,"
-                        " grey: no value / never settled)")
-        name = "heatmap" + ("_" + _slug("_".join(f"{k}={_label(v)}" for k, v in zip(others, key, strict=True))) if others else "")
+        figure.suptitle(
+            f"{sweep.name}{': ' + tag if tag else ''}  ({len(group)} cases, {n_failed} failed ✗,"
+            " grey: no value / never settled)"
+        )
+        name = "heatmap" + (
+            "_" + _slug("_".join(f"{k}={_label(v)}" for k, v in zip(others, key, strict=True))) if others else ""
+        )
         path = folder / f"{name}.png"
         folder.mkdir(parents=True, exist_ok=True)
         partial = folder / f".{name}.partial.png"
@@ -98,4 +110,3 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
         partial.replace(path)
         written.append(path)
     return written
-

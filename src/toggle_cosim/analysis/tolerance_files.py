@@ -23,8 +23,11 @@ def applicable_tolerance_files(reference: Path | str) -> list[Path]:
     folder = Path(reference).resolve().parent
     candidates = [folder.parent / TOLERANCE_FILE, folder / TOLERANCE_FILE]
     here = Path.cwd().resolve()
-    return [path.relative_to(here) if path.is_relative_to(here) else path
-            for path in dict.fromkeys(candidates) if path.is_file()]
+    return [
+        path.relative_to(here) if path.is_relative_to(here) else path
+        for path in dict.fromkeys(candidates)
+        if path.is_file()
+    ]
 
 
 def merged_tolerances(files: list[Path]) -> tuple[Tolerance, dict[str, Tolerance]]:
@@ -38,8 +41,9 @@ def merged_tolerances(files: list[Path]) -> tuple[Tolerance, dict[str, Tolerance
     return default, per_variable
 
 
-def tolerances_for_reference(reference: Path | str, explicit: Path | str | None = None
-                             ) -> tuple[Tolerance, dict[str, Tolerance], list[Path]]:
+def tolerances_for_reference(
+    reference: Path | str, explicit: Path | str | None = None
+) -> tuple[Tolerance, dict[str, Tolerance], list[Path]]:
     """(default, per-variable tolerances, the files they came from) for `reference`; `explicit`
     (the --tolerances option) replaces the files found by place."""
     files = [Path(explicit)] if explicit is not None else applicable_tolerance_files(reference)

@@ -165,11 +165,33 @@ class VSCController:
             law=PAPER if self.law == "paper" else INTEGRAL,
             objective=OBJECTIVE_XB if self.objective == "x_B" else OBJECTIVE_THETA1,
             target=self.target if self.objective == "x_B" else self.target_theta1,
-            C=float(gn.C), Q=float(gn.Q), P=float(gn.P), delta=float(gn.delta), beta=float(gn.beta),
-            C_I=float(self.C_I), K_I=float(self.K_I), i_max=float(self.i_max), T_s=float(self.T_s), K_f=float(self.K_f),
-            t0=float(t0), T_h=float(T_h),
-            r1=p.r1, r3=p.r3, r4=p.r4, r5=p.r5, f=p.f, h=p.h, phi=p.phi, m3=p.m3, m5=p.m5, mB=p.mB, mC=p.mC,
-            J2=p.J2, J3=p.m3 * p.r3 * p.r3 / 12.0, J5=p.m5 * p.r5 * p.r5 / 12.0, g=p.g,
+            C=float(gn.C),
+            Q=float(gn.Q),
+            P=float(gn.P),
+            delta=float(gn.delta),
+            beta=float(gn.beta),
+            C_I=float(self.C_I),
+            K_I=float(self.K_I),
+            i_max=float(self.i_max),
+            T_s=float(self.T_s),
+            K_f=float(self.K_f),
+            t0=float(t0),
+            T_h=float(T_h),
+            r1=p.r1,
+            r3=p.r3,
+            r4=p.r4,
+            r5=p.r5,
+            f=p.f,
+            h=p.h,
+            phi=p.phi,
+            m3=p.m3,
+            m5=p.m5,
+            mB=p.mB,
+            mC=p.mC,
+            J2=p.J2,
+            J3=p.m3 * p.r3 * p.r3 / 12.0,
+            J5=p.m5 * p.r5 * p.r5 / 12.0,
+            g=p.g,
         )
 
     def switching_function(self, x_B: float, v_B: float) -> float:
@@ -217,5 +239,6 @@ class VSCController:
         """
         law = state.law if state.law is not None else self.law_parameters(state.t0, state.T_h)
         u, S, phase, e, z_next = law_step(t, x_B, v_B, state.z, law)
-        return u, ControlOutput(S=S, phase="reaching" if phase == 0.0 else "sliding", u=u, e=e, z=z_next,
-                                x_B=x_B, v_B=v_B, law=law)
+        return u, ControlOutput(
+            S=S, phase="reaching" if phase == 0.0 else "sliding", u=u, e=e, z=z_next, x_B=x_B, v_B=v_B, law=law
+        )

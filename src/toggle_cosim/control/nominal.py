@@ -14,10 +14,27 @@ from toggle_cosim.control.parameters import LawParameters
 __all__ = ["mass_terms", "theta1_omega1", "nominal_reduced"]
 
 
-def mass_terms(s1: float, c1: float, sp: float, cp: float, s2: float, c2: float, s5: float, c5: float,
-               J2: float, J3: float, J5: float, m3: float, m5: float, mB: float, mC: float,
-               r1: float, r3: float, r4: float, r5: float) -> tuple[float, float, float, float, float, float,
-                                                                     float, float, float, float, float, float]:
+def mass_terms(
+    s1: float,
+    c1: float,
+    sp: float,
+    cp: float,
+    s2: float,
+    c2: float,
+    s5: float,
+    c5: float,
+    J2: float,
+    J3: float,
+    J5: float,
+    m3: float,
+    m5: float,
+    mB: float,
+    mC: float,
+    r1: float,
+    r3: float,
+    r4: float,
+    r5: float,
+) -> tuple[float, float, float, float, float, float, float, float, float, float, float, float]:
     """Closed-form entries of M(q) of eq. (18) and their non-zero partial derivatives, from the
     sines and cosines of θ1, θ1 + φ, θ2, θ5 (J3, J5 about the rods' centres)::
 
@@ -102,7 +119,8 @@ def nominal_reduced(t1: float, w1: float, p: LawParameters) -> tuple[float, floa
     sv2 = g1 / (r3 * c2)
     sv5 = -g2 / (r5 * c5)
     M11, M12, M15, M22, M55, d11_1, d12_1, d12_2, d15_1, d15_5, d22_2, d55_5 = mass_terms(
-        s1, c1, sp, cp, s2, c2, s5, c5, p.J2, p.J3, p.J5, p.m3, p.m5, p.mB, p.mC, r1, r3, r4, r5)
+        s1, c1, sp, cp, s2, c2, s5, c5, p.J2, p.J3, p.J5, p.m3, p.m5, p.mB, p.mC, r1, r3, r4, r5
+    )
     N1 = 0.5 * d11_1 * w1s + d12_2 * w2s + d15_5 * w5s
     N2 = d12_1 * w1s + 0.5 * d22_2 * w2s
     N5 = d15_1 * w1s + 0.5 * d55_5 * w5s

@@ -48,8 +48,11 @@ def c_struct(params: type, name: str = "law_t") -> str:
 
 def ctypes_struct(params: type) -> type[ctypes.Structure]:
     """The ctypes mirror of `c_struct(params)`."""
-    return type(f"{params.__name__}_c", (ctypes.Structure,),
-                {"_fields_": [(f.name, ctypes.c_double) for f in dataclasses.fields(params)]})
+    return type(
+        f"{params.__name__}_c",
+        (ctypes.Structure,),
+        {"_fields_": [(f.name, ctypes.c_double) for f in dataclasses.fields(params)]},
+    )
 
 
 def _returns(fn: ast.FunctionDef) -> int:
@@ -120,7 +123,7 @@ class _Function:
         if isinstance(node, ast.Compare):
             pre, left = self.expr(node.left)
             parts = []
-            for op, right_node in zip(node.ops, node.comparators):
+            for op, right_node in zip(node.ops, node.comparators, strict=True):
                 if type(op) not in _CMPOPS:
                     raise self.fail(node, f"comparison {type(op).__name__} is not supported")
                 pre_r, right = self.expr(right_node)
@@ -143,8 +146,14 @@ class _Function:
             pre, test = self.expr(node.test)
             pre_a, a = self.expr(node.body)
             pre_b, b = self.expr(node.orelse)
-            return [*pre, f"if ({test}) {{ " + " ".join([*pre_a, f"{out} = {a};"]) + " } else { "
-                    + " ".join([*pre_b, f"{out} = {b};"]) + " }"], out
+            return [
+                *pre,
+                f"if ({test}) {{ "
+                + " ".join([*pre_a, f"{out} = {a};"])
+                + " } else { "
+                + " ".join([*pre_b, f"{out} = {b};"])
+                + " }",
+            ], out
         if isinstance(node, ast.Call):
             return self.call(node)
         raise self.fail(node, f"{type(node).__name__} is outside the translator's subset")
@@ -180,9 +189,12 @@ class _Function:
                 checks.append(f"{args[0]} <= 0.0")
             elif f.attr == "asin":
                 checks.append(f"{args[0]} < -1.0 || {args[0]} > 1.0")
-            return [*pre, f"if ({' || '.join(checks)}) {{ return 1; }}",
-                    f"{out} = {_MATH[f.attr]}({', '.join(args)});",
-                    f"if (!isfinite({out})) {{ return 1; }}"], out
+            return [
+                *pre,
+                f"if ({' || '.join(checks)}) {{ return 1; }}",
+                f"{out} = {_MATH[f.attr]}({', '.join(args)});",
+                f"if (!isfinite({out})) {{ return 1; }}",
+            ], out
         if isinstance(f, ast.Name) and self.arities.get(f.id) == 1:
             return [*pre, f"if ({f.id}({', '.join([*args, 'p', '&' + out])})) {{ return 1; }}"], out
         raise self.fail(node, "only abs, math.<function> and the translated functions of one result may be called here")
@@ -208,8 +220,11 @@ class _Function:
                 for name in names:
                     self.locals.add(name)
                 value = node.value
-                if isinstance(value, ast.Call) and isinstance(value.func, ast.Name) \
-                        and self.arities.get(value.func.id) == len(names):
+                if (
+                    isinstance(value, ast.Call)
+                    and isinstance(value.func, ast.Name)
+                    and self.arities.get(value.func.id) == len(names)
+                ):
                     pre, args = self.arguments(value.args)
                     outs = ", ".join(f"&{n}" for n in names)
                     return [*pre, f"if ({value.func.id}({', '.join([*args, 'p', outs])})) {{ return 1; }}"]
@@ -220,7 +235,7 @@ class _Function:
                         t = self.temp()
                         pre += [*p, f"{t} = {c};"]
                         temps.append(t)
-                    return [*pre, *(f"{n} = {t};" for n, t in zip(names, temps))]
+                    return [*pre, *(f"{n} = {t};" for n, t in zip(names, temps, strict=True))]
             raise self.fail(node, "only name = expr and names = call/tuple assignments are supported")
         if isinstance(node, ast.If):
             pre, test = self.expr(node.test)
@@ -239,8 +254,12 @@ class _Function:
                 pre += p
                 outs.append(c)
             return [*pre, *(f"*out{i} = {c};" for i, c in enumerate(outs)), "return 0;"]
-        if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call) \
-                and isinstance(node.exc.func, ast.Name) and node.exc.func.id == "ValueError":
+        if (
+            isinstance(node, ast.Raise)
+            and isinstance(node.exc, ast.Call)
+            and isinstance(node.exc.func, ast.Name)
+            and node.exc.func.id == "ValueError"
+        ):
             return ["return 1;  /* raise ValueError */"]
         raise self.fail(node, f"{type(node).__name__} is outside the translator's subset")
 
@@ -251,8 +270,9 @@ class _Function:
         head = f"static int {self.fn.name}({', '.join(args)})"
         declared = sorted(self.locals - set(self.args))
         decl = [f"    double {', '.join(declared)};"] if declared else []
-        return head + ";", "\n".join([head + " {", *decl, *("    " + line for line in body),
-                                      "    return 1;  /* no return reached */", "}"])
+        return head + ";", "\n".join(
+            [head + " {", *decl, *("    " + line for line in body), "    return 1;  /* no return reached */", "}"]
+        )
 
 
 def translate_functions(functions: Sequence[Callable], params: type) -> str:
@@ -267,4 +287,3 @@ def translate_functions(functions: Sequence[Callable], params: type) -> str:
     arities = {fn.name: _returns(fn) for fn in trees}
     parts = [_Function(fn, arities, params).translate() for fn in trees]
     return "\n".join([*(proto for proto, _ in parts), "", *("\n" + body for _, body in parts)]) + "\n"
-

@@ -20,18 +20,18 @@ from collections.abc import Callable
 
 import numpy as np
 
+from toggle_cosim.analysis.summary import summarize
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.recorder import CONTROL_COLUMNS, ProgressHook, Recorder
 from toggle_cosim.cosim.retry import CheckpointPolicy
 from toggle_cosim.cosim.session import PlantSession
 from toggle_cosim.cosim.stepper import CompiledStepper, HandOver, LoopState, PythonStepper, Timing
-from toggle_cosim.plant.friction import friction_settings
+from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant.contract import PlantInterface
-from toggle_cosim.experiments.scenario import Run
-from toggle_cosim.analysis.summary import summarize
+from toggle_cosim.plant.friction import friction_settings
 
 __all__ = ["RunOutcome", "make_controller", "plant_settings", "simulate", "trace_names"]
 INPUTS = ("iq_ref", "F_E")
@@ -63,7 +63,9 @@ def plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | b
     if "idealCurrentLoop" in available:
         settings.append(("idealCurrentLoop", run.plant.current_loop == "ideal"))
     elif run.plant.current_loop == "ideal":
-        raise ValueError(f"{plant.path}: the plant has no parameter idealCurrentLoop, so plant.current_loop: ideal cannot be set")
+        raise ValueError(
+            f"{plant.path}: the plant has no parameter idealCurrentLoop, so plant.current_loop: ideal cannot be set"
+        )
     if run.plant.K is not None:
         settings.append(("K", run.plant.K))
     settings += friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, available, plant.path)
@@ -91,8 +93,9 @@ def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
     session.exit_initialization()
 
 
-def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None,
-             buffer: np.ndarray | None = None) -> RunOutcome:
+def simulate(
+    run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None, buffer: np.ndarray | None = None
+) -> RunOutcome:
     """Run one scenario variant against `plant`. Never raises for a plant fault: see RunOutcome.
 
     `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
@@ -115,8 +118,9 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
         loop_started = clock.perf_counter()
         k = python.advance(0, 1)  # the first sample starts the controller (S0, T_h)
         if k == 1 and n > 0:
-            stepper = HandOver(python, CompiledStepper.build(session, recorder, timing, state, state.controller.law,
-                                                             hooks))
+            stepper = HandOver(
+                python, CompiledStepper.build(session, recorder, timing, state, state.controller.law, hooks)
+            )
             if stepper.compiled is not None:
                 policy.configure(stepper.compiled.loop)
             try:
@@ -139,12 +143,20 @@ def simulate(run: Run, plant: PlantInterface, progress: Callable[[float], None] 
     summary = None
     if rows > 1 and state.controller is not None:
         summary = summarize(
-            trace.time, trace.column("x_B"), trace.column("iq_ref"), trace.column("E_in"),
-            trace.column("E_fric"), run.x_start, run.x_target, state.controller.T_h, state.controller.S0,
+            trace.time,
+            trace.column("x_B"),
+            trace.column("iq_ref"),
+            trace.column("E_in"),
+            trace.column("E_fric"),
+            run.x_start,
+            run.x_target,
+            state.controller.T_h,
+            state.controller.S0,
         )
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     loop_seconds = loop_finished - loop_started
-    record = run_record(run, plant, status, reason, rows, wall, loop_seconds, summary, policy.retries,
-                        loop, solver_statistics)
+    record = run_record(
+        run, plant, status, reason, rows, wall, loop_seconds, summary, policy.retries, loop, solver_statistics
+    )
     return RunOutcome(run, trace, complete, reason, wall, loop_seconds, summary, record, interrupted)

@@ -11,10 +11,10 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.plant.contract import PlantInterface
-from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.analysis.summary import RunSummary
+from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.plant.contract import PlantInterface
 
 
 @dataclass(frozen=True)
@@ -53,10 +53,19 @@ def installed_versions() -> tuple[tuple[str, str], ...]:
     return tuple(found.items())
 
 
-def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None, rows: int, wall: float,
-               loop_seconds: float, summary: RunSummary | None = None, retries: list | None = None,
-               loop: dict[str, Any] | None = None, solver_statistics: dict[str, int] | str | None = None,
-               ) -> dict[str, Any]:
+def run_record(
+    run: Run,
+    plant: PlantInterface,
+    status: str,
+    reason: str | None,
+    rows: int,
+    wall: float,
+    loop_seconds: float,
+    summary: RunSummary | None = None,
+    retries: list | None = None,
+    loop: dict[str, Any] | None = None,
+    solver_statistics: dict[str, int] | str | None = None,
+) -> dict[str, Any]:
     """What run.json says about a run: status is "complete", "failed" or "interrupted"; `loop` says
     which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
     when the supervised child died before reporting them)."""
@@ -66,8 +75,13 @@ def run_record(run: Run, plant: PlantInterface, status: str, reason: str | None,
         "scenario_file": str(run.source) if run.source else None,
         "description": run.description,
         "resolved": run.resolved,
-        "fmu": {"path": str(plant.path), "sha256": file_sha256(plant.path), "guid": plant.guid,
-                "fmi_version": plant.fmi_version, "model_name": plant.model_description.modelName},
+        "fmu": {
+            "path": str(plant.path),
+            "sha256": file_sha256(plant.path),
+            "guid": plant.guid,
+            "fmi_version": plant.fmi_version,
+            "model_name": plant.model_description.modelName,
+        },
         "status": status,
         "reason": reason,
         "samples": rows,

@@ -79,8 +79,15 @@ class CheckpointPolicy:
                 k = failure.k + 1
         return k
 
-    def retry(self, session: Restorable, recorder: RecordedInputs, checkpoint: int, failed: int,
-              error: FMICallException, T_s: float) -> None:
+    def retry(
+        self,
+        session: Restorable,
+        recorder: RecordedInputs,
+        checkpoint: int,
+        failed: int,
+        error: FMICallException,
+        T_s: float,
+    ) -> None:
         """Back to the checkpoint, the recorded inputs replayed up to the failed sample, and its
         step again in `substeps` smaller steps; raises RetryFailed if that fails too."""
         try:

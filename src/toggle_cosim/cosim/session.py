@@ -41,8 +41,17 @@ _PROTOTYPES = {
     "fmi2DoStep": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int),
     "fmi3GetFloat64": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES, ctypes.c_size_t),
     "fmi3SetFloat64": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES, ctypes.c_size_t),
-    "fmi3DoStep": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_bool,
-                                   _BOOL_OUT, _BOOL_OUT, _BOOL_OUT, _DOUBLES),
+    "fmi3DoStep": ctypes.CFUNCTYPE(
+        ctypes.c_int,
+        ctypes.c_void_p,
+        ctypes.c_double,
+        ctypes.c_double,
+        ctypes.c_bool,
+        _BOOL_OUT,
+        _BOOL_OUT,
+        _BOOL_OUT,
+        _DOUBLES,
+    ),
 }
 
 
@@ -79,7 +88,9 @@ class PlantSession:
         self._unzipped = Path(extract(str(plant.path)))
         md = plant.model_description
         self.is_fmi3 = plant.fmi_version.startswith("3")
-        kwargs = dict(unzipDirectory=str(self._unzipped), modelIdentifier=plant.model_identifier, instanceName=instance_name)
+        kwargs = dict(
+            unzipDirectory=str(self._unzipped), modelIdentifier=plant.model_identifier, instanceName=instance_name
+        )
         try:
             if self.is_fmi3:
                 # fmpy passes the instantiationToken of FMI 3.0 under the name guid
@@ -99,9 +110,11 @@ class PlantSession:
         self._in_val = (ctypes.c_double * len(inputs))()
         self._n_in = len(inputs)
         prefix = "fmi3" if self.is_fmi3 else "fmi2"
-        self.function_names = FunctionNames(get=f"{prefix}GetFloat64" if self.is_fmi3 else "fmi2GetReal",
-                                            set=f"{prefix}SetFloat64" if self.is_fmi3 else "fmi2SetReal",
-                                            step=f"{prefix}DoStep")
+        self.function_names = FunctionNames(
+            get=f"{prefix}GetFloat64" if self.is_fmi3 else "fmi2GetReal",
+            set=f"{prefix}SetFloat64" if self.is_fmi3 else "fmi2SetReal",
+            step=f"{prefix}DoStep",
+        )
         names = self.function_names
         self._get, self._set, self._step = (self._c_function(name) for name in (names.get, names.set, names.step))
         if self.is_fmi3:  # doStep's output arguments, built once
@@ -109,8 +122,12 @@ class PlantSession:
             self._terminate = ctypes.c_bool()
             self._early = ctypes.c_bool()
             self._last_time = ctypes.c_double()
-            self._step_outputs = (ctypes.byref(self._event), ctypes.byref(self._terminate),
-                                  ctypes.byref(self._early), ctypes.byref(self._last_time))
+            self._step_outputs = (
+                ctypes.byref(self._event),
+                ctypes.byref(self._terminate),
+                ctypes.byref(self._early),
+                ctypes.byref(self._last_time),
+            )
         self._component = None
         self._saved = None  # the checkpoint, an fmi2FMUstate / fmi3FMUState
         # False: the FMU keeps its history (a checkpoint before the current point may be restored).
@@ -236,9 +253,17 @@ class PlantSession:
         if self._component is None or any(f is None for f in functions):
             return None
         get, set_, step = (ctypes.cast(f, ctypes.c_void_p).value for f in functions)
-        return CFunctions(get=get, set=set_, step=step, component=self._component,
-                          out_vr=ctypes.addressof(self._out_vr), in_vr=ctypes.addressof(self._in_vr),
-                          fmi3=self.is_fmi3, names=self.function_names, owner=(self, functions))
+        return CFunctions(
+            get=get,
+            set=set_,
+            step=step,
+            component=self._component,
+            out_vr=ctypes.addressof(self._out_vr),
+            in_vr=ctypes.addressof(self._in_vr),
+            fmi3=self.is_fmi3,
+            names=self.function_names,
+            owner=(self, functions),
+        )
 
     def solver_statistics(self) -> dict[str, int] | str:
         """The plant solver's cumulative counts (toggle_cosim.analysis.solver_stats), read now."""

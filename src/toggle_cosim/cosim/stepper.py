@@ -21,8 +21,8 @@ from typing import Any, Protocol
 
 from fmpy.fmi1 import FMICallException
 
-from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.controller import ControllerState, VSCController
+from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop, kernel_library, kernel_reason
 from toggle_cosim.cosim.recorder import Recorder, StepHook
 from toggle_cosim.cosim.session import PlantSession
@@ -64,8 +64,15 @@ class Timing:
 
 
 class PythonStepper:
-    def __init__(self, session: PlantSession, controller: VSCController, recorder: Recorder, timing: Timing,
-                 state: LoopState, hooks: Sequence[StepHook] = ()) -> None:
+    def __init__(
+        self,
+        session: PlantSession,
+        controller: VSCController,
+        recorder: Recorder,
+        timing: Timing,
+        state: LoopState,
+        hooks: Sequence[StepHook] = (),
+    ) -> None:
         self.session, self.controller, self.recorder = session, controller, recorder
         self.timing, self.state, self.hooks = timing, state, tuple(hooks)
 
@@ -116,8 +123,15 @@ class PythonStepper:
 class CompiledStepper:
     """The loop in C over a `CompiledLoop`; `handed_back` is set when the C hands a sample back."""
 
-    def __init__(self, loop: CompiledLoop, session: PlantSession, recorder: Recorder, timing: Timing,
-                 state: LoopState, hooks: Sequence[StepHook] = ()) -> None:
+    def __init__(
+        self,
+        loop: CompiledLoop,
+        session: PlantSession,
+        recorder: Recorder,
+        timing: Timing,
+        state: LoopState,
+        hooks: Sequence[StepHook] = (),
+    ) -> None:
         self.loop, self.recorder, self.timing, self.state = loop, recorder, timing, state
         self.names = session.function_names
         self.hooks = tuple(hooks)
@@ -125,15 +139,34 @@ class CompiledStepper:
         self.handed_back = False
 
     @classmethod
-    def build(cls, session: PlantSession, recorder: Recorder, timing: Timing, state: LoopState, law: LawParameters,
-              hooks: Sequence[StepHook] = ()) -> CompiledStepper | str:
+    def build(
+        cls,
+        session: PlantSession,
+        recorder: Recorder,
+        timing: Timing,
+        state: LoopState,
+        law: LawParameters,
+        hooks: Sequence[StepHook] = (),
+    ) -> CompiledStepper | str:
         """The compiled stepper from the current sample on, or why there is none."""
         library = kernel_library()
         functions = session.c_functions()
         if library is None or functions is None:
             return kernel_reason() or "the FMU's C functions are not reachable"
-        loop = CompiledLoop(library, functions, recorder.data, recorder.n_out, recorder.i_x, recorder.i_v,
-                            recorder.col_u, timing.n, timing.T_s, timing.F_E, law, state.z)
+        loop = CompiledLoop(
+            library,
+            functions,
+            recorder.data,
+            recorder.n_out,
+            recorder.i_x,
+            recorder.i_v,
+            recorder.col_u,
+            timing.n,
+            timing.T_s,
+            timing.F_E,
+            law,
+            state.z,
+        )
         return cls(loop, session, recorder, timing, state, hooks)
 
     def advance(self, k: int, stop: int) -> int:
@@ -167,8 +200,10 @@ class HandOver:
         self.python = python
         self.compiled = compiled if isinstance(compiled, CompiledStepper) else None
         self.loop: dict[str, Any] = (
-            {"kind": "compiled", "reason": "generated from control.laws; C compiler available"} if self.compiled
-            else {"kind": "python", "reason": compiled})
+            {"kind": "compiled", "reason": "generated from control.laws; C compiler available"}
+            if self.compiled
+            else {"kind": "python", "reason": compiled}
+        )
 
     def advance(self, k: int, stop: int) -> int:
         if self.compiled is None:
@@ -177,7 +212,9 @@ class HandOver:
         if not self.compiled.handed_back:
             return k
         self.compiled = None
-        self.loop = {"kind": "compiled, then python",
-                     "reason": f"the compiled loop handed sample {k} (t = {k * self.python.timing.T_s:.6g} s) back to "
-                               "Python (non-finite outputs, or the law raises there)"}
+        self.loop = {
+            "kind": "compiled, then python",
+            "reason": f"the compiled loop handed sample {k} (t = {k * self.python.timing.T_s:.6g} s) back to "
+            "Python (non-finite outputs, or the law raises there)",
+        }
         return self.python.advance(k, stop, read_first=False) if k <= self.python.timing.n else k

@@ -40,10 +40,11 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim.cosim import master, outcome as outcomes
-from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.cosim import master
+from toggle_cosim.cosim import outcome as outcomes
 from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.plant.contract import PlantInterface
 
 PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process as forked
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
@@ -112,8 +113,16 @@ def _warm_up() -> None:
         kernel_library()
 
 
-def _child(run: Run, plant: PlantInterface, buffer: np.ndarray, progress_slot: np.ndarray | None,
-           workdir: Path, write_fd: int, parent: int, capture_log: bool) -> None:
+def _child(
+    run: Run,
+    plant: PlantInterface,
+    buffer: np.ndarray,
+    progress_slot: np.ndarray | None,
+    workdir: Path,
+    write_fd: int,
+    parent: int,
+    capture_log: bool,
+) -> None:
     """The child's whole life: run, send the outcome (no trace) back, exit without cleanup."""
     code = 0
     try:
@@ -133,8 +142,17 @@ def _child(run: Run, plant: PlantInterface, buffer: np.ndarray, progress_slot: n
             progress_slot[0] = fraction
 
         outcome = master.simulate(run, plant, progress if progress_slot is not None else None, buffer=buffer)
-        answer = ("outcome", outcome.complete, outcome.reason, outcome.wall_seconds, outcome.loop_seconds,
-                  outcome.summary, outcome.record, outcome.interrupted, log.getvalue() if log else "")
+        answer = (
+            "outcome",
+            outcome.complete,
+            outcome.reason,
+            outcome.wall_seconds,
+            outcome.loop_seconds,
+            outcome.summary,
+            outcome.record,
+            outcome.interrupted,
+            log.getvalue() if log else "",
+        )
     except BaseException as error:  # noqa: BLE001 - everything goes back to the parent
         answer = ("error", " ".join(f"{type(error).__name__}: {error}".split()))
         code = 3
@@ -142,7 +160,7 @@ def _child(run: Run, plant: PlantInterface, buffer: np.ndarray, progress_slot: n
         data = pickle.dumps(answer)
         view = memoryview(data)
         while view:
-            view = view[os.write(write_fd, view):]
+            view = view[os.write(write_fd, view) :]
         sys.stdout.flush()
         sys.__stdout__.flush()
         sys.stderr.flush()
@@ -169,9 +187,15 @@ def _map_buffer(path: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndar
     return mapped, array
 
 
-def simulate_supervised(run: Run, plant: PlantInterface, *, time_limit: float | None = None,
-                        progress: Callable[[float], None] | None = None, scratch: Path | None = None,
-                        capture_log: bool = False) -> outcomes.RunOutcome:
+def simulate_supervised(
+    run: Run,
+    plant: PlantInterface,
+    *,
+    time_limit: float | None = None,
+    progress: Callable[[float], None] | None = None,
+    scratch: Path | None = None,
+    capture_log: bool = False,
+) -> outcomes.RunOutcome:
     """`master.simulate` in a supervised child process; never raises for anything the plant does.
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
@@ -201,8 +225,16 @@ def simulate_supervised(run: Run, plant: PlantInterface, *, time_limit: float | 
             pid = os.fork()
         if pid == 0:
             os.close(read_fd)
-            _child(run, plant, buffer, progress_slot if progress is not None else None, workdir, write_fd, parent,
-                   capture_log)
+            _child(
+                run,
+                plant,
+                buffer,
+                progress_slot if progress is not None else None,
+                workdir,
+                write_fd,
+                parent,
+                capture_log,
+            )
         os.close(write_fd)
         write_fd = -1
         deadline = clock.monotonic() + limit

@@ -19,6 +19,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from toggle_cosim.analysis.compare import (
+    ComparisonResult,
+    Tolerance,
+    compare_traces,
+    read_reference,
+    write_reference,
+)
 from toggle_cosim.analysis.solver_stats import (
     SolverCheck,
     compare_solver_statistics,
@@ -27,13 +34,6 @@ from toggle_cosim.analysis.solver_stats import (
     write_statistics_file,
 )
 from toggle_cosim.analysis.tolerance_files import TOLERANCE_FILE, merged_tolerances
-from toggle_cosim.analysis.compare import (
-    ComparisonResult,
-    Tolerance,
-    compare_traces,
-    read_reference,
-    write_reference,
-)
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.files.traces import Trace
@@ -50,8 +50,11 @@ class ReferenceCheck:
 
     @property
     def failures(self) -> list[str]:
-        return [f"{self.label}: {v.name} off by {v.max_error:.3g} at t = {v.time_of_max_error:.4f} s"
-                for v in self.comparison.variables if not v.passed]
+        return [
+            f"{self.label}: {v.name} off by {v.max_error:.3g} at t = {v.time_of_max_error:.4f} s"
+            for v in self.comparison.variables
+            if not v.passed
+        ]
 
     @property
     def solver_changes(self) -> list[str]:
@@ -81,8 +84,9 @@ def store(outcome: RunOutcome, folder: Path) -> Path:
     """Write the reference of a run: the decimated trace, its options file, and its solver
     statistics when the FMU exposes them."""
     run = outcome.run
-    csv_path, _ = write_reference(decimate(outcome.trace), reference_stem(folder, run), 0.0, run.t_end,
-                                  run.T_s, REFERENCE_RELTOL)
+    csv_path, _ = write_reference(
+        decimate(outcome.trace), reference_stem(folder, run), 0.0, run.t_end, run.T_s, REFERENCE_RELTOL
+    )
     counts = outcome.record.get("solver_statistics")
     if isinstance(counts, dict) and counts:
         write_statistics_file(statistics_path(csv_path), counts)
@@ -99,8 +103,12 @@ def check(outcome: RunOutcome, folder: Path) -> ReferenceCheck:
     reference, _ = read_reference(stem)
     default, per_variable = tolerances_for(folder, run.scenario)
     comparison = compare_traces(
-        outcome.trace, reference, per_variable, default,
-        result_label=f"run {run.label}", reference_label=str(stem) + "_ref.csv",
+        outcome.trace,
+        reference,
+        per_variable,
+        default,
+        result_label=f"run {run.label}",
+        reference_label=str(stem) + "_ref.csv",
     )
     stored = read_statistics_file(statistics_path(Path(str(stem) + "_ref.csv")))
     current = outcome.record.get("solver_statistics")

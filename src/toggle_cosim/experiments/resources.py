@@ -94,14 +94,18 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
     out = Path(out)
     for part in out.parts:
         if len(os.fsencode(part)) > _name_max(Path(".")):
-            raise ResourceError(f"{out}: the name {part[:20]}... is longer than the file system allows "
-                                f"({_name_max(Path('.'))} bytes); use a shorter --out")
+            raise ResourceError(
+                f"{out}: the name {part[:20]}... is longer than the file system allows "
+                f"({_name_max(Path('.'))} bytes); use a shorter --out"
+            )
     existing = out
     try:
         while not existing.exists() and existing != existing.parent:
             existing = existing.parent
     except OSError as error:
-        raise ResourceError(f"{out}: unusable output folder ({error.strerror or error}); choose another --out") from None
+        raise ResourceError(
+            f"{out}: unusable output folder ({error.strerror or error}); choose another --out"
+        ) from None
     if existing.exists() and not existing.is_dir():
         what = "the output folder" if existing == out else f"{existing}, a part of the output folder's path,"
         raise ResourceError(f"{out}: {what} is an existing file, not a folder (choose another --out)")
@@ -110,10 +114,14 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
         os.close(handle)
         os.unlink(probe)
     except OSError as error:
-        raise ResourceError(f"{out}: cannot write in {existing} ({error.strerror or error}); choose another --out") from None
+        raise ResourceError(
+            f"{out}: cannot write in {existing} ({error.strerror or error}); choose another --out"
+        ) from None
     free = shutil.disk_usage(existing).free
     if needed > free:
-        raise ResourceError(f"{out}: the runs need about {_gb(needed)} but {existing} has {_gb(free)} free (free space or choose another --out)")
+        raise ResourceError(
+            f"{out}: the runs need about {_gb(needed)} but {existing} has {_gb(free)} free (free space or choose another --out)"
+        )
 
 
 def check_runs(pairs: Sequence[tuple], out: Path | None) -> None:
@@ -124,7 +132,9 @@ def check_runs(pairs: Sequence[tuple], out: Path | None) -> None:
     biggest = max((s.buffer_bytes for s in sizes), default=0)
     scratch = Path(tempfile.gettempdir())
     if biggest > shutil.disk_usage(scratch).free:
-        raise ResourceError(f"{scratch}: a run needs about {_gb(biggest)} of scratch space there (free space or set TMPDIR)")
+        raise ResourceError(
+            f"{scratch}: a run needs about {_gb(biggest)} of scratch space there (free space or set TMPDIR)"
+        )
 
 
 __all__ = ["ResourceError", "check_runs", "check_size", "check_output_folder", "estimate"]

@@ -40,8 +40,12 @@ _PLANT = {
     "type": "object",
     "additionalProperties": False,
     "properties": {
-        "F_E": {"type": "number", "minimum": -10000, "maximum": 10000,
-                "description": "external force on slider B in N, >= 0 resists the stroke"},
+        "F_E": {
+            "type": "number",
+            "minimum": -10000,
+            "maximum": 10000,
+            "description": "external force on slider B in N, >= 0 resists the stroke",
+        },
         "m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         "mu": {"type": "number", "minimum": 0, "maximum": 1},
         "current_loop": {"enum": ["first_order", "ideal"]},
@@ -73,9 +77,9 @@ _CONTROLLER = {
         "objective": {"enum": ["x_B", "theta1"]},
         "gains": _GAINS,
         "nominal_m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
-        "law": {"enum": ["paper", "integral"]},            # the integral law: control/laws.py, README
+        "law": {"enum": ["paper", "integral"]},  # the integral law: control/laws.py, README
         "C_I": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # 1/s, integral law only
-        "K_I": {"type": "number", "minimum": 0, "maximum": 1e6},       # 1/s², integral law only
+        "K_I": {"type": "number", "minimum": 0, "maximum": 1e6},  # 1/s², integral law only
         "i_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # A, integral law only
     },
 }
@@ -95,10 +99,18 @@ _OVERRIDE = {
         "stroke": {**_STROKE, "required": []},
         "plant": _PLANT,
         "controller": _CONTROLLER,
-        "time_limit": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6,
-                       "description": "wall-clock limit of the run in s (default max(30 s, 20 x t_end))"},
-        "record_every": {"type": "integer", "minimum": 1, "maximum": 1_000_000,
-                         "description": "write every n-th sample (and the last) to trace.csv"},
+        "time_limit": {
+            "type": "number",
+            "exclusiveMinimum": 0,
+            "maximum": 1e6,
+            "description": "wall-clock limit of the run in s (default max(30 s, 20 x t_end))",
+        },
+        "record_every": {
+            "type": "integer",
+            "minimum": 1,
+            "maximum": 1_000_000,
+            "description": "write every n-th sample (and the last) to trace.csv",
+        },
     },
 }
 SCHEMA: dict[str, Any] = {
@@ -206,7 +218,9 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
     if error.validator == "type":
         return f"key {key}: {error.instance!r} is not of type {error.validator_value} (write a {error.validator_value})"
     if error.validator == "enum":
-        return f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
+        return (
+            f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
+        )
     return f"key {key}: {error.message}"
 
 
@@ -232,12 +246,16 @@ def _reject_non_finite(document: Any) -> None:
         nonlocal seen
         seen += 1
         if seen > _MAX_VALUES:
-            raise ScenarioError(f"key {_key(path)}: the file holds more than {_MAX_VALUES} values (YAML aliases expanded)")
+            raise ScenarioError(
+                f"key {_key(path)}: the file holds more than {_MAX_VALUES} values (YAML aliases expanded)"
+            )
         check_number(node, path, "")
         if not isinstance(node, (dict, list)):
             return
         if id(node) in open_containers:
-            raise ScenarioError(f"key {_key(path)}: a YAML alias inside the value it names (recursive data is not allowed)")
+            raise ScenarioError(
+                f"key {_key(path)}: a YAML alias inside the value it names (recursive data is not allowed)"
+            )
         open_containers.add(id(node))
         if isinstance(node, dict):
             for k, v in node.items():
@@ -286,8 +304,15 @@ def _reach_limit(geometry: MechanismParameters) -> float:
 SINGULARITY_MARGIN = 0.01  # m: a stroke keeps this far from the toggle and the folded position
 MIN_STROKE = 1e-4  # m: a shorter stroke is refused (the summary's figures divide by it)
 # keys of their own: plant.parameters may not set these FMU parameters behind the record's back
-OWN_KEYS = {"m_B": "plant.m_B", "mu": "plant.mu", "K": "plant.K", "idealCurrentLoop": "plant.current_loop",
-            "x_B0": "stroke.x_start", "frictionModel": "plant.friction_model", "mu_s": "plant.mu_s"}
+OWN_KEYS = {
+    "m_B": "plant.m_B",
+    "mu": "plant.mu",
+    "K": "plant.K",
+    "idealCurrentLoop": "plant.current_loop",
+    "x_B0": "stroke.x_start",
+    "frictionModel": "plant.friction_model",
+    "mu_s": "plant.mu_s",
+}
 
 
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:

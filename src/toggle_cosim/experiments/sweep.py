@@ -9,6 +9,17 @@ from toggle_cosim.experiments.sweep_store import ResultStore, read_results
 from toggle_cosim.experiments.sweep_worker import run_case
 
 __all__ = [
-    "SweepError", "Sweep", "Case", "SweepResult", "load_sweep", "run_case", "execute", "execute_sweep", "run_sweep",
-    "read_results", "write_heatmaps", "ResultStore", "METRICS",
+    "SweepError",
+    "Sweep",
+    "Case",
+    "SweepResult",
+    "load_sweep",
+    "run_case",
+    "execute",
+    "execute_sweep",
+    "run_sweep",
+    "read_results",
+    "write_heatmaps",
+    "ResultStore",
+    "METRICS",
 ]

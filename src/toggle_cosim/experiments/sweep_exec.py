@@ -31,7 +31,9 @@ def _pool_init(slots: Any, counter: Any) -> None:
     _slots = slots
 
 
-def _pool_task(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None, time_limit: float | None = None) -> dict[str, Any]:
+def _pool_task(
+    case: Mapping[str, Any], fmu: str, fmu_sha256: str | None, time_limit: float | None = None
+) -> dict[str, Any]:
     if _slots is not None and 0 <= _slot < len(_slots):
         _slots[_slot] = case["index"]
     try:
@@ -48,8 +50,14 @@ def _kill_workers(pool: ProcessPoolExecutor) -> None:
             process.kill()
 
 
-def _run_pool(cases: Sequence[Case], fmu: str, sha: str, workers: int, on_row: Callable[[dict[str, Any]], None],
-              time_limit: float | None = None) -> None:
+def _run_pool(
+    cases: Sequence[Case],
+    fmu: str,
+    sha: str,
+    workers: int,
+    on_row: Callable[[dict[str, Any]], None],
+    time_limit: float | None = None,
+) -> None:
     """Local process pool. A worker process that dies (a crash inside the FMU) breaks the pool:
     the cases that were running then are re-run one at a time to find the one that crashes, which
     is recorded as failed; the others are resubmitted."""
@@ -63,7 +71,9 @@ def _run_pool(cases: Sequence[Case], fmu: str, sha: str, workers: int, on_row: C
             batch, pending, size = pending, [], max(1, min(workers, len(pending)))
         slots = context.Array("q", [-1] * size, lock=False)
         counter = context.Value("i", 0)
-        pool = ProcessPoolExecutor(max_workers=size, mp_context=context, initializer=_pool_init, initargs=(slots, counter))
+        pool = ProcessPoolExecutor(
+            max_workers=size, mp_context=context, initializer=_pool_init, initargs=(slots, counter)
+        )
         futures = {pool.submit(_pool_task, case.payload(), fmu, sha, time_limit): case for case in batch}
         broken: list[Case] = []
         running_at_break: set[int] = set()
@@ -106,11 +116,19 @@ def connect(scheduler: str) -> Any:
     try:
         return Client(scheduler, set_as_default=False)
     except Exception as error:  # noqa: BLE001 - OSError, TimeoutError, ValueError for a bad address
-        raise SweepError(f"cannot connect to the Dask scheduler at {scheduler} ({' '.join(str(error).split())})") from error
+        raise SweepError(
+            f"cannot connect to the Dask scheduler at {scheduler} ({' '.join(str(error).split())})"
+        ) from error
 
 
-def _run_dask(cases: Sequence[Case], fmu: str, sha: str, client: Any, on_row: Callable[[dict[str, Any]], None],
-              time_limit: float | None = None) -> None:
+def _run_dask(
+    cases: Sequence[Case],
+    fmu: str,
+    sha: str,
+    client: Any,
+    on_row: Callable[[dict[str, Any]], None],
+    time_limit: float | None = None,
+) -> None:
     """An existing Dask distributed cluster: submit every case, collect as they complete. The FMU
     travels with the tasks: the workers need toggle-cosim installed, not the project's files."""
     from distributed import as_completed
@@ -119,8 +137,16 @@ def _run_dask(cases: Sequence[Case], fmu: str, sha: str, client: Any, on_row: Ca
     fmu_data = client.scatter(Path(fmu).read_bytes(), broadcast=True, hash=False)
     futures = {}
     for case in cases:
-        future = client.submit(run_case, case.payload(), fmu, sha, fmu_data, time_limit,
-                               key=f"toggle-cosim-case-{case.case_id}", pure=False)
+        future = client.submit(
+            run_case,
+            case.payload(),
+            fmu,
+            sha,
+            fmu_data,
+            time_limit,
+            key=f"toggle-cosim-case-{case.case_id}",
+            pure=False,
+        )
         futures[future] = case
     try:
         for future in as_completed(futures, loop=client.loop):
@@ -140,9 +166,16 @@ def _run_dask(cases: Sequence[Case], fmu: str, sha: str, client: Any, on_row: Ca
             client.cancel([fmu_data])
 
 
-def execute(cases: Sequence[Case], fmu: Path, scheduler: str | None, workers: int | None,
-            on_row: Callable[[dict[str, Any]], None], fmu_sha256: str | None = None, client: Any = None,
-            time_limit: float | None = None) -> None:
+def execute(
+    cases: Sequence[Case],
+    fmu: Path,
+    scheduler: str | None,
+    workers: int | None,
+    on_row: Callable[[dict[str, Any]], None],
+    fmu_sha256: str | None = None,
+    client: Any = None,
+    time_limit: float | None = None,
+) -> None:
     """Run `cases` on the chosen backend and call `on_row(row)` in this process as each finishes:
     the Dask cluster at `scheduler` (or an open `client` of one), else a local process pool of
     `workers` processes (default: all cores)."""
@@ -162,4 +195,3 @@ def execute(cases: Sequence[Case], fmu: Path, scheduler: str | None, workers: in
                 own.close()
     else:
         _run_pool(cases, str(fmu), fmu_sha256, workers or os.cpu_count() or 1, on_row, time_limit)
-

@@ -23,14 +23,15 @@ from typing import Any
 
 from toggle_cosim import interrupts
 from toggle_cosim.analysis.sweep_heatmaps import write_heatmaps
+from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, ResultStore, read_results
 from toggle_cosim.experiments.sweep_worker import file_sha256_cached
-from toggle_cosim.experiments.scenario import runs_from_document
 
 MANIFEST_FILE = "sweep.json"
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+
 
 @dataclass
 class SweepResult:
@@ -62,7 +63,9 @@ def _exclusive(folder: Path) -> Iterator[None]:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as error:
-            raise SweepError(f"{folder}: another sweep is writing to this folder (wait for it or choose another output:)") from error
+            raise SweepError(
+                f"{folder}: another sweep is writing to this folder (wait for it or choose another output:)"
+            ) from error
         try:
             yield
         finally:
@@ -74,7 +77,9 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
 
     chosen = fmu if fmu is not None else sweep.fmu
     if chosen is None:
-        raise SweepError(f"{sweep.path}: no fmu: key here or in the base scenario, and no --fmu option (name the plant FMU)")
+        raise SweepError(
+            f"{sweep.path}: no fmu: key here or in the base scenario, and no --fmu option (name the plant FMU)"
+        )
     chosen = Path(chosen).resolve()
     from toggle_cosim.plant.probe import ProbeError, probe_binary
 
@@ -91,19 +96,20 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     for name in sorted(names):
         if name not in plant.references:
             raise SweepError(f"{sweep.base}: key plant.parameters.{name}: the plant FMU has no variable {name!r}")
-    from toggle_cosim.plant.settings import SettingError, check_settings
-
     from toggle_cosim.cosim.master import trace_names
     from toggle_cosim.experiments.resources import max_output
+    from toggle_cosim.plant.settings import SettingError, check_settings
 
     if sweep.cases:  # each case's trace buffer (8 bytes a value while it runs) within the output limit
         biggest = max(sweep.cases, key=lambda c: c.parameters["t_end"] / c.parameters["T_s"])
         samples = int(round(biggest.parameters["t_end"] / biggest.parameters["T_s"])) + 1
         size = samples * len(trace_names(plant)) * 8
         if size > max_output():
-            raise SweepError(f"{sweep.path}: case {biggest.index} would hold {samples} samples x {len(trace_names(plant))}"
-                             f" columns, about {size / 1e9:.2f} GB while it runs, over the {max_output() / 1e9:.2f} GB"
-                             " output limit; raise T_s or shorten t_end (or raise TOGGLE_COSIM_MAX_OUTPUT)")
+            raise SweepError(
+                f"{sweep.path}: case {biggest.index} would hold {samples} samples x {len(trace_names(plant))}"
+                f" columns, about {size / 1e9:.2f} GB while it runs, over the {max_output() / 1e9:.2f} GB"
+                " output limit; raise T_s or shorten t_end (or raise TOGGLE_COSIM_MAX_OUTPUT)"
+            )
     seen = set()
     for case in sweep.cases:  # each distinct setting of the plant (all but F_E and m_B), before any case runs
         plant_doc = case.document.get("plant") or {}
@@ -119,30 +125,50 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     return chosen, file_sha256_cached(chosen)
 
 
-def execute_sweep(sweep: Sweep, fmu: Path | None = None, scheduler: str | None = None, workers: int | None = None,
-                  progress: bool = True, retry_failed: bool = False, log: Callable[[str], None] | None = None,
-                  case_timeout: float | None = None) -> SweepResult:
+def execute_sweep(
+    sweep: Sweep,
+    fmu: Path | None = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+    retry_failed: bool = False,
+    log: Callable[[str], None] | None = None,
+    case_timeout: float | None = None,
+) -> SweepResult:
     """Run the cases of `sweep` that are not done yet, write the table and the heat maps."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
     if workers is not None and workers < 1:
         raise SweepError(f"--workers {workers}: give at least 1")
     if scheduler and workers is not None:
-        raise SweepError("--workers sets the local pool's size; with --scheduler the Dask cluster's workers run the cases")
+        raise SweepError(
+            "--workers sets the local pool's size; with --scheduler the Dask cluster's workers run the cases"
+        )
     if case_timeout is not None and not (case_timeout > 0 and math.isfinite(case_timeout)):
         raise SweepError(f"--case-timeout {case_timeout}: give a positive number of seconds")
     fmu_path, sha = _resolve_plant(sweep, fmu)
     client = connect(scheduler) if scheduler else None  # before anything is written
     try:
-        return _execute_sweep(sweep, fmu_path, sha, scheduler, client, workers, progress, retry_failed, say, case_timeout)
+        return _execute_sweep(
+            sweep, fmu_path, sha, scheduler, client, workers, progress, retry_failed, say, case_timeout
+        )
     finally:
         if client is not None:
             with contextlib.suppress(Exception):
                 client.close()
 
 
-def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None, client: Any, workers: int | None,
-                   progress: bool, retry_failed: bool, say: Callable[[str], None],
-                   case_timeout: float | None = None) -> SweepResult:
+def _execute_sweep(
+    sweep: Sweep,
+    fmu_path: Path,
+    sha: str,
+    scheduler: str | None,
+    client: Any,
+    workers: int | None,
+    progress: bool,
+    retry_failed: bool,
+    say: Callable[[str], None],
+    case_timeout: float | None = None,
+) -> SweepResult:
     with _exclusive(sweep.output):
         store = ResultStore(sweep)
         store.load()
@@ -153,19 +179,31 @@ def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None
         todo = [c for c in sweep.cases if c.case_id not in store.rows]
         result = SweepResult(total=len(sweep.cases), skipped=len(sweep.cases) - len(todo))
         other_fmu = sum(1 for r in store.rows.values() if r.get("fmu_sha256") not in (None, sha))
-        backend = f"Dask scheduler {scheduler}" if scheduler else f"local process pool, {workers or os.cpu_count()} workers"
-        say(f"sweep {sweep.name}: {result.total} cases; skipped {result.skipped} already done; "
-            f"running {len(todo)} on the {backend}")
+        backend = (
+            f"Dask scheduler {scheduler}" if scheduler else f"local process pool, {workers or os.cpu_count()} workers"
+        )
+        say(
+            f"sweep {sweep.name}: {result.total} cases; skipped {result.skipped} already done; "
+            f"running {len(todo)} on the {backend}"
+        )
         if other_fmu:
-            say(f"warning: {other_fmu} finished cases were computed with a different FMU; "
-                f"delete {sweep.output} to recompute them with this one")
+            say(
+                f"warning: {other_fmu} finished cases were computed with a different FMU; "
+                f"delete {sweep.output} to recompute them with this one"
+            )
         failed_now = 0
         bar = None
         if progress and todo:
             from tqdm import tqdm
 
-            bar = tqdm(total=len(todo), file=sys.stderr, unit="case", dynamic_ncols=True, desc=sweep.name,
-                       mininterval=0.2 if sys.stderr.isatty() else 5.0)
+            bar = tqdm(
+                total=len(todo),
+                file=sys.stderr,
+                unit="case",
+                dynamic_ncols=True,
+                desc=sweep.name,
+                mininterval=0.2 if sys.stderr.isatty() else 5.0,
+            )
         run_started = time.perf_counter()
 
         def on_row(row: dict[str, Any]) -> None:
@@ -203,45 +241,76 @@ def _execute_sweep(sweep: Sweep, fmu_path: Path, sha: str, scheduler: str | None
     return result
 
 
-def _write_manifest(sweep: Sweep, result: SweepResult, fmu: Path, sha: str, scheduler: str | None, workers: int | None) -> None:
+def _write_manifest(
+    sweep: Sweep, result: SweepResult, fmu: Path, sha: str, scheduler: str | None, workers: int | None
+) -> None:
     from toggle_cosim.files.traces import write_json
 
-    write_json(sweep.output / MANIFEST_FILE, {
-        "sweep": sweep.name, "sweep_file": str(sweep.path), "base": str(sweep.base), "mode": sweep.mode,
-        "axes": sweep.axes, "variants": sweep.variants, "cases": result.total,
-        "fmu": {"path": str(fmu), "sha256": sha},
-        "last_run": {"skipped": result.skipped, "ran": result.ran, "failed_in_table": result.failed,
-                     "done_in_table": result.done, "interrupted": result.interrupted,
-                     "wall_s": result.wall_seconds, "cases_per_s": result.rate,
-                     "backend": f"dask:{scheduler}" if scheduler else f"pool:{workers or os.cpu_count()}",
-                     "host": platform.node(), "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")},
-        "results": RESULTS_FILE, "heatmaps": [str(p.relative_to(sweep.output)) for p in result.figures],
-    })
+    write_json(
+        sweep.output / MANIFEST_FILE,
+        {
+            "sweep": sweep.name,
+            "sweep_file": str(sweep.path),
+            "base": str(sweep.base),
+            "mode": sweep.mode,
+            "axes": sweep.axes,
+            "variants": sweep.variants,
+            "cases": result.total,
+            "fmu": {"path": str(fmu), "sha256": sha},
+            "last_run": {
+                "skipped": result.skipped,
+                "ran": result.ran,
+                "failed_in_table": result.failed,
+                "done_in_table": result.done,
+                "interrupted": result.interrupted,
+                "wall_s": result.wall_seconds,
+                "cases_per_s": result.rate,
+                "backend": f"dask:{scheduler}" if scheduler else f"pool:{workers or os.cpu_count()}",
+                "host": platform.node(),
+                "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            },
+            "results": RESULTS_FILE,
+            "heatmaps": [str(p.relative_to(sweep.output)) for p in result.figures],
+        },
+    )
 
 
-def run_sweep(sweep_path: Path, scheduler: str | None = None, workers: int | None = None, fmu: Path | None = None,
-              *, output: Path | None = None, retry_failed: bool = False, progress: bool = True,
-              case_timeout: float | None = None) -> int:
+def run_sweep(
+    sweep_path: Path,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    fmu: Path | None = None,
+    *,
+    output: Path | None = None,
+    retry_failed: bool = False,
+    progress: bool = True,
+    case_timeout: float | None = None,
+) -> int:
     """`toggle-cosim sweep SWEEP.yaml [--scheduler ADDRESS] [--workers N] [--fmu PATH]`.
 
     Exit status: 0 every case ok, 1 some case failed, 2 bad input (one `error: ...` line on
     stderr, nothing run), 130 interrupted (finished cases are kept; run again to finish)."""
     try:
         sweep = load_sweep(Path(sweep_path), output)
-        result = execute_sweep(sweep, fmu, scheduler, workers, progress=progress, retry_failed=retry_failed,
-                               case_timeout=case_timeout)
+        result = execute_sweep(
+            sweep, fmu, scheduler, workers, progress=progress, retry_failed=retry_failed, case_timeout=case_timeout
+        )
     except SweepError as error:
         print(f"error: {' '.join(str(error).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT
     ok = result.done - result.failed
-    print(f"sweep {sweep.name}: ran {result.ran} cases in {result.wall_seconds:.1f} s ({result.rate:.1f} cases/s), "
-          f"skipped {result.skipped} already done; table: {ok} ok, {result.failed} failed, "
-          f"{result.total - result.done} not run, of {result.total} cases")
+    print(
+        f"sweep {sweep.name}: ran {result.ran} cases in {result.wall_seconds:.1f} s ({result.rate:.1f} cases/s), "
+        f"skipped {result.skipped} already done; table: {ok} ok, {result.failed} failed, "
+        f"{result.total - result.done} not run, of {result.total} cases"
+    )
     print(f"wrote {result.results}")
     for figure in result.figures:
         print(f"wrote {figure}")
     if result.interrupted:
-        print(f"interrupted: {result.done} of {result.total} cases done; run the same command again to finish", file=sys.stderr)
+        print(
+            f"interrupted: {result.done} of {result.total} cases done; run the same command again to finish",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     return EXIT_FAILED if result.failed else EXIT_OK
-

@@ -39,9 +39,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim.analysis.summary import RunSummary
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
-from toggle_cosim.analysis.summary import RunSummary
 
 STANDARD_PARAMETERS = ("plant.F_E", "plant.m_B", "plant.mu", "T_s", "t_end")
 METRICS = (*RunSummary.__dataclass_fields__, "fric_share_end")
@@ -55,15 +55,22 @@ _AXIS = {
     "additionalProperties": False,
     "properties": {
         "values": {"type": "array", "minItems": 1, "items": _SCALAR},
-        "linspace": {"type": "array", "minItems": 3, "maxItems": 3,
-                     "prefixItems": [_NUMBER, _NUMBER, {"type": "integer", "minimum": 1, "maximum": 100_000}]},
+        "linspace": {
+            "type": "array",
+            "minItems": 3,
+            "maxItems": 3,
+            "prefixItems": [_NUMBER, _NUMBER, {"type": "integer", "minimum": 1, "maximum": 100_000}],
+        },
         "random": {
             "type": "object",
             "additionalProperties": False,
             "required": ["low", "high", "n", "seed"],
-            "properties": {"low": _NUMBER, "high": _NUMBER,
-                           "n": {"type": "integer", "minimum": 1, "maximum": 100_000},
-                           "seed": {"type": "integer", "minimum": 0}},
+            "properties": {
+                "low": _NUMBER,
+                "high": _NUMBER,
+                "n": {"type": "integer", "minimum": 1, "maximum": 100_000},
+                "seed": {"type": "integer", "minimum": 0},
+            },
         },
     },
 }
@@ -117,8 +124,13 @@ class Case:
     parameters: dict[str, Any]  # table columns: standard parameters and axis values
 
     def payload(self) -> dict[str, Any]:
-        return {"index": self.index, "case_id": self.case_id, "variant": self.variant,
-                "document": self.document, "parameters": self.parameters}
+        return {
+            "index": self.index,
+            "case_id": self.case_id,
+            "variant": self.variant,
+            "document": self.document,
+            "parameters": self.parameters,
+        }
 
 
 @dataclass(frozen=True)
@@ -242,7 +254,9 @@ def _schema_message(error: Any) -> str:  # a jsonschema.ValidationError
     if error.validator in ("minProperties", "maxProperties") and len(error.absolute_path) == 2:
         return f"key {key}: give exactly one of values, linspace, random"
     if error.validator == "enum":
-        return f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
+        return (
+            f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
+        )
     return f"key {key}: {' '.join(error.message.split())}"
 
 
@@ -283,7 +297,9 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
     import jsonschema
 
     validator = jsonschema.Draft202012Validator(SCHEMA)
-    errors = sorted(validator.iter_errors(document), key=lambda e: (len(e.absolute_path), list(map(str, e.absolute_path))))
+    errors = sorted(
+        validator.iter_errors(document), key=lambda e: (len(e.absolute_path), list(map(str, e.absolute_path)))
+    )
     if errors:
         raise SweepError(_schema_message(errors[0]))
     folder = path.parent
@@ -314,8 +330,11 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
     if mode == "zip":
         lengths = {key: len(values) for key, values in axes.items()}
         if len(set(lengths.values())) > 1:
-            raise SweepError("mode zip: every axis needs the same number of values (" +
-                             ", ".join(f"{k}: {n}" for k, n in lengths.items()) + ")")
+            raise SweepError(
+                "mode zip: every axis needs the same number of values ("
+                + ", ".join(f"{k}: {n}" for k, n in lengths.items())
+                + ")"
+            )
         combos: Iterable[tuple[Any, ...]] = zip(*axes.values(), strict=True)
         count = len(variants) * next(iter(lengths.values()))
     else:
@@ -329,7 +348,9 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
     cases: list[Case] = []
     seen: dict[str, int] = {}
     for variant in variants:
-        resolved = merge_documents(base_clean, variants_doc[variant]) if variant is not None else copy.deepcopy(base_clean)
+        resolved = (
+            merge_documents(base_clean, variants_doc[variant]) if variant is not None else copy.deepcopy(base_clean)
+        )
         for combo in combos:
             values = dict(zip(axes, combo, strict=True))
             case_doc = copy.deepcopy(resolved)
@@ -344,12 +365,17 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
                 raise SweepError(f"case {index} ({where}{label}): {error}") from error
             identifier = case_id(case_doc, variant)
             if identifier in seen:
-                raise SweepError(f"cases {seen[identifier]} and {index} are the same co-simulation ({label}); "
-                                 "remove the repeated axis value")
+                raise SweepError(
+                    f"cases {seen[identifier]} and {index} are the same co-simulation ({label}); "
+                    "remove the repeated axis value"
+                )
             seen[identifier] = index
             parameters: dict[str, Any] = {
-                "plant.F_E": run.plant.F_E, "plant.m_B": run.plant.m_B, "plant.mu": run.plant.mu,
-                "T_s": run.T_s, "t_end": run.t_end,
+                "plant.F_E": run.plant.F_E,
+                "plant.m_B": run.plant.m_B,
+                "plant.mu": run.plant.mu,
+                "T_s": run.T_s,
+                "t_end": run.t_end,
             }
             for key, value in values.items():
                 parameters[key] = float(value) if isinstance(value, int) and not isinstance(value, bool) else value
@@ -367,7 +393,9 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
         x, y = document["heatmap"]["x"], document["heatmap"]["y"]
         for which, key in (("x", x), ("y", y)):
             if key not in choices:
-                raise SweepError(f"key heatmap.{which}: {key!r} is not an axis of this sweep (choose one of {', '.join(choices)})")
+                raise SweepError(
+                    f"key heatmap.{which}: {key!r} is not an axis of this sweep (choose one of {', '.join(choices)})"
+                )
         if x == y:
             raise SweepError("key heatmap: x and y are the same axis")
         heatmap = (x, y)
@@ -383,8 +411,17 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
     elif base_doc.get("fmu"):
         fmu = base_path.parent / base_doc["fmu"]
     return Sweep(
-        path=path, name=name, description=document.get("description", ""), base=base_path, fmu=fmu, mode=mode,
-        axes=axes, variants=variants, output=Path(os.path.normpath(output)), heatmap=heatmap, cases=cases,
-        parameter_columns=parameter_columns, parameter_types=parameter_types,
+        path=path,
+        name=name,
+        description=document.get("description", ""),
+        base=base_path,
+        fmu=fmu,
+        mode=mode,
+        axes=axes,
+        variants=variants,
+        output=Path(os.path.normpath(output)),
+        heatmap=heatmap,
+        cases=cases,
+        parameter_columns=parameter_columns,
+        parameter_types=parameter_types,
     )
-

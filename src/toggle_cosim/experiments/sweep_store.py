@@ -18,6 +18,7 @@ from toggle_cosim.experiments.sweep_spec import METRICS, Sweep
 RESULTS_FILE = "results.parquet"
 PARTS_DIR = "parts"
 
+
 def _arrow_schema(sweep: Sweep) -> Any:
     import pyarrow as pa
 
@@ -28,8 +29,12 @@ def _arrow_schema(sweep: Sweep) -> Any:
     fields += [pa.field(c, types[sweep.parameter_types[c]]) for c in sweep.parameter_columns]
     fields += [pa.field("status", pa.string()), pa.field("reason", pa.string())]
     fields += [pa.field(m, pa.float64()) for m in METRICS]
-    fields += [pa.field("samples", pa.int64()), pa.field("wall_s", pa.float64()), pa.field("host", pa.string()),
-               pa.field("fmu_sha256", pa.string())]
+    fields += [
+        pa.field("samples", pa.int64()),
+        pa.field("wall_s", pa.float64()),
+        pa.field("host", pa.string()),
+        pa.field("fmu_sha256", pa.string()),
+    ]
     return pa.schema(fields)
 
 

@@ -16,8 +16,8 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.experiments.sweep_spec import METRICS, Case
 from toggle_cosim.experiments.scenario import runs_from_document
+from toggle_cosim.experiments.sweep_spec import METRICS, Case
 
 _capture = threading.local()
 _plant_cache: dict[tuple[str, int, int], Any] = {}
@@ -108,8 +108,13 @@ def resolve_fmu(fmu: str, sha256: str | None, data: bytes | None = None) -> Path
     raise FileNotFoundError(f"the sweep's FMU (SHA-256 {sha256[:12]}) is not on this machine: {detail}")
 
 
-def run_case(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None = None,
-             fmu_data: bytes | None = None, time_limit: float | None = None) -> dict[str, Any]:
+def run_case(
+    case: Mapping[str, Any],
+    fmu: str,
+    fmu_sha256: str | None = None,
+    fmu_data: bytes | None = None,
+    time_limit: float | None = None,
+) -> dict[str, Any]:
     """Run one case (a payload of plain data) on the plant FMU at `fmu` (checked against
     `fmu_sha256` if given; `fmu_data`, the FMU's bytes, stand in where that file is missing);
     return its table row.
@@ -121,9 +126,17 @@ def run_case(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None = None,
 
     started = time.perf_counter()
     row: dict[str, Any] = {
-        "case": case["index"], "case_id": case["case_id"], "variant": case["variant"], **case["parameters"],
-        "status": "failed", "reason": None, **dict.fromkeys(METRICS), "samples": None,
-        "wall_s": None, "host": socket.gethostname(), "fmu_sha256": fmu_sha256,
+        "case": case["index"],
+        "case_id": case["case_id"],
+        "variant": case["variant"],
+        **case["parameters"],
+        "status": "failed",
+        "reason": None,
+        **dict.fromkeys(METRICS),
+        "samples": None,
+        "wall_s": None,
+        "host": socket.gethostname(),
+        "fmu_sha256": fmu_sha256,
     }
     try:
         with _captured_fmu_log() as log:
@@ -134,8 +147,7 @@ def run_case(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None = None,
             except Exception as error:  # noqa: BLE001 - any failure is the case's result
                 outcome = None
                 row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
-        messages = [line.strip() for line in "".join(log).splitlines()
-                    if line.startswith(("[ERROR]", "[FATAL]"))]
+        messages = [line.strip() for line in "".join(log).splitlines() if line.startswith(("[ERROR]", "[FATAL]"))]
         if outcome is not None:
             row["samples"] = outcome.trace.data.shape[0]
             if outcome.complete and outcome.summary is not None:
@@ -155,11 +167,18 @@ def run_case(case: Mapping[str, Any], fmu: str, fmu_sha256: str | None = None,
     return row
 
 
-
 def crash_row(case: Case, fmu_sha256: str | None, reason: str) -> dict[str, Any]:
     """The row of a case whose worker could not report (a dead process, a lost Dask task)."""
     return {
-        "case": case.index, "case_id": case.case_id, "variant": case.variant, **case.parameters,
-        "status": "failed", "reason": reason, **dict.fromkeys(METRICS), "samples": None, "wall_s": None,
-        "host": socket.gethostname(), "fmu_sha256": fmu_sha256,
+        "case": case.index,
+        "case_id": case.case_id,
+        "variant": case.variant,
+        **case.parameters,
+        "status": "failed",
+        "reason": reason,
+        **dict.fromkeys(METRICS),
+        "samples": None,
+        "wall_s": None,
+        "host": socket.gethostname(),
+        "fmu_sha256": fmu_sha256,
     }

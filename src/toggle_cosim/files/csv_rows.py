@@ -64,12 +64,15 @@ def _cache_folders() -> list[Path]:
 
 
 def _build() -> Path:
-    compiler = next((shutil.which(n) for n in (os.environ.get("CC", ""), "cc", "gcc", "clang") if n and shutil.which(n)),
-                    None)
+    compiler = next(
+        (shutil.which(n) for n in (os.environ.get("CC", ""), "cc", "gcc", "clang") if n and shutil.which(n)), None
+    )
     if compiler is None:
         raise RuntimeError("no C compiler found")
     suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
-    key = hashlib.sha256("\0".join((SOURCE, *FLAGS, compiler, platform.machine(), sys.platform)).encode()).hexdigest()[:16]
+    key = hashlib.sha256("\0".join((SOURCE, *FLAGS, compiler, platform.machine(), sys.platform)).encode()).hexdigest()[
+        :16
+    ]
     for folder in _cache_folders():
         library = folder / f"csv-rows-{key}{suffix}"
         if library.is_file():
@@ -80,8 +83,9 @@ def _build() -> Path:
                 source = Path(work) / "csv_rows.c"
                 source.write_text(SOURCE, encoding="utf-8")
                 built = Path(work) / f"csv_rows{suffix}"
-                result = subprocess.run([compiler, *FLAGS, "-o", str(built), str(source)], capture_output=True,
-                                        text=True, check=False)
+                result = subprocess.run(
+                    [compiler, *FLAGS, "-o", str(built), str(source)], capture_output=True, text=True, check=False
+                )
                 if result.returncode != 0:
                     raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:300]}")
                 os.replace(built, library)  # atomic: a concurrent build just wins or loses the race
@@ -96,7 +100,13 @@ def _load() -> Any:
     if _library is None and _reason is None:
         try:
             library = ctypes.CDLL(str(_build()))
-            library.format_rows.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_char_p, ctypes.c_long]
+            library.format_rows.argtypes = [
+                ctypes.c_void_p,
+                ctypes.c_long,
+                ctypes.c_long,
+                ctypes.c_char_p,
+                ctypes.c_long,
+            ]
             library.format_rows.restype = ctypes.c_long
             _library = library
         except Exception as error:  # noqa: BLE001 - the Python route gives the same bytes

@@ -46,7 +46,8 @@ class _Loader(yaml.SafeLoader):
                 if duplicate:
                     mark = key_node.start_mark
                     raise yaml.constructor.ConstructorError(
-                        None, None, f"duplicate key {key!r} (first at line {seen[key].line + 1}); keep one", mark)
+                        None, None, f"duplicate key {key!r} (first at line {seen[key].line + 1}); keep one", mark
+                    )
                 seen[key] = key_node.start_mark
         return super().construct_mapping(node, deep=deep)
 
@@ -80,7 +81,9 @@ def _check_events(text: str) -> None:
         elif isinstance(event, yaml.AliasEvent):
             aliases += 1
             if aliases > MAX_ALIASES:
-                raise YamlError(f"more than {MAX_ALIASES} aliases (*name){_where(event.start_mark)}; write the values out")
+                raise YamlError(
+                    f"more than {MAX_ALIASES} aliases (*name){_where(event.start_mark)}; write the values out"
+                )
 
 
 def _check_expansion(root: Node) -> None:
@@ -94,7 +97,9 @@ def _check_expansion(root: Node) -> None:
         if key in sizes:
             return sizes[key]
         if key in open_nodes:
-            raise YamlError(f"an alias inside the value it names{_where(node.start_mark)} (recursive data is not allowed)")
+            raise YamlError(
+                f"an alias inside the value it names{_where(node.start_mark)} (recursive data is not allowed)"
+            )
         if isinstance(node, ScalarNode):
             return 1
         open_nodes.add(key)
@@ -131,8 +136,10 @@ def parse_yaml(text: str) -> Any:
         raise
     except yaml.reader.ReaderError as error:  # a control character: it has a position, not a mark
         lines = re.split("\r\n|[\n\r\x85\u2028\u2029]", text[: error.position])
-        raise YamlError(f"YAML syntax error at line {len(lines)}, column {len(lines[-1]) + 1}: unacceptable character"
-                        f" #x{error.character:04x} ({error.reason})") from None
+        raise YamlError(
+            f"YAML syntax error at line {len(lines)}, column {len(lines[-1]) + 1}: unacceptable character"
+            f" #x{error.character:04x} ({error.reason})"
+        ) from None
     except yaml.MarkedYAMLError as error:
         problem = " ".join(str(error.problem or error.context or "malformed YAML").split())
         raise YamlError(f"YAML syntax error{_where(error.problem_mark)}: {problem}") from None
@@ -141,7 +148,9 @@ def parse_yaml(text: str) -> Any:
     except RecursionError:
         raise YamlError(f"nested too deeply (more than {MAX_DEPTH} levels)") from None
     except Exception as error:  # noqa: BLE001 - PyYAML's constructors raise plain errors ("!!int abc")
-        raise YamlError(f"YAML value that cannot be converted ({' '.join(f'{type(error).__name__}: {error}'.split())})") from None
+        raise YamlError(
+            f"YAML value that cannot be converted ({' '.join(f'{type(error).__name__}: {error}'.split())})"
+        ) from None
 
 
 def load_yaml(path: Path | str, what: str = "YAML file") -> Any:

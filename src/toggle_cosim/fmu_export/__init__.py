@@ -1,7 +1,7 @@
 """Modelica source -> FMI 2.0 or 3.0 FMU (Co-Simulation, Model Exchange or both). `build_fmu` is the one entry point.
 
-    source (package dir) --source.py--> IR --compile.py--> C + tables
-        --model_description.py--> modelDescription.xml --package.py--> .fmu
+source (package dir) --source.py--> IR --compile.py--> C + tables
+    --model_description.py--> modelDescription.xml --package.py--> .fmu
 """
 
 from __future__ import annotations
@@ -16,7 +16,15 @@ from toggle_cosim.fmu_export.interfaces import CHOICES as INTERFACE_CHOICES
 from toggle_cosim.fmu_export.interfaces import DEFAULT as INTERFACES_DEFAULT
 from toggle_cosim.fmu_export.package import FMI_VERSIONS, BuiltFMU, FMUBuildError, write_fmu
 
-__all__ = ["FMI_VERSIONS", "INTERFACES_DEFAULT", "INTERFACE_CHOICES", "BuildReport", "FMUBuildError", "ModelCompileError", "build_fmu"]
+__all__ = [
+    "FMI_VERSIONS",
+    "INTERFACES_DEFAULT",
+    "INTERFACE_CHOICES",
+    "BuildReport",
+    "FMUBuildError",
+    "ModelCompileError",
+    "build_fmu",
+]
 
 
 @dataclass(frozen=True)
@@ -29,8 +37,13 @@ class BuildReport:
     event_indicators: int
 
 
-def build_fmu(source: Path, model: str, output: Path, fmi_version: str = "2.0",
-              interfaces: str | frozenset[str] = INTERFACES_DEFAULT) -> BuildReport:
+def build_fmu(
+    source: Path,
+    model: str,
+    output: Path,
+    fmi_version: str = "2.0",
+    interfaces: str | frozenset[str] = INTERFACES_DEFAULT,
+) -> BuildReport:
     """Compile `model` from the Modelica `source` into the FMU `output`, an FMI 2.0 or FMI 3.0
     (`fmi_version="3.0"`) FMU offering `interfaces`: "both" (Co-Simulation and Model
     Exchange, the default), "cs" or "me"."""
@@ -38,7 +51,10 @@ def build_fmu(source: Path, model: str, output: Path, fmi_version: str = "2.0",
     generated = compile_model(Path(source), model)
     compiled = time.perf_counter()
     fmu = write_fmu(
-        generated, Path(output), tool=f"toggle-cosim {__version__} (modelica 0.0.205)", fmi_version=fmi_version,
+        generated,
+        Path(output),
+        tool=f"toggle-cosim {__version__} (modelica 0.0.205)",
+        fmi_version=fmi_version,
         interfaces=interfaces,
     )
     finished = time.perf_counter()

@@ -112,9 +112,7 @@ def _inputs_as_parameters(flat: FlatModel) -> tuple[FlatModel, frozenset[str]]:
     """Turn each top-level input into a tunable parameter slot (see the module docstring)."""
     inputs = frozenset(v.name for v in flat.variables if v.causality == "input")
     variables = tuple(
-        dataclasses.replace(v, variability="parameter", causality="none", binding=None)
-        if v.name in inputs
-        else v
+        dataclasses.replace(v, variability="parameter", causality="none", binding=None) if v.name in inputs else v
         for v in flat.variables
     )
     return dataclasses.replace(flat, variables=variables), inputs
@@ -124,8 +122,13 @@ def _c_number(value: float | bool) -> str:
     return repr(float(value))
 
 
-def _start_function(system_parameters: tuple[FlatVariable, ...], states: tuple[str, ...],
-                    discrete: list[tuple[int, ir.Expr | None]], flat: FlatModel, nw: int) -> list[str]:
+def _start_function(
+    system_parameters: tuple[FlatVariable, ...],
+    states: tuple[str, ...],
+    discrete: list[tuple[int, ir.Expr | None]],
+    flat: FlatModel,
+    nw: int,
+) -> list[str]:
     """md_start: the start value of every state and discrete variable, as C over p."""
     symbols = {v.name: f"p[{slot}]" for slot, v in enumerate(system_parameters)}
     lines = [
@@ -155,7 +158,9 @@ def _defaults_function(variables: list[ModelVariable]) -> list[str]:
     return lines
 
 
-def _parameter_function(parameters: tuple[FlatVariable, ...], calculated: set[str], order: list[FlatVariable]) -> list[str]:
+def _parameter_function(
+    parameters: tuple[FlatVariable, ...], calculated: set[str], order: list[FlatVariable]
+) -> list[str]:
     """md_parameters: every calculated parameter from its binding, in dependency order."""
     symbols = {v.name: f"p[{slot}]" for slot, v in enumerate(parameters)}
     slots = {v.name: slot for slot, v in enumerate(parameters)}
@@ -209,7 +214,8 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
     par_slots = {v.name: slot for slot, v in enumerate(parameters)}
     parameter_names = set(par_slots)
     calculated = {
-        v.name for v in parameters
+        v.name
+        for v in parameters
         if v.variability == "constant" or (v.name not in inputs and _references(v.binding) & parameter_names)
     }
     states = system.states
@@ -254,11 +260,7 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
             )
         )
 
-    discrete = [
-        (emitter.slots[name], flat_by_name[name].start)
-        for name in emitter.remembered
-        if name in flat_by_name
-    ]
+    discrete = [(emitter.slots[name], flat_by_name[name].start) for name in emitter.remembered if name in flat_by_name]
     dependencies = model_dependencies(
         system,
         inputs=inputs,
@@ -278,16 +280,21 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         "",
         "/* ---- Tables and start/parameter code written by toggle_cosim.fmu_export.compile ---- */",
         f"static const double md_direction_[{max(len(events), 1)}] = {{"
-        + ", ".join(_c_number(e.trigger.direction) for e in events) + ("0.0" if not events else "") + "};",
+        + ", ".join(_c_number(e.trigger.direction) for e in events)
+        + ("0.0" if not events else "")
+        + "};",
         f"static const int md_latch_[{max(len(events), 1)}] = {{"
         + ", ".join(str(e.trigger.latch if e.trigger.latch is not None else -1) for e in events)
-        + ("-1" if not events else "") + "};",
+        + ("-1" if not events else "")
+        + "};",
         f"static const int md_kind_[{n}] = {{" + ", ".join(_SHELL_KIND[v.kind] for v in variables) + "};",
         f"static const int md_obs_[{n}] = {{" + ", ".join(str(v.obs_slot) for v in variables) + "};",
         f"static const int md_par_[{n}] = {{" + ", ".join(str(v.par_slot) for v in variables) + "};",
         f"static const char *const md_names_[{n}] = {{" + ", ".join(_c_string(v.name) for v in variables) + "};",
         f"static const double md_nominal_[{max(len(states), 1)}] = {{"
-        + ", ".join(_c_number(_nominal(flat_by_name.get(name))) for name in states) + ("1.0" if not states else "") + "};",
+        + ", ".join(_c_number(_nominal(flat_by_name.get(name))) for name in states)
+        + ("1.0" if not states else "")
+        + "};",
         "/* the interface types modelDescription.xml offers: package.py defines MD_INTERFACES */",
         "#ifndef MD_INTERFACES",
         "#define MD_INTERFACES MD_INTERFACE_CS",

@@ -20,8 +20,11 @@ DEFAULT = "both"
 
 def c_mask(interfaces: Interfaces) -> str:
     """The MD_INTERFACES value for model.c (shell/md_model.h MD_INTERFACE_* bits)."""
-    bits = [name for name, wanted in (("MD_INTERFACE_CS", CO_SIMULATION), ("MD_INTERFACE_ME", MODEL_EXCHANGE))
-            if wanted in interfaces]
+    bits = [
+        name
+        for name, wanted in (("MD_INTERFACE_CS", CO_SIMULATION), ("MD_INTERFACE_ME", MODEL_EXCHANGE))
+        if wanted in interfaces
+    ]
     return " | ".join(bits)
 
 

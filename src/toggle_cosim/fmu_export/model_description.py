@@ -127,8 +127,9 @@ def _description_root(model: GeneratedModel, tool: str, **version_specific: str)
     return root
 
 
-def _fmi2_interface_elements(root: ET.Element, model_identifier: str, interfaces: Interfaces,
-                             sources: tuple[str, ...]) -> None:
+def _fmi2_interface_elements(
+    root: ET.Element, model_identifier: str, interfaces: Interfaces, sources: tuple[str, ...]
+) -> None:
     """<ModelExchange> and / or <CoSimulation>, in the schema's order, with <SourceFiles>."""
     common = {
         "modelIdentifier": model_identifier,
@@ -144,13 +145,19 @@ def _fmi2_interface_elements(root: ET.Element, model_identifier: str, interfaces
         # fmi2CompletedIntegratorStep counts the importer's steps (solver.steps): wanted
         elements.append(ET.SubElement(root, "ModelExchange", {**common, "completedIntegratorStepNotNeeded": "false"}))
     if CO_SIMULATION in interfaces:
-        elements.append(ET.SubElement(root, "CoSimulation", {
-            **common,
-            "canHandleVariableCommunicationStepSize": "true",
-            "canInterpolateInputs": "false",
-            "maxOutputDerivativeOrder": "0",
-            "canRunAsynchronuously": "false",
-        }))
+        elements.append(
+            ET.SubElement(
+                root,
+                "CoSimulation",
+                {
+                    **common,
+                    "canHandleVariableCommunicationStepSize": "true",
+                    "canInterpolateInputs": "false",
+                    "maxOutputDerivativeOrder": "0",
+                    "canRunAsynchronuously": "false",
+                },
+            )
+        )
     for element in elements:
         if sources:
             files = ET.SubElement(element, "SourceFiles")
@@ -158,12 +165,17 @@ def _fmi2_interface_elements(root: ET.Element, model_identifier: str, interfaces
                 ET.SubElement(files, "File", name=name)
 
 
-def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: str,
-                           interfaces: Interfaces = frozenset({CO_SIMULATION}),
-                           sources: tuple[str, ...] = ()) -> str:
+def fmi2_model_description(
+    model: GeneratedModel,
+    model_identifier: str,
+    tool: str,
+    interfaces: Interfaces = frozenset({CO_SIMULATION}),
+    sources: tuple[str, ...] = (),
+) -> str:
     """The FMI 2.0 modelDescription.xml text; `sources`: the C files of <SourceFiles>."""
-    root = _description_root(model, tool, fmiVersion="2.0", guid=model.guid,
-                             numberOfEventIndicators=str(model.event_count))
+    root = _description_root(
+        model, tool, fmiVersion="2.0", guid=model.guid, numberOfEventIndicators=str(model.event_count)
+    )
     _fmi2_interface_elements(root, model_identifier, interfaces, sources)
     _add_unit_definitions(root, _units(model))
     categories = ET.SubElement(root, "LogCategories")
@@ -223,19 +235,28 @@ def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: s
         next_index += 1
     for offset, statistic in enumerate(SHELL_STATISTICS):
         element = ET.SubElement(
-            variables, "ScalarVariable", name=statistic.name,
-            valueReference=str(references.statistics + offset), description=statistic.description,
-            causality="local", variability="discrete", initial="calculated",
+            variables,
+            "ScalarVariable",
+            name=statistic.name,
+            valueReference=str(references.statistics + offset),
+            description=statistic.description,
+            causality="local",
+            variability="discrete",
+            initial="calculated",
         )
         ET.SubElement(element, "Integer")
         next_index += 1
     derivative_index: list[int] = []
     for offset, state in enumerate(_state_variables(model)):
         element = ET.SubElement(
-            variables, "ScalarVariable", name=f"der({state.name})",
+            variables,
+            "ScalarVariable",
+            name=f"der({state.name})",
             valueReference=str(references.derivatives + offset),
             description=f"Time derivative of {state.name}",
-            causality="local", variability="continuous", initial="calculated",
+            causality="local",
+            variability="continuous",
+            initial="calculated",
         )
         ET.SubElement(element, "Real", derivative=str(index_of[state.name]))
         derivative_index.append(next_index)
@@ -247,21 +268,28 @@ def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: s
     if outputs:
         section = ET.SubElement(structure, "Outputs")
         for variable in outputs:
-            _unknown(section, "Unknown", "index", index_of[variable.name],
-                     _dependency_list(_continuous_dependencies(model, variable.name), knowns))
+            _unknown(
+                section,
+                "Unknown",
+                "index",
+                index_of[variable.name],
+                _dependency_list(_continuous_dependencies(model, variable.name), knowns),
+            )
     if model.states:
         section = ET.SubElement(structure, "Derivatives")
         for index, name in zip(derivative_index, model.derivatives, strict=True):
-            _unknown(section, "Unknown", "index", index,
-                     _dependency_list(_continuous_dependencies(model, name), knowns))
+            _unknown(
+                section, "Unknown", "index", index, _dependency_list(_continuous_dependencies(model, name), knowns)
+            )
     initial: list[tuple[int, str]] = [(index_of[v.name], v.name) for v in (*outputs, *calculated)]
     initial += [(index_of[name], name) for name in model.states]
     initial += list(zip(derivative_index, model.derivatives, strict=True))
     if initial:
         section = ET.SubElement(structure, "InitialUnknowns")
         for index, name in sorted(initial):
-            _unknown(section, "Unknown", "index", index,
-                     _dependency_list(_initial_dependencies(model, name), start_knowns))
+            _unknown(
+                section, "Unknown", "index", index, _dependency_list(_initial_dependencies(model, name), start_knowns)
+            )
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
@@ -269,6 +297,7 @@ def fmi2_model_description(model: GeneratedModel, model_identifier: str, tool: s
 # ---------------------------------------------------------------------------------------
 # FMI 3.0
 # ---------------------------------------------------------------------------------------
+
 
 def time_value_reference(model: GeneratedModel) -> int:
     """The value reference of FMI 3.0's independent variable `time`: after the model's
@@ -285,9 +314,13 @@ def _fmi3_attributes(variable: ModelVariable) -> dict[str, str]:
     return attributes
 
 
-def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: str,
-                           interfaces: Interfaces = frozenset({CO_SIMULATION}),
-                           sources: tuple[str, ...] = ()) -> str:
+def fmi3_model_description(
+    model: GeneratedModel,
+    model_identifier: str,
+    tool: str,
+    interfaces: Interfaces = frozenset({CO_SIMULATION}),
+    sources: tuple[str, ...] = (),
+) -> str:
     """The FMI 3.0 modelDescription.xml text (the sources are listed in buildDescription.xml).
 
     Value references are those of FMI 2.0 (the model's variables, then the shell's), plus
@@ -307,22 +340,30 @@ def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: s
         "providesPerElementDependencies": "false",
     }
     if MODEL_EXCHANGE in interfaces:
-        ET.SubElement(root, "ModelExchange", {
-            **common,
-            "needsCompletedIntegratorStep": "true",  # it counts solver.steps
-            "providesEvaluateDiscreteStates": "false",
-        })
+        ET.SubElement(
+            root,
+            "ModelExchange",
+            {
+                **common,
+                "needsCompletedIntegratorStep": "true",  # it counts solver.steps
+                "providesEvaluateDiscreteStates": "false",
+            },
+        )
     if CO_SIMULATION in interfaces:
-        ET.SubElement(root, "CoSimulation", {
-            **common,
-            "canHandleVariableCommunicationStepSize": "true",
-            "maxOutputDerivativeOrder": "0",
-            "providesIntermediateUpdate": "false",
-            "mightReturnEarlyFromDoStep": "false",
-            "canReturnEarlyAfterIntermediateUpdate": "false",
-            "hasEventMode": "false",
-            "providesEvaluateDiscreteStates": "false",
-        })
+        ET.SubElement(
+            root,
+            "CoSimulation",
+            {
+                **common,
+                "canHandleVariableCommunicationStepSize": "true",
+                "maxOutputDerivativeOrder": "0",
+                "providesIntermediateUpdate": "false",
+                "mightReturnEarlyFromDoStep": "false",
+                "canReturnEarlyAfterIntermediateUpdate": "false",
+                "hasEventMode": "false",
+                "providesEvaluateDiscreteStates": "false",
+            },
+        )
     _add_unit_definitions(root, _units(model))
     categories = ET.SubElement(root, "LogCategories")
     for category in FMI3_LOG_CATEGORIES:
@@ -380,43 +421,72 @@ def fmi3_model_description(model: GeneratedModel, model_identifier: str, tool: s
             start=_number(setting.start),
         )
     for offset, statistic in enumerate(SHELL_STATISTICS):
-        ET.SubElement(variables, "Int64", name=statistic.name,
-                      valueReference=str(references.statistics + offset),
-                      description=statistic.description, causality="local", variability="discrete")
+        ET.SubElement(
+            variables,
+            "Int64",
+            name=statistic.name,
+            valueReference=str(references.statistics + offset),
+            description=statistic.description,
+            causality="local",
+            variability="discrete",
+        )
     derivative_vr: list[int] = []
     for offset, state in enumerate(_state_variables(model)):
         element = ET.SubElement(
-            variables, "Float64", name=f"der({state.name})",
+            variables,
+            "Float64",
+            name=f"der({state.name})",
             valueReference=str(references.derivatives + offset),
             description=f"Time derivative of {state.name}",
-            causality="local", variability="continuous",
+            causality="local",
+            variability="continuous",
             derivative=str(state.value_reference),
         )
         derivative_vr.append(references.derivatives + offset)
     indicator_vr: list[int] = []
     if MODEL_EXCHANGE in interfaces:
         for k in range(model.event_count):
-            ET.SubElement(variables, "Float64", name=f"eventIndicator{k + 1}",
-                          valueReference=str(references.indicators + k),
-                          description=f"Event indicator {k + 1} of the model (zero crossings are events)",
-                          causality="local", variability="continuous")
+            ET.SubElement(
+                variables,
+                "Float64",
+                name=f"eventIndicator{k + 1}",
+                valueReference=str(references.indicators + k),
+                description=f"Event indicator {k + 1} of the model (zero crossings are events)",
+                causality="local",
+                variability="continuous",
+            )
             indicator_vr.append(references.indicators + k)
 
     knowns = {v.name: v.value_reference for v in model.variables if v.kind in ("state", "input")}
     start_knowns = {v.name: v.value_reference for v in model.variables if v.kind in ("parameter", "input")}
     structure = ET.SubElement(root, "ModelStructure")
     for variable in outputs:
-        _unknown(structure, "Output", "valueReference", variable.value_reference,
-                 _dependency_list(_continuous_dependencies(model, variable.name), knowns))
+        _unknown(
+            structure,
+            "Output",
+            "valueReference",
+            variable.value_reference,
+            _dependency_list(_continuous_dependencies(model, variable.name), knowns),
+        )
     for reference, name in zip(derivative_vr, model.derivatives, strict=True):
-        _unknown(structure, "ContinuousStateDerivative", "valueReference", reference,
-                 _dependency_list(_continuous_dependencies(model, name), knowns))
+        _unknown(
+            structure,
+            "ContinuousStateDerivative",
+            "valueReference",
+            reference,
+            _dependency_list(_continuous_dependencies(model, name), knowns),
+        )
     initial: list[tuple[int, str]] = [(v.value_reference, v.name) for v in (*outputs, *calculated)]
     initial += [(model.variable(name).value_reference, name) for name in model.states]
     initial += list(zip(derivative_vr, model.derivatives, strict=True))
     for reference, name in sorted(initial):
-        _unknown(structure, "InitialUnknown", "valueReference", reference,
-                 _dependency_list(_initial_dependencies(model, name), start_knowns))
+        _unknown(
+            structure,
+            "InitialUnknown",
+            "valueReference",
+            reference,
+            _dependency_list(_initial_dependencies(model, name), start_knowns),
+        )
     for reference in indicator_vr:
         ET.SubElement(structure, "EventIndicator", valueReference=str(reference))
     ET.indent(root)

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from toggle_cosim.fmu_export.compile import GeneratedModel
 from toggle_cosim.fmu_export import interfaces as interface_types
+from toggle_cosim.fmu_export.compile import GeneratedModel
 from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
 from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header
 
@@ -125,8 +125,7 @@ def fmi3_build_description(model_identifier: str, source_files: tuple[str, ...])
     file_set = ET.SubElement(configuration, "SourceFileSet", language="C99")
     for name in source_files:
         ET.SubElement(file_set, "SourceFile", name=name)
-    ET.SubElement(configuration, "Library", name="m", external="true",
-                  description="the C math library (libm)")
+    ET.SubElement(configuration, "Library", name="m", external="true", description="the C math library (libm)")
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
@@ -147,8 +146,13 @@ FMI_VERSIONS = {
 }
 
 
-def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str = "2.0",
-              interfaces: str | frozenset[str] = interface_types.DEFAULT) -> BuiltFMU:
+def write_fmu(
+    model: GeneratedModel,
+    output: Path,
+    tool: str,
+    fmi_version: str = "2.0",
+    interfaces: str | frozenset[str] = interface_types.DEFAULT,
+) -> BuiltFMU:
     """Compile `model` and write the FMU for `fmi_version` ("2.0" or "3.0") offering
     `interfaces` ("both", "cs", "me") to `output` (atomically: a temporary name, then rename).
 
@@ -183,16 +187,23 @@ def write_fmu(model: GeneratedModel, output: Path, tool: str, fmi_version: str =
         binary_dir.mkdir(parents=True)
         binary = binary_dir / f"{identifier}{shared_library_suffix()}"
         command = [
-            find_c_compiler(), *CFLAGS, f"-I{sources}", f"-I{fmi_headers()}",
+            find_c_compiler(),
+            *CFLAGS,
+            f"-I{sources}",
+            f"-I{fmi_headers()}",
             *(str(sources / n) for n in compiled),
-            "-o", str(binary), "-lm",
+            "-o",
+            str(binary),
+            "-lm",
         ]
         result = subprocess.run(command, capture_output=True, text=True, check=False)
         if result.returncode != 0:
             raise FMUBuildError(f"C compiler failed for {model.name}:\n{result.stderr.strip()[:4000]}")
         if not binary.is_file() or binary.stat().st_size == 0:
-            raise FMUBuildError(f"C compiler exited 0 but wrote no library {binary.name} for {model.name} "
-                                f"(check the compiler {command[0]})")
+            raise FMUBuildError(
+                f"C compiler exited 0 but wrote no library {binary.name} for {model.name} "
+                f"(check the compiler {command[0]})"
+            )
         (work / "modelDescription.xml").write_text(
             version.model_description(model, identifier, tool, offered, compiled), encoding="utf-8"
         )

@@ -40,37 +40,58 @@ class LogCategory:
 # Value references nvars + 0, 1, 2, in this order (shell/instance.h). The ranges are checked
 # in solver.c (md_solver_set_setting).
 SHELL_SETTINGS = (
-    ShellSetting("solver.relTol", "MD_SETTING_RELTOL", 1e-8, "1",
-                 "Relative error tolerance of the FMU's internal Dormand-Prince 5(4) integrator, (0, 0.1]"),
-    ShellSetting("solver.absTol", "MD_SETTING_ABSTOL", 1e-10, "1",
-                 "Absolute error tolerance of the internal integrator, per state, > 0"),
-    ShellSetting("solver.maxStep", "MD_SETTING_MAXSTEP", 0.0, "s",
-                 "Largest internal integration step; 0 means unbounded"),
+    ShellSetting(
+        "solver.relTol",
+        "MD_SETTING_RELTOL",
+        1e-8,
+        "1",
+        "Relative error tolerance of the FMU's internal Dormand-Prince 5(4) integrator, (0, 0.1]",
+    ),
+    ShellSetting(
+        "solver.absTol",
+        "MD_SETTING_ABSTOL",
+        1e-10,
+        "1",
+        "Absolute error tolerance of the internal integrator, per state, > 0",
+    ),
+    ShellSetting(
+        "solver.maxStep", "MD_SETTING_MAXSTEP", 0.0, "s", "Largest internal integration step; 0 means unbounded"
+    ),
 )
 
 SHELL_STATISTICS = (
-    ShellStatistic("solver.steps", "MD_STATISTIC_STEPS",
-                   "Accepted integrator steps since instantiation (Model Exchange: the importer's completed "
-                   "integrator steps)"),
-    ShellStatistic("solver.rejectedSteps", "MD_STATISTIC_REJECTED",
-                   "Rejected integrator steps since instantiation (error test failed or non-finite values; "
-                   "0 under Model Exchange)"),
-    ShellStatistic("solver.events", "MD_STATISTIC_EVENTS",
-                   "State events handled since instantiation (transitions, event iteration included)"),
+    ShellStatistic(
+        "solver.steps",
+        "MD_STATISTIC_STEPS",
+        "Accepted integrator steps since instantiation (Model Exchange: the importer's completed integrator steps)",
+    ),
+    ShellStatistic(
+        "solver.rejectedSteps",
+        "MD_STATISTIC_REJECTED",
+        "Rejected integrator steps since instantiation (error test failed or non-finite values; "
+        "0 under Model Exchange)",
+    ),
+    ShellStatistic(
+        "solver.events",
+        "MD_STATISTIC_EVENTS",
+        "State events handled since instantiation (transitions, event iteration included)",
+    ),
 )
 
 # The log categories of shell/fmi2.c and shell/fmi3.c, in their order.
 FMI2_LOG_CATEGORIES = (
     LogCategory("logEvents", "MD_FMI2_LOG_EVENTS", "One line per state event: time, indicator and kind"),
-    LogCategory("logStatusError", "MD_FMI2_LOG_STATUS_ERROR",
-                "Calls that return a status other than fmi2OK, with the reason"),
+    LogCategory(
+        "logStatusError", "MD_FMI2_LOG_STATUS_ERROR", "Calls that return a status other than fmi2OK, with the reason"
+    ),
     LogCategory("logAll", "MD_FMI2_LOG_ALL", "Everything, including integrator statistics per communication step"),
 )
 FMI3_LOG_CATEGORIES = (
     LogCategory("logEvents", "MD_FMI3_LOG_EVENTS", "One line per state event: time, indicator and kind"),
     LogCategory("logStatusWarning", "MD_FMI3_LOG_STATUS_WARNING", "Calls that return fmi3Warning, with the reason"),
-    LogCategory("logStatusError", "MD_FMI3_LOG_STATUS_ERROR",
-                "Calls that return fmi3Error, with the reason (always reported)"),
+    LogCategory(
+        "logStatusError", "MD_FMI3_LOG_STATUS_ERROR", "Calls that return fmi3Error, with the reason (always reported)"
+    ),
     LogCategory("logAll", "MD_FMI3_LOG_ALL", "Everything, including integrator statistics per communication step"),
 )
 
@@ -82,7 +103,9 @@ def _c_string(text: str) -> str:
 
 
 def _enum(items: tuple, count: str) -> str:
-    return "enum { " + ", ".join(f"{item.c_name} = {k}" for k, item in enumerate(items)) + f", {count} = {len(items)} }};"
+    return (
+        "enum { " + ", ".join(f"{item.c_name} = {k}" for k, item in enumerate(items)) + f", {count} = {len(items)} }};"
+    )
 
 
 def settings_header() -> str:

@@ -38,9 +38,13 @@ def _names(node: ir.Expr | None) -> frozenset[str]:
     return frozenset(names(node)) if node is not None else frozenset()
 
 
-def model_dependencies(system: System, inputs: Iterable[str], independent: Iterable[str],
-                       start: Mapping[str, ir.Expr | None],
-                       bindings: Mapping[str, ir.Expr | None]) -> Dependencies:
+def model_dependencies(
+    system: System,
+    inputs: Iterable[str],
+    independent: Iterable[str],
+    start: Mapping[str, ir.Expr | None],
+    bindings: Mapping[str, ir.Expr | None],
+) -> Dependencies:
     """Dependencies of every variable of `system`.
 
     `inputs`: the top-level inputs (parameter slots in the causalized model);

@@ -44,8 +44,13 @@ def thrust_constant(m: MotorParameters) -> float:
     k = math.pi / m.tau
     bx_over_mu0_i = k * mmf_per_ampere(m) * math.sinh(k * m.L_m) / math.sinh(k * (m.G + m.L_m))  # eq. (14) / μ0
     return (
-        2.0 * m.tau / math.pi
-        * m.B_r * m.P_m * m.L_A
-        * math.sin(m.alpha * math.pi / 2.0) * math.sin(m.gamma0)
+        2.0
+        * m.tau
+        / math.pi
+        * m.B_r
+        * m.P_m
+        * m.L_A
+        * math.sin(m.alpha * math.pi / 2.0)
+        * math.sin(m.gamma0)
         * bx_over_mu0_i
     )

@@ -48,13 +48,17 @@ def check_archive(archive: zipfile.ZipFile) -> None:
         if problem:
             raise ArchiveError(f"member {info.filename!r} has {problem} (refused before extraction)")
         if info.file_size > MEMBER_LIMIT:
-            raise ArchiveError(f"member {info.filename!r} inflates to {info.file_size} bytes, over the {MEMBER_LIMIT // MiB} MiB limit")
+            raise ArchiveError(
+                f"member {info.filename!r} inflates to {info.file_size} bytes, over the {MEMBER_LIMIT // MiB} MiB limit"
+            )
         total += info.file_size
         if total > TOTAL_LIMIT:
             raise ArchiveError(f"the members inflate to more than {TOTAL_LIMIT // MiB} MiB together")
         if info.filename == "modelDescription.xml" and info.file_size > MODEL_DESCRIPTION_LIMIT:
-            raise ArchiveError(f"modelDescription.xml inflates to {info.file_size} bytes, over the "
-                               f"{MODEL_DESCRIPTION_LIMIT // MiB} MiB limit")
+            raise ArchiveError(
+                f"modelDescription.xml inflates to {info.file_size} bytes, over the "
+                f"{MODEL_DESCRIPTION_LIMIT // MiB} MiB limit"
+            )
     for info in members:
         if info.is_dir():
             continue
@@ -62,7 +66,15 @@ def check_archive(archive: zipfile.ZipFile) -> None:
             with archive.open(info) as stream:  # reads at most file_size bytes, checks the CRC at the end
                 while stream.read(1 << 20):
                     pass
-        except (zipfile.BadZipFile, zlib.error, EOFError, OSError, NotImplementedError, RuntimeError, ValueError) as error:
+        except (
+            zipfile.BadZipFile,
+            zlib.error,
+            EOFError,
+            OSError,
+            NotImplementedError,
+            RuntimeError,
+            ValueError,
+        ) as error:
             raise ArchiveError(f"member {info.filename!r} is corrupt ({' '.join(str(error).split())})") from None
 
 

@@ -16,9 +16,9 @@ from __future__ import annotations
 import platform
 import stat
 import zipfile
-from xml.etree import ElementTree
 from dataclasses import dataclass
 from pathlib import Path
+from xml.etree import ElementTree
 
 from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
@@ -26,17 +26,31 @@ from fmpy.model_description import ModelDescription
 JOINTS = ("12", "23", "34", "25", "56")
 INPUTS = {"iq_ref": "A", "F_E": "N"}
 OUTPUTS = {
-    "x_B": "m", "v_B": "m/s", "theta1": "rad", "theta2": "rad", "theta5": "rad", "x_C": "m",
-    "i_q": "A", "F_C": "N", "lambda1": "N", "lambda2": "N",
+    "x_B": "m",
+    "v_B": "m/s",
+    "theta1": "rad",
+    "theta2": "rad",
+    "theta5": "rad",
+    "x_C": "m",
+    "i_q": "A",
+    "F_C": "N",
+    "lambda1": "N",
+    "lambda2": "N",
     **{f"N{j}": "N" for j in JOINTS},
     **{f"Ff{j}": "N" for j in JOINTS},
-    "E_in": "J", "E_fric": "J", "E_load": "J", "E_mech": "J",
+    "E_in": "J",
+    "E_fric": "J",
+    "E_load": "J",
+    "E_mech": "J",
 }
 OPTIONAL_OUTPUTS = {"a_B": "m/s2", "omega1": "rad/s", "v_C": "m/s", "Phi1": "m", "Phi2": "m"}
 PARAMETERS = {"m_B": "kg", "mu": None}
 OPTIONAL_PARAMETERS = {"idealCurrentLoop": None, "K": "rad/s", "x_B0": "m", "frictionModel": None, "mu_s": None}
-VARIABILITIES = {"input": ("continuous", "discrete"), "output": ("continuous", "discrete"),
-                 "parameter": ("fixed", "tunable")}
+VARIABILITIES = {
+    "input": ("continuous", "discrete"),
+    "output": ("continuous", "discrete"),
+    "parameter": ("fixed", "tunable"),
+}
 
 
 class ContractError(Exception):
@@ -86,7 +100,8 @@ def check_plant(path: Path) -> PlantInterface:
         raise ContractError(f"{path}: not a regular file (give the .fmu file itself)")
     if not zipfile.is_zipfile(path):
         raise ContractError(f"{path}: not an FMU (not a zip archive)")
-    from toggle_cosim.plant.archive import ArchiveError, read_model_description as read_archive
+    from toggle_cosim.plant.archive import ArchiveError
+    from toggle_cosim.plant.archive import read_model_description as read_archive
 
     try:
         names, description = read_archive(path)  # names, sizes and data checked before anything is used
@@ -126,10 +141,18 @@ def check_plant(path: Path) -> PlantInterface:
         if variable is None:
             if optional:
                 return
-            raise ContractError(f"{path}: missing contract variable {name!r} ({causalities[0]}); see the README's interface contract")
+            raise ContractError(
+                f"{path}: missing contract variable {name!r} ({causalities[0]}); see the README's interface contract"
+            )
         if variable.causality not in causalities:
-            raise ContractError(f"{path}: variable {name!r} has causality {variable.causality}, the contract needs {causalities[0]}")
-        declared = variable.unit if variable.unit is not None else (variable.declaredType.unit if variable.declaredType else None)
+            raise ContractError(
+                f"{path}: variable {name!r} has causality {variable.causality}, the contract needs {causalities[0]}"
+            )
+        declared = (
+            variable.unit
+            if variable.unit is not None
+            else (variable.declaredType.unit if variable.declaredType else None)
+        )
         if unit is not None and declared != unit:
             raise ContractError(f"{path}: variable {name!r} has unit {declared!r}, the contract needs {unit!r}")
         wanted = "Boolean" if name == "idealCurrentLoop" else ("Real", "Float64")
@@ -138,8 +161,10 @@ def check_plant(path: Path) -> PlantInterface:
             raise ContractError(f"{path}: variable {name!r} has type {variable.type}, the contract needs {need}")
         allowed = VARIABILITIES[causalities[0]]
         if variable.variability not in allowed:
-            raise ContractError(f"{path}: variable {name!r} has variability {variable.variability}, the contract needs "
-                                f"{' or '.join(allowed)} for a {causalities[0]}")
+            raise ContractError(
+                f"{path}: variable {name!r} has variability {variable.variability}, the contract needs "
+                f"{' or '.join(allowed)} for a {causalities[0]}"
+            )
         references[name] = variable.valueReference
         types[name] = variable.type
 
@@ -158,8 +183,10 @@ def check_plant(path: Path) -> PlantInterface:
         kind = "any" if md.fmiVersion.startswith("3") else types[name]
         other = shared.setdefault((kind, references[name]), name)
         if other != name:
-            raise ContractError(f"{path}: variables {other!r} and {name!r} share the value reference {references[name]};"
-                                " the contract needs each on its own")
+            raise ContractError(
+                f"{path}: variables {other!r} and {name!r} share the value reference {references[name]};"
+                " the contract needs each on its own"
+            )
     for variable in md.modelVariables:
         references.setdefault(variable.name, variable.valueReference)
         types.setdefault(variable.name, variable.type)

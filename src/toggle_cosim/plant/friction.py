@@ -19,8 +19,9 @@ FRICTION_MODELS: dict[str, int] = {"paper": 1, "dissipative": 2, "stick_slip": 3
 DEFAULT_MODEL = "paper"
 
 
-def friction_settings(model: str, mu: float, mu_s: float | None, available: Collection[str],
-                      fmu: Path) -> list[tuple[str, float]]:
+def friction_settings(
+    model: str, mu: float, mu_s: float | None, available: Collection[str], fmu: Path
+) -> list[tuple[str, float]]:
     """The FMU parameters for friction model `model`: `frictionModel` and `mu_s` (mu_s defaults
     to mu). A plant without `frictionModel` runs the paper's model only; asking it for another
     raises ValueError with the one-line reason."""

@@ -23,11 +23,29 @@ from pathlib import Path
 from toggle_cosim.plant.contract import PlantInterface, _platform_binary_folders
 
 PROBE_SECONDS = 10.0
-FMI2 = ("fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment", "fmi2EnterInitializationMode",
-        "fmi2ExitInitializationMode", "fmi2Terminate", "fmi2GetReal", "fmi2SetReal", "fmi2SetBoolean", "fmi2DoStep")
-FMI3 = ("fmi3InstantiateCoSimulation", "fmi3FreeInstance", "fmi3EnterInitializationMode",
-        "fmi3ExitInitializationMode", "fmi3Terminate", "fmi3GetFloat64", "fmi3SetFloat64", "fmi3SetBoolean",
-        "fmi3DoStep")
+FMI2 = (
+    "fmi2Instantiate",
+    "fmi2FreeInstance",
+    "fmi2SetupExperiment",
+    "fmi2EnterInitializationMode",
+    "fmi2ExitInitializationMode",
+    "fmi2Terminate",
+    "fmi2GetReal",
+    "fmi2SetReal",
+    "fmi2SetBoolean",
+    "fmi2DoStep",
+)
+FMI3 = (
+    "fmi3InstantiateCoSimulation",
+    "fmi3FreeInstance",
+    "fmi3EnterInitializationMode",
+    "fmi3ExitInitializationMode",
+    "fmi3Terminate",
+    "fmi3GetFloat64",
+    "fmi3SetFloat64",
+    "fmi3SetBoolean",
+    "fmi3DoStep",
+)
 
 
 class ProbeError(Exception):
@@ -86,8 +104,10 @@ def probe_binary(plant: PlantInterface) -> None:
             os.close(read_fd)
             _, status = os.waitpid(pid, 0)
         if os.WIFSIGNALED(status):
-            raise ProbeError(f"{plant.path}: loading the binary {member} kills the process "
-                             f"({signal.Signals(os.WTERMSIG(status)).name}); rebuild the FMU")
+            raise ProbeError(
+                f"{plant.path}: loading the binary {member} kills the process "
+                f"({signal.Signals(os.WTERMSIG(status)).name}); rebuild the FMU"
+            )
         if answer:
             raise ProbeError(f"{plant.path}: {answer.decode(errors='replace')} ({member}); rebuild the FMU")
     finally:

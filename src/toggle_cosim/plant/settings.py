@@ -8,9 +8,9 @@ idealCurrentLoop. Each failure is one `SettingError` line naming the key and the
 
 from __future__ import annotations
 
-from toggle_cosim.plant.friction import friction_settings
-from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.experiments.scenario import Run
+from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.plant.friction import friction_settings
 
 
 class SettingError(Exception):
@@ -24,19 +24,25 @@ def check_settings(run: Run, plant: PlantInterface) -> None:
     except ValueError as error:
         raise SettingError(str(error)) from None
     if run.plant.current_loop == "ideal" and "idealCurrentLoop" not in variables:
-        raise SettingError(f"key plant.current_loop: the plant FMU {plant.path} has no parameter idealCurrentLoop, "
-                           "so 'ideal' cannot be set (use first_order)")
+        raise SettingError(
+            f"key plant.current_loop: the plant FMU {plant.path} has no parameter idealCurrentLoop, "
+            "so 'ideal' cannot be set (use first_order)"
+        )
     for name, value in run.plant.parameters.items():
         where = f"key plant.parameters.{name}" + (f" (variant {run.variant})" if run.variant else "")
         variable = variables.get(name)
         if variable is None:
             raise SettingError(f"{where}: the plant FMU {plant.path} has no variable {name!r} (check the name)")
         if variable.causality != "parameter" or variable.variability not in ("fixed", "tunable"):
-            raise SettingError(f"{where}: {name!r} is a {variable.variability} {variable.causality}, not a parameter "
-                               "that can be set before a run")
+            raise SettingError(
+                f"{where}: {name!r} is a {variable.variability} {variable.causality}, not a parameter "
+                "that can be set before a run"
+            )
         if variable.type == "Boolean" and not isinstance(value, bool):
             raise SettingError(f"{where}: {name!r} is a Boolean; write true or false, not {value!r}")
         if variable.type in ("Real", "Float64") and isinstance(value, bool):
             raise SettingError(f"{where}: {name!r} is a {variable.type}; write a number, not {value!r}")
         if variable.type not in ("Real", "Float64", "Boolean"):
-            raise SettingError(f"{where}: {name!r} is of type {variable.type}; only Real/Float64 and Boolean can be set")
+            raise SettingError(
+                f"{where}: {name!r} is of type {variable.type}; only Real/Float64 and Boolean can be set"
+            )
