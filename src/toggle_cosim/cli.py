@@ -6,7 +6,6 @@ The only module that knows about files, exit codes and progress display. Exit st
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from collections.abc import Sequence
@@ -346,50 +345,13 @@ def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, t
     _failed(_execute(pairs, out, quiet, time_limit))
 
 
-def _read_record(path: Path) -> dict:
-    """A run.json: a regular file of at most JSON_LIMIT bytes holding a JSON object."""
-    from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
-
-    record = json.loads(read_text_bounded(path, JSON_LIMIT, "run record"))
-    if not isinstance(record, dict):
-        raise ValueError("run.json does not hold a JSON object")
-    return record
-
-
 def _plot_scenario(folder: Path, output: Path | None) -> Path:
-    from toggle_cosim.analysis.plots import nine_panel_figure
-    from toggle_cosim.files.traces import read_csv
-    from toggle_cosim.plant.contract import OUTPUTS
+    from toggle_cosim.analysis.results_figure import ResultsError, plot_results
 
-    runs = sorted(p for p in folder.iterdir() if (p / "trace.csv").is_file()) if folder.is_dir() else []
-    if not runs:
-        raise InputError(f"{folder}: no run results here (expected <variant>/trace.csv; run 'toggle-cosim run' first)")
-    needed = ("time", "x_B", "iq_ref", "lambda1", "lambda2", *(n for n in OUTPUTS if n[:1] == "N" or n[:2] == "Ff"))
-    traces, target, title = {}, None, folder.name
-    for run_dir in runs:
-        try:
-            trace = read_csv(run_dir / "trace.csv")
-            record = _read_record(run_dir / "run.json")
-            target = float(record["resolved"]["stroke"]["x_target"])
-            title = f"{record['scenario']}: {record.get('description', '')}"
-        except (OSError, ValueError, KeyError, TypeError) as error:
-            detail = f"missing key {error}" if isinstance(error, KeyError) else " ".join(str(error).split())
-            raise InputError(
-                f"{run_dir}: unreadable results ({detail}); run it again with 'toggle-cosim run'"
-            ) from error
-        missing = [name for name in needed if name not in trace.names]
-        if missing:
-            raise InputError(
-                f"{run_dir / 'trace.csv'}: no column {missing[0]!r} (the figure needs {', '.join(needed[:5])}, ...);"
-                " run it again with 'toggle-cosim run'"
-            )
-        traces[run_dir.name] = trace
     try:
-        return nine_panel_figure(traces, title, output or folder / "figure.png", target)
-    except OSError as error:
-        raise InputError(
-            f"{output or folder / 'figure.png'}: cannot write the figure ({error.strerror or error})"
-        ) from error
+        return plot_results(folder, output)
+    except ResultsError as error:
+        raise InputError(str(error)) from error
 
 
 @main.command()

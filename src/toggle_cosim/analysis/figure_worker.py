@@ -64,14 +64,14 @@ def _serve() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # an interrupt is the parent's; end of input ends us
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(130))  # from stop(): a partial PNG is removed on the way out
     from toggle_cosim.analysis import plots  # noqa: F401 - matplotlib's import, while the parent runs
-    from toggle_cosim.cli import InputError, _plot_scenario
+    from toggle_cosim.analysis.results_figure import ResultsError, plot_results
 
     for line in sys.stdin:
         folder = Path(line.rstrip("\n"))
         try:
-            print(f"wrote {_plot_scenario(folder, None)}", flush=True)
-        except InputError as error:
-            print(f"error: {' '.join(error.message.split())}", flush=True)
+            print(f"wrote {plot_results(folder, None)}", flush=True)
+        except ResultsError as error:
+            print(f"error: {' '.join(str(error).split())}", flush=True)
     return 0
 
 
