@@ -28,13 +28,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import hashlib
 import os
-import platform
-import shutil
-import subprocess
-import sys
-import tempfile
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -42,6 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from toggle_cosim.control.parameters import LawParameters
+from toggle_cosim.native import cached_library
 
 if TYPE_CHECKING:
     from toggle_cosim.cosim.session import CFunctions
@@ -107,56 +102,9 @@ _library: ctypes.CDLL | None = None
 _library_reason: str | None = None
 
 
-def _cache_folder() -> Path:
-    if os.environ.get("TOGGLE_COSIM_CACHE"):
-        return Path(os.environ["TOGGLE_COSIM_CACHE"])
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "toggle-cosim"
-
-
-def _c_compiler() -> str:
-    """$CC, else cc, gcc or clang (the FMU build's choice), as a full path. Looked up here, not
-    imported from the FMU export, whose import pulls in the Modelica compiler (~1 s)."""
-    for name in (os.environ.get("CC", ""), "cc", "gcc", "clang"):
-        found = shutil.which(name) if name else None
-        if found:
-            return found
-    raise RuntimeError("no C compiler found (set CC or install gcc)")
-
-
 def _build_kernel() -> Path:
-    compiler = _c_compiler()
-    suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
-    source_text = kernel_source()
-    key = hashlib.sha256(
-        "\0".join((source_text, *KERNEL_FLAGS, compiler, platform.machine(), sys.platform)).encode()
-    ).hexdigest()[:16]
-    for folder in (
-        _cache_folder(),
-        Path(tempfile.gettempdir()) / f"toggle-cosim-{os.getuid() if hasattr(os, 'getuid') else 'user'}",
-    ):
-        library = folder / f"loop-kernel-{key}{suffix}"
-        if library.is_file():
-            return library
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as work:
-                source = Path(work) / "kernel.c"
-                source.write_text(source_text, encoding="utf-8")
-                built = Path(work) / f"kernel{suffix}"
-                result = subprocess.run(
-                    [compiler, *KERNEL_FLAGS, "-o", str(built), str(source), "-lm"],
-                    capture_output=True,
-                    text=True,
-                    check=False,
-                )
-                if result.returncode != 0:
-                    raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:500]}")
-                os.replace(built, library)  # atomic: a concurrent build just wins or loses the race
-            return library
-        except OSError:
-            continue
-    raise RuntimeError("no writable cache folder for the compiled loop")
+    """The compiled loop's library, built from the generated source (cached: `native`)."""
+    return cached_library(kernel_source(), "loop-kernel", KERNEL_FLAGS, ("-lm",))
 
 
 def kernel_library() -> ctypes.CDLL | None:

@@ -14,15 +14,11 @@ than np.savetxt. `tests/test_csv_rows.py` compares both with np.savetxt on rando
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import os
-import platform
-import shutil
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 from typing import Any
+
+from toggle_cosim.native import cached_library
 
 FLAGS = ("-O2", "-shared", "-fPIC", "-std=c99")
 SOURCE = r"""
@@ -54,45 +50,9 @@ _library: Any = None
 _reason: str | None = None
 
 
-def _cache_folders() -> list[Path]:
-    if os.environ.get("TOGGLE_COSIM_CACHE"):
-        first = Path(os.environ["TOGGLE_COSIM_CACHE"])
-    else:
-        first = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "toggle-cosim"
-    user = os.getuid() if hasattr(os, "getuid") else "user"
-    return [first, Path(tempfile.gettempdir()) / f"toggle-cosim-{user}"]
-
-
 def _build() -> Path:
-    compiler = next(
-        (shutil.which(n) for n in (os.environ.get("CC", ""), "cc", "gcc", "clang") if n and shutil.which(n)), None
-    )
-    if compiler is None:
-        raise RuntimeError("no C compiler found")
-    suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
-    key = hashlib.sha256("\0".join((SOURCE, *FLAGS, compiler, platform.machine(), sys.platform)).encode()).hexdigest()[
-        :16
-    ]
-    for folder in _cache_folders():
-        library = folder / f"csv-rows-{key}{suffix}"
-        if library.is_file():
-            return library
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as work:
-                source = Path(work) / "csv_rows.c"
-                source.write_text(SOURCE, encoding="utf-8")
-                built = Path(work) / f"csv_rows{suffix}"
-                result = subprocess.run(
-                    [compiler, *FLAGS, "-o", str(built), str(source)], capture_output=True, text=True, check=False
-                )
-                if result.returncode != 0:
-                    raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:300]}")
-                os.replace(built, library)  # atomic: a concurrent build just wins or loses the race
-            return library
-        except OSError:
-            continue
-    raise RuntimeError("no writable cache folder")
+    """The formatter's library (cached: `native`)."""
+    return cached_library(SOURCE, "csv-rows", FLAGS)
 
 
 def _load() -> Any:

@@ -1,0 +1,74 @@
+"""Small C libraries compiled on the user's machine and cached by a hash of what builds them:
+the co-simulation loop generated from the control law (`cosim.compiled_loop`) and the trace-row
+formatter (`files.csv_rows`).
+
+The compiler is $CC, else cc, gcc or clang. It is looked up here rather than imported from the
+FMU export, whose import pulls in the Modelica compiler (about 1 s). The cache is
+$TOGGLE_COSIM_CACHE, else $XDG_CACHE_HOME/toggle-cosim (~/.cache/toggle-cosim), else a
+per-user folder in the temporary directory when that one cannot be written.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+
+def c_compiler() -> str:
+    """The C compiler as a full path; RuntimeError when there is none."""
+    for name in (os.environ.get("CC", ""), "cc", "gcc", "clang"):
+        found = shutil.which(name) if name else None
+        if found:
+            return found
+    raise RuntimeError("no C compiler found (set CC or install gcc)")
+
+
+def cache_folders() -> list[Path]:
+    """Where compiled libraries are kept, in the order they are tried."""
+    if os.environ.get("TOGGLE_COSIM_CACHE"):
+        first = Path(os.environ["TOGGLE_COSIM_CACHE"])
+    else:
+        first = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "toggle-cosim"
+    user = os.getuid() if hasattr(os, "getuid") else "user"
+    return [first, Path(tempfile.gettempdir()) / f"toggle-cosim-{user}"]
+
+
+def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequence[str] = ()) -> Path:
+    """The shared library built from the C `source` with `flags`: taken from the cache when a
+    build of the same source, flags, compiler and platform is there, else compiled into it
+    (atomically, so concurrent builds only race to the same file). RuntimeError when the
+    compiler fails or no cache folder can be written."""
+    compiler = c_compiler()
+    suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
+    key = hashlib.sha256("\0".join((source, *flags, compiler, platform.machine(), sys.platform)).encode())
+    name = f"{stem}-{key.hexdigest()[:16]}{suffix}"
+    for folder in cache_folders():
+        library = folder / name
+        if library.is_file():
+            return library
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(dir=folder) as work:
+                source_path = Path(work) / f"{stem}.c"
+                source_path.write_text(source, encoding="utf-8")
+                built = Path(work) / f"{stem}{suffix}"
+                result = subprocess.run(
+                    [compiler, *flags, "-o", str(built), str(source_path), *libraries],
+                    capture_output=True,
+                    text=True,
+                    check=False,
+                )
+                if result.returncode != 0:
+                    raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:500]}")
+                os.replace(built, library)
+            return library
+        except OSError:
+            continue
+    raise RuntimeError(f"no writable cache folder for {stem} (tried {', '.join(map(str, cache_folders()))})")
