@@ -746,14 +746,7 @@ fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference 
  * ------------------------------------------------------------------------------------- */
 
 /* At the top of every Model Exchange function: the instance must be one. */
-#define GUARD_ME(m, function, allowed)                                                      \
-    do {                                                                                    \
-        if ((m) != NULL && (m)->mode != MD_MODE_FATAL && (m)->interface != MD_INTERFACE_ME) { \
-            return status_of(md_report((m), MD_RESULT_ERROR, "%s: a Model Exchange function, "\
-                                       "but the instance is a Co-Simulation one", function)); \
-        }                                                                                   \
-        GUARD(m, function, allowed);                                                        \
-    } while (0)
+#define GUARD_ME(m, function, allowed) MD_GUARD_ME(m, function, allowed, status_of)
 
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
     md_instance *m = instance;

@@ -223,6 +223,14 @@ md_result md_guard(md_instance *m, const char *function, unsigned allowed) {
     return MD_RESULT_OK;
 }
 
+md_result md_guard_me(md_instance *m, const char *function, unsigned allowed) {
+    if (m != NULL && m->mode != MD_MODE_FATAL && m->interface != MD_INTERFACE_ME) {
+        return md_report(m, MD_RESULT_ERROR, "%s: a Model Exchange function, but the instance is a "
+                         "Co-Simulation one", function);
+    }
+    return md_guard(m, function, allowed);
+}
+
 md_result md_unsupported(md_instance *m, const char *function, const char *why) {
     md_result status = md_guard(m, function, MD_MODE_ANY);
     if (status != MD_RESULT_OK) { return status; }

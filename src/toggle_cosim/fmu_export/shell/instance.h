@@ -208,6 +208,15 @@ md_result md_guard(md_instance *instance, const char *function, unsigned allowed
         if (guard_result != MD_RESULT_OK) { return map(guard_result); }     \
     } while (0)
 
+/* md_guard for a Model Exchange entry point: Error first if the instance was created for
+ * Co-Simulation. MD_GUARD_ME returns its verdict as MD_GUARD does. */
+md_result md_guard_me(md_instance *instance, const char *function, unsigned allowed);
+#define MD_GUARD_ME(instance, function, allowed, map)                             \
+    do {                                                                          \
+        md_result guard_result = md_guard_me((instance), (function), (allowed));  \
+        if (guard_result != MD_RESULT_OK) { return map(guard_result); }           \
+    } while (0)
+
 /* A function this FMU does not provide: md_guard for any mode, then Error "function: why". */
 md_result md_unsupported(md_instance *instance, const char *function, const char *why);
 
