@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from toggle_cosim.control.nominal import mass_terms, nominal_reduced, theta1_omega1
-from toggle_cosim.control.parameters import LawParameters
+from toggle_cosim.control.parameters import LawParameters, mechanism_terms
 from toggle_cosim.physics.mechanism import _dependent_rates
 from toggle_cosim.physics.parameters import MechanismParameters
 
@@ -543,21 +543,7 @@ def _law(p: MechanismParameters, K_f: float = 1.0) -> LawParameters:
         K_f=K_f,
         t0=0.0,
         T_h=0.0,
-        r1=p.r1,
-        r3=p.r3,
-        r4=p.r4,
-        r5=p.r5,
-        f=p.f,
-        h=p.h,
-        phi=p.phi,
-        m3=p.m3,
-        m5=p.m5,
-        mB=p.mB,
-        mC=p.mC,
-        J2=p.J2,
-        J3=p.m3 * p.r3 * p.r3 / 12.0,
-        J5=p.m5 * p.r5 * p.r5 / 12.0,
-        g=p.g,
+        **mechanism_terms(p),
     )
 
 

@@ -32,7 +32,14 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from toggle_cosim.control.laws import error_terms, law_step
-from toggle_cosim.control.parameters import INTEGRAL, OBJECTIVE_THETA1, OBJECTIVE_XB, PAPER, LawParameters
+from toggle_cosim.control.parameters import (
+    INTEGRAL,
+    OBJECTIVE_THETA1,
+    OBJECTIVE_XB,
+    PAPER,
+    LawParameters,
+    mechanism_terms,
+)
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters, MotorParameters
@@ -177,21 +184,7 @@ class VSCController:
             K_f=float(self.K_f),
             t0=float(t0),
             T_h=float(T_h),
-            r1=p.r1,
-            r3=p.r3,
-            r4=p.r4,
-            r5=p.r5,
-            f=p.f,
-            h=p.h,
-            phi=p.phi,
-            m3=p.m3,
-            m5=p.m5,
-            mB=p.mB,
-            mC=p.mC,
-            J2=p.J2,
-            J3=p.m3 * p.r3 * p.r3 / 12.0,
-            J5=p.m5 * p.r5 * p.r5 / 12.0,
-            g=p.g,
+            **mechanism_terms(p),
         )
 
     def switching_function(self, x_B: float, v_B: float) -> float:

@@ -61,3 +61,16 @@ class LawParameters:
     J3: float
     J5: float
     g: float
+
+
+MECHANISM_FIELDS = ("r1", "r3", "r4", "r5", "f", "h", "phi", "m3", "m5", "mB", "mC", "J2", "g")
+
+
+def mechanism_terms(mechanism: object) -> dict[str, float]:
+    """The nominal mechanism's fields of LawParameters, from a `physics.parameters.
+    MechanismParameters` (read by name): its geometry and masses, and the rods' centroidal
+    inertias J = m r²/12 (uniform links 3 and 5, eq. (18))."""
+    terms = {name: getattr(mechanism, name) for name in MECHANISM_FIELDS}
+    terms["J3"] = terms["m3"] * terms["r3"] * terms["r3"] / 12.0
+    terms["J5"] = terms["m5"] * terms["r5"] * terms["r5"] / 12.0
+    return terms
