@@ -49,6 +49,8 @@ PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
 T_S_SWEEP = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
 FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
+from timing import run_to_last_file  # noqa: E402 - benchmarks/timing.py, beside this script
+
 from toggle_cosim.cosim import compiled_loop, master, session  # noqa: E402
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document  # noqa: E402
 from toggle_cosim.fmu_export import build_fmu  # noqa: E402
@@ -277,32 +279,13 @@ def best(values) -> float:
 # ------------------------------------------------------------------------------------------
 # A fresh process: the six paper runs from process start to the last file written
 # ------------------------------------------------------------------------------------------
-def cli_command() -> list[str]:
-    script = Path(sys.executable).parent / "toggle-cosim"
-    if script.is_file():
-        return [str(script)]
-    return [sys.executable, "-c", "import sys; from toggle_cosim.cli import main; sys.exit(main())"]
-
-
 def six_runs_process(fmu: Path, folder: Path, supervised: bool = True) -> dict:
     out = folder / "six"
     shutil.rmtree(out, ignore_errors=True)
     files = [str(SCENARIOS / f"{name}.yaml") for name in PAPER]
     env = {**os.environ, "TOGGLE_COSIM_SUPERVISE": "1" if supervised else "0"}
-    started = time.time()
-    result = subprocess.run(
-        [*cli_command(), "run", *files, "--fmu", str(fmu), "--out", str(out), "-q"],
-        capture_output=True,
-        text=True,
-        check=False,
-        env=env,
-    )
-    ended = time.time()
-    if result.returncode != 0:
-        raise RuntimeError(f"toggle-cosim run failed: {result.stderr.strip()}")
-    written = [p for p in out.rglob("*") if p.is_file()]
-    last = max(p.stat().st_mtime for p in written)
-    return {"to_last_file": last - started, "process": ended - started, "files": len(written)}
+    timed = run_to_last_file(["run", *files, "--fmu", str(fmu), "--out", str(out), "-q"], out, env)
+    return {**timed, "files": len(timed["files"])}
 
 
 IMPORTS = (

@@ -17,40 +17,23 @@ import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
+from timing import run_to_last_file  # benchmarks/timing.py, beside this script
+
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def command() -> list[str]:
-    script = Path(sys.executable).parent / "toggle-cosim"
-    return [str(script)] if script.is_file() else [sys.executable, "-m", "toggle_cosim.cli"]
 
 
 def suite(fmu: Path, out: Path, supervised: bool) -> dict[str, float]:
     shutil.rmtree(out, ignore_errors=True)
     env = {**os.environ, "TOGGLE_COSIM_SUPERVISE": "1" if supervised else "0"}
-    started = time.time()
-    result = subprocess.run(
-        [*command(), "paper", "--skip-build", "--fmu", str(fmu), "--out", str(out)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        check=False,
-        env=env,
-    )
-    ended = time.time()
-    if result.returncode != 0:
-        raise SystemExit(f"toggle-cosim paper failed ({result.returncode}): {result.stderr.strip()[-500:]}")
-    files = [p for p in out.rglob("*") if p.is_file()]
+    timed = run_to_last_file(["paper", "--skip-build", "--fmu", str(fmu), "--out", str(out)], out, env, cwd=ROOT)
     records = [json.loads(p.read_text()) for p in out.rglob("run.json")]
     return {
-        "to_last_file": max(p.stat().st_mtime for p in files) - started,
-        "process": ended - started,
+        "to_last_file": timed["to_last_file"],
+        "process": timed["process"],
         "runs": len(records),
         "runs_wall": sum(r["wall_time_s"] for r in records),
     }
