@@ -7,7 +7,7 @@
    computed with 128-bit integers for the values a trace holds: v = m 2^e (m < 2^53) has the digits
    N = round(v 10^k), k = 16 - X, X = floor(log10 |v|) after rounding; for 0 <= k <= 27
    (1e-11 <= |v| < 1e17), v 10^k = m 5^k 2^(e+k) with m 5^k < 2^53 2^63, so N and its rounding
-   are exact. Every other value (zero, tiny, huge, inf, subnormal) goes to snprintf, as does every
+   are exact. Zero is "0" or "-0"; every other value (tiny, huge, inf, subnormal) goes to snprintf, as does every
    value where the compiler has no 128-bit integer. NaN is written "nan" whatever its sign. */
 
 #include <math.h>
@@ -74,7 +74,12 @@ static int digits17(double a, uint64_t *digits, int *exponent) { (void)a; (void)
 
 static int format17(double v, char *out) {
     if (isnan(v)) { memcpy(out, "nan", 3); return 3; }
-    if (v == 0.0 || isinf(v)) return slow(v, out);
+    if (v == 0.0) {
+        if (signbit(v)) { memcpy(out, "-0", 2); return 2; }
+        out[0] = '0';
+        return 1;
+    }
+    if (isinf(v)) return slow(v, out);
     uint64_t n;
     int X;
     double a = fabs(v);

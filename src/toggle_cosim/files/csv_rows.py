@@ -44,7 +44,7 @@ def _load() -> Any:
                 ctypes.c_void_p,
                 ctypes.c_long,
                 ctypes.c_long,
-                ctypes.c_char_p,
+                ctypes.c_void_p,
                 ctypes.c_long,
             ]
             library.format_rows.restype = ctypes.c_long
@@ -62,20 +62,26 @@ def format_rows_python(data: Any) -> str:
     return ((",".join(["%.17g"] * columns) + "\n") * rows) % tuple(data.ravel().tolist())
 
 
-def format_rows(data: Any) -> str:
-    """The rows of a 2-D float64 array as np.savetxt(fmt="%.17g", delimiter=",") writes them."""
+def format_rows_bytes(data: Any) -> bytes | memoryview:
+    """The rows of a 2-D float64 array as np.savetxt(fmt="%.17g", delimiter=",") writes them,
+    as ASCII bytes (with the C route a view of the buffer it wrote: no copy)."""
     import numpy as np
 
     library = None if os.environ.get("TOGGLE_COSIM_FAST_CSV", "1") == "0" else _load()
     if library is None or data.dtype != np.float64 or data.ndim != 2:
-        return format_rows_python(data)
+        return format_rows_python(data).encode("ascii")
     block = np.ascontiguousarray(data)
     rows, columns = block.shape
     if rows == 0 or columns == 0:
-        return format_rows_python(data)
+        return format_rows_python(data).encode("ascii")
     capacity = rows * columns * BYTES_PER_VALUE + 1
-    buffer = ctypes.create_string_buffer(capacity)
-    used = library.format_rows(block.ctypes.data, rows, columns, buffer, capacity)
+    buffer = np.empty(capacity, dtype=np.uint8)
+    used = library.format_rows(block.ctypes.data, rows, columns, buffer.ctypes.data, capacity)
     if used < 0:  # cannot happen with 32 bytes a value; the Python route then
-        return format_rows_python(data)
-    return buffer.raw[:used].decode("ascii")
+        return format_rows_python(data).encode("ascii")
+    return memoryview(buffer)[:used]
+
+
+def format_rows(data: Any) -> str:
+    """The rows of a 2-D float64 array as np.savetxt(fmt="%.17g", delimiter=",") writes them."""
+    return bytes(format_rows_bytes(data)).decode("ascii")

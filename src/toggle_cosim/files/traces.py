@@ -42,13 +42,14 @@ def _umask() -> int:
 FILE_MODE = 0o666 & ~_umask()  # what open() would give: mkstemp's files are private (0600)
 
 
-def atomic_write(path: Path, write: Any) -> None:
-    """Call `write(stream)` on a temporary file beside `path`, then rename it into place (its
-    mode follows the umask, like any file the user creates)."""
+def atomic_write(path: Path, write: Any, binary: bool = False) -> None:
+    """Call `write(stream)` on a temporary file beside `path` (UTF-8 text, or bytes if `binary`),
+    then rename it into place (its mode follows the umask, like any file the user creates)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
     try:
-        with os.fdopen(handle, "w", encoding="utf-8", newline="\n") as stream:
+        opened = os.fdopen(handle, "wb") if binary else os.fdopen(handle, "w", encoding="utf-8", newline="\n")
+        with opened as stream:
             write(stream)
             stream.flush()
             os.fchmod(stream.fileno(), FILE_MODE)
@@ -74,19 +75,19 @@ def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
     """FMI cross-check CSV: a header of quoted names, "time" first, then one row per sample
     (every `every`-th sample and the last one: the scenario key record_every), in chunks; the
     rows are the bytes np.savetxt(fmt="%.17g", delimiter=",") writes (`csv_rows`)."""
-    from toggle_cosim.files.csv_rows import format_rows
+    from toggle_cosim.files.csv_rows import format_rows_bytes
 
     def write(stream: Any) -> None:
-        stream.write(",".join(f'"{name}"' for name in trace.names) + "\n")
+        stream.write((",".join(f'"{name}"' for name in trace.names) + "\n").encode("utf-8"))
         if every <= 1:
             for start in range(0, trace.data.shape[0], CHUNK_ROWS):
-                stream.write(format_rows(trace.data[start : start + CHUNK_ROWS]))
+                stream.write(format_rows_bytes(trace.data[start : start + CHUNK_ROWS]))
             return
         kept = recorded_rows(trace.data.shape[0], every)
         for start in range(0, kept.size, CHUNK_ROWS):
-            stream.write(format_rows(trace.data[kept[start : start + CHUNK_ROWS]]))
+            stream.write(format_rows_bytes(trace.data[kept[start : start + CHUNK_ROWS]]))
 
-    atomic_write(Path(path), write)
+    atomic_write(Path(path), write, binary=True)
 
 
 def read_csv(path: Path) -> Trace:
