@@ -6,6 +6,8 @@ The only module that knows about files, exit codes and progress display. Exit st
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -261,9 +263,7 @@ def _status_text(outcome) -> str:  # noqa: ANN001
 def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path | None = None):  # noqa: ANN001, ANN202
     """One run, supervised (`supervision`); TOGGLE_COSIM_SUPERVISE=0 runs it in this process
     instead (for the benchmark's comparison and for debugging: no time limit, no crash guard)."""
-    import os
-
-    if os.environ.get("TOGGLE_COSIM_SUPERVISE", "1") == "0":
+    if not _supervised():
         from toggle_cosim.cosim.master import simulate
 
         return simulate(run, plant, progress)
@@ -272,47 +272,77 @@ def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path
     return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
 
 
-def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None) -> list:  # noqa: ANN001
-    """Run each (run, plant) pair supervised, write its files, print a line; `on_written(outcome)`
-    after each run's files are written."""
+def _supervised() -> bool:
+    return os.environ.get("TOGGLE_COSIM_SUPERVISE", "1") != "0"
+
+
+def _jobs(jobs: int | None, runs: int) -> int:
+    """--jobs, else one run per core (supervised runs only: in-process runs go one by one)."""
+    if not _supervised():
+        return 1
+    if jobs is not None:
+        return max(1, min(jobs, runs))
+    from toggle_cosim.cosim.supervised_batch import default_jobs
+
+    return default_jobs(runs)
+
+
+def _outcomes(pairs, quiet: bool, time_limit: float | None, jobs: int):  # noqa: ANN001, ANN202
+    """Each pair's outcome, in order. Several at once (`supervised_batch`) when jobs > 1; one by
+    one otherwise, with a progress bar per run on a terminal unless quiet."""
+    if jobs > 1:
+        from toggle_cosim.cosim.supervised_batch import run_supervised
+
+        yield from run_supervised(pairs, jobs=jobs, time_limit=time_limit)
+        return
+    for number, (run, plant) in enumerate(pairs, start=1):
+        if quiet or not sys.stderr.isatty():
+            yield _simulate(run, plant, time_limit)
+            continue
+        with click.progressbar(length=1000, label=f"[{number}/{len(pairs)}] {run.label}", file=sys.stderr) as bar:
+            done = [0]
+
+            def progress(fraction: float, bar=bar, done=done) -> None:  # noqa: ANN001
+                step = int(fraction * 1000) - done[0]
+                if step > 0:
+                    bar.update(step)
+                    done[0] += step
+
+            outcome = _simulate(run, plant, time_limit, progress)
+        yield outcome
+
+
+def _execute(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None, jobs=None) -> list:  # noqa: ANN001
+    """Run each (run, plant) pair supervised (up to `jobs` at once), write its files in order,
+    print a line; `on_written(outcome)` after each run's files are written."""
     from toggle_cosim.experiments.resources import check_runs
 
-    check_runs(pairs, out)
+    jobs = _jobs(jobs, len(pairs))
+    check_runs(pairs, out, jobs)
     outcomes = []
-    for number, (run, plant) in enumerate(pairs, start=1):
-        label = f"[{number}/{len(pairs)}] {run.label}"
-        if quiet or not sys.stderr.isatty():
-            outcome = _simulate(run, plant, time_limit)
-        else:
-            with click.progressbar(length=1000, label=label, file=sys.stderr) as bar:
-                done = [0]
-
-                def progress(fraction: float, bar=bar, done=done) -> None:  # noqa: ANN001
-                    step = int(fraction * 1000) - done[0]
-                    if step > 0:
-                        bar.update(step)
-                        done[0] += step
-
-                outcome = _simulate(run, plant, time_limit, progress)
-        folder = _write_outcome(outcome, out)
-        s = outcome.summary
-        detail = (
-            f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
-            f"T_h {s.hitting_time_s:.4f} s"
-            if s and s.final_error_m is not None
-            else "no summary"
-        )
-        click.echo(
-            f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}"
-        )
-        outcomes.append(outcome)
-        if on_written is not None:
-            on_written(outcome)
-        if outcome.interrupted:
-            click.echo(
-                f"interrupted: {label} written as interrupted; {len(pairs) - number} run(s) not started", err=True
+    with contextlib.closing(_outcomes(pairs, quiet, time_limit, jobs)) as results:
+        for number, outcome in enumerate(results, start=1):
+            label = f"[{number}/{len(pairs)}] {outcome.run.label}"
+            folder = _write_outcome(outcome, out)
+            s = outcome.summary
+            detail = (
+                f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
+                f"T_h {s.hitting_time_s:.4f} s"
+                if s and s.final_error_m is not None
+                else "no summary"
             )
-            raise KeyboardInterrupt
+            click.echo(
+                f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}"
+            )
+            outcomes.append(outcome)
+            if on_written is not None:
+                on_written(outcome)
+            if outcome.interrupted:
+                click.echo(
+                    f"interrupted: {label} written as interrupted; {len(pairs) - number} later run(s) not written",
+                    err=True,
+                )
+                raise KeyboardInterrupt
     return outcomes
 
 
@@ -321,6 +351,16 @@ def _failed(outcomes) -> None:  # noqa: ANN001
     if failed:
         raise RunFailed(f"{len(failed)} run(s) failed: {'; '.join(failed)}")
 
+
+_JOBS = click.option(
+    "--jobs",
+    "-j",
+    type=click.IntRange(min=1),
+    default=None,
+    metavar="N",
+    help="Runs at once, each in its own process (default: one per core). With more than one, progress "
+    "is a line per run as it is written (in order), not a bar; the traces are the same.",
+)
 
 _TIME_LIMIT = click.option(
     "--time-limit",
@@ -339,10 +379,13 @@ _TIME_LIMIT = click.option(
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True, help="Output folder.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
 @_TIME_LIMIT
-def run(scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, time_limit: float | None) -> None:
+@_JOBS
+def run(
+    scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, time_limit: float | None, jobs: int | None
+) -> None:
     """Run scenario files; write trace.csv and run.json per run under OUT/<scenario>/<variant>/."""
     pairs = _load_runs(scenarios, fmu)
-    _failed(_execute(pairs, out, quiet, time_limit))
+    _failed(_execute(pairs, out, quiet, time_limit, jobs=jobs))
 
 
 def _plot_scenario(folder: Path, output: Path | None) -> Path:
@@ -378,7 +421,8 @@ def plot(results: tuple[Path, ...], output: Path | None) -> None:
 @click.option("--fmu", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True)
 @click.option("--skip-build", is_flag=True, help="Use the existing FMU.")
 @_TIME_LIMIT
-def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: float | None) -> None:
+@_JOBS
+def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: float | None, jobs: int | None) -> None:
     """The main job: build the FMU, run the paper's six runs, write traces, figures and a summary."""
     from toggle_cosim.analysis.report import write_summary
 
@@ -400,7 +444,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             if left[outcome.run.scenario] == 0:
                 figures.submit(out / outcome.run.scenario)
 
-        outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit, on_written=written)
+        outcomes = _execute(pairs, out, quiet=False, time_limit=time_limit, on_written=written, jobs=jobs)
         extra = scenarios / "friction_models.yaml"
         if extra.is_file():  # the claims re-checked under the dissipative and stick-slip models
             try:
@@ -408,7 +452,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             except InputError as error:  # e.g. a plant without the friction models: the paper's runs stand
                 click.echo(f"skipped {extra}: {error.message}", err=True)
                 extra_pairs = []
-            outcomes = [*outcomes, *_execute(extra_pairs, out, quiet=False)]
+            outcomes = [*outcomes, *_execute(extra_pairs, out, quiet=False, jobs=jobs)]
         summary = write_summary(outcomes, out / "summary.md")
         lines = figures.results()
     except BaseException:
@@ -497,6 +541,7 @@ def compare(
     "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
 )
 @_TIME_LIMIT
+@_JOBS
 def references(
     scenarios: tuple[Path, ...],
     update: bool,
@@ -507,9 +552,9 @@ def references(
     summary: Path | None,
     fail_on_solver_change: bool,
     time_limit: float | None,
+    jobs: int | None,
 ) -> None:
     """Check the shipped runs against their stored reference traces (or --update them)."""
-    from toggle_cosim.analysis.compare import CompareInputError, format_table
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim.experiments import references as refs
 
@@ -522,33 +567,13 @@ def references(
     pairs = _load_runs(files, fmu)
     from toggle_cosim.experiments.resources import check_runs
 
-    check_runs(pairs, folder if update else None)
+    jobs = _jobs(jobs, len(pairs))
+    check_runs(pairs, folder if update else None, jobs)
     failures: list[str] = []
     checks = []
-    for run, plant in pairs:
-        outcome = _simulate(run, plant, time_limit)
-        if outcome.interrupted:
-            raise KeyboardInterrupt
-        if not outcome.complete:  # the other runs go on; the command fails at the end
-            click.echo(f"{run.label}: FAILED ({outcome.reason})")
-            failures.append(f"{run.label}: {outcome.reason}")
-            continue
-        if update:
-            click.echo(f"{run.label}: wrote {refs.store(outcome, folder)}")
-            continue
-        try:
-            checked = refs.check(outcome, folder)
-        except (CompareInputError, ValueError) as error:
-            raise InputError(str(error)) from error
-        click.echo(f"{run.label}: {'pass' if checked.comparison.passed else 'FAIL'}")
-        if not checked.comparison.passed:
-            click.echo(format_table(checked.comparison))
-        for line in checked.solver_changes:
-            click.echo(f"{'FAIL' if fail_on_solver_change else 'warning'}: {line}")
-        failures += checked.failures
-        if fail_on_solver_change:
-            failures += checked.solver_changes
-        checks.append((checked, outcome.trace, refs.reference_stem(folder, run)))
+    with contextlib.closing(_outcomes(pairs, True, time_limit, jobs)) as results:
+        for outcome in results:
+            failures += _check_reference(outcome, refs, folder, update, fail_on_solver_change, checks)
     if not update:
         written = write_reference_reports(
             checks, out, junit or out / "junit.xml", summary or out / "summary.md", fail_on_solver_change
@@ -556,6 +581,32 @@ def references(
         click.echo(f"reports: {', '.join(str(path) for path in written)}")
     if failures:
         raise RunFailed("; ".join(failures))
+
+
+def _check_reference(outcome, refs, folder: Path, update: bool, fail_on_solver_change: bool, checks: list) -> list[str]:  # noqa: ANN001
+    """One run of `references`: store it (--update) or check it; the failures it adds."""
+    from toggle_cosim.analysis.compare import CompareInputError, format_table
+
+    run = outcome.run
+    if outcome.interrupted:
+        raise KeyboardInterrupt
+    if not outcome.complete:  # the other runs go on; the command fails at the end
+        click.echo(f"{run.label}: FAILED ({outcome.reason})")
+        return [f"{run.label}: {outcome.reason}"]
+    if update:
+        click.echo(f"{run.label}: wrote {refs.store(outcome, folder)}")
+        return []
+    try:
+        checked = refs.check(outcome, folder)
+    except (CompareInputError, ValueError) as error:
+        raise InputError(str(error)) from error
+    click.echo(f"{run.label}: {'pass' if checked.comparison.passed else 'FAIL'}")
+    if not checked.comparison.passed:
+        click.echo(format_table(checked.comparison))
+    for line in checked.solver_changes:
+        click.echo(f"{'FAIL' if fail_on_solver_change else 'warning'}: {line}")
+    checks.append((checked, outcome.trace, refs.reference_stem(folder, run)))
+    return [*checked.failures, *(checked.solver_changes if fail_on_solver_change else [])]
 
 
 @main.command()

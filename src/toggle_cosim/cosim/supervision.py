@@ -25,6 +25,7 @@ import ctypes
 import faulthandler
 import gc
 import io
+import math
 import mmap
 import os
 import pickle
@@ -187,6 +188,196 @@ def _map_buffer(path: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndar
     return mapped, array
 
 
+class SupervisedRun:
+    """One run in its own child process, from fork to outcome, driven by the caller's loop:
+
+        child = SupervisedRun(run, plant, ...)
+        child.start()                             # maps the trace buffer and forks
+        while not child.done: select on child.watched() until child.deadline, then
+            child.service(ready)                  # reads the answer, notices the exit, the limit
+        child.outcome()                           # the RunOutcome, whatever happened
+
+    `stop()` kills a child that is still running (an interrupt) and `close()` releases its
+    descriptors and folder; both are safe to call at any moment and more than once. Several
+    children may run at once (`supervised_batch`), each under its own deadline."""
+
+    def __init__(
+        self,
+        run: Run,
+        plant: PlantInterface,
+        *,
+        time_limit: float | None = None,
+        scratch: Path | None = None,
+        capture_log: bool = False,
+        with_progress: bool = False,
+    ) -> None:
+        self.run = run
+        self.plant = plant
+        self.limit = time_limit_of(run, time_limit)
+        self.started = clock.perf_counter()
+        self.names = master.trace_names(plant)
+        self.pid = -1
+        self.status: int | None = None
+        self.reason: str | None = None
+        self.interrupted = False
+        self.done = False
+        self._read_fd = self._pidfd = -1
+        self._chunks: list[bytes] = []
+        self._watch: list[int] = []
+        self.buffer = np.full((0, len(self.names)), np.nan)
+        self.progress_slot: np.ndarray | None = None
+        self.deadline = math.inf
+        self._capture_log = capture_log
+        self._with_progress = with_progress
+        self._workdir = Path(tempfile.mkdtemp(prefix="toggle-cosim-run-", dir=scratch))
+
+    def start(self) -> None:
+        """Map the trace buffer and fork the child; its deadline runs from here."""
+        try:
+            self._fork(self._capture_log, self._with_progress)
+        except BaseException:
+            self.stop()
+            raise
+
+    def _fork(self, capture_log: bool, with_progress: bool) -> None:
+        _, self.buffer = _map_buffer(self._workdir / "trace.bin", self.run.steps + 1, len(self.names))
+        if with_progress:
+            self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
+        _warm_up()
+        read_fd, write_fd = os.pipe()
+        self._read_fd = read_fd
+        sys.stdout.flush()
+        sys.stderr.flush()
+        parent = os.getpid()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
+                self.pid = os.fork()
+            if self.pid == 0:
+                os.close(read_fd)
+                _child(
+                    self.run, self.plant, self.buffer, self.progress_slot, self._workdir, write_fd, parent, capture_log
+                )
+        finally:
+            os.close(write_fd)
+        self.deadline = clock.monotonic() + self.limit
+        try:
+            self._pidfd = os.pidfd_open(self.pid)
+        except (AttributeError, OSError):
+            self._pidfd = -1
+        self._watch = [self._read_fd] + ([self._pidfd] if self._pidfd >= 0 else [])
+
+    def watched(self) -> list[int]:
+        """The descriptors to select on: the answer pipe, and the child's pidfd where there is one."""
+        return [] if self.done else list(self._watch)
+
+    @property
+    def polls(self) -> bool:
+        """True without a pidfd: the caller must call service() now and then (every 0.1 s)."""
+        return self._pidfd < 0
+
+    def progress(self) -> float:
+        return float(self.progress_slot[0]) if self.progress_slot is not None else 0.0
+
+    def service(self, ready: set[int] | list[int]) -> bool:
+        """Read what the child wrote, notice its exit or the passing of its deadline; True once done."""
+        if self.done:
+            return True
+        if clock.monotonic() >= self.deadline:
+            self.reason = f"time limit {_seconds(self.limit)} exceeded"
+            self._kill()
+            return True
+        if self._read_fd in ready and self._read_fd in self._watch:
+            chunk = os.read(self._read_fd, 1 << 16)
+            if chunk:
+                self._chunks.append(chunk)
+            else:
+                self._watch.remove(self._read_fd)
+        if self._pidfd in ready or self._pidfd < 0:
+            finished, got = os.waitpid(self.pid, os.WNOHANG)
+            if finished:
+                self.status = got
+                while self._read_fd in self._watch and (chunk := os.read(self._read_fd, 1 << 16)):
+                    self._chunks.append(chunk)  # what the child wrote before select saw its exit
+                self.done = True
+        return self.done
+
+    def _kill(self) -> None:
+        if self.pid > 0 and self.status is None:
+            with contextlib.suppress(OSError):
+                os.kill(self.pid, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                _, self.status = os.waitpid(self.pid, 0)
+        self.done = True
+
+    def stop(self, reason: str = "interrupted (SIGINT or SIGTERM)") -> None:
+        """Kill the child if it still runs: the run becomes interrupted with `reason`."""
+        if not self.done:
+            self.interrupted = True
+            self.reason = reason
+        self._kill()
+
+    def close(self) -> None:
+        for fd in (self._read_fd, self._pidfd):
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._read_fd = self._pidfd = -1
+        shutil.rmtree(self._workdir, ignore_errors=True)  # the map outlives its file
+
+    def outcome(self) -> outcomes.RunOutcome:
+        """The run's outcome (call once done, after close()): the child's, or failed/interrupted
+        with the reason and the trace up to the last sample the child recorded."""
+        run, plant = self.run, self.plant
+        answer = _answer(self._chunks)
+        rows = _rows_recorded(self.buffer)
+        trace = Trace(self.names, self.buffer[:rows])
+        wall = clock.perf_counter() - self.started
+        reason = self.reason
+        if answer is not None and answer[0] == "outcome" and reason is None:
+            _, complete, child_reason, _, loop_s, summary, record, child_interrupted, log = answer
+            if log:
+                sys.stdout.write(log)
+            record["wall_time_s"] = wall
+            # the trace is a view of the map, which it keeps alive
+            return outcomes.RunOutcome(
+                run, trace, complete, child_reason, wall, loop_s, summary, record, child_interrupted
+            )
+        if reason is None:
+            reason = self._exit_reason(answer)
+        at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
+        reason = f"{reason}{at}"
+        status_word = "interrupted" if self.interrupted else "failed"
+        record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall)
+        return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
+
+    def _exit_reason(self, answer: tuple | None) -> str:
+        status = self.status
+        if answer is not None and answer[0] == "error":
+            return f"the plant could not be run: {answer[1]}"
+        if status is not None and os.WIFSIGNALED(status):
+            number = os.WTERMSIG(status)
+            name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
+            return f"the plant process was killed by {name}"
+        if status is not None:
+            return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
+        return "the plant process ended without an answer"
+
+
+def wait_for(children: list[SupervisedRun], poll: float | None = None) -> None:
+    """Block until one of `children` (not yet done) has news or reaches its deadline, and
+    service them all. `poll` caps the wait (progress display)."""
+    active = [child for child in children if not child.done]
+    if not active:
+        return
+    wait = max(0.0, min(child.deadline for child in active) - clock.monotonic())
+    if poll is not None or any(child.polls for child in active):
+        wait = min(wait, poll if poll is not None else 0.1)
+    ready, _, _ = select.select([fd for child in active for fd in child.watched()], [], [], wait)
+    for child in active:
+        child.service(ready)
+
+
 def simulate_supervised(
     run: Run,
     plant: PlantInterface,
@@ -200,114 +391,21 @@ def simulate_supervised(
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
     interrupted (`outcome.interrupted`); the caller stops after writing it."""
-    limit = time_limit_of(run, time_limit)
-    started = clock.perf_counter()
-    names = master.trace_names(plant)
-    rows_total = run.steps + 1
-    workdir = Path(tempfile.mkdtemp(prefix="toggle-cosim-run-", dir=scratch))
-    pid = -1
-    read_fd = write_fd = pidfd = -1
-    status: int | None = None
-    reason: str | None = None
-    interrupted = False
-    chunks: list[bytes] = []
-    buffer = np.full((0, len(names)), np.nan)
+    child = SupervisedRun(
+        run, plant, time_limit=time_limit, scratch=scratch, capture_log=capture_log, with_progress=progress is not None
+    )
     try:
-        _, buffer = _map_buffer(workdir / "trace.bin", rows_total, len(names))
-        progress_slot = np.zeros(1) if progress is None else np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
-        _warm_up()
-        read_fd, write_fd = os.pipe()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        parent = os.getpid()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
-            pid = os.fork()
-        if pid == 0:
-            os.close(read_fd)
-            _child(
-                run,
-                plant,
-                buffer,
-                progress_slot if progress is not None else None,
-                workdir,
-                write_fd,
-                parent,
-                capture_log,
-            )
-        os.close(write_fd)
-        write_fd = -1
-        deadline = clock.monotonic() + limit
-        try:
-            pidfd = os.pidfd_open(pid)
-        except (AttributeError, OSError):
-            pidfd = -1
-        watch = [read_fd] + ([pidfd] if pidfd >= 0 else [])
-        while True:
-            left = deadline - clock.monotonic()
-            if left <= 0:
-                os.kill(pid, signal.SIGKILL)
-                reason = f"time limit {_seconds(limit)} exceeded"
-                _, status = os.waitpid(pid, 0)
-                break
-            wait = min(left, 0.1) if (progress is not None or pidfd < 0) else left
-            ready, _, _ = select.select(watch, [], [], wait)
-            if read_fd in ready:
-                chunk = os.read(read_fd, 1 << 16)
-                if chunk:
-                    chunks.append(chunk)
-                else:
-                    watch.remove(read_fd)
-            if pidfd in ready or pidfd < 0:
-                done, got = os.waitpid(pid, os.WNOHANG)
-                if done:
-                    status = got
-                    while read_fd in watch and (chunk := os.read(read_fd, 1 << 16)):
-                        chunks.append(chunk)  # what the child wrote before select saw its exit
-                    break
+        child.start()
+        while not child.done:
+            wait_for([child], 0.1 if progress is not None else None)
             if progress is not None:
-                progress(float(progress_slot[0]))
+                progress(child.progress())
     except KeyboardInterrupt:
-        interrupted = True
-        reason = "interrupted (SIGINT or SIGTERM)"
-        if pid > 0 and status is None:
-            with contextlib.suppress(OSError):
-                os.kill(pid, signal.SIGKILL)
-            with contextlib.suppress(OSError):
-                os.waitpid(pid, 0)
+        child.stop()
     finally:
-        for fd in (read_fd, write_fd, pidfd):
-            if fd >= 0:
-                with contextlib.suppress(OSError):
-                    os.close(fd)
-        shutil.rmtree(workdir, ignore_errors=True)  # the map outlives its file
-    answer = _answer(chunks)
-    rows = _rows_recorded(buffer)
-    trace = Trace(names, buffer[:rows])
-    wall = clock.perf_counter() - started
-    if answer is not None and answer[0] == "outcome" and reason is None:
-        _, complete, child_reason, _, loop_s, summary, record, child_interrupted, log = answer
-        if log:
-            sys.stdout.write(log)
-        record["wall_time_s"] = wall
-        # the trace is a view of the map, which it keeps alive
-        return outcomes.RunOutcome(run, trace, complete, child_reason, wall, loop_s, summary, record, child_interrupted)
-    if reason is None:
-        if answer is not None and answer[0] == "error":
-            reason = f"the plant could not be run: {answer[1]}"
-        elif status is not None and os.WIFSIGNALED(status):
-            number = os.WTERMSIG(status)
-            name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
-            reason = f"the plant process was killed by {name}"
-        elif status is not None:
-            reason = f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
-        else:
-            reason = "the plant process ended without an answer"
-    at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
-    reason = f"{reason}{at}"
-    status_word = "interrupted" if interrupted else "failed"
-    record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall)
-    return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, interrupted)
+        child.stop()
+        child.close()
+    return child.outcome()
 
 
 def _answer(chunks: list[bytes]) -> tuple | None:

@@ -124,16 +124,19 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
         )
 
 
-def check_runs(pairs: Sequence[tuple], out: Path | None) -> None:
-    """Before the first run: each run's size, then the output folder and the scratch space."""
+def check_runs(pairs: Sequence[tuple], out: Path | None, jobs: int = 1) -> None:
+    """Before the first run: each run's size, then the output folder and the scratch space for
+    the `jobs` biggest trace buffers (that many runs may be under way at once)."""
     sizes = [check_size(run, plant) for run, plant in pairs]
     if out is not None:
         check_output_folder(out, sum(s.csv_bytes for s in sizes))
-    biggest = max((s.buffer_bytes for s in sizes), default=0)
+    at_once = sorted((s.buffer_bytes for s in sizes), reverse=True)[: max(1, jobs)]
+    needed = sum(at_once)
     scratch = Path(tempfile.gettempdir())
-    if biggest > shutil.disk_usage(scratch).free:
+    if needed > shutil.disk_usage(scratch).free:
+        what = "a run needs" if len(at_once) == 1 else f"{len(at_once)} runs at once need"
         raise ResourceError(
-            f"{scratch}: a run needs about {_gb(biggest)} of scratch space there (free space or set TMPDIR)"
+            f"{scratch}: {what} about {_gb(needed)} of scratch space there (free space, set TMPDIR or lower --jobs)"
         )
 
 

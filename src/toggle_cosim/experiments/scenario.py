@@ -27,11 +27,13 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
-import jsonschema
-
+from toggle_cosim.files.schema_check import conforms
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
+
+if TYPE_CHECKING:
+    import jsonschema
 
 _NUMBER = {"type": "number"}
 _POSITIVE = {"type": "number", "exclusiveMinimum": 0}
@@ -274,6 +276,10 @@ def validate_document(document: Any) -> None:
     if not isinstance(document, dict):
         raise ScenarioError("the file must hold a YAML mapping of scenario keys (name, t_end, T_s, stroke, ...)")
     _reject_non_finite(document)
+    if conforms(document, SCHEMA):  # the usual case, without importing jsonschema (`schema_check`)
+        return
+    import jsonschema
+
     validator = jsonschema.Draft202012Validator(SCHEMA)
     errors = sorted(validator.iter_errors(document), key=lambda e: (len(e.absolute_path), _key(e.absolute_path)))
     if errors:

@@ -1,0 +1,80 @@
+"""Several supervised runs at once: up to `jobs` children (`supervision.SupervisedRun`), each
+under its own time limit, their outcomes handed back in the order of the runs.
+
+The runs of a command are independent (each plant in its own process, with its own FMU copy
+and trace buffer), so on a machine with several cores they overlap; their traces are the same
+bytes as one after the other. An interrupt kills every child still running: the first run
+not yet handed back comes out as interrupted and nothing after it, so the caller writes what
+finished in order, then that run, and stops.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+
+from toggle_cosim.cosim.outcome import RunOutcome
+from toggle_cosim.cosim.supervision import SupervisedRun, wait_for
+
+
+def default_jobs(runs: int) -> int:
+    """One child per core this process may use, and no more than there are runs."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, runs))
+
+
+def run_supervised(
+    pairs: Sequence[tuple],
+    *,
+    jobs: int,
+    time_limit: float | None = None,
+    scratch: Path | None = None,
+    on_finished: Callable[[int], None] | None = None,
+) -> Iterator[RunOutcome]:
+    """Run each (run, plant) pair in a supervised child, at most `jobs` at a time, and yield the
+    outcomes in the order of `pairs`. `on_finished(count)` is called as runs end (any order).
+
+    Close the generator (or exhaust it) to release the children: closing it early, or an
+    interrupt while it waits, kills the ones still running and removes their folders."""
+    children: list = [None] * len(pairs)  # SupervisedRun while started and not yet handed back
+    started = handed = finished = 0
+    try:
+        while handed < len(pairs):
+            try:
+                while started < len(pairs) and started - handed < max(1, jobs):
+                    run, plant = pairs[started]
+                    children[started] = SupervisedRun(run, plant, time_limit=time_limit, scratch=scratch)
+                    started += 1
+                    children[started - 1].start()
+                current = children[handed]
+                while not current.done:
+                    wait_for([c for c in children[handed:started] if c is not None])
+                    now = handed + sum(1 for c in children[handed:started] if c is not None and c.done)
+                    if on_finished is not None and now != finished:
+                        finished = now
+                        on_finished(finished)
+            except KeyboardInterrupt:
+                current = children[handed]
+                if current is None:
+                    raise
+                current.stop()
+                current.close()
+                children[handed] = None
+                yield current.outcome()
+                return
+            current.close()
+            children[handed] = None
+            handed += 1
+            yield current.outcome()
+    finally:
+        for child in children:
+            if child is not None:
+                child.stop()
+                child.close()
+
+
+__all__ = ["default_jobs", "run_supervised"]
