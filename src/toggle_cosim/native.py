@@ -17,7 +17,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 
@@ -72,3 +72,38 @@ def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequ
         except OSError:
             continue
     raise RuntimeError(f"no writable cache folder for {stem} (tried {', '.join(map(str, cache_folders()))})")
+
+
+def cached_library_from(
+    inputs: Sequence[Path],
+    make_source: Callable[[], str],
+    stem: str,
+    flags: Sequence[str],
+    libraries: Sequence[str] = (),
+) -> Path:
+    """`cached_library(make_source(), ...)`, without making the source when it was made before
+    from the same `inputs` (the files it is generated from: making it may cost more than the
+    run it serves). A marker named by the hash of those files' bytes, the flags, the compiler,
+    the platform and the Python version names the library; any change to one of them makes the
+    source again, and so the library by its own hash."""
+    digest = hashlib.sha256()
+    for path in inputs:
+        digest.update(str(path).encode() + b"\0" + Path(path).read_bytes() + b"\0")
+    digest.update("\0".join((*flags, *libraries, c_compiler(), platform.machine(), sys.platform, sys.version)).encode())
+    marker = f"{stem}-inputs-{digest.hexdigest()[:16]}.txt"
+    for folder in cache_folders():
+        try:
+            named = folder / (folder / marker).read_text(encoding="utf-8").strip()
+        except (OSError, ValueError):
+            continue
+        if named.parent == folder and named.name.startswith(f"{stem}-") and named.is_file():
+            return named
+    library = cached_library(make_source(), stem, flags, libraries)
+    try:
+        handle, temporary = tempfile.mkstemp(dir=library.parent, prefix=f".{marker}.")
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(library.name + "\n")
+        os.replace(temporary, library.parent / marker)
+    except OSError:
+        pass  # no marker: the source is made again next time, nothing worse
+    return library

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.native import cached_library
+from toggle_cosim.native import cached_library_from
 
 if TYPE_CHECKING:
     from toggle_cosim.cosim.session import CFunctions
@@ -102,9 +102,18 @@ _library: ctypes.CDLL | None = None
 _library_reason: str | None = None
 
 
+def kernel_inputs() -> list[Path]:
+    """The files kernel_source() is generated from: the law, the nominal model, the law's
+    parameters, the translator, the loop skeleton, and this module."""
+    control = resources.files("toggle_cosim.control")
+    names = ("laws.py", "nominal.py", "parameters.py", "translate.py", "loop_skeleton.c")
+    return [Path(str(control.joinpath(name))) for name in names] + [Path(__file__)]
+
+
 def _build_kernel() -> Path:
-    """The compiled loop's library, built from the generated source (cached: `native`)."""
-    return cached_library(kernel_source(), "loop-kernel", KERNEL_FLAGS, ("-lm",))
+    """The compiled loop's library, built from the generated source (cached: `native`; the
+    source is generated only when one of kernel_inputs() changed)."""
+    return cached_library_from(kernel_inputs(), kernel_source, "loop-kernel", KERNEL_FLAGS, ("-lm",))
 
 
 def kernel_library() -> ctypes.CDLL | None:
