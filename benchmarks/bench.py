@@ -290,7 +290,7 @@ def six_runs_process(fmu: Path, folder: Path, supervised: bool = True) -> dict:
 
 IMPORTS = (
     "import toggle_cosim.cli, toggle_cosim.cosim.master, toggle_cosim.plant.contract, toggle_cosim.experiments.scenario, "
-    "toggle_cosim.files.traces, toggle_cosim.analysis.summary"
+    "toggle_cosim.files.traces, toggle_cosim.cosim.summary"
 )
 
 

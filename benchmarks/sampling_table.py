@@ -20,9 +20,10 @@ import numpy as np
 from toggle_cosim.analysis.compare import compare_traces
 from toggle_cosim.cosim.master import simulate
 from toggle_cosim.experiments.references import tolerances_for
-from toggle_cosim.experiments.scenario import Run, load_scenario
+from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.runs.definition import Run
 
 ROOT = Path(__file__).resolve().parent.parent
 RATIOS = (1, 3, 7, 10)

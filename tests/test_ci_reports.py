@@ -14,16 +14,14 @@ from junitparser import Failure, JUnitXml
 
 from toggle_cosim.analysis.compare import run_compare, write_reference
 from toggle_cosim.analysis.solver_stats import (
-    NOT_EXPOSED,
-    STATISTICS,
     compare_solver_statistics,
-    read_solver_statistics,
     read_statistics_file,
     statistics_path,
     write_statistics_file,
 )
 from toggle_cosim.analysis.tolerance_files import applicable_tolerance_files
 from toggle_cosim.files.traces import Trace, write_csv, write_json
+from toggle_cosim.plant.solver_statistics import NOT_EXPOSED, STATISTICS, read_solver_statistics
 
 ROOT = Path(__file__).resolve().parent.parent
 T = np.linspace(0.0, 1.0, 1001)

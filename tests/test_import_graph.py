@@ -136,3 +136,73 @@ def test_the_cosim_parts_touch_no_private_attribute_of_another_object() -> None:
                 if owner not in ("self", "cls", "os"):
                     found.append(f"{path.name}:{node.lineno} {ast.unparse(node)}")
     assert found == []
+
+
+# The package's layers, lowest first: a subpackage (or top-level module) imports only from
+# layers below its own, counting imports inside functions too. `toggle_cosim` is the package
+# root (its __version__). Runs (what one co-simulation is) sit below the plant, the plant below
+# the co-simulation, which carries a run's outcome and summary; analysis reads outcomes and
+# experiments (scenarios, sweeps, references) drive all of them; the CLI is on top.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("toggle_cosim",),
+    ("native", "interrupts"),
+    ("files", "physics", "fmu_export"),
+    ("control",),
+    ("runs",),
+    ("plant",),
+    ("cosim",),
+    ("analysis",),
+    ("experiments",),
+    ("cli",),
+)
+
+
+def _part_of(module: str) -> str:
+    """The subpackage (or top-level module) of toggle_cosim that `module` belongs to."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def subpackage_graph(graph: dict[str, set[str]]) -> dict[str, dict[str, set[str]]]:
+    """Edges between subpackages, each with the module imports that make it (`a.x -> b.y`)."""
+    grouped: dict[str, dict[str, set[str]]] = {}
+    for module, imports in graph.items():
+        for imported in imports:
+            a, b = _part_of(module), _part_of(imported)
+            if a != b:
+                grouped.setdefault(a, {}).setdefault(b, set()).add(f"{module} -> {imported}")
+    return grouped
+
+
+def test_the_subpackages_import_downward_only() -> None:
+    """Grouped by subpackage, the lazy import graph (imports in functions too) has no cycle and
+    every edge goes to a lower entry of LAYERS; every subpackage has its place there."""
+    graph = import_graph(SRC / "toggle_cosim", lazy=True)
+    grouped = subpackage_graph(graph)
+    tier = {name: rank for rank, names in enumerate(LAYERS) for name in names}
+    assert {_part_of(module) for module in graph} <= set(tier), "a subpackage missing from LAYERS"
+    assert cycles({a: set(targets) for a, targets in grouped.items()}) == []
+    upward = sorted(
+        why for a, targets in grouped.items() for b, whys in targets.items() if tier[b] >= tier[a] for why in whys
+    )
+    assert upward == []
+
+
+def test_the_layer_check_sees_an_upward_import(tmp_path: Path) -> None:
+    """A function-level import from a low layer into a higher one is an upward edge and a cycle."""
+    package = tmp_path / "toggle_cosim"
+    for sub in ("files", "cosim"):
+        (package / sub).mkdir(parents=True)
+        (package / sub / "__init__.py").write_text("")
+    (package / "__init__.py").write_text("")
+    (package / "cosim" / "run.py").write_text("from toggle_cosim.files.csv import write\n")
+    (package / "files" / "csv.py").write_text("def write():\n    from toggle_cosim.cosim import run\n")
+    grouped = subpackage_graph(import_graph(package, lazy=True))
+    assert grouped == {
+        "cosim": {"files": {"toggle_cosim.cosim.run -> toggle_cosim.files.csv"}},
+        "files": {"cosim": {"toggle_cosim.files.csv -> toggle_cosim.cosim.run"}},
+    }
+    assert cycles({a: set(targets) for a, targets in grouped.items()}) == [["cosim", "files"]]
+    assert subpackage_graph(import_graph(package)) == {
+        "cosim": {"files": {"toggle_cosim.cosim.run -> toggle_cosim.files.csv"}}
+    }

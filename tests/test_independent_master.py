@@ -44,9 +44,10 @@ import pytest
 
 from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, compare_traces, format_table
 from toggle_cosim.cosim.master import RunOutcome, plant_settings, simulate
-from toggle_cosim.experiments.scenario import Run, load_scenario
+from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface, check_plant
+from toggle_cosim.runs.definition import Run
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNS = ("fig4_nominal/friction", "fig5_external_force/no_friction")

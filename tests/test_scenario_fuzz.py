@@ -22,9 +22,10 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from toggle_cosim.experiments.scenario import Run, ScenarioError, load_scenario, toggle_limit
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, toggle_limit
 from toggle_cosim.files.yaml_loader import Dumper  # quotes '1e5' as YAML 1.2 needs
 from toggle_cosim.physics.parameters import MechanismParameters
+from toggle_cosim.runs.definition import Run
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE_TEXT = (ROOT / "scenarios" / "fig4_nominal.yaml").read_text(encoding="utf-8")

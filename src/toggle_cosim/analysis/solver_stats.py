@@ -6,8 +6,9 @@ change (a tolerance, an event that is now found by iteration, a step size that c
 these counts show it.
 
 The plant FMU exposes them, where it does, as Integer (FMI 2.0) or Int64 (FMI 3.0) variables of
-causality local, cumulative over the run: `STATISTICS` below. They are read by name; an FMU
-without them is recorded as "not exposed" and nothing is compared.
+causality local, cumulative over the run: `STATISTICS` in plant/solver_statistics.py, which reads
+them from the live FMU by name; an FMU without them is recorded as "not exposed" and nothing is
+compared. This module keeps the files and the comparison.
 
 Files: `<name>_ref_solver.json` beside `<name>_ref.csv`, `{"solver.steps": 1234, ...}`; a run's
 `run.json` holds the same mapping under "solver_statistics" (or the string "not exposed").
@@ -20,40 +21,17 @@ import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
 from toggle_cosim.files.traces import atomic_write
 
 __all__ = [
-    "NOT_EXPOSED",
-    "STATISTICS",
     "SolverCheck",
     "compare_solver_statistics",
-    "read_solver_statistics",
     "read_statistics_file",
     "statistics_path",
     "write_statistics_file",
 ]
-
-STATISTICS = ("solver.steps", "solver.rejectedSteps", "solver.events")
-NOT_EXPOSED = "not exposed"
-
-
-def read_solver_statistics(slave: Any, model_description: Any) -> dict[str, int] | str:
-    """The counts of `STATISTICS` that the FMU declares, read from the live instance `slave`
-    (an fmpy FMU2Slave or FMU3Slave); NOT_EXPOSED when it declares none of them."""
-    by_name = {v.name: v for v in model_description.modelVariables}
-    present = [name for name in STATISTICS if name in by_name]
-    if not present:
-        return NOT_EXPOSED
-    fmi3 = str(model_description.fmiVersion).startswith("3")
-    counts: dict[str, int] = {}
-    for name in present:
-        reference = by_name[name].valueReference
-        value = slave.getInt64([reference])[0] if fmi3 else slave.getInteger([reference])[0]
-        counts[name] = int(value)
-    return counts
 
 
 def statistics_path(reference_csv: Path | str) -> Path:

@@ -8,6 +8,7 @@
     retry.CheckpointPolicy   checkpoints every N samples; restore, replay, substeps on a failure
     master.simulate          assembles these parts for one run
     outcome                  RunOutcome and the run record (run.json)
+    summary                  RunSummary: a run's figures of merit, computed from its trace
     supervision              a run in a forked child with a wall-clock limit
 
 Nothing is imported here, so importing a part does not import the others.

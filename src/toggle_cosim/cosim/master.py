@@ -20,18 +20,18 @@ from collections.abc import Callable
 
 import numpy as np
 
-from toggle_cosim.analysis.summary import summarize
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.recorder import CONTROL_COLUMNS, ProgressHook, Recorder
 from toggle_cosim.cosim.retry import CheckpointPolicy
 from toggle_cosim.cosim.session import PlantSession
 from toggle_cosim.cosim.stepper import CompiledStepper, HandOver, LoopState, PythonStepper, Timing
-from toggle_cosim.experiments.scenario import Run
+from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
+from toggle_cosim.runs.definition import Run
 
 __all__ = ["RunOutcome", "make_controller", "plant_settings", "simulate", "trace_names"]
 INPUTS = ("iq_ref", "F_E")

@@ -13,10 +13,10 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.analysis.summary import RunSummary
-from toggle_cosim.experiments.scenario import Run
+from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.runs.definition import Run
 
 
 @dataclass(frozen=True)

@@ -266,8 +266,8 @@ class PlantSession:
         )
 
     def solver_statistics(self) -> dict[str, int] | str:
-        """The plant solver's cumulative counts (toggle_cosim.analysis.solver_stats), read now."""
-        from toggle_cosim.analysis.solver_stats import NOT_EXPOSED, read_solver_statistics
+        """The plant solver's cumulative counts (toggle_cosim.plant.solver_statistics), read now."""
+        from toggle_cosim.plant.solver_statistics import NOT_EXPOSED, read_solver_statistics
 
         if not self._instantiated:
             return NOT_EXPOSED

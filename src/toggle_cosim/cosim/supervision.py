@@ -43,9 +43,9 @@ import numpy as np
 
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
-from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.runs.definition import Run
 
 PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process as forked
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)

@@ -35,8 +35,8 @@ from toggle_cosim.analysis.solver_stats import (
 )
 from toggle_cosim.analysis.tolerance_files import TOLERANCE_FILE, merged_tolerances
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.runs.definition import Run
 
 DECIMATION = 10
 REFERENCE_RELTOL = 1e-8  # the FMU's default solver.relTol, recorded in the .opt file

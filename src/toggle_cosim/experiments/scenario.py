@@ -25,12 +25,12 @@ import copy
 import math
 import sys
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 from toggle_cosim.files.schema_check import conforms
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
+from toggle_cosim.runs.definition import ControllerSettings, PlantSettings, Run
 
 if TYPE_CHECKING:
     import jsonschema
@@ -143,57 +143,6 @@ SCHEMA: dict[str, Any] = {
 
 class ScenarioError(Exception):
     """A scenario file that cannot be used; str() is the one-line message for the user."""
-
-
-@dataclass(frozen=True)
-class PlantSettings:
-    """What the master sets on the plant FMU before initialisation (and holds as inputs)."""
-
-    F_E: float = 0.0
-    m_B: float = 4.43
-    mu: float = 0.2
-    current_loop: Literal["first_order", "ideal"] = "first_order"
-    friction_model: Literal["paper", "dissipative", "stick_slip"] = "paper"
-    mu_s: float | None = None  # static coefficient (stick_slip); None: the same as mu
-    K: float | None = None
-    parameters: Mapping[str, float | bool] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class ControllerSettings:
-    objective: Literal["x_B", "theta1"] = "x_B"
-    gains: ControllerGains = field(default_factory=ControllerGains)
-    nominal_m_B: float = 4.43
-    law: Literal["paper", "integral"] = "paper"
-    C_I: float = 16.0  # 1/s, the integral law's surface slope (unused by the paper's law)
-    K_I: float = 64.0  # 1/s², the integral law's gain: C_I = 2λ, K_I = λ², λ = 8/s (unused by the paper's law)
-    i_max: float = 10.0  # A, the integral law's current limit (unused by the paper's law)
-
-
-@dataclass(frozen=True)
-class Run:
-    """One co-simulation: a scenario with one variant applied."""
-
-    scenario: str
-    variant: str | None
-    source: Path | None
-    description: str
-    fmu: Path | None
-    t_end: float
-    T_s: float
-    x_start: float
-    x_target: float
-    plant: PlantSettings
-    controller: ControllerSettings
-    resolved: Mapping[str, Any]
-
-    @property
-    def label(self) -> str:
-        return self.scenario if self.variant is None else f"{self.scenario}/{self.variant}"
-
-    @property
-    def steps(self) -> int:
-        return int(round(self.t_end / self.T_s))
 
 
 def _part(part: Any) -> str:

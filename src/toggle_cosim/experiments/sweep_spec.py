@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.analysis.summary import RunSummary
+from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
 

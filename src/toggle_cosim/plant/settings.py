@@ -8,9 +8,9 @@ idealCurrentLoop. Each failure is one `SettingError` line naming the key and the
 
 from __future__ import annotations
 
-from toggle_cosim.experiments.scenario import Run
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
+from toggle_cosim.runs.definition import Run
 
 
 class SettingError(Exception):

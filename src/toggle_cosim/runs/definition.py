@@ -1,0 +1,66 @@
+"""What one co-simulation is: the plant's and the controller's settings and the run that joins them.
+
+A `Run` is one scenario with one variant applied (experiments/scenario.py builds them from YAML);
+the plant (plant/settings.py) reads what to set on the FMU from it, the co-simulation
+(cosim/) steps it, and the experiments (sweeps, references) make and compare many of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from toggle_cosim.physics.parameters import ControllerGains
+
+
+@dataclass(frozen=True)
+class PlantSettings:
+    """What the master sets on the plant FMU before initialisation (and holds as inputs)."""
+
+    F_E: float = 0.0
+    m_B: float = 4.43
+    mu: float = 0.2
+    current_loop: Literal["first_order", "ideal"] = "first_order"
+    friction_model: Literal["paper", "dissipative", "stick_slip"] = "paper"
+    mu_s: float | None = None  # static coefficient (stick_slip); None: the same as mu
+    K: float | None = None
+    parameters: Mapping[str, float | bool] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ControllerSettings:
+    objective: Literal["x_B", "theta1"] = "x_B"
+    gains: ControllerGains = field(default_factory=ControllerGains)
+    nominal_m_B: float = 4.43
+    law: Literal["paper", "integral"] = "paper"
+    C_I: float = 16.0  # 1/s, the integral law's surface slope (unused by the paper's law)
+    K_I: float = 64.0  # 1/s², the integral law's gain: C_I = 2λ, K_I = λ², λ = 8/s (unused by the paper's law)
+    i_max: float = 10.0  # A, the integral law's current limit (unused by the paper's law)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One co-simulation: a scenario with one variant applied."""
+
+    scenario: str
+    variant: str | None
+    source: Path | None
+    description: str
+    fmu: Path | None
+    t_end: float
+    T_s: float
+    x_start: float
+    x_target: float
+    plant: PlantSettings
+    controller: ControllerSettings
+    resolved: Mapping[str, Any]
+
+    @property
+    def label(self) -> str:
+        return self.scenario if self.variant is None else f"{self.scenario}/{self.variant}"
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.t_end / self.T_s))
