@@ -595,6 +595,13 @@ def main() -> int:
             "rtf": rtf_six,
         }
         table.check("six runs together, process start to last file, RTF >= 5", rtf_six >= 5, f"{rtf_six:.1f}")
+        suite_ratio = fastest["to_last_file"] / sims
+        figures["six_runs"]["ratio_to_simulate"] = suite_ratio
+        table.check(
+            "six runs, process start to last file <= 4 x their six simulate() calls (issue 12)",
+            suite_ratio <= 4,
+            f"{fastest['to_last_file']:.2f} s / {sims:.2f} s = {suite_ratio:.1f}",
+        )
 
         # ---------------------------------------------------------------- supervision
         table.section("Supervision: the six paper runs end to end, each plant in a supervised child vs in-process")
