@@ -9,7 +9,6 @@ import platform
 import re
 import sys
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -89,6 +88,8 @@ def installed_versions() -> tuple[tuple[str, str], ...]:
         if name in listed:
             found[name] = listed[name]
             continue
+        from importlib import metadata  # only here: its import alone costs about 10 ms
+
         try:  # an egg-info or other layout: ask importlib.metadata
             found[name] = metadata.version(name)
         except metadata.PackageNotFoundError:

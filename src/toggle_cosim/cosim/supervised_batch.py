@@ -11,7 +11,7 @@ finished in order, then that run, and stops.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from toggle_cosim.cosim.outcome import RunOutcome
@@ -33,43 +33,52 @@ def run_supervised(
     jobs: int,
     time_limit: float | None = None,
     scratch: Path | None = None,
-    on_finished: Callable[[int], None] | None = None,
 ) -> Iterator[RunOutcome]:
     """Run each (run, plant) pair in a supervised child, at most `jobs` at a time, and yield the
-    outcomes in the order of `pairs`. `on_finished(count)` is called as runs end (any order).
+    outcomes in the order of `pairs`.
 
     Close the generator (or exhaust it) to release the children: closing it early, or an
     interrupt while it waits, kills the ones still running and removes their folders."""
     children: list = [None] * len(pairs)  # SupervisedRun while started and not yet handed back
-    started = handed = finished = 0
+    started = handed = 0
+    interrupted = False
+
+    def fill() -> None:  # start runs until `jobs` are under way past the first not handed back
+        nonlocal started
+        while started < len(pairs) and started - handed < max(1, jobs):
+            run, plant = pairs[started]
+            children[started] = SupervisedRun(run, plant, time_limit=time_limit, scratch=scratch)
+            started += 1
+            children[started - 1].start()
+
+    def take_head() -> RunOutcome:  # the first run not handed back, as it stands
+        nonlocal handed
+        head = children[handed]
+        head.close()
+        children[handed] = None
+        handed += 1
+        return head.outcome()
+
     try:
         while handed < len(pairs):
             try:
-                while started < len(pairs) and started - handed < max(1, jobs):
-                    run, plant = pairs[started]
-                    children[started] = SupervisedRun(run, plant, time_limit=time_limit, scratch=scratch)
-                    started += 1
-                    children[started - 1].start()
-                current = children[handed]
-                while not current.done:
+                if interrupted:
+                    raise KeyboardInterrupt
+                fill()
+                while not children[handed].done:
                     wait_for([c for c in children[handed:started] if c is not None])
-                    now = handed + sum(1 for c in children[handed:started] if c is not None and c.done)
-                    if on_finished is not None and now != finished:
-                        finished = now
-                        on_finished(finished)
             except KeyboardInterrupt:
-                current = children[handed]
-                if current is None:
+                if children[handed] is None:  # not started yet: nothing of it to write
                     raise
-                current.stop()
-                current.close()
-                children[handed] = None
-                yield current.outcome()
+                children[handed].stop()
+                yield take_head()
                 return
-            current.close()
-            children[handed] = None
-            handed += 1
-            yield current.outcome()
+            outcome = take_head()
+            try:
+                fill()  # the next run starts before the caller writes this one's files
+            except KeyboardInterrupt:
+                interrupted = True  # this run is whole: hand it back, then stop at the next
+            yield outcome
     finally:
         for child in children:
             if child is not None:

@@ -20,8 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree
 
-from fmpy import read_model_description
 from fmpy.model_description import ModelDescription
+
+from toggle_cosim.plant.description_cache import read_description
 
 JOINTS = ("12", "23", "34", "25", "56")
 INPUTS = {"iq_ref": "A", "F_E": "N"}
@@ -118,7 +119,7 @@ def check_plant(path: Path) -> PlantInterface:
     if version not in ("2.0", "3.0"):
         raise ContractError(f"{path}: FMI version {version} is not supported (use an FMI 2.0 or 3.0 FMU)")
     try:
-        md = read_model_description(str(path), validate=False)
+        md = read_description(path)  # fmpy's parse, kept between commands (`description_cache`)
     except Exception as error:  # noqa: BLE001 - fmpy raises several kinds for a broken description
         message = " ".join(str(error).split())
         raise ContractError(f"{path}: unreadable modelDescription.xml ({message})") from error

@@ -1,0 +1,50 @@
+"""The parsed modelDescription kept between commands is fmpy's own parse of the same FMU: read
+back, it has the same identity and variables; another FMU file (another hash) is parsed
+afresh, and a damaged entry is parsed again instead of being trusted."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+
+from toggle_cosim.plant import description_cache
+
+
+def _signature(md) -> tuple:  # noqa: ANN001
+    return (
+        md.fmiVersion,
+        md.guid,
+        md.coSimulation.modelIdentifier,
+        tuple((v.name, v.valueReference, v.causality, v.variability, v.start) for v in md.modelVariables),
+    )
+
+
+def test_an_entry_is_fmpys_parse_and_is_used(plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("TOGGLE_COSIM_CACHE", str(tmp_path / "cache"))
+    first = description_cache.read_description(plant_fmu)
+    entries = list((tmp_path / "cache").glob("model-description-*.pickle"))
+    assert len(entries) == 1
+    calls = []
+    monkeypatch.setattr("fmpy.read_model_description", lambda *a, **k: calls.append(a))
+    second = description_cache.read_description(plant_fmu)
+    assert calls == []  # read back, not parsed
+    assert _signature(second) == _signature(first) == _signature(read_model_description(str(plant_fmu)))
+
+
+def test_another_file_or_a_damaged_entry_is_parsed(
+    plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("TOGGLE_COSIM_CACHE", str(tmp_path / "cache"))
+    description_cache.read_description(plant_fmu)
+    (entry,) = (tmp_path / "cache").glob("model-description-*.pickle")
+    entry.write_bytes(b"not a pickle")
+    assert _signature(description_cache.read_description(plant_fmu))[1] == read_model_description(str(plant_fmu)).guid
+    copy = tmp_path / "copy.fmu"
+    shutil.copy(plant_fmu, copy)
+    with copy.open("ab") as stream:  # the same description, another file: another key
+        stream.write(b"\0")
+    description_cache.read_description(copy)
+    assert len(list((tmp_path / "cache").glob("model-description-*.pickle"))) == 2
