@@ -433,9 +433,13 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             _build(DEFAULT_SOURCE, name, path)
     files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
     pairs = _load_runs(files, fmu)
-    from toggle_cosim.analysis.figure_worker import FigureWorker
+    from toggle_cosim.analysis.figure_worker import FigureWorkers
 
-    figures = FigureWorker()  # matplotlib loads and each figure is drawn beside the runs
+    # matplotlib loads and each figure is drawn beside the runs, two figures at a time where
+    # there are two cores
+    from toggle_cosim.cosim.supervised_batch import default_jobs
+
+    figures = FigureWorkers(min(2, default_jobs(len(PAPER_SCENARIOS))))
     try:
         left = {name: sum(1 for run, _ in pairs if run.scenario == name) for name in PAPER_SCENARIOS}
 

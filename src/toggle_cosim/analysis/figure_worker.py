@@ -58,6 +58,30 @@ class FigureWorker:
             self._process.communicate()
 
 
+class FigureWorkers:
+    """Several FigureWorker children, figures handed out in turn: on a machine with several
+    cores the three paper figures are drawn side by side. Same interface as one worker; the
+    lines come back in the order the folders were submitted."""
+
+    def __init__(self, count: int) -> None:
+        self._workers = [FigureWorker() for _ in range(max(1, count))]
+        self._order: list[int] = []
+
+    def submit(self, folder: Path) -> None:
+        worker = len(self._order) % len(self._workers)
+        self._workers[worker].submit(folder)
+        self._order.append(worker)
+
+    def results(self) -> list[str]:
+        answers = [iter(worker.results()) for worker in self._workers]
+        lines = [next(answers[worker], "error: the figure process gave no answer") for worker in self._order]
+        return lines + [line for answer in answers for line in answer]  # a worker's own error line
+
+    def stop(self) -> None:
+        for worker in self._workers:
+            worker.stop()
+
+
 def _serve() -> int:
     import signal
 
