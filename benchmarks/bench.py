@@ -574,7 +574,7 @@ def main() -> int:
         )
         table.add("  Python interpreter start-up", f"{interp:.2f} s", "python -c pass")
         table.add(
-            "  importing toggle_cosim (cli, master, plant, ...)", f"{imports:.2f} s", "numpy, fmpy, jsonschema, ..."
+            "  importing toggle_cosim (cli, master, plant, ...)", f"{imports:.2f} s", "numpy, fmpy, click, PyYAML, ..."
         )
         table.add("  six simulate() calls", f"{sims:.2f} s", "measured in this process")
         table.add(
