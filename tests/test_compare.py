@@ -22,10 +22,10 @@ from toggle_cosim.analysis.compare import (
     read_options,
     read_reference,
     read_trace,
-    run_compare,
     write_reference,
     write_report,
 )
+from toggle_cosim.analysis.compare_command import run_compare
 from toggle_cosim.files.traces import Trace, read_csv, write_csv
 
 T = np.linspace(0.0, 1.0, 1001)

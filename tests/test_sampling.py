@@ -178,7 +178,7 @@ def test_the_readme_compare_command_passes_on_a_fresh_run_and_fails_a_changed_on
     """`toggle-cosim compare out/fig4_nominal/friction/trace.csv scenarios/references/fig4_nominal/
     friction_ref.csv`: the full-resolution run against the stored reference (every 10th sample),
     with the shipped tolerances.yaml found beside the reference."""
-    from toggle_cosim.analysis.compare import run_compare
+    from toggle_cosim.analysis.compare_command import run_compare
     from toggle_cosim.files.traces import write_csv
 
     reference = ROOT / "scenarios" / "references" / "fig4_nominal" / "friction_ref.csv"

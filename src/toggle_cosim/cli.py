@@ -508,7 +508,7 @@ def compare(
     fail_on_solver_change: bool,
 ) -> None:
     """Compare RESULT with REFERENCE (CSV or Modelica .mat traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
-    from toggle_cosim.analysis.compare import run_compare
+    from toggle_cosim.analysis.compare_command import run_compare
 
     sys.exit(
         run_compare(

@@ -29,7 +29,7 @@ row per sample, time strictly increasing; `toggle_cosim.analysis.csv_traces`) or
 result files (`analysis.trace_formats`); a stored reference is ``<name>_ref.csv`` plus the
 cross-check options file ``<name>_ref.opt`` (``StartTime, StopTime, StepSize, RelTol`` lines;
 `analysis.reference_files`). Every problem with an input raises `CompareInputError` whose message is one line naming the file,
-the problem and the fix; `run_compare` turns it into ``error: ...`` on stderr and exit status 2.
+the problem and the fix; `compare_command.run_compare` turns it into ``error: ...`` on stderr and exit status 2.
 """
 
 from __future__ import annotations
@@ -67,7 +67,6 @@ __all__ = [
     "read_options",
     "read_reference",
     "read_trace",
-    "run_compare",
     "write_reference",
     "write_report",
 ]
@@ -568,19 +567,3 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     default = Tolerance(**base)
     per_variable = {name: Tolerance(**{**base, **entry}) for name, entry in document.items() if name != "default"}
     return default, per_variable
-
-
-# ----------------------------------------------------------------------------- command
-
-
-def run_compare(
-    result_path: Path | str,
-    reference_path: Path | str,
-    tolerance_path: Path | str | None = None,
-    out_dir: Path | str | None = None,
-    **reports: Any,
-) -> int:
-    """`toggle-cosim compare`: see `toggle_cosim.analysis.compare_command.run_compare`."""
-    from toggle_cosim.analysis.compare_command import run_compare as command
-
-    return command(result_path, reference_path, tolerance_path, out_dir, **reports)
