@@ -1,0 +1,31 @@
+"""Command line: `toggle-cosim build | run | plot | paper | compare | references | sweep`.
+
+The only package that knows about files, exit codes and progress display. Exit status:
+0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
+
+    app.py             the command group, its exit-status policy, the shared errors and paths
+    build_command.py   build
+    execution.py       what the run commands share: checks, supervised runs, files, options
+    run_commands.py    run, plot, paper
+    check_commands.py  compare, references
+    sweep_command.py   sweep
+
+Each command imports what it needs when it runs: `toggle-cosim --help` imports click only.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from toggle_cosim import interrupts
+
+# As a program (the `toggle-cosim` script, or `python -m toggle_cosim.cli`, while Python still
+# locates the module and argv[0] is "-m"): an interrupt at start-up exits 130 too.
+if Path(sys.argv[0]).name == "toggle-cosim" or sys.argv[0] == "-m":
+    interrupts.install_for_start_up()  # before the heavy imports
+
+from toggle_cosim.cli import build_command, check_commands, run_commands, sweep_command  # noqa: E402, F401 - they add the commands
+from toggle_cosim.cli.app import main  # noqa: E402
+
+__all__ = ["main"]

@@ -1,0 +1,82 @@
+"""`toggle-cosim build`: Modelica source to FMU (`fmu_export`), inside the project only."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from toggle_cosim.cli.app import (
+    DEFAULT_BUILDS,
+    DEFAULT_FMU,
+    DEFAULT_MODEL,
+    DEFAULT_SOURCE,
+    InputError,
+    inside_project,
+    main,
+    project_of,
+)
+
+
+def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0", interfaces: str = "both") -> None:
+    from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
+
+    root = project_of(source)
+    source = inside_project(source, "Modelica source", "--source", root)
+    output = inside_project(output, "FMU output", "--out", root)
+    if output.suffix != ".fmu":
+        raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
+    try:
+        report = build_fmu(source, model, output, fmi_version=fmi_version, interfaces=interfaces)
+    except (ModelCompileError, FMUBuildError) as error:
+        raise InputError(str(error).splitlines()[0]) from error
+    click.echo(
+        f"built {report.fmu.path} (FMI {report.fmu.fmi_version} {' + '.join(sorted(report.fmu.interfaces))}, "
+        f"{report.fmu.size_bytes / 1024:.0f} KiB, GUID {report.fmu.guid}): "
+        f"{report.variables} variables, {report.states} states, {report.event_indicators} event indicators; "
+        f"compile {report.compile_seconds:.1f} s, C build and zip {report.package_seconds:.1f} s"
+    )
+
+
+@main.command()
+@click.option(
+    "--source",
+    type=click.Path(path_type=Path),
+    default=DEFAULT_SOURCE,
+    show_default=True,
+    help="Modelica package directory (or a .mo file).",
+)
+@click.option("--model", default=None, help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first).")
+@click.option(
+    "--out",
+    "-o",
+    "output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help=f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).",
+)
+@click.option(
+    "--fmi-version",
+    type=click.Choice(["2.0", "3.0"]),
+    default="2.0",
+    show_default=True,
+    help="FMI version of the FMU(s); 3.0 FMUs get a '3' after their default file name.",
+)
+@click.option(
+    "--interfaces",
+    type=click.Choice(["both", "cs", "me"]),
+    default="both",
+    show_default=True,
+    help="Interface types the FMU offers: Co-Simulation and Model Exchange in one FMU, or one of them.",
+)
+def build(source: Path, model: str | None, output: Path | None, fmi_version: str, interfaces: str) -> None:
+    """Compile the Modelica source into FMI 2.0 or 3.0 FMUs (Co-Simulation and/or Model Exchange)."""
+    suffix = "3" if fmi_version == "3.0" else ""
+    if model is None and output is not None:
+        model = DEFAULT_MODEL
+    if model is None:
+        for name, path in DEFAULT_BUILDS:
+            build_plant(source, name, path.with_name(f"{path.stem}{suffix}.fmu"), fmi_version, interfaces)
+        return
+    default = dict(DEFAULT_BUILDS).get(model, Path("fmus") / f"{model.split('.')[-1]}.fmu")
+    build_plant(source, model, output or default.with_name(f"{default.stem}{suffix}.fmu"), fmi_version, interfaces)

@@ -1,0 +1,155 @@
+"""`toggle-cosim compare` and `references`: traces against stored references, with CI reports."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from pathlib import Path
+
+import click
+
+from toggle_cosim.cli.app import DEFAULT_OUT, DEFAULT_REFERENCES, SHIPPED_SCENARIOS, InputError, RunFailed, main
+from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, jobs_for, load_runs, outcomes_of
+
+
+@main.command()
+@click.argument("result", type=click.Path(path_type=Path))
+@click.argument("reference", type=click.Path(path_type=Path))
+@click.option(
+    "--tolerances",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="YAML: {variable: {atol, rtol, ttol}, default: {...}} (default: the tolerances.yaml files "
+    "in the reference's folder and its parent).",
+)
+@click.option(
+    "--out",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Folder for the envelopes and plots of failing variables.",
+)
+@click.option(
+    "--junit",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Write a JUnit XML report: one test case per variable.",
+)
+@click.option(
+    "--summary", type=click.Path(path_type=Path), default=None, help="Write a Markdown table (for a CI job summary)."
+)
+@click.option(
+    "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
+)
+def compare(
+    result: Path,
+    reference: Path,
+    tolerances: Path | None,
+    out: Path | None,
+    junit: Path | None,
+    summary: Path | None,
+    fail_on_solver_change: bool,
+) -> None:
+    """Compare RESULT with REFERENCE (CSV or Modelica .mat traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
+    from toggle_cosim.analysis.compare_command import run_compare
+
+    sys.exit(
+        run_compare(
+            result,
+            reference,
+            tolerances,
+            out,
+            junit=junit,
+            summary=summary,
+            fail_on_solver_change=fail_on_solver_change,
+        )
+    )
+
+
+@main.command()
+@click.argument("scenarios", nargs=-1, type=click.Path(path_type=Path))
+@click.option("--update", is_flag=True, help="Rewrite the stored references from fresh runs (review the diff!).")
+@click.option("--folder", type=click.Path(path_type=Path), default=DEFAULT_REFERENCES, show_default=True)
+@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU for every scenario.")
+@click.option(
+    "--out",
+    type=click.Path(path_type=Path),
+    default=DEFAULT_OUT / "references",
+    show_default=True,
+    help="Folder for the reports: junit.xml, summary.md, plots of failing variables.",
+)
+@click.option(
+    "--junit", type=click.Path(path_type=Path), default=None, help="JUnit XML report (default: OUT/junit.xml)."
+)
+@click.option(
+    "--summary", type=click.Path(path_type=Path), default=None, help="Markdown summary (default: OUT/summary.md)."
+)
+@click.option(
+    "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
+)
+@TIME_LIMIT_OPTION
+@JOBS_OPTION
+def references(
+    scenarios: tuple[Path, ...],
+    update: bool,
+    folder: Path,
+    fmu: Path | None,
+    out: Path,
+    junit: Path | None,
+    summary: Path | None,
+    fail_on_solver_change: bool,
+    time_limit: float | None,
+    jobs: int | None,
+) -> None:
+    """Check the shipped runs against their stored reference traces (or --update them)."""
+    from toggle_cosim.analysis.reference_reports import write_reference_reports
+    from toggle_cosim.experiments import references as refs
+
+    for path, what in ((junit, "JUnit report"), (summary, "Markdown summary")):
+        if path is not None and path.is_dir():
+            raise InputError(f"{path}: is a directory; give a file name for the {what}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
+    files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
+    pairs = load_runs(files, fmu)
+    from toggle_cosim.experiments.resources import check_runs
+
+    jobs = jobs_for(jobs, len(pairs))
+    check_runs(pairs, folder if update else None, jobs)
+    failures: list[str] = []
+    checks = []
+    with contextlib.closing(outcomes_of(pairs, True, time_limit, jobs)) as results:
+        for outcome in results:
+            failures += _check_reference(outcome, refs, folder, update, fail_on_solver_change, checks)
+    if not update:
+        written = write_reference_reports(
+            checks, out, junit or out / "junit.xml", summary or out / "summary.md", fail_on_solver_change
+        )
+        click.echo(f"reports: {', '.join(str(path) for path in written)}")
+    if failures:
+        raise RunFailed("; ".join(failures))
+
+
+def _check_reference(outcome, refs, folder: Path, update: bool, fail_on_solver_change: bool, checks: list) -> list[str]:  # noqa: ANN001
+    """One run of `references`: store it (--update) or check it; the failures it adds."""
+    from toggle_cosim.analysis.compare import CompareInputError, format_table
+
+    run = outcome.run
+    if outcome.interrupted:
+        raise KeyboardInterrupt
+    if not outcome.complete:  # the other runs go on; the command fails at the end
+        click.echo(f"{run.label}: FAILED ({outcome.reason})")
+        return [f"{run.label}: {outcome.reason}"]
+    if update:
+        click.echo(f"{run.label}: wrote {refs.store(outcome, folder)}")
+        return []
+    try:
+        checked = refs.check(outcome, folder)
+    except (CompareInputError, ValueError) as error:
+        raise InputError(str(error)) from error
+    click.echo(f"{run.label}: {'pass' if checked.comparison.passed else 'FAIL'}")
+    if not checked.comparison.passed:
+        click.echo(format_table(checked.comparison))
+    for line in checked.solver_changes:
+        click.echo(f"{'FAIL' if fail_on_solver_change else 'warning'}: {line}")
+    checks.append((checked, outcome.trace, refs.reference_stem(folder, run)))
+    return [*checked.failures, *(checked.solver_changes if fail_on_solver_change else [])]

@@ -1,0 +1,177 @@
+"""What the run commands share: loading and checking runs before any starts, running them
+supervised (several at once, `cosim.supervised_batch`) or in-process, writing each run's files
+in order, the per-run line, and the --jobs and --time-limit options."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import click
+
+from toggle_cosim import interrupts
+from toggle_cosim.cli.app import InputError, RunFailed
+
+
+def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
+    from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
+    from toggle_cosim.plant.contract import ContractError, check_plant
+    from toggle_cosim.plant.probe import ProbeError, probe_binary
+
+    runs = []
+    for path in scenarios:
+        try:
+            runs.extend(load_scenario(path))
+        except ScenarioError as error:
+            raise InputError(str(error)) from error
+    plants = {}
+    for run in runs:
+        chosen = fmu if fmu is not None else run.fmu
+        if chosen is None:
+            raise InputError(f"{run.source}: no fmu: key and no --fmu option (name the plant FMU)")
+        chosen = chosen.resolve()
+        if chosen not in plants:
+            try:
+                plants[chosen] = check_plant(chosen)
+                probe_binary(plants[chosen])
+            except (ContractError, ProbeError) as error:
+                raise InputError(str(error)) from error
+    pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+    from toggle_cosim.plant.settings import SettingError, check_settings
+
+    for run, plant in pairs:  # every name and value the run sets, before any run starts
+        try:
+            check_settings(run, plant)
+        except SettingError as error:
+            raise InputError(f"{run.source or run.label}: {error}") from error
+    return pairs
+
+
+def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
+    from toggle_cosim.files.traces import write_csv, write_json
+
+    folder = out / outcome.run.scenario / (outcome.run.variant or "run")
+    with interrupts.deferred():  # both files whole, or an interrupt waits for them
+        write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
+        write_json(folder / "run.json", outcome.record)
+    return folder
+
+
+def _status_text(outcome) -> str:  # noqa: ANN001
+    if outcome.complete:
+        return "complete"
+    return f"{'INTERRUPTED' if outcome.interrupted else 'FAILED'} ({outcome.reason})"
+
+
+def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path | None = None):  # noqa: ANN001, ANN202
+    """One run, supervised (`supervision`); TOGGLE_COSIM_SUPERVISE=0 runs it in this process
+    instead (for the benchmark's comparison and for debugging: no time limit, no crash guard)."""
+    if not _supervised():
+        from toggle_cosim.cosim.master import simulate
+
+        return simulate(run, plant, progress)
+    from toggle_cosim.cosim.supervision import simulate_supervised
+
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
+
+
+def _supervised() -> bool:
+    return os.environ.get("TOGGLE_COSIM_SUPERVISE", "1") != "0"
+
+
+def jobs_for(jobs: int | None, runs: int) -> int:
+    """--jobs, else one run per core (supervised runs only: in-process runs go one by one)."""
+    if not _supervised():
+        return 1
+    if jobs is not None:
+        return max(1, min(jobs, runs))
+    from toggle_cosim.cosim.supervised_batch import default_jobs
+
+    return default_jobs(runs)
+
+
+def outcomes_of(pairs, quiet: bool, time_limit: float | None, jobs: int):  # noqa: ANN001, ANN202
+    """Each pair's outcome, in order. Several at once (`supervised_batch`) when jobs > 1; one by
+    one otherwise, with a progress bar per run on a terminal unless quiet."""
+    if jobs > 1:
+        from toggle_cosim.cosim.supervised_batch import run_supervised
+
+        yield from run_supervised(pairs, jobs=jobs, time_limit=time_limit)
+        return
+    for number, (run, plant) in enumerate(pairs, start=1):
+        if quiet or not sys.stderr.isatty():
+            yield _simulate(run, plant, time_limit)
+            continue
+        with click.progressbar(length=1000, label=f"[{number}/{len(pairs)}] {run.label}", file=sys.stderr) as bar:
+            done = [0]
+
+            def progress(fraction: float, bar=bar, done=done) -> None:  # noqa: ANN001
+                step = int(fraction * 1000) - done[0]
+                if step > 0:
+                    bar.update(step)
+                    done[0] += step
+
+            outcome = _simulate(run, plant, time_limit, progress)
+        yield outcome
+
+
+def execute_runs(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None, jobs=None) -> list:  # noqa: ANN001
+    """Run each (run, plant) pair supervised (up to `jobs` at once), write its files in order,
+    print a line; `on_written(outcome)` after each run's files are written."""
+    from toggle_cosim.experiments.resources import check_runs
+
+    jobs = jobs_for(jobs, len(pairs))
+    check_runs(pairs, out, jobs)
+    outcomes = []
+    with contextlib.closing(outcomes_of(pairs, quiet, time_limit, jobs)) as results:
+        for number, outcome in enumerate(results, start=1):
+            label = f"[{number}/{len(pairs)}] {outcome.run.label}"
+            folder = _write_outcome(outcome, out)
+            s = outcome.summary
+            detail = (
+                f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
+                f"T_h {s.hitting_time_s:.4f} s"
+                if s and s.final_error_m is not None
+                else "no summary"
+            )
+            click.echo(
+                f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}"
+            )
+            outcomes.append(outcome)
+            if on_written is not None:
+                on_written(outcome)
+            if outcome.interrupted:
+                click.echo(
+                    f"interrupted: {label} written as interrupted; {len(pairs) - number} later run(s) not written",
+                    err=True,
+                )
+                raise KeyboardInterrupt
+    return outcomes
+
+
+def raise_if_failed(outcomes) -> None:  # noqa: ANN001
+    failed = [f"{o.run.label} ({o.reason})" for o in outcomes if not o.complete]
+    if failed:
+        raise RunFailed(f"{len(failed)} run(s) failed: {'; '.join(failed)}")
+
+
+JOBS_OPTION = click.option(
+    "--jobs",
+    "-j",
+    type=click.IntRange(min=1),
+    default=None,
+    metavar="N",
+    help="Runs at once, each in its own process (default: one per core). With more than one, progress "
+    "is a line per run as it is written (in order), not a bar; the traces are the same.",
+)
+
+TIME_LIMIT_OPTION = click.option(
+    "--time-limit",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    metavar="SECONDS",
+    help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).",
+)

@@ -1,0 +1,120 @@
+"""`toggle-cosim run`, `plot` and `paper`: scenario files to traces, figures and the summary."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+
+from toggle_cosim.cli.app import (
+    DEFAULT_BUILDS,
+    DEFAULT_FMU,
+    DEFAULT_MODEL,
+    DEFAULT_OUT,
+    DEFAULT_SOURCE,
+    PAPER_SCENARIOS,
+    InputError,
+    main,
+)
+from toggle_cosim.cli.build_command import build_plant
+from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_runs, load_runs, raise_if_failed
+
+
+@main.command()
+@click.argument("scenarios", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the scenarios' fmu: key)."
+)
+@click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True, help="Output folder.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
+@TIME_LIMIT_OPTION
+@JOBS_OPTION
+def run(
+    scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, time_limit: float | None, jobs: int | None
+) -> None:
+    """Run scenario files; write trace.csv and run.json per run under OUT/<scenario>/<variant>/."""
+    pairs = load_runs(scenarios, fmu)
+    raise_if_failed(execute_runs(pairs, out, quiet, time_limit, jobs=jobs))
+
+
+def _plot_scenario(folder: Path, output: Path | None) -> Path:
+    from toggle_cosim.analysis.results_figure import ResultsError, plot_results
+
+    try:
+        return plot_results(folder, output)
+    except ResultsError as error:
+        raise InputError(str(error)) from error
+
+
+@main.command()
+@click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "-o",
+    "output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.",
+)
+def plot(results: tuple[Path, ...], output: Path | None) -> None:
+    """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
+    if output is not None and len(results) > 1:
+        raise InputError("--out names one file, so give one RESULTS folder with it")
+    for folder in results:
+        click.echo(f"wrote {_plot_scenario(folder, output)}")
+
+
+@main.command()
+@click.option("--scenarios", type=click.Path(path_type=Path), default=Path("scenarios"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True)
+@click.option("--fmu", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True)
+@click.option("--skip-build", is_flag=True, help="Use the existing FMU.")
+@TIME_LIMIT_OPTION
+@JOBS_OPTION
+def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: float | None, jobs: int | None) -> None:
+    """The main job: build the FMU, run the paper's six runs, write traces, figures and a summary."""
+    from toggle_cosim.analysis.report import write_summary
+
+    started = time.perf_counter()
+    if not skip_build:
+        build_plant(DEFAULT_SOURCE, DEFAULT_MODEL, fmu)
+        for name, path in DEFAULT_BUILDS[1:]:
+            build_plant(DEFAULT_SOURCE, name, path)
+    files = [scenarios / f"{name}.yaml" for name in PAPER_SCENARIOS]
+    pairs = load_runs(files, fmu)
+    from toggle_cosim.analysis.figure_worker import FigureWorkers
+
+    # matplotlib loads and each figure is drawn beside the runs, two figures at a time where
+    # there are two cores
+    from toggle_cosim.cosim.supervised_batch import default_jobs
+
+    figures = FigureWorkers(min(2, default_jobs(len(PAPER_SCENARIOS))))
+    try:
+        left = {name: sum(1 for run, _ in pairs if run.scenario == name) for name in PAPER_SCENARIOS}
+
+        def written(outcome) -> None:  # noqa: ANN001 - a scenario's figure once all its runs are written
+            left[outcome.run.scenario] -= 1
+            if left[outcome.run.scenario] == 0:
+                figures.submit(out / outcome.run.scenario)
+
+        outcomes = execute_runs(pairs, out, quiet=False, time_limit=time_limit, on_written=written, jobs=jobs)
+        extra = scenarios / "friction_models.yaml"
+        if extra.is_file():  # the claims re-checked under the dissipative and stick-slip models
+            try:
+                extra_pairs = load_runs([extra], fmu)
+            except InputError as error:  # e.g. a plant without the friction models: the paper's runs stand
+                click.echo(f"skipped {extra}: {error.message}", err=True)
+                extra_pairs = []
+            outcomes = [*outcomes, *execute_runs(extra_pairs, out, quiet=False, jobs=jobs)]
+        summary = write_summary(outcomes, out / "summary.md")
+        lines = figures.results()
+    except BaseException:
+        figures.stop()
+        raise
+    for line in lines:
+        if line.startswith("error: "):
+            raise InputError(line.removeprefix("error: "))
+        click.echo(line)
+    click.echo(f"wrote {summary}; total {time.perf_counter() - started:.1f} s")
+    raise_if_failed(outcomes)

@@ -1,0 +1,62 @@
+"""`toggle-cosim sweep`: a parameter sweep on a local pool or a Dask cluster (`experiments.sweep_run`)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from toggle_cosim import interrupts
+from toggle_cosim.cli.app import main
+
+
+@main.command()
+@click.argument("sweep_file", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "-o",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Output folder (default: the sweep file's output: key, else out/sweeps/<name> under the current folder).",
+)
+@click.option(
+    "--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool)."
+)
+@click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
+@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
+@click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
+@click.option(
+    "--case-timeout",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    metavar="SECONDS",
+    help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",
+)
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+def sweep(
+    sweep_file: Path,
+    out: Path | None,
+    scheduler: str | None,
+    workers: int | None,
+    fmu: Path | None,
+    retry_failed: bool,
+    case_timeout: float | None,
+    quiet: bool,
+) -> None:
+    """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
+    from toggle_cosim.experiments.sweep_run import run_sweep
+
+    code = run_sweep(
+        sweep_file,
+        scheduler,
+        workers,
+        fmu,
+        output=out,
+        retry_failed=retry_failed,
+        progress=not quiet,
+        case_timeout=case_timeout,
+    )
+    if code == interrupts.EXIT_INTERRUPTED:
+        interrupts.exit_interrupted()
+    sys.exit(code)
