@@ -12,8 +12,8 @@ import pytest
 import yaml
 from junitparser import Failure, JUnitXml
 
-from toggle_cosim.analysis.compare import write_reference
 from toggle_cosim.analysis.compare_command import run_compare
+from toggle_cosim.analysis.reference_files import write_reference
 from toggle_cosim.analysis.solver_stats import (
     compare_solver_statistics,
     read_statistics_file,

@@ -14,18 +14,15 @@ import pytest
 
 from toggle_cosim.analysis.compare import (
     DEFAULT_TOLERANCE,
-    CompareInputError,
     Tolerance,
     compare_traces,
     format_table,
     load_tolerances,
-    read_options,
-    read_reference,
-    read_trace,
-    write_reference,
     write_report,
 )
 from toggle_cosim.analysis.compare_command import run_compare
+from toggle_cosim.analysis.csv_traces import CompareInputError, read_trace
+from toggle_cosim.analysis.reference_files import read_options, read_reference, write_reference
 from toggle_cosim.files.traces import Trace, read_csv, write_csv
 
 T = np.linspace(0.0, 1.0, 1001)

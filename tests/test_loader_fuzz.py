@@ -15,7 +15,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from toggle_cosim.analysis.compare import CompareInputError, load_tolerances, read_trace
+from toggle_cosim.analysis.compare import load_tolerances
+from toggle_cosim.analysis.csv_traces import CompareInputError, read_trace
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 from toggle_cosim.experiments.sweep import SweepError, load_sweep
 from toggle_cosim.files import bounded as bounded_files

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import scipy.io
 
-from toggle_cosim.analysis.compare import CompareInputError
 from toggle_cosim.analysis.compare_command import run_compare
+from toggle_cosim.analysis.csv_traces import CompareInputError
 from toggle_cosim.analysis.trace_formats import read_any_trace, read_mat_trace
 from toggle_cosim.files.traces import Trace, write_csv
 

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, CompareInputError, Tolerance, compare_traces
+from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, Tolerance, compare_traces
+from toggle_cosim.analysis.csv_traces import CompareInputError
 from toggle_cosim.analysis.sampling import REFERENCE_GRID, RESULT_GRID, SpanMismatch, check_points
 from toggle_cosim.cosim.master import simulate
 from toggle_cosim.experiments.references import tolerances_for

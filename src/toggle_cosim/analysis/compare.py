@@ -49,14 +49,12 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.analysis.csv_traces import CompareInputError, _check_trace, _float_or_none, read_trace
-from toggle_cosim.analysis.reference_files import read_options, read_reference, write_reference
+from toggle_cosim.analysis.csv_traces import CompareInputError, check_trace, float_or_none
 from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
 from toggle_cosim.files.traces import Trace, atomic_write, write_csv
 
 __all__ = [
     "DEFAULT_TOLERANCE",
-    "CompareInputError",
     "ComparisonResult",
     "Envelope",
     "Tolerance",
@@ -64,10 +62,6 @@ __all__ = [
     "compare_traces",
     "format_table",
     "load_tolerances",
-    "read_options",
-    "read_reference",
-    "read_trace",
-    "write_reference",
     "write_report",
 ]
 
@@ -252,8 +246,8 @@ def compare_traces(
     of `tolerances` that the reference lacks is an error (a typo would silently fall back to the
     default). The labels name the inputs in error messages (run_compare passes the file paths).
     """
-    _check_trace(reference, reference_label)
-    _check_trace(result, result_label)
+    check_trace(reference, reference_label)
+    check_trace(result, result_label)
     if variables is None:
         selected = [name for name in reference.names[1:]]
     else:
@@ -515,7 +509,7 @@ def _coerce_numbers(document: Any) -> Any:
     for key, entry in document.items():
         if isinstance(entry, dict):
             entry = {
-                k: (float(v) if isinstance(v, str) and _float_or_none(v) is not None and math.isfinite(float(v)) else v)
+                k: (float(v) if isinstance(v, str) and float_or_none(v) is not None and math.isfinite(float(v)) else v)
                 for k, v in entry.items()
             }
         coerced[key] = entry

@@ -26,7 +26,7 @@ class CompareInputError(Exception):
         super().__init__(" ".join(str(message).split()))
 
 
-def _float_or_none(text: str) -> float | None:
+def float_or_none(text: str) -> float | None:
     try:
         return float(text)
     except ValueError:
@@ -86,7 +86,7 @@ def read_trace(path: Path | str) -> Trace:
         raise CompareInputError(
             f'{path}: has a single column ({names[0][:40]!r}), so it is not a trace CSV; expected "time" and variables'
         )
-    if all(_float_or_none(name) is not None for name in names):
+    if all(float_or_none(name) is not None for name in names):
         raise CompareInputError(
             f'{path}: has no header (line {lines[0]} is numbers); add a first line of quoted names, "time" first'
         )
@@ -123,7 +123,7 @@ def read_trace(path: Path | str) -> Trace:
     if data is None or not np.all(np.isfinite(data)):
         for row, line in zip(body, lines[1:], strict=True):
             for name, cell in zip(names, row, strict=True):
-                value = _float_or_none(cell)
+                value = float_or_none(cell)
                 if value is None:
                     raise CompareInputError(
                         f"{path}: line {line}, column {name!r}: {cell[:30]!r} is not a number; "
@@ -147,7 +147,7 @@ def read_trace(path: Path | str) -> Trace:
     return Trace(names, data)
 
 
-def _check_trace(trace: Trace, label: str) -> None:
+def check_trace(trace: Trace, label: str) -> None:
     """The checks of `read_trace` for a Trace built in memory."""
     data = np.asarray(trace.data)
     if data.ndim != 2 or data.shape[1] != len(trace.names):
@@ -165,6 +165,3 @@ def _check_trace(trace: Trace, label: str) -> None:
     if np.any(steps <= 0):
         i = int(np.flatnonzero(steps <= 0)[0]) + 1
         raise CompareInputError(f"{label}: time is not strictly increasing at row {i + 1} (t = {data[i, 0]:.17g})")
-
-
-check_trace = _check_trace

@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-from toggle_cosim.analysis.csv_traces import CompareInputError, _check_trace, _float_or_none, read_trace
+from toggle_cosim.analysis.csv_traces import CompareInputError, check_trace, float_or_none, read_trace
 from toggle_cosim.files.traces import Trace, atomic_write, write_csv
 
 __all__ = ["read_options", "read_reference", "write_reference"]
@@ -38,7 +38,7 @@ def write_reference(
     size in s (0 for a variable-step solver); reltol the solver's relative tolerance. The trace
     must run from `start` to `stop`, as the cross-check rules require.
     """
-    _check_trace(trace, "trace")
+    check_trace(trace, "trace")
     if not (math.isfinite(start) and math.isfinite(stop) and stop > start):
         raise ValueError(f"StopTime ({stop}) must be after StartTime ({start})")
     if not (math.isfinite(step) and step >= 0 and math.isfinite(reltol) and reltol >= 0):
@@ -85,7 +85,7 @@ def read_options(path: Path | str) -> dict[str, float | str]:
         if key in options:
             raise CompareInputError(f"{path}: line {number}: {key} is given twice; keep one")
         if key in _NUMERIC_OPTIONS:
-            number_value = _float_or_none(value)
+            number_value = float_or_none(value)
             if number_value is None or not math.isfinite(number_value):
                 raise CompareInputError(f"{path}: line {number}: {key} is {value!r}, not a number; write a number")
             options[key] = number_value

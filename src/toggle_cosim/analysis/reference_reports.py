@@ -9,8 +9,9 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim.analysis.ci_reports import CheckedTrace, write_junit, write_markdown_summary
-from toggle_cosim.analysis.compare import read_reference, write_report
+from toggle_cosim.analysis.compare import write_report
 from toggle_cosim.analysis.compare_command import plots_of
+from toggle_cosim.analysis.reference_files import read_reference
 from toggle_cosim.files.traces import Trace
 
 __all__ = ["write_reference_reports"]

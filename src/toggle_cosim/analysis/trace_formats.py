@@ -1,7 +1,7 @@
 """Trace files from other tools: FMPy / FMI cross-check CSV, and Modelica MAT v4 result files.
 
 * `.csv`: the FMI cross-check layout that FMPy's `write_csv` also writes (a header of quoted
-  names, "time" first): `toggle_cosim.analysis.compare.read_trace`.
+  names, "time" first): `toggle_cosim.analysis.csv_traces.read_trace`.
 * `.mat`: the result file layout of Dymola and OpenModelica (MATLAB v4 matrices `Aclass`,
   `name`, `description`, `dataInfo`, `data_1` for parameters, `data_2` for trajectories), read
   with BuildingsPy's output-file reader (`buildingspy.io.outputfile.Reader`, which wraps DyMat).

@@ -131,7 +131,8 @@ def references(
 
 def _check_reference(outcome, refs, folder: Path, update: bool, fail_on_solver_change: bool, checks: list) -> list[str]:  # noqa: ANN001
     """One run of `references`: store it (--update) or check it; the failures it adds."""
-    from toggle_cosim.analysis.compare import CompareInputError, format_table
+    from toggle_cosim.analysis.compare import format_table
+    from toggle_cosim.analysis.csv_traces import CompareInputError
 
     run = outcome.run
     if outcome.interrupted:

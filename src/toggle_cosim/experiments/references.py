@@ -19,13 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from toggle_cosim.analysis.compare import (
-    ComparisonResult,
-    Tolerance,
-    compare_traces,
-    read_reference,
-    write_reference,
-)
+from toggle_cosim.analysis.compare import ComparisonResult, Tolerance, compare_traces
+from toggle_cosim.analysis.reference_files import read_reference, write_reference
 from toggle_cosim.analysis.solver_stats import (
     SolverCheck,
     compare_solver_statistics,
