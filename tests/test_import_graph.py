@@ -209,3 +209,16 @@ def test_the_layer_check_sees_an_upward_import(tmp_path: Path) -> None:
     assert subpackage_graph(import_graph(package)) == {
         "cosim": {"files": {"toggle_cosim.cosim.run -> toggle_cosim.files.csv"}}
     }
+
+
+def test_no_module_imports_a_private_name_of_another() -> None:
+    """`from toggle_cosim.x import _name` anywhere in the package (a function-level import too)
+    would reach into another module's private part: what is shared is public."""
+    found = []
+    for path in (SRC / "toggle_cosim").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("toggle_cosim"):
+                private = [a.name for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
+                if private:
+                    found.append(f"{path.relative_to(SRC)}:{node.lineno} {node.module}: {', '.join(private)}")
+    assert found == []

@@ -13,7 +13,7 @@ from pathlib import Path
 from toggle_cosim.analysis.ci_reports import CheckedTrace, write_junit, write_markdown_summary
 from toggle_cosim.analysis.compare import ComparisonResult, compare_traces, format_table, write_report
 from toggle_cosim.analysis.csv_traces import CompareInputError
-from toggle_cosim.analysis.reference_files import _check_span, _reference_paths, read_options
+from toggle_cosim.analysis.reference_files import check_span, read_options, reference_paths
 from toggle_cosim.analysis.solver_stats import (
     SolverCheck,
     compare_solver_statistics,
@@ -81,17 +81,17 @@ def run_compare(
         _check_output(None if junit is None else Path(junit), "JUnit report")
         _check_output(None if summary is None else Path(summary), "Markdown summary")
         reference = read_any_trace(reference_path)
-        _, opt_path = _reference_paths(reference_path)
+        _, opt_path = reference_paths(reference_path)
         options = None
         if reference_path.name.endswith("_ref.csv") and opt_path.exists():
             options = read_options(opt_path)
-            _check_span(reference, options, str(reference_path), opt_path)
+            check_span(reference, options, str(reference_path), opt_path)
         result = read_any_trace(result_path)
         default, tolerances, files = tolerances_for_reference(reference_path, tolerance_path)
         if options is not None:
             span = float(options["StopTime"]) - float(options["StartTime"])
             slack = min(tolerances.get(name, default).ttol for name in reference.names[1:]) * span
-            _check_span(result, options, str(result_path), opt_path, slack)
+            check_span(result, options, str(result_path), opt_path, slack)
         comparison = compare_traces(
             result,
             reference,

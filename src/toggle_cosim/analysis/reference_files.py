@@ -17,7 +17,7 @@ _REQUIRED_OPTIONS = ("StartTime", "StopTime", "StepSize", "RelTol")
 _NUMERIC_OPTIONS = (*_REQUIRED_OPTIONS, "AbsTol", "OutputIntervalLength")
 
 
-def _reference_paths(path_stem: Path | str) -> tuple[Path, Path]:
+def reference_paths(path_stem: Path | str) -> tuple[Path, Path]:
     stem = str(path_stem)
     for suffix in ("_ref.csv", "_ref.opt"):
         if stem.endswith(suffix):
@@ -48,7 +48,7 @@ def write_reference(
             f"the trace runs from {trace.time[0]} to {trace.time[-1]} s, not from StartTime {start} "
             f"to StopTime {stop} s"
         )
-    csv_path, opt_path = _reference_paths(path_stem)
+    csv_path, opt_path = reference_paths(path_stem)
     write_csv(csv_path, trace)
     lines = [
         f"StartTime, {float(start)!r}",
@@ -102,7 +102,7 @@ def read_options(path: Path | str) -> dict[str, float | str]:
     return options
 
 
-def _check_span(
+def check_span(
     trace: Trace, options: Mapping[str, float | str], label: str, opt_path: Path, slack: float = 0.0
 ) -> None:
     """The trace must run from StartTime to StopTime, within `slack` seconds (the time tolerance)."""
@@ -118,8 +118,8 @@ def _check_span(
 
 def read_reference(path_stem: Path | str) -> tuple[Trace, dict[str, float | str]]:
     """Read <stem>_ref.csv and <stem>_ref.opt; the trace must run from StartTime to StopTime."""
-    csv_path, opt_path = _reference_paths(path_stem)
+    csv_path, opt_path = reference_paths(path_stem)
     trace = read_trace(csv_path)
     options = read_options(opt_path)
-    _check_span(trace, options, str(csv_path), opt_path)
+    check_span(trace, options, str(csv_path), opt_path)
     return trace, options

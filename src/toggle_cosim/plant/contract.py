@@ -83,7 +83,7 @@ class PlantInterface:
         return self.model_description.coSimulation.modelIdentifier
 
 
-def _platform_binary_folders() -> tuple[str, ...]:
+def platform_binary_folders() -> tuple[str, ...]:
     system = platform.system()
     machine = platform.machine().lower()
     arch = {"x86_64": "x86_64", "amd64": "x86_64", "aarch64": "aarch64", "arm64": "aarch64"}.get(machine, machine)
@@ -126,7 +126,7 @@ def check_plant(path: Path) -> PlantInterface:
     if md.coSimulation is None:
         raise ContractError(f"{path}: the FMU does not support Co-Simulation (rebuild it with --interfaces both or cs)")
     identifier = md.coSimulation.modelIdentifier
-    folder2, folder3 = _platform_binary_folders()
+    folder2, folder3 = platform_binary_folders()
     folder = folder2 if md.fmiVersion == "2.0" else folder3
     suffix = {"Linux": ".so", "Darwin": ".dylib", "Windows": ".dll"}[platform.system()]
     if f"binaries/{folder}/{identifier}{suffix}" not in names:

@@ -20,7 +20,7 @@ import warnings
 import zipfile
 from pathlib import Path
 
-from toggle_cosim.plant.contract import PlantInterface, _platform_binary_folders
+from toggle_cosim.plant.contract import PlantInterface, platform_binary_folders
 
 PROBE_SECONDS = 10.0
 FMI2 = (
@@ -53,7 +53,7 @@ class ProbeError(Exception):
 
 
 def _binary_member(plant: PlantInterface) -> str:
-    folder2, folder3 = _platform_binary_folders()
+    folder2, folder3 = platform_binary_folders()
     folder = folder2 if plant.fmi_version.startswith("2") else folder3
     suffix = {"linux": ".so", "darwin": ".dylib", "win32": ".dll"}.get(sys.platform, ".so")
     return f"binaries/{folder}/{plant.model_identifier}{suffix}"
