@@ -133,3 +133,8 @@ def inside_project(path: Path, what: str, option: str, root: Path | None = None)
             f"inside it (give a path under it with {option})"
         )
     return resolved
+
+
+def out_file_option(help_text: str):  # noqa: ANN201 - a click decorator
+    """`--out/-o FILE` of the commands that write one file (build, plot), as the parameter `output`."""
+    return click.option("--out", "-o", "output", type=click.Path(path_type=Path), default=None, help=help_text)

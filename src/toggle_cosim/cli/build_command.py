@@ -14,6 +14,7 @@ from toggle_cosim.cli.app import (
     InputError,
     inside_project,
     main,
+    out_file_option,
     project_of,
 )
 
@@ -47,14 +48,7 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     help="Modelica package directory (or a .mo file).",
 )
 @click.option("--model", default=None, help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first).")
-@click.option(
-    "--out",
-    "-o",
-    "output",
-    type=click.Path(path_type=Path),
-    default=None,
-    help=f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).",
-)
+@out_file_option(f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).")
 @click.option(
     "--fmi-version",
     type=click.Choice(["2.0", "3.0"]),

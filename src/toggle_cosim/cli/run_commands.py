@@ -16,6 +16,7 @@ from toggle_cosim.cli.app import (
     PAPER_SCENARIOS,
     InputError,
     main,
+    out_file_option,
 )
 from toggle_cosim.cli.build_command import build_plant
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_runs, load_runs, raise_if_failed
@@ -49,14 +50,7 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
 
 @main.command()
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option(
-    "--out",
-    "-o",
-    "output",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.",
-)
+@out_file_option("PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
 def plot(results: tuple[Path, ...], output: Path | None) -> None:
     """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
     if output is not None and len(results) > 1:
