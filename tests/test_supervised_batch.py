@@ -67,3 +67,34 @@ def test_jobs_follow_the_cores_and_the_runs() -> None:
     cores = len(os.sched_getaffinity(0))
     assert default_jobs(1) == 1
     assert default_jobs(100) == cores
+
+
+def test_a_killed_commands_folders_are_removed_by_the_next(plant_fmu: Path, tmp_path: Path) -> None:
+    """SIGKILL to a command leaves its runs' folders (nothing in it can run), but no trace buffer:
+    that file is unlinked as soon as it is mapped. The next command removes the folders of
+    supervising processes that no longer exist, and leaves those of a live one alone."""
+    import signal
+    import subprocess
+    import sys
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = {**os.environ, "TMPDIR": str(scratch), "TOGGLE_COSIM_KERNEL": "0"}  # the Python loop: slower
+    files = [str(ROOT / "scenarios" / f"{name}.yaml") for name in PAPER]
+    command = [sys.executable, "-m", "toggle_cosim.cli", "run", *files, "--fmu", str(plant_fmu), "-q"]
+    process = subprocess.Popen([*command, "--out", str(tmp_path / "a")], env=env, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not list(scratch.glob("toggle-cosim-run-*")):
+        assert time.monotonic() < deadline and process.poll() is None, "no run started"
+        time.sleep(0.01)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    time.sleep(0.2)  # the children die with their parent
+    left = list(scratch.glob("toggle-cosim-run-*"))
+    assert left and all(folder.name.startswith(f"toggle-cosim-run-{process.pid}-") for folder in left)
+    assert list(scratch.rglob("trace.bin")) == []
+    alive = scratch / f"toggle-cosim-run-{os.getpid()}-x"  # a live process's folder (this one's)
+    alive.mkdir()
+    done = subprocess.run([*command, "--out", str(tmp_path / "b")], env=env, capture_output=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert list(scratch.glob("toggle-cosim-run-*")) == [alive]

@@ -14,8 +14,12 @@ kill the child at once (a plant stuck in C cannot ignore SIGKILL) and the run is
 The child dies with its parent (PR_SET_PDEATHSIG), and the FMU's unzipped copy lives in the
 run's own temporary folder, which the parent removes on every path.
 
-The trace buffer is a file in that folder, mapped shared and unlinked when the run ends (the map
-stays valid), so a long run's trace lives in the page cache backed by disk, not in memory.
+The trace buffer is a file in that folder, mapped shared and unlinked at once (the map, and the
+child's copy of it, stay valid), so a long run's trace lives in the page cache backed by disk,
+not in memory, and nothing of it is left on disk whatever ends the command. The folder's name
+carries the supervising process's id: a command killed by SIGKILL cannot remove its folders
+(the unzipped FMU), so each command removes those of supervising processes that no longer
+exist before it starts its own (`remove_stale_folders`).
 """
 
 from __future__ import annotations
@@ -51,6 +55,35 @@ PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process 
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
 TIME_LIMIT_PER_SIMULATED_S = 20.0
 _PR_SET_PDEATHSIG = 1
+FOLDER_PREFIX = "toggle-cosim-run-"  # then the supervising process's id, "-", a random part
+
+
+def remove_stale_folders(scratch: Path | None = None) -> list[Path]:
+    """Remove the run folders of supervising processes that no longer exist (killed by SIGKILL:
+    nothing else leaves one) in `scratch` (default: the temporary directory), if they are ours;
+    the folders removed. A folder whose process may still live is left alone."""
+    folder = Path(scratch) if scratch is not None else Path(tempfile.gettempdir())
+    removed = []
+    try:
+        candidates = list(folder.glob(f"{FOLDER_PREFIX}*-*"))
+    except OSError:
+        return removed
+    for path in candidates:
+        pid_text = path.name[len(FOLDER_PREFIX) :].split("-", 1)[0]
+        if not pid_text.isdigit() or int(pid_text) == os.getpid():
+            continue
+        try:
+            if path.lstat().st_uid != os.getuid() or not path.is_dir():
+                continue
+            os.kill(int(pid_text), 0)
+            continue  # that process exists (perhaps another command running now): leave it
+        except ProcessLookupError:
+            pass
+        except (OSError, ValueError):
+            continue  # not ours to judge (no permission to signal it, an odd name)
+        shutil.rmtree(path, ignore_errors=True)
+        removed.append(path)
+    return removed
 
 
 def default_time_limit(t_end: float) -> float:
@@ -191,6 +224,7 @@ def _map_buffer(path: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndar
     with open(path, "w+b") as stream:
         stream.truncate(size)
         mapped = mmap.mmap(stream.fileno(), size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
+    path.unlink()  # the map keeps the file; no path is left to clean up
     array = np.frombuffer(mapped, dtype=np.float64, count=rows * columns).reshape(rows, columns)
     array.fill(np.nan)
     return mapped, array
@@ -237,7 +271,7 @@ class SupervisedRun:
         self.deadline = math.inf
         self._capture_log = capture_log
         self._with_progress = with_progress
-        self._workdir = Path(tempfile.mkdtemp(prefix="toggle-cosim-run-", dir=scratch))
+        self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=scratch))
 
     def start(self) -> None:
         """Map the trace buffer and fork the child; its deadline runs from here."""

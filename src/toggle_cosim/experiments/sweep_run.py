@@ -122,6 +122,9 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
             check_settings(run, plant)
         except SettingError as error:
             raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
+    from toggle_cosim.cosim.supervision import remove_stale_folders
+
+    remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
     return chosen, file_sha256_cached(chosen)
 
 
