@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
+from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.plant import description_cache
 
 
@@ -24,12 +25,12 @@ def _signature(md) -> tuple:  # noqa: ANN001
 
 def test_an_entry_is_fmpys_parse_and_is_used(plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("TOGGLE_COSIM_CACHE", str(tmp_path / "cache"))
-    first = description_cache.read_description(plant_fmu)
+    first = description_cache.read_description(plant_fmu, file_sha256(plant_fmu))
     entries = list((tmp_path / "cache").glob("model-description-*.pickle"))
     assert len(entries) == 1
     calls = []
     monkeypatch.setattr("fmpy.read_model_description", lambda *a, **k: calls.append(a))
-    second = description_cache.read_description(plant_fmu)
+    second = description_cache.read_description(plant_fmu, file_sha256(plant_fmu))
     assert calls == []  # read back, not parsed
     assert _signature(second) == _signature(first) == _signature(read_model_description(str(plant_fmu)))
 
@@ -38,13 +39,26 @@ def test_another_file_or_a_damaged_entry_is_parsed(
     plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv("TOGGLE_COSIM_CACHE", str(tmp_path / "cache"))
-    description_cache.read_description(plant_fmu)
+    description_cache.read_description(plant_fmu, file_sha256(plant_fmu))
     (entry,) = (tmp_path / "cache").glob("model-description-*.pickle")
     entry.write_bytes(b"not a pickle")
-    assert _signature(description_cache.read_description(plant_fmu))[1] == read_model_description(str(plant_fmu)).guid
+    again = description_cache.read_description(plant_fmu, file_sha256(plant_fmu))
+    assert _signature(again)[1] == read_model_description(str(plant_fmu)).guid
     copy = tmp_path / "copy.fmu"
     shutil.copy(plant_fmu, copy)
     with copy.open("ab") as stream:  # the same description, another file: another key
         stream.write(b"\0")
-    description_cache.read_description(copy)
+    description_cache.read_description(copy, file_sha256(copy))
     assert len(list((tmp_path / "cache").glob("model-description-*.pickle"))) == 2
+
+
+def test_the_plant_carries_its_fmus_hash_into_the_run_record(plant_fmu: Path) -> None:
+    """check_plant hashes the FMU once; run.json names that hash (the file's own SHA-256)."""
+    from toggle_cosim.cosim.outcome import run_record
+    from toggle_cosim.experiments.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
+
+    plant = check_plant(plant_fmu)
+    assert plant.sha256 == file_sha256(plant_fmu)
+    run = load_scenario(Path(__file__).resolve().parent.parent / "scenarios" / "fig4_nominal.yaml")[0]
+    assert run_record(run, plant, "complete", None, 0, 0.0, 0.0)["fmu"]["sha256"] == plant.sha256

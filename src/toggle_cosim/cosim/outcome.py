@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 import platform
 import re
 import sys
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from toggle_cosim.cosim.summary import RunSummary
@@ -31,14 +29,6 @@ class RunOutcome:
     summary: RunSummary | None
     record: dict[str, Any] = field(default_factory=dict)
     interrupted: bool = False  # stopped by SIGINT/SIGTERM: the caller should stop too
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with Path(path).open("rb") as stream:
-        for chunk in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
 
 
 RECORDED_PACKAGES = ("toggle-cosim", "fmpy", "numpy", "scipy", "pandas", "modelica")
@@ -121,7 +111,7 @@ def run_record(
         "resolved": run.resolved,
         "fmu": {
             "path": str(plant.path),
-            "sha256": file_sha256(plant.path),
+            "sha256": plant.sha256,
             "guid": plant.guid,
             "fmi_version": plant.fmi_version,
             "model_name": plant.model_description.modelName,

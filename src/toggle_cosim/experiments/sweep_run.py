@@ -27,7 +27,6 @@ from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, ResultStore, read_results
-from toggle_cosim.experiments.sweep_worker import file_sha256_cached
 
 MANIFEST_FILE = "sweep.json"
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -125,7 +124,7 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
     from toggle_cosim.cosim.supervision import remove_stale_folders
 
     remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
-    return chosen, file_sha256_cached(chosen)
+    return chosen, plant.sha256
 
 
 def execute_sweep(

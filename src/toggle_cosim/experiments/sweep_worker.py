@@ -66,7 +66,7 @@ def _file_key(path: Path) -> tuple[str, int, int]:
 def file_sha256_cached(path: Path) -> str:
     key = _file_key(path)
     if key not in _sha_cache:
-        from toggle_cosim.cosim.outcome import file_sha256
+        from toggle_cosim.files.checksums import file_sha256
 
         _sha_cache[key] = file_sha256(path)
     return _sha_cache[key]

@@ -22,6 +22,7 @@ from xml.etree import ElementTree
 
 from fmpy.model_description import ModelDescription
 
+from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.plant.description_cache import read_description
 
 JOINTS = ("12", "23", "34", "25", "56")
@@ -67,6 +68,7 @@ class PlantInterface:
     fmi_version: str
     references: dict[str, int]
     types: dict[str, str]
+    sha256: str  # of the FMU file as checked: run records name it, the description cache keys on it
 
     @property
     def recorded_outputs(self) -> tuple[str, ...]:
@@ -119,7 +121,8 @@ def check_plant(path: Path) -> PlantInterface:
     if version not in ("2.0", "3.0"):
         raise ContractError(f"{path}: FMI version {version} is not supported (use an FMI 2.0 or 3.0 FMU)")
     try:
-        md = read_description(path)  # fmpy's parse, kept between commands (`description_cache`)
+        sha256 = file_sha256(path)
+        md = read_description(path, sha256)  # fmpy's parse, kept between commands (`description_cache`)
     except Exception as error:  # noqa: BLE001 - fmpy raises several kinds for a broken description
         message = " ".join(str(error).split())
         raise ContractError(f"{path}: unreadable modelDescription.xml ({message})") from error
@@ -191,4 +194,4 @@ def check_plant(path: Path) -> PlantInterface:
     for variable in md.modelVariables:
         references.setdefault(variable.name, variable.valueReference)
         types.setdefault(variable.name, variable.type)
-    return PlantInterface(path, md, md.fmiVersion, references, types)
+    return PlantInterface(path, md, md.fmiVersion, references, types, sha256)

@@ -3,8 +3,9 @@
 fmpy parses a modelDescription.xml with lxml into its own objects: about 30 ms for our plant's
 200 variables (lxml's import included), on every command that checks the plant, for a file that
 rarely changes. The parsed object is kept in the cache of compiled helpers (`native.cache_folders`)
-under the SHA-256 of the whole FMU file, fmpy's version and Python's; any change to the FMU makes
-a new key, and an entry that cannot be read is parsed again. Reading one back costs about 4 ms.
+under the SHA-256 of the whole FMU file (which the contract check computes once, for the run
+records too), fmpy's version and Python's; any change to the FMU makes a new key, and an entry
+that cannot be read is parsed again. Reading one back costs about 4 ms.
 """
 
 from __future__ import annotations
@@ -20,20 +21,19 @@ from typing import Any
 FORMAT = 1  # raise when what is stored changes
 
 
-def _key(path: Path, fmpy_version: str) -> str:
-    digest = hashlib.sha256(Path(path).read_bytes())
-    digest.update(f"\0{fmpy_version}\0{sys.version}\0{FORMAT}".encode())
-    return digest.hexdigest()[:32]
+def _key(sha256: str, fmpy_version: str) -> str:
+    return hashlib.sha256(f"{sha256}\0{fmpy_version}\0{sys.version}\0{FORMAT}".encode()).hexdigest()[:32]
 
 
-def read_description(path: Path) -> Any:
-    """fmpy.read_model_description(path, validate=False), from the cache when this FMU's was
-    parsed before. Raises what fmpy raises for a description it cannot read."""
+def read_description(path: Path, sha256: str) -> Any:
+    """fmpy.read_model_description(path, validate=False) for the FMU file whose SHA-256 is
+    `sha256`, from the cache when it was parsed before. Raises what fmpy raises for a description
+    it cannot read."""
     import fmpy
 
     from toggle_cosim.native import cache_folders
 
-    name = f"model-description-{_key(path, fmpy.__version__)}.pickle"
+    name = f"model-description-{_key(sha256, fmpy.__version__)}.pickle"
     for folder in cache_folders():
         try:
             with open(folder / name, "rb") as stream:
