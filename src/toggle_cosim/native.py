@@ -2,8 +2,9 @@
 the co-simulation loop generated from the control law (`cosim.compiled_loop`) and the trace-row
 formatter (`files.csv_rows`).
 
-The compiler is $CC, else cc, gcc or clang. It is looked up here rather than imported from the
-FMU export, whose import pulls in the Modelica compiler (about 1 s). The cache is
+The compiler is $CC, else cc, gcc or clang: `c_compiler` is the one lookup, for these helpers and
+for the FMU export's build alike (it lives here, below the FMU export, because importing that
+pulls in the Modelica compiler, about 1 s). The cache is
 $TOGGLE_COSIM_CACHE, else $XDG_CACHE_HOME/toggle-cosim (~/.cache/toggle-cosim), else a
 per-user folder in the temporary directory when that one cannot be written.
 """

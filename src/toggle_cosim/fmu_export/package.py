@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 import platform
 import re
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -33,6 +32,7 @@ from toggle_cosim.fmu_export import interfaces as interface_types
 from toggle_cosim.fmu_export.compile import GeneratedModel
 from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
 from toggle_cosim.fmu_export.shell_settings import HEADER_NAME, settings_header
+from toggle_cosim.native import c_compiler
 
 # The shell files every FMU carries in sources/, whatever its FMI version (and md_settings.h,
 # written from shell_settings.py).
@@ -107,12 +107,11 @@ def fmi_headers() -> Path:
 
 
 def find_c_compiler() -> str:
-    """The C compiler to use: $CC, else cc, gcc or clang, as a full path."""
-    for name in (os.environ.get("CC", ""), "cc", "gcc", "clang"):
-        found = shutil.which(name) if name else None
-        if found:
-            return found
-    raise FMUBuildError("no C compiler found (set CC or install gcc)")
+    """The C compiler to use (`native.c_compiler`: $CC, else cc, gcc or clang, as a full path)."""
+    try:
+        return c_compiler()
+    except RuntimeError as error:
+        raise FMUBuildError(str(error)) from None
 
 
 def fmi3_build_description(model_identifier: str, source_files: tuple[str, ...]) -> str:
