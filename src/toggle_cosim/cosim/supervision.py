@@ -276,14 +276,14 @@ class SupervisedRun:
     def start(self) -> None:
         """Map the trace buffer and fork the child; its deadline runs from here."""
         try:
-            self._fork(self._capture_log, self._with_progress)
+            self._fork()
         except BaseException:
             self.stop()
             raise
 
-    def _fork(self, capture_log: bool, with_progress: bool) -> None:
+    def _fork(self) -> None:
         _, self.buffer = _map_buffer(self._workdir / "trace.bin", self.run.steps + 1, len(self.names))
-        if with_progress:
+        if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
         _warm_up()
         read_fd, write_fd = os.pipe()
@@ -298,7 +298,14 @@ class SupervisedRun:
             if self.pid == 0:
                 os.close(read_fd)
                 _child(
-                    self.run, self.plant, self.buffer, self.progress_slot, self._workdir, write_fd, parent, capture_log
+                    self.run,
+                    self.plant,
+                    self.buffer,
+                    self.progress_slot,
+                    self._workdir,
+                    write_fd,
+                    parent,
+                    self._capture_log,
                 )
         finally:
             os.close(write_fd)
