@@ -46,6 +46,33 @@ class ShellReferences:
         return cls(settings, time, statistics, derivatives, derivatives + len(model.states))
 
 
+def _shell_variables(references: ShellReferences) -> list[tuple[str, dict[str, str], dict[str, str]]]:
+    """The shell's own variables in value-reference order, for either version's writer: the
+    solver settings (tunable Real parameters) and the integrator statistics (discrete Integer
+    locals), each as (type "Real" or "Integer", the variable's attributes, the type's attributes)."""
+    found = []
+    for offset, setting in enumerate(SHELL_SETTINGS):
+        attributes = {
+            "name": setting.name,
+            "valueReference": str(references.settings + offset),
+            "description": setting.description,
+            "causality": "parameter",
+            "variability": "tunable",
+            "initial": "exact",
+        }
+        found.append(("Real", attributes, {"unit": setting.unit, "start": _number(setting.start)}))
+    for offset, statistic in enumerate(SHELL_STATISTICS):
+        attributes = {
+            "name": statistic.name,
+            "valueReference": str(references.statistics + offset),
+            "description": statistic.description,
+            "causality": "local",
+            "variability": "discrete",
+        }
+        found.append(("Integer", attributes, {}))
+    return found
+
+
 def default_experiment(model: GeneratedModel) -> dict[str, str]:
     """<DefaultExperiment> from the model's `experiment` annotation; the tolerance defaults to
     the shell's relative tolerance."""
@@ -220,31 +247,11 @@ def fmi2_model_description(
         elif attributes["causality"] == "calculatedParameter":
             calculated.append(variable)
     next_index = len(model.variables) + 1
-    for offset, setting in enumerate(SHELL_SETTINGS):
-        element = ET.SubElement(
-            variables,
-            "ScalarVariable",
-            name=setting.name,
-            valueReference=str(references.settings + offset),
-            description=setting.description,
-            causality="parameter",
-            variability="tunable",
-            initial="exact",
-        )
-        ET.SubElement(element, "Real", unit=setting.unit, start=_number(setting.start))
-        next_index += 1
-    for offset, statistic in enumerate(SHELL_STATISTICS):
-        element = ET.SubElement(
-            variables,
-            "ScalarVariable",
-            name=statistic.name,
-            valueReference=str(references.statistics + offset),
-            description=statistic.description,
-            causality="local",
-            variability="discrete",
-            initial="calculated",
-        )
-        ET.SubElement(element, "Integer")
+    for kind, attributes, value in _shell_variables(references):
+        if kind == "Integer":  # FMI 2.0 spells out what 3.0 implies for a local
+            attributes = {**attributes, "initial": "calculated"}
+        element = ET.SubElement(variables, "ScalarVariable", attributes)
+        ET.SubElement(element, kind, value)
         next_index += 1
     derivative_index: list[int] = []
     for offset, state in enumerate(_state_variables(model)):
@@ -407,29 +414,8 @@ def fmi3_model_description(
             outputs.append(variable)
         elif attributes["causality"] == "calculatedParameter":
             calculated.append(variable)
-    for offset, setting in enumerate(SHELL_SETTINGS):
-        ET.SubElement(
-            variables,
-            "Float64",
-            name=setting.name,
-            valueReference=str(references.settings + offset),
-            description=setting.description,
-            causality="parameter",
-            variability="tunable",
-            initial="exact",
-            unit=setting.unit,
-            start=_number(setting.start),
-        )
-    for offset, statistic in enumerate(SHELL_STATISTICS):
-        ET.SubElement(
-            variables,
-            "Int64",
-            name=statistic.name,
-            valueReference=str(references.statistics + offset),
-            description=statistic.description,
-            causality="local",
-            variability="discrete",
-        )
+    for kind, attributes, value in _shell_variables(references):
+        ET.SubElement(variables, {"Real": "Float64", "Integer": "Int64"}[kind], {**attributes, **value})
     derivative_vr: list[int] = []
     for offset, state in enumerate(_state_variables(model)):
         element = ET.SubElement(
