@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from toggle_cosim.cli.app import DEFAULT_OUT, DEFAULT_REFERENCES, SHIPPED_SCENARIOS, InputError, RunFailed, main
-from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, jobs_for, load_runs, outcomes_of
+from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of
 
 
 @main.command()
@@ -111,13 +111,9 @@ def references(
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     pairs = load_runs(files, fmu)
-    from toggle_cosim.experiments.resources import check_runs
-
-    jobs = jobs_for(jobs, len(pairs))
-    check_runs(pairs, folder if update else None, jobs)
     failures: list[str] = []
     checks = []
-    with contextlib.closing(outcomes_of(pairs, True, time_limit, jobs)) as results:
+    with contextlib.closing(outcomes_of(pairs, folder if update else None, True, time_limit, jobs)) as results:
         for outcome in results:
             failures += _check_reference(outcome, refs, folder, update, fail_on_solver_change, checks)
     if not update:

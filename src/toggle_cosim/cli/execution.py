@@ -66,7 +66,7 @@ def _status_text(outcome) -> str:  # noqa: ANN001
     return f"{'INTERRUPTED' if outcome.interrupted else 'FAILED'} ({outcome.reason})"
 
 
-def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path | None = None):  # noqa: ANN001, ANN202
+def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN001, ANN202
     """One run, supervised (`supervision`); TOGGLE_COSIM_SUPERVISE=0 runs it in this process
     instead (for the benchmark's comparison and for debugging: no time limit, no crash guard)."""
     if not _supervised():
@@ -75,14 +75,14 @@ def _simulate(run, plant, time_limit: float | None, progress=None, scratch: Path
         return simulate(run, plant, progress)
     from toggle_cosim.cosim.supervision import simulate_supervised
 
-    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, scratch=scratch)
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress)
 
 
 def _supervised() -> bool:
     return os.environ.get("TOGGLE_COSIM_SUPERVISE", "1") != "0"
 
 
-def jobs_for(jobs: int | None, runs: int) -> int:
+def _jobs_for(jobs: int | None, runs: int) -> int:
     """--jobs, else one run per core (supervised runs only: in-process runs go one by one)."""
     if not _supervised():
         return 1
@@ -93,9 +93,15 @@ def jobs_for(jobs: int | None, runs: int) -> int:
     return default_jobs(runs)
 
 
-def outcomes_of(pairs, quiet: bool, time_limit: float | None, jobs: int):  # noqa: ANN001, ANN202
-    """Each pair's outcome, in order. Several at once (`supervised_batch`) when jobs > 1; one by
-    one otherwise, with a progress bar per run on a terminal unless quiet."""
+def outcomes_of(pairs, out: Path | None, quiet: bool, time_limit: float | None, jobs: int | None):  # noqa: ANN001, ANN202
+    """Each pair's outcome, in order, once the checks before any run have passed (`check_runs`:
+    the sizes, the output folder `out` if files are written there, the scratch space). Several
+    at once (`supervised_batch`) with more than one job (--jobs, else one per core); one by one
+    otherwise, with a progress bar per run on a terminal unless quiet."""
+    from toggle_cosim.experiments.resources import check_runs
+
+    jobs = _jobs_for(jobs, len(pairs))
+    check_runs(pairs, out, jobs)
     if jobs > 1:
         from toggle_cosim.cosim.supervised_batch import run_supervised
 
@@ -121,12 +127,8 @@ def outcomes_of(pairs, quiet: bool, time_limit: float | None, jobs: int):  # noq
 def execute_runs(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None, jobs=None) -> list:  # noqa: ANN001
     """Run each (run, plant) pair supervised (up to `jobs` at once), write its files in order,
     print a line; `on_written(outcome)` after each run's files are written."""
-    from toggle_cosim.experiments.resources import check_runs
-
-    jobs = jobs_for(jobs, len(pairs))
-    check_runs(pairs, out, jobs)
     outcomes = []
-    with contextlib.closing(outcomes_of(pairs, quiet, time_limit, jobs)) as results:
+    with contextlib.closing(outcomes_of(pairs, out, quiet, time_limit, jobs)) as results:
         for number, outcome in enumerate(results, start=1):
             label = f"[{number}/{len(pairs)}] {outcome.run.label}"
             folder = _write_outcome(outcome, out)
