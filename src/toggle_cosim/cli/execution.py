@@ -98,9 +98,11 @@ def outcomes_of(pairs, out: Path | None, quiet: bool, time_limit: float | None, 
     the sizes, the output folder `out` if files are written there, the scratch space). Several
     at once (`supervised_batch`) with more than one job (--jobs, else one per core); one by one
     otherwise, with a progress bar per run on a terminal unless quiet."""
+    from toggle_cosim.cosim.supervision import remove_stale_folders
     from toggle_cosim.experiments.resources import check_runs
 
     jobs = _jobs_for(jobs, len(pairs))
+    remove_stale_folders()  # what commands killed by SIGKILL left, before the scratch space is counted
     check_runs(pairs, out, jobs)
     if jobs > 1:
         from toggle_cosim.cosim.supervised_batch import run_supervised

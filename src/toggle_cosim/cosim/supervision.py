@@ -450,9 +450,9 @@ def simulate_supervised(
             if progress is not None:
                 progress(child.progress())
     except KeyboardInterrupt:
-        child.stop()
+        pass  # stopped below: the run comes back as interrupted
     finally:
-        child.stop()
+        child.stop()  # kills a child still running (an interrupt); nothing once it is done
         child.close()
     return child.outcome()
 

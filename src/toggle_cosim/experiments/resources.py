@@ -126,17 +126,13 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
 
 def check_runs(pairs: Sequence[tuple], out: Path | None, jobs: int = 1) -> None:
     """Before the first run: each run's size, then the output folder and the scratch space for
-    the `jobs` biggest trace buffers (that many runs may be under way at once), after removing
-    the run folders that commands killed by SIGKILL left in it."""
+    the `jobs` biggest trace buffers (that many runs may be under way at once)."""
     sizes = [check_size(run, plant) for run, plant in pairs]
     if out is not None:
         check_output_folder(out, sum(s.csv_bytes for s in sizes))
     at_once = sorted((s.buffer_bytes for s in sizes), reverse=True)[: max(1, jobs)]
     needed = sum(at_once)
     scratch = Path(tempfile.gettempdir())
-    from toggle_cosim.cosim.supervision import remove_stale_folders
-
-    remove_stale_folders(scratch)  # what commands killed by SIGKILL left there, before counting its space
     if needed > shutil.disk_usage(scratch).free:
         what = "a run needs" if len(at_once) == 1 else f"{len(at_once)} runs at once need"
         raise ResourceError(

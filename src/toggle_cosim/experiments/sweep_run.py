@@ -121,9 +121,6 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
             check_settings(run, plant)
         except SettingError as error:
             raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
-    from toggle_cosim.cosim.supervision import remove_stale_folders
-
-    remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
     return chosen, plant.sha256
 
 
@@ -148,6 +145,9 @@ def execute_sweep(
     if case_timeout is not None and not (case_timeout > 0 and math.isfinite(case_timeout)):
         raise SweepError(f"--case-timeout {case_timeout}: give a positive number of seconds")
     fmu_path, sha = _resolve_plant(sweep, fmu)
+    from toggle_cosim.cosim.supervision import remove_stale_folders
+
+    remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
     client = connect(scheduler) if scheduler else None  # before anything is written
     try:
         return _execute_sweep(
