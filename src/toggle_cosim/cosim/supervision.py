@@ -14,9 +14,10 @@ kill the child at once (a plant stuck in C cannot ignore SIGKILL) and the run is
 The child dies with its parent (PR_SET_PDEATHSIG), and the FMU's unzipped copy lives in the
 run's own temporary folder, which the parent removes on every path.
 
-The trace buffer is a file in that folder, mapped shared and unlinked at once (the map, and the
-child's copy of it, stay valid), so a long run's trace lives in the page cache backed by disk,
-not in memory, and nothing of it is left on disk whatever ends the command. The folder's name
+The trace buffer is a file in that folder that never has a name (O_TMPFILE), mapped shared (the
+map, and the child's copy of it, outlive the descriptor), so a long run's trace lives in the
+page cache backed by disk, not in memory, and nothing of it is left on disk whatever ends the
+command. The folder's name
 carries the supervising process's id: a command killed by SIGKILL cannot remove its folders
 (the unzipped FMU), so each command removes those of supervising processes that no longer
 exist before it starts its own (`remove_stale_folders`).
@@ -219,12 +220,14 @@ def _rows_recorded(buffer: np.ndarray) -> int:
     return int(unset[0]) if unset.size else buffer.shape[0]
 
 
-def _map_buffer(path: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndarray]:
+def _map_buffer(folder: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndarray]:
+    """A shared map of rows x columns doubles, NaN-filled, backed by a file in `folder` that has
+    no name: O_TMPFILE on Linux (TemporaryFile falls back to create-and-unlink elsewhere), so no
+    moment exists at which a kill could leave it behind."""
     size = max(rows * columns * 8, 8)
-    with open(path, "w+b") as stream:
+    with tempfile.TemporaryFile(dir=folder) as stream:
         stream.truncate(size)
         mapped = mmap.mmap(stream.fileno(), size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
-    path.unlink()  # the map keeps the file; no path is left to clean up
     array = np.frombuffer(mapped, dtype=np.float64, count=rows * columns).reshape(rows, columns)
     array.fill(np.nan)
     return mapped, array
@@ -282,7 +285,7 @@ class SupervisedRun:
             raise
 
     def _fork(self) -> None:
-        _, self.buffer = _map_buffer(self._workdir / "trace.bin", self.run.steps + 1, len(self.names))
+        _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
         _warm_up()
