@@ -71,8 +71,9 @@ def test_jobs_follow_the_cores_and_the_runs() -> None:
 
 def test_a_killed_commands_folders_are_removed_by_the_next(plant_fmu: Path, tmp_path: Path) -> None:
     """SIGKILL to a command leaves its runs' folders (nothing in it can run), but no trace buffer:
-    that file is created without a name (O_TMPFILE), so no moment exists at which it is on disk. The next command removes the folders of
-    supervising processes that no longer exist, and leaves those of a live one alone."""
+    that file is created without a name (O_TMPFILE), so no moment exists at which it is on disk.
+    The next command removes the folders of supervising processes that no longer exist, and
+    leaves those of a live one alone."""
     import signal
     import subprocess
     import sys
