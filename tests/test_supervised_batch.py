@@ -45,10 +45,11 @@ def test_closing_the_batch_early_kills_and_cleans_up(
     left, not even a zombie) and every run's temporary folder is gone."""
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     pairs = _pairs(plant_fmu)
+    before = set(_children())  # a resource tracker, say, left by an earlier test in this process
     batch = run_supervised(pairs, jobs=2)
     first = next(batch)
     assert first.complete
-    children = [p for p in os.listdir("/proc") if p.isdigit() and _parent(p) == os.getpid()]
+    children = [p for p in _children() if p not in before]
     assert children  # the next runs were started before the first was handed back (alive or not yet reaped)
     batch.close()
     time.sleep(0.1)
@@ -61,6 +62,11 @@ def _parent(pid: str) -> int:
         return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
     except (OSError, IndexError, ValueError):
         return -1
+
+
+def _children() -> list[str]:
+    """This process's children: the pids in /proc whose parent it is."""
+    return [p for p in os.listdir("/proc") if p.isdigit() and _parent(p) == os.getpid()]
 
 
 def test_jobs_follow_the_cores_and_the_runs() -> None:

@@ -11,6 +11,7 @@ t_fault: 201 at T_s = 0.5 ms), that no temporary folder is left and that the oth
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -174,10 +175,18 @@ def _interrupt(command: list[str], delay: float, number: int, out: Path) -> tupl
 
 
 def _interrupt_once(command: list[str], delay: float, number: int) -> tuple[int, float, str]:
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    """SIGINT as a terminal's Ctrl-C sends it, to the command's whole process group (its pool
+    workers, figure and plant processes too, some of them still starting); SIGTERM as `kill`
+    sends it, to the command alone."""
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
     time.sleep(delay)
     sent = time.monotonic()
-    process.send_signal(number)
+    if number == signal.SIGINT:
+        os.killpg(process.pid, number)
+    else:
+        process.send_signal(number)
     try:
         _, stderr = process.communicate(timeout=30)
     except subprocess.TimeoutExpired:

@@ -4,6 +4,10 @@
 `deferred()` (writing a result file, recording a finished sweep case) an interrupt is noted and
 raised when the block ends, so a file is either whole or not there. The command line turns
 KeyboardInterrupt into exit status 130 (`cli`).
+
+Child processes (plants, sweep workers, figure workers) are started inside
+`starting_children()` and call `as_child()` first thing: Ctrl-C, which a terminal sends to the
+whole process group, is the command's alone to act on, and cannot hit a child while it starts.
 """
 
 from __future__ import annotations
@@ -16,6 +20,8 @@ import threading
 from collections.abc import Iterator
 
 EXIT_INTERRUPTED = 130
+RESEND_DELAY_S = 0.002  # an interrupt lost in a callback is sent again after this
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _depth = 0
 _pending: int | None = None
 _starting = False  # the program is still importing: nothing is written yet, so exit at once
@@ -40,7 +46,7 @@ def install_for_start_up() -> None:
     _program = True
     if threading.current_thread() is threading.main_thread():
         _starting = True
-        for number in (signal.SIGINT, signal.SIGTERM):
+        for number in _SIGNALS:
             signal.signal(number, _handler)
 
 
@@ -49,11 +55,16 @@ _default_unraisable = sys.unraisablehook
 
 def _unraisable(info: object) -> None:
     """An interrupt that landed in a callback (a weakref callback during an import, a __del__)
-    cannot propagate from there: send the signal again, to land in ordinary code."""
+    cannot propagate from there: send the signal again, from a helper thread a moment later, to
+    land in ordinary code once this hook has returned. (Raising it here, or with raise_signal,
+    whose handler runs before it returns, would only be ignored again, and the interrupt lost.)
+    Should it land in a callback again, the same happens again."""
     error = getattr(info, "exc_value", None)
     if isinstance(error, KeyboardInterrupt) and threading.current_thread() is threading.main_thread():
-        name = str(error) if str(error) in ("SIGINT", "SIGTERM") else "SIGINT"
-        signal.raise_signal(getattr(signal, name))
+        number = signal.SIGTERM if str(error) == "SIGTERM" else signal.SIGINT
+        again = threading.Timer(RESEND_DELAY_S, os.kill, (os.getpid(), number))
+        again.daemon = True
+        again.start()
         return
     _default_unraisable(info)  # type: ignore[arg-type]
 
@@ -67,7 +78,7 @@ def install() -> dict[int, object]:
         sys.unraisablehook = _unraisable
     _starting = False
     old = {}
-    for number in (signal.SIGINT, signal.SIGTERM):
+    for number in _SIGNALS:
         old[number] = signal.signal(number, _handler)
     return old
 
@@ -83,7 +94,7 @@ def ignore() -> None:
     if not _program:  # imported (a test, a notebook): the caller's handlers come back afterwards
         return
     if threading.current_thread() is threading.main_thread():
-        for number in (signal.SIGINT, signal.SIGTERM):
+        for number in _SIGNALS:
             signal.signal(number, signal.SIG_IGN)
     threading.excepthook = lambda args: None
 
@@ -129,3 +140,28 @@ def deferred() -> Iterator[None]:
         if _depth == 0 and _pending is not None:
             signum, _pending = _pending, None
             raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+@contextlib.contextmanager
+def starting_children() -> Iterator[None]:
+    """Start child processes inside this block. An interrupt arriving meanwhile is deferred as in
+    `deferred()`, so no child is left half launched, unknown to whoever would stop it. SIGINT and
+    SIGTERM are also blocked in this thread, and a child inherits that mask (through exec too):
+    a Ctrl-C, which the terminal sends to the whole process group, cannot interrupt a child
+    while it starts (a traceback from the middle of its imports). The child takes them over with
+    `as_child()`; a signal that arrived before then is still pending and reaches it then."""
+    with deferred():
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+
+def as_child(on_terminate: object = signal.SIG_DFL) -> None:
+    """The signals of a child process started by a toggle-cosim command: SIGINT is the parent's
+    to handle (ignored here, a pending one discarded), SIGTERM does `on_terminate` (the parent
+    stopping this child); then both are unblocked (`starting_children()` blocked them)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, on_terminate)  # type: ignore[arg-type]
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)

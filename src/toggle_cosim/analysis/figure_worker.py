@@ -14,18 +14,21 @@ import subprocess
 import sys
 from pathlib import Path
 
+from toggle_cosim import interrupts
+
 
 class FigureWorker:
     """The child process, from the parent's side."""
 
     def __init__(self) -> None:
-        self._process = subprocess.Popen(
-            [sys.executable, "-m", "toggle_cosim.analysis.figure_worker"],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            text=True,
-            bufsize=1,
-        )
+        with interrupts.starting_children():  # a Ctrl-C cannot hit the child in its imports
+            self._process = subprocess.Popen(
+                [sys.executable, "-m", "toggle_cosim.analysis.figure_worker"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                text=True,
+                bufsize=1,
+            )
         self._submitted = 0
 
     def submit(self, folder: Path) -> None:
@@ -83,10 +86,9 @@ class FigureWorkers:
 
 
 def _serve() -> int:
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # an interrupt is the parent's; end of input ends us
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(130))  # from stop(): a partial PNG is removed on the way out
+    # an interrupt is the parent's; end of input ends us. SIGTERM comes from stop(): exiting by
+    # SystemExit removes a partial PNG on the way out
+    interrupts.as_child(lambda *_: sys.exit(130))
     from toggle_cosim.analysis import plots  # noqa: F401 - matplotlib's import, while the parent runs
     from toggle_cosim.analysis.results_figure import ResultsError, plot_results
 

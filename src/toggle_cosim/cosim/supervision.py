@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from toggle_cosim import interrupts
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
 from toggle_cosim.files.traces import Trace
@@ -171,8 +172,7 @@ def _child(
     try:
         gc.disable()  # a collection would touch, and so copy, the whole inherited heap; the child lives briefly
         faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides about interrupts
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        interrupts.as_child()  # the parent decides about interrupts
         _die_with_parent(parent)
         _limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
@@ -295,21 +295,22 @@ class SupervisedRun:
         sys.stderr.flush()
         parent = os.getpid()
         try:
-            with warnings.catch_warnings():
+            # an interrupt waits until the child's pid is known here (so that stop() can kill it)
+            with warnings.catch_warnings(), interrupts.starting_children():
                 warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
                 self.pid = os.fork()
-            if self.pid == 0:
-                os.close(read_fd)
-                _child(
-                    self.run,
-                    self.plant,
-                    self.buffer,
-                    self.progress_slot,
-                    self._workdir,
-                    write_fd,
-                    parent,
-                    self._capture_log,
-                )
+                if self.pid == 0:  # the child never leaves this block: _child ends in os._exit
+                    os.close(read_fd)
+                    _child(
+                        self.run,
+                        self.plant,
+                        self.buffer,
+                        self.progress_slot,
+                        self._workdir,
+                        write_fd,
+                        parent,
+                        self._capture_log,
+                    )
         finally:
             os.close(write_fd)
         self.deadline = clock.monotonic() + self.limit

@@ -7,13 +7,13 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
-import signal
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim import interrupts
 from toggle_cosim.experiments.sweep_spec import Case, SweepError
 from toggle_cosim.experiments.sweep_worker import crash_row, file_sha256_cached, run_case
 
@@ -23,8 +23,7 @@ _slot: int = -1
 def _pool_init(slots: Any, counter: Any) -> None:
     """Pool worker start: Ctrl-C is the parent's to handle; take a slot to report the running case."""
     global _slots, _slot
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    interrupts.as_child()
     with counter.get_lock():
         _slot = counter.value
         counter.value += 1
@@ -74,10 +73,13 @@ def _run_pool(
         pool = ProcessPoolExecutor(
             max_workers=size, mp_context=context, initializer=_pool_init, initargs=(slots, counter)
         )
-        futures = {pool.submit(_pool_task, case.payload(), fmu, sha, time_limit): case for case in batch}
         broken: list[Case] = []
         running_at_break: set[int] = set()
         try:
+            # submit() starts the workers: an interrupt inside it would leave a child half launched
+            # (not yet known to the pool, so never killed) to fail on its own, with a traceback
+            with interrupts.starting_children():
+                futures = {pool.submit(_pool_task, case.payload(), fmu, sha, time_limit): case for case in batch}
             remaining = set(futures)
             while remaining:
                 done, remaining = wait(remaining, return_when=FIRST_COMPLETED)

@@ -1,0 +1,128 @@
+"""The interrupt machinery itself (`toggle_cosim.interrupts`), each case in a fresh interpreter
+running as the program does: an interrupt is never lost, and a child process being started
+cannot be hit by one.
+
+The commands' own behaviour under interrupts at any moment is in test_supervision.py.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import textwrap
+
+SIGINT_AND_SIGTERM = (1 << (signal.SIGINT - 1)) | (1 << (signal.SIGTERM - 1))
+
+
+def _program(source: str, timeout: float = 30) -> subprocess.CompletedProcess[str]:
+    """Run `source` after the program's own set-up of the signals (install_for_start_up, install)."""
+    prelude = "from toggle_cosim import interrupts\ninterrupts.install_for_start_up()\ninterrupts.install()\n"
+    return subprocess.run(
+        [sys.executable, "-c", prelude + textwrap.dedent(source)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+        start_new_session=True,  # its own process group: a Ctrl-C it sends to the group stays there
+    )
+
+
+def test_an_interrupt_that_lands_in_a_finalizer_is_not_lost() -> None:
+    """A signal whose handler runs inside __del__ raises a KeyboardInterrupt that cannot leave
+    the finalizer (Python reports it as unraisable and goes on). It must come back, and land in
+    the ordinary code that follows, within a moment, with nothing printed."""
+    done = _program(
+        """
+        import signal, time
+
+        class Finalized:
+            def __del__(self):
+                signal.raise_signal(signal.SIGTERM)  # the handler runs here, inside __del__
+
+        reached = None
+        try:
+            Finalized()  # collected at once
+            started = time.monotonic()
+            while time.monotonic() - started < 5:
+                time.sleep(0.001)
+            print("lost")
+        except KeyboardInterrupt as error:
+            print("landed", error, f"{time.monotonic() - started:.3f}")
+        """
+    )
+    assert done.returncode == 0, done.stderr
+    word, name, after = done.stdout.split()
+    assert (word, name) == ("landed", "SIGTERM")
+    assert float(after) < 0.5
+    assert done.stderr == ""
+
+
+def test_a_child_being_started_cannot_be_interrupted() -> None:
+    """A child started inside starting_children() begins with SIGINT and SIGTERM blocked (its
+    /proc status says so), so a Ctrl-C sent to the whole process group while it starts does not
+    reach its imports. as_child() then ignores SIGINT (the pending one is discarded) and unblocks;
+    the parent gets its interrupt when the block ends, with the child's pid already known."""
+    done = _program(
+        """
+        import os, signal, subprocess, sys, time
+        child_source = (
+            "import sys, time\\n"
+            "sys.stdin.readline()\\n"  # the parent has sent SIGINT to the group meanwhile
+            "from toggle_cosim import interrupts\\n"
+            "interrupts.as_child()\\n"
+            "time.sleep(0.05)\\n"
+            "print('child alive', flush=True)\\n"
+        )
+        pid = None
+        try:
+            with interrupts.starting_children():
+                child = subprocess.Popen([sys.executable, "-c", child_source], stdin=subprocess.PIPE, text=True)
+                pid = child.pid
+                time.sleep(0.1)
+                status = open(f"/proc/{pid}/status").read()
+                blocked = int(status.split("SigBlk:")[1].split()[0], 16)
+                print(f"blocked {blocked}", flush=True)
+                os.killpg(0, signal.SIGINT)  # Ctrl-C: this process and the child
+                time.sleep(0.1)
+                print("parent still in the block", flush=True)
+        except KeyboardInterrupt as error:
+            print(f"parent interrupted {error}, child known {pid is not None}", flush=True)
+        child.communicate("go\\n")
+        print(f"child status {child.returncode}", flush=True)
+        """
+    )
+    lines = done.stdout.splitlines()
+    assert done.returncode == 0, done.stderr
+    blocked = int(lines[0].split()[1])
+    assert blocked & SIGINT_AND_SIGTERM == SIGINT_AND_SIGTERM
+    assert lines[1:] == [
+        "parent still in the block",
+        "parent interrupted SIGINT, child known True",
+        "child alive",
+        "child status 0",
+    ]
+    assert "Traceback" not in done.stderr
+
+
+def test_without_the_block_the_same_child_dies_in_its_start_up() -> None:
+    """The control for the test above: the same Ctrl-C to a child started outside the block
+    ends it with a KeyboardInterrupt traceback (so the test above can fail)."""
+    done = _program(
+        """
+        import os, signal, subprocess, sys, time
+        child_source = "import sys\\nsys.stdin.readline()\\nprint('child alive', flush=True)\\n"
+        child = subprocess.Popen(
+            [sys.executable, "-c", child_source], stdin=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        time.sleep(0.1)
+        try:
+            os.killpg(0, signal.SIGINT)
+            time.sleep(0.1)
+        except KeyboardInterrupt:
+            pass
+        _, errors = child.communicate("go\\n")
+        print("child alive" if child.returncode == 0 else "child died", "Traceback" in errors, flush=True)
+        """
+    )
+    assert done.stdout.split() == ["child", "died", "True"], done.stderr
