@@ -17,6 +17,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Iterator
 
 EXIT_INTERRUPTED = 130
@@ -26,15 +27,20 @@ _depth = 0
 _pending: int | None = None
 _starting = False  # the program is still importing: nothing is written yet, so exit at once
 _program = False  # running as the toggle-cosim program (not imported by a test or a notebook)
+_in_hook = False  # inside _unraisable, where a raised interrupt would be dropped again
+_lost = signal.SIGINT  # the interrupt _unraisable is sending again
 
 
 def _handler(signum: int, frame: object) -> None:
-    global _pending
+    global _pending, _lost
     if _starting:
         os.write(2, b"interrupted (exit 130) while starting; nothing was written\n")
         os._exit(EXIT_INTERRUPTED)
     if _depth > 0:
         _pending = signum
+        return
+    if _in_hook:  # a signal while the hook runs: the hook's helper sends it once the hook is over
+        _lost = signum
         return
     raise KeyboardInterrupt(signal.Signals(signum).name)
 
@@ -55,18 +61,28 @@ _default_unraisable = sys.unraisablehook
 
 def _unraisable(info: object) -> None:
     """An interrupt that landed in a callback (a weakref callback during an import, a __del__)
-    cannot propagate from there: send the signal again, from a helper thread a moment later, to
-    land in ordinary code once this hook has returned. (Raising it here, or with raise_signal,
-    whose handler runs before it returns, would only be ignored again, and the interrupt lost.)
-    Should it land in a callback again, the same happens again."""
+    cannot propagate from there: a helper thread sends the signal again once this hook has
+    returned (and RESEND_DELAY_S later), to land in ordinary code. Raising it here, or sending
+    it while the hook still runs (a busy machine can hold this thread for milliseconds), would
+    only have it dropped again. Should it land in a callback again, the same happens again."""
+    global _in_hook, _lost
     error = getattr(info, "exc_value", None)
     if isinstance(error, KeyboardInterrupt) and threading.current_thread() is threading.main_thread():
-        number = signal.SIGTERM if str(error) == "SIGTERM" else signal.SIGINT
-        again = threading.Timer(RESEND_DELAY_S, os.kill, (os.getpid(), number))
-        again.daemon = True
-        again.start()
+        _in_hook = True
+        try:
+            _lost = signal.SIGTERM if str(error) == "SIGTERM" else signal.SIGINT
+            threading.Thread(target=_send_after_hook, name="toggle-cosim-interrupt", daemon=True).start()
+        finally:
+            _in_hook = False  # nothing between this and the return runs a signal handler
         return
     _default_unraisable(info)  # type: ignore[arg-type]
+
+
+def _send_after_hook() -> None:
+    while _in_hook:
+        time.sleep(RESEND_DELAY_S / 4)
+    time.sleep(RESEND_DELAY_S)
+    os.kill(os.getpid(), _lost)
 
 
 def install() -> dict[int, object]:
