@@ -17,10 +17,9 @@ run's own temporary folder, which the parent removes on every path.
 The trace buffer is a file in that folder that never has a name (O_TMPFILE), mapped shared (the
 map, and the child's copy of it, outlive the descriptor), so a long run's trace lives in the
 page cache backed by disk, not in memory, and nothing of it is left on disk whatever ends the
-command. The folder's name
-carries the supervising process's id: a command killed by SIGKILL cannot remove its folders
-(the unzipped FMU), so each command removes those of supervising processes that no longer
-exist before it starts its own (`remove_stale_folders`).
+command. The folder's name carries the supervising process's id: a command killed by SIGKILL
+cannot remove its folders (the unzipped FMU), so each command removes those of supervising
+processes that no longer exist before it starts its own (`remove_stale_folders`).
 """
 
 from __future__ import annotations
