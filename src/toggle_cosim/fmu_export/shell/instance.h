@@ -199,23 +199,20 @@ md_result md_set_debug_logging(md_instance *instance, const char *function, int 
  * the instance is not in one of the modes `allowed` (a set of md_mode bits), Error without a
  * message for a NULL instance, Fatal if the instance is fatal, else OK. */
 md_result md_guard(md_instance *instance, const char *function, unsigned allowed);
-/* For the layers, at the top of an entry point: return md_guard's verdict, mapped to the
- * layer's status type by `map` (an md_result -> fmi2Status / fmi3Status function), unless
- * the call may go on. */
-#define MD_GUARD(instance, function, allowed, map)                          \
+/* For the layers, at the top of an entry point: return the verdict of `check` (md_guard or
+ * md_guard_me), mapped to the layer's status type by `map` (an md_result -> fmi2Status /
+ * fmi3Status function), unless the call may go on. */
+#define MD_GUARD_WITH(check, instance, function, allowed, map)              \
     do {                                                                    \
-        md_result guard_result = md_guard((instance), (function), (allowed)); \
+        md_result guard_result = check((instance), (function), (allowed));  \
         if (guard_result != MD_RESULT_OK) { return map(guard_result); }     \
     } while (0)
+#define MD_GUARD(instance, function, allowed, map) MD_GUARD_WITH(md_guard, instance, function, allowed, map)
 
 /* md_guard for a Model Exchange entry point: Error first if the instance was created for
  * Co-Simulation. MD_GUARD_ME returns its verdict as MD_GUARD does. */
 md_result md_guard_me(md_instance *instance, const char *function, unsigned allowed);
-#define MD_GUARD_ME(instance, function, allowed, map)                             \
-    do {                                                                          \
-        md_result guard_result = md_guard_me((instance), (function), (allowed));  \
-        if (guard_result != MD_RESULT_OK) { return map(guard_result); }           \
-    } while (0)
+#define MD_GUARD_ME(instance, function, allowed, map) MD_GUARD_WITH(md_guard_me, instance, function, allowed, map)
 
 /* A function this FMU does not provide: md_guard for any mode, then Error "function: why". */
 md_result md_unsupported(md_instance *instance, const char *function, const char *why);
