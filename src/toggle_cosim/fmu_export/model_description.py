@@ -23,6 +23,8 @@ from toggle_cosim.fmu_export.shell_settings import (
     FMI3_LOG_CATEGORIES,
     SHELL_SETTINGS,
     SHELL_STATISTICS,
+    ShellSetting,
+    ShellStatistic,
 )
 from toggle_cosim.fmu_export.units import base_exponents
 
@@ -50,26 +52,24 @@ def _shell_variables(references: ShellReferences) -> list[tuple[str, dict[str, s
     """The shell's own variables in value-reference order, for either version's writer: the
     solver settings (tunable Real parameters) and the integrator statistics (discrete Integer
     locals), each as (type "Real" or "Integer", the variable's attributes, the type's attributes)."""
-    found = []
+
+    def attributes(
+        entry: ShellSetting | ShellStatistic, reference: int, causality: str, variability: str
+    ) -> dict[str, str]:
+        return {
+            "name": entry.name,
+            "valueReference": str(reference),
+            "description": entry.description,
+            "causality": causality,
+            "variability": variability,
+        }
+
+    found: list[tuple[str, dict[str, str], dict[str, str]]] = []
     for offset, setting in enumerate(SHELL_SETTINGS):
-        attributes = {
-            "name": setting.name,
-            "valueReference": str(references.settings + offset),
-            "description": setting.description,
-            "causality": "parameter",
-            "variability": "tunable",
-            "initial": "exact",
-        }
-        found.append(("Real", attributes, {"unit": setting.unit, "start": _number(setting.start)}))
+        tunable = {**attributes(setting, references.settings + offset, "parameter", "tunable"), "initial": "exact"}
+        found.append(("Real", tunable, {"unit": setting.unit, "start": _number(setting.start)}))
     for offset, statistic in enumerate(SHELL_STATISTICS):
-        attributes = {
-            "name": statistic.name,
-            "valueReference": str(references.statistics + offset),
-            "description": statistic.description,
-            "causality": "local",
-            "variability": "discrete",
-        }
-        found.append(("Integer", attributes, {}))
+        found.append(("Integer", attributes(statistic, references.statistics + offset, "local", "discrete"), {}))
     return found
 
 
