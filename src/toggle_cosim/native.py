@@ -1,25 +1,41 @@
-"""Small C libraries compiled on the user's machine and cached by a hash of what builds them:
-the co-simulation loop generated from the control law (`cosim.compiled_loop`) and the trace-row
-formatter (`files.csv_rows`).
+"""Small C libraries compiled on the user's machine, kept in a private cache and loaded only
+after their content is checked: the co-simulation loop generated from the control law
+(`cosim.compiled_loop`).
 
 The compiler is $CC, else cc, gcc or clang: `c_compiler` is the one lookup, for these helpers and
 for the FMU export's build alike (it lives here, below the FMU export, because importing that
-pulls in the Modelica compiler, about 1 s). The cache is
-$TOGGLE_COSIM_CACHE, else $XDG_CACHE_HOME/toggle-cosim (~/.cache/toggle-cosim), else a
-per-user folder in the temporary directory when that one cannot be written.
+pulls in the Modelica compiler, about 1 s).
+
+The cache is one folder of this user's: $TOGGLE_COSIM_CACHE, else
+$XDG_CACHE_HOME/toggle-cosim (~/.cache/toggle-cosim); only when that one cannot be used, a
+per-user folder in the temporary directory ($TMPDIR/toggle-cosim-<uid>). Either is used only
+when it is private (`private_folder`): created 0700, owned by this user, writable by no one
+else, in a folder where no one else can swap it (writable by others only with the sticky bit).
+A folder that fails a check is not used, and one `warning:` line on stderr says why and how to
+fix it. Every file taken from the cache is owned by this user and writable by no one else; a
+library is loaded only when the SHA-256 of its bytes, read from the descriptor that is then
+loaded, equals the one recorded when it was built here (else it is built again). Nothing in
+the cache is unpickled or executed on trust of its name.
 """
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 import platform
 import shutil
+import stat
 import subprocess
 import sys
 import tempfile
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+
+
+class CacheError(RuntimeError):
+    """A cache folder or file that must not be used, or no usable cache folder: one line."""
 
 
 def c_compiler() -> str:
@@ -31,48 +47,205 @@ def c_compiler() -> str:
     raise RuntimeError("no C compiler found (set CC or install gcc)")
 
 
-def cache_folders() -> list[Path]:
-    """Where compiled libraries are kept, in the order they are tried."""
+def _user() -> int:
+    return os.geteuid()
+
+
+def configured_cache() -> Path:
+    """The cache folder asked for: $TOGGLE_COSIM_CACHE, else $XDG_CACHE_HOME/toggle-cosim, else
+    ~/.cache/toggle-cosim."""
     if os.environ.get("TOGGLE_COSIM_CACHE"):
-        first = Path(os.environ["TOGGLE_COSIM_CACHE"])
-    else:
-        first = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "toggle-cosim"
-    user = os.getuid() if hasattr(os, "getuid") else "user"
-    return [first, Path(tempfile.gettempdir()) / f"toggle-cosim-{user}"]
-
-
-def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequence[str] = ()) -> Path:
-    """The shared library built from the C `source` with `flags`: taken from the cache when a
-    build of the same source, flags, compiler and platform is there, else compiled into it
-    (atomically, so concurrent builds only race to the same file). RuntimeError when the
-    compiler fails or no cache folder can be written."""
-    compiler = c_compiler()
-    suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
-    key = hashlib.sha256("\0".join((source, *flags, compiler, platform.machine(), sys.platform)).encode())
-    name = f"{stem}-{key.hexdigest()[:16]}{suffix}"
-    for folder in cache_folders():
-        library = folder / name
-        if library.is_file():
-            return library
+        return Path(os.environ["TOGGLE_COSIM_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME")
+    if not base:
         try:
-            folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as work:
-                source_path = Path(work) / f"{stem}.c"
-                source_path.write_text(source, encoding="utf-8")
-                built = Path(work) / f"{stem}{suffix}"
-                result = subprocess.run(
-                    [compiler, *flags, "-o", str(built), str(source_path), *libraries],
-                    capture_output=True,
-                    text=True,
-                    check=False,
-                )
-                if result.returncode != 0:
-                    raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:500]}")
-                os.replace(built, library)
-            return library
-        except OSError:
-            continue
-    raise RuntimeError(f"no writable cache folder for {stem} (tried {', '.join(map(str, cache_folders()))})")
+            base = str(Path.home() / ".cache")
+        except RuntimeError:  # no HOME and no passwd entry: only the fallback is left
+            base = ""
+    return Path(base) / "toggle-cosim" if base else Path()
+
+
+def fallback_cache() -> Path:
+    """The per-user folder in the temporary directory, used only when `configured_cache()` cannot be."""
+    return Path(tempfile.gettempdir()) / f"toggle-cosim-{_user()}"
+
+
+def check_private(info: os.stat_result, path: Path, what: str) -> None:
+    """Raise CacheError unless `info` (of `path`) belongs to this user and no one else may write it."""
+    if info.st_uid != _user():
+        raise CacheError(
+            f"{path}: the {what} belongs to another user (uid {info.st_uid}, not {_user()}): not used; "
+            "remove it, or set TOGGLE_COSIM_CACHE to a folder of your own"
+        )
+    if info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        raise CacheError(
+            f"{path}: the {what} is writable by other users (mode {stat.S_IMODE(info.st_mode):04o}): not used; "
+            f"remove it (or chmod go-w it if you trust what is in it)"
+        )
+
+
+def private_folder(path: Path) -> Path:
+    """`path` as a private folder of this user, created 0700 (its missing parents with the usual
+    mode) when it does not exist. Raises CacheError (one line) when it is not a folder, belongs to
+    another user, is writable by group or others, or lies in a folder that others can write
+    without the sticky bit (they could swap it); OSError when it cannot be made."""
+    path = Path(path)
+    if path == Path():
+        raise CacheError("no cache folder: HOME is not set (set TOGGLE_COSIM_CACHE)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.mkdir(path, 0o700)
+        os.chmod(path, 0o700)  # whatever the umask
+    except FileExistsError:
+        pass
+    link = os.lstat(path)
+    if stat.S_ISLNK(link.st_mode) and link.st_uid != _user():  # a link of one's own (to a bigger disk) is fine
+        raise CacheError(
+            f"{path}: the cache folder is a symbolic link of another user (uid {link.st_uid}): not used; "
+            "remove it, or set TOGGLE_COSIM_CACHE to a folder of your own"
+        )
+    info = os.stat(path)
+    if not stat.S_ISDIR(info.st_mode):
+        raise CacheError(f"{path}: the cache folder is not a folder: not used; remove it or set TOGGLE_COSIM_CACHE")
+    check_private(info, path, "cache folder")
+    parent = os.stat(path.parent)
+    if parent.st_mode & stat.S_IWOTH and not parent.st_mode & stat.S_ISVTX:
+        raise CacheError(
+            f"{path}: the cache folder lies in {path.parent}, which anyone may write without the sticky bit: "
+            "not used; set TOGGLE_COSIM_CACHE to a folder of your own"
+        )
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise CacheError(f"{path}: the cache folder cannot be written")
+    return path
+
+
+_warned: set[str] = set()
+
+
+def _warn_once(message: str) -> None:
+    if message not in _warned:
+        _warned.add(message)
+        sys.stderr.write(f"warning: {message}\n")
+        sys.stderr.flush()
+
+
+def cache_folder() -> Path:
+    """The private cache folder of this user: `configured_cache()`, or when that one cannot be
+    used (one warning line says why), `fallback_cache()`, checked the same way. CacheError (one
+    line) when neither can be used."""
+    problems = []
+    for folder in (configured_cache(), fallback_cache()):
+        try:
+            return private_folder(folder)
+        except (CacheError, OSError) as error:
+            problem = str(error) if isinstance(error, CacheError) else f"{folder}: {error.strerror or error}"
+            problems.append(problem)
+            _warn_once(problem)
+    raise CacheError(f"no usable cache folder ({'; '.join(problems)})")
+
+
+@dataclass(frozen=True)
+class CachedLibrary:
+    """A library in the cache and the SHA-256 of the bytes it had when it was built here."""
+
+    path: Path
+    sha256: str
+
+
+def _open_private(path: Path, what: str) -> int:
+    """A read descriptor on `path`, a regular file of this user's that no one else may write
+    (not followed if it is a symbolic link). OSError if it is missing, CacheError if it is not private."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_NONBLOCK", 0))
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise CacheError(f"{path}: the cached {what} is not a regular file")
+        check_private(info, path, f"cached {what}")
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _read_private_text(path: Path, what: str, limit: int = 4096) -> str:
+    fd = _open_private(path, what)
+    try:
+        return os.read(fd, limit).decode("ascii").strip()
+    finally:
+        os.close(fd)
+
+
+def _write_private_text(folder: Path, name: str, text: str) -> None:
+    handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=".partial")
+    try:
+        with os.fdopen(handle, "w", encoding="ascii") as stream:
+            stream.write(text + "\n")
+        os.replace(temporary, folder / name)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def _fd_sha256(fd: int) -> str:
+    digest = hashlib.sha256()
+    os.lseek(fd, 0, os.SEEK_SET)
+    while chunk := os.read(fd, 1 << 20):
+        digest.update(chunk)
+    return digest.hexdigest()
+
+
+def _record_name(library: str) -> str:
+    return f"{library}.sha256"
+
+
+def _verified(folder: Path, name: str) -> CachedLibrary | None:
+    """The library `name` in `folder` if it is there, private and has the bytes its record names."""
+    try:
+        expected = _read_private_text(folder / _record_name(name), "library record")
+        fd = _open_private(folder / name, "library")
+    except (OSError, CacheError, UnicodeDecodeError):
+        return None
+    try:
+        actual = _fd_sha256(fd)
+    finally:
+        os.close(fd)
+    return CachedLibrary(folder / name, actual) if actual == expected else None
+
+
+def _suffix() -> str:
+    return {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
+
+
+def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequence[str] = ()) -> CachedLibrary:
+    """The shared library built from the C `source` with `flags`: taken from the cache when a
+    build of the same source, flags, compiler and platform is there with the bytes recorded when
+    it was built, else compiled into it (atomically, so concurrent builds only race to the same
+    file) and its SHA-256 recorded. RuntimeError (CacheError) when the compiler fails or no
+    cache folder can be used."""
+    compiler = c_compiler()
+    key = hashlib.sha256("\0".join((source, *flags, *libraries, compiler, platform.machine(), sys.platform)).encode())
+    name = f"{stem}-{key.hexdigest()[:16]}{_suffix()}"
+    folder = cache_folder()
+    found = _verified(folder, name)
+    if found is not None:
+        return found
+    with tempfile.TemporaryDirectory(dir=folder) as work:
+        source_path = Path(work) / f"{stem}.c"
+        source_path.write_text(source, encoding="utf-8")
+        built = Path(work) / name
+        result = subprocess.run(
+            [compiler, *flags, "-o", str(built), str(source_path), *libraries],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        if result.returncode != 0:
+            raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:500]}")
+        os.chmod(built, 0o700)
+        sha256 = hashlib.sha256(built.read_bytes()).hexdigest()
+        os.replace(built, folder / name)
+        _write_private_text(folder, _record_name(name), sha256)
+    return CachedLibrary(folder / name, sha256)
 
 
 def cached_library_from(
@@ -81,7 +254,7 @@ def cached_library_from(
     stem: str,
     flags: Sequence[str],
     libraries: Sequence[str] = (),
-) -> Path:
+) -> CachedLibrary:
     """`cached_library(make_source(), ...)`, without making the source when it was made before
     from the same `inputs` (the files it is generated from: making it may cost more than the
     run it serves). A marker named by the hash of those files' bytes, the flags, the compiler,
@@ -92,19 +265,52 @@ def cached_library_from(
         digest.update(str(path).encode() + b"\0" + Path(path).read_bytes() + b"\0")
     digest.update("\0".join((*flags, *libraries, c_compiler(), platform.machine(), sys.platform, sys.version)).encode())
     marker = f"{stem}-inputs-{digest.hexdigest()[:16]}.txt"
-    for folder in cache_folders():
-        try:
-            named = folder / (folder / marker).read_text(encoding="utf-8").strip()
-        except (OSError, ValueError):
-            continue
-        if named.parent == folder and named.name.startswith(f"{stem}-") and named.is_file():
-            return named
+    folder = cache_folder()
+    try:
+        named = _read_private_text(folder / marker, "marker")
+    except (OSError, CacheError, UnicodeDecodeError):
+        named = ""
+    if named and Path(named).name == named and named.startswith(f"{stem}-") and named.endswith(_suffix()):
+        found = _verified(folder, named)
+        if found is not None:
+            return found
     library = cached_library(make_source(), stem, flags, libraries)
     try:
-        handle, temporary = tempfile.mkstemp(dir=library.parent, prefix=f".{marker}.")
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(library.name + "\n")
-        os.replace(temporary, library.parent / marker)
+        _write_private_text(library.path.parent, marker, library.path.name)
     except OSError:
         pass  # no marker: the source is made again next time, nothing worse
     return library
+
+
+def load_library(library: CachedLibrary) -> ctypes.CDLL:
+    """ctypes.CDLL of `library`, loaded only if the file is private and its bytes have the
+    recorded SHA-256: hashed from an open descriptor, and on Linux that same descriptor is
+    loaded (/proc/self/fd/N), so the bytes checked are the bytes loaded. CacheError otherwise."""
+    fd = _open_private(library.path, "library")
+    try:
+        actual = _fd_sha256(fd)
+        if actual != library.sha256:
+            raise CacheError(
+                f"{library.path}: the cached library's SHA-256 is not the one recorded when it was built: not loaded"
+            )
+        through = Path(f"/proc/self/fd/{fd}")
+        return ctypes.CDLL(str(through) if through.exists() else str(library.path))
+    finally:
+        os.close(fd)
+
+
+def load_library_from(
+    inputs: Sequence[Path],
+    make_source: Callable[[], str],
+    stem: str,
+    flags: Sequence[str],
+    libraries: Sequence[str] = (),
+) -> ctypes.CDLL:
+    """`load_library(cached_library_from(...))`; a library whose bytes changed between the two
+    is removed and built again, once."""
+    library = cached_library_from(inputs, make_source, stem, flags, libraries)
+    try:
+        return load_library(library)
+    except CacheError:
+        library.path.unlink(missing_ok=True)
+    return load_library(cached_library_from(inputs, make_source, stem, flags, libraries))

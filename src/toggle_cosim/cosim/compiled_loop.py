@@ -18,9 +18,10 @@ where an output is not finite, is handed back to the Python loop before anything
 sent to the FMU. An FMI error status is reported with the function's name and status, and
 the master raises the same exception the Python path raises.
 
-The library is compiled once per machine with the C compiler the FMU build uses and cached
-by a hash of the generated source (``$XDG_CACHE_HOME/toggle-cosim`` or
-``~/.cache/toggle-cosim``; ``TOGGLE_COSIM_CACHE`` overrides). Without a C compiler, or with
+The library is compiled once per machine with the C compiler the FMU build uses and kept in
+the user's private cache by a hash of the generated source (``$XDG_CACHE_HOME/toggle-cosim`` or
+``~/.cache/toggle-cosim``; ``TOGGLE_COSIM_CACHE`` overrides; see `native` for the checks made
+before it is loaded). Without a C compiler, without a usable cache folder, or with
 ``TOGGLE_COSIM_KERNEL=0``, the master runs the Python loop and says why in run.json.
 """
 
@@ -36,7 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.native import cached_library_from
+from toggle_cosim.native import CachedLibrary, cached_library_from, load_library_from
 
 if TYPE_CHECKING:
     from toggle_cosim.cosim.session import CFunctions
@@ -110,10 +111,15 @@ def kernel_inputs() -> list[Path]:
     return [Path(str(control.joinpath(name))) for name in names] + [Path(__file__)]
 
 
-def _build_kernel() -> Path:
+def _build_kernel() -> CachedLibrary:
     """The compiled loop's library, built from the generated source (cached: `native`; the
     source is generated only when one of kernel_inputs() changed)."""
     return cached_library_from(kernel_inputs(), kernel_source, "loop-kernel", KERNEL_FLAGS, ("-lm",))
+
+
+def _load_kernel() -> ctypes.CDLL:
+    """The compiled loop's library, loaded after its bytes are checked (`native.load_library_from`)."""
+    return load_library_from(kernel_inputs(), kernel_source, "loop-kernel", KERNEL_FLAGS, ("-lm",))
 
 
 def kernel_library() -> ctypes.CDLL | None:
@@ -123,7 +129,7 @@ def kernel_library() -> ctypes.CDLL | None:
         return None
     if _library is None and _library_reason is None:
         try:
-            library = ctypes.CDLL(str(_build_kernel()))
+            library = _load_kernel()
             kernel = _kernel_struct()
             library.kernel_run.argtypes = [ctypes.POINTER(kernel), ctypes.c_long]
             library.kernel_run.restype = ctypes.c_int
