@@ -118,7 +118,8 @@ def test_a_passing_comparison_writes_a_report_without_failures(layout):
 def test_a_report_path_that_is_a_folder_is_bad_input_and_nothing_is_written(layout, capsys):
     assert run_compare(layout["result"], layout["reference"], junit=layout["root"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"error: {layout['root']}: is a directory; give a file name for the JUnit report")
+    expected = f"error: {layout['root']}: is a folder, not a regular file; give another file name for the JUnit report"
+    assert err.startswith(expected)
 
 
 # ----------------------------------------------------------------------------- solver statistics

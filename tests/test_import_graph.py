@@ -150,7 +150,8 @@ def test_no_module_touches_a_private_attribute_of_another_object() -> None:
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("toggle_cosim",),
     ("native", "interrupts"),
-    ("files", "physics", "fmu_export"),
+    ("files",),
+    ("physics", "fmu_export"),
     ("control",),
     ("runs",),
     ("plant",),

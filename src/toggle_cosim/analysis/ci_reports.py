@@ -11,14 +11,13 @@ with the change in its system-out (a warning). Written with junitparser.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
 from toggle_cosim.analysis.solver_stats import SolverCheck
-from toggle_cosim.files.traces import atomic_write
+from toggle_cosim.files.outputs import replacing, write_text
 
 __all__ = ["CheckedTrace", "failure_message", "markdown_summary", "write_junit", "write_markdown_summary"]
 
@@ -78,15 +77,8 @@ def write_junit(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
         report.add_testsuite(suite)
     report.update_statistics()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    os.close(handle)
-    try:
-        report.write(temporary, pretty=True)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    with replacing(path, "JUnit report") as temporary:
+        report.write(str(temporary), pretty=True)
     return path
 
 
@@ -135,5 +127,5 @@ def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = No
 def write_markdown_summary(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
     path = Path(path)
     text = markdown_summary(checks, link_base=path.resolve().parent)
-    atomic_write(path, lambda stream: stream.write(text))
+    write_text(path, text, "Markdown summary")
     return path

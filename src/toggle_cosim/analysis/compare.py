@@ -51,7 +51,8 @@ import numpy as np
 
 from toggle_cosim.analysis.csv_traces import CompareInputError, check_trace, float_or_none
 from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
-from toggle_cosim.files.traces import Trace, atomic_write, write_csv
+from toggle_cosim.files.outputs import replacing, write_file
+from toggle_cosim.files.traces import Trace, write_csv
 
 __all__ = [
     "DEFAULT_TOLERANCE",
@@ -395,14 +396,8 @@ def _plot(variable: VariableResult, reference: Trace, path: Path) -> None:
     bottom.grid(True, alpha=0.3)
     when = "-" if variable.time_of_max_error is None else f"{variable.time_of_max_error:.6g} s"
     figure.suptitle(f"{variable.name}: FAIL, max error {variable.max_error:.3e} at t = {when}")
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    os.close(handle)
-    try:
+    with replacing(path) as temporary:
         figure.savefig(temporary, format="png", dpi=100)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def write_report(
@@ -450,7 +445,7 @@ def write_report(
                 ]
             )
 
-    atomic_write(out / "summary.csv", summary)
+    write_file(out / "summary.csv", summary)
     written.append(out / "summary.csv")
     taken: set[str] = {"summary"}
     for v in result.variables:

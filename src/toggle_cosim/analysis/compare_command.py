@@ -23,6 +23,7 @@ from toggle_cosim.analysis.solver_stats import (
 from toggle_cosim.analysis.tolerance_files import tolerances_for_reference
 from toggle_cosim.analysis.trace_formats import read_any_trace
 from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
+from toggle_cosim.files.outputs import OutputError, check_destination
 
 __all__ = ["plots_of", "run_compare", "trace_label"]
 
@@ -51,8 +52,12 @@ def _result_statistics(result_path: Path) -> dict[str, int] | str | None:
 
 
 def _check_output(path: Path | None, what: str) -> None:
-    if path is not None and path.is_dir():
-        raise CompareInputError(f"{path}: is a directory; give a file name for the {what}")
+    if path is None:
+        return
+    try:
+        check_destination(path, what)
+    except OutputError as error:
+        raise CompareInputError(str(error)) from error
 
 
 def run_compare(

@@ -96,7 +96,7 @@ def _serve() -> int:
         folder = Path(line.rstrip("\n"))
         try:
             print(f"wrote {plot_results(folder, None)}", flush=True)
-        except ResultsError as error:
+        except (ResultsError, OSError) as error:  # OSError: e.g. an output path that is not a file
             print(f"error: {' '.join(str(error).split())}", flush=True)
     return 0
 

@@ -10,6 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from toggle_cosim.files.outputs import replacing  # noqa: E402
 from toggle_cosim.files.traces import Trace  # noqa: E402
 
 PANELS = (
@@ -52,14 +53,9 @@ def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, tar
         ax.legend(fontsize=7, loc="lower right" if key in ("x_B", "lambda2") else "upper right")
     figure.suptitle(title)
     output = Path(output)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    partial = output.with_name(f".{output.stem}.partial.png")
     try:
-        figure.savefig(partial, dpi=110)
-        partial.replace(output)
-    except BaseException:
-        partial.unlink(missing_ok=True)  # no stray partial PNG
-        raise
+        with replacing(output) as temporary:  # a unique temporary name, renamed into place
+            figure.savefig(temporary, dpi=110, format="png")
     finally:
         plt.close(figure)
     return output

@@ -8,7 +8,8 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from toggle_cosim.analysis.csv_traces import CompareInputError, check_trace, float_or_none, read_trace
-from toggle_cosim.files.traces import Trace, atomic_write, write_csv
+from toggle_cosim.files.outputs import write_text
+from toggle_cosim.files.traces import Trace, write_csv
 
 __all__ = ["read_options", "read_reference", "write_reference"]
 
@@ -56,7 +57,7 @@ def write_reference(
         f"StepSize, {float(step)!r}",
         f"RelTol, {float(reltol)!r}",
     ]
-    atomic_write(opt_path, lambda stream: stream.write("\n".join(lines) + "\n"))
+    write_text(opt_path, "\n".join(lines) + "\n")
     return csv_path, opt_path
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.files.traces import atomic_write
+from toggle_cosim.files.outputs import write_text
 
 
 def _cell(value: float | None, scale: float = 1.0, fmt: str = ".3f") -> str:
@@ -42,7 +42,7 @@ def write_summary(outcomes: Sequence[RunOutcome], path: Path) -> Path:
     text = "# Results of the paper's runs\n\n" + summary_table(paper_runs) + "\n" + paper_claims(paper_runs)
     if len(paper_runs) < len(outcomes):
         text += "\n" + friction_claims(outcomes)
-    atomic_write(Path(path), lambda stream: stream.write(text))
+    write_text(path, text, "summary")
     return Path(path)
 
 

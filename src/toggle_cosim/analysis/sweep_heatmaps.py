@@ -6,6 +6,8 @@ import re
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim.files.outputs import replacing
+
 HEATMAP_DIR = "heatmaps"
 
 PANELS = (
@@ -103,10 +105,10 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
             "_" + _slug("_".join(f"{k}={_label(v)}" for k, v in zip(others, key, strict=True))) if others else ""
         )
         path = folder / f"{name}.png"
-        folder.mkdir(parents=True, exist_ok=True)
-        partial = folder / f".{name}.partial.png"
-        figure.savefig(partial, dpi=100)
-        plt.close(figure)
-        partial.replace(path)
+        try:
+            with replacing(path) as temporary:  # a unique temporary name, renamed into place
+                figure.savefig(temporary, dpi=100, format="png")
+        finally:
+            plt.close(figure)
         written.append(path)
     return written

@@ -10,6 +10,7 @@ from pathlib import Path
 import click
 
 from toggle_cosim import __version__, interrupts
+from toggle_cosim.files.outputs import OutputError, check_destination
 
 DEFAULT_SOURCE = Path("modelica/ToggleLSM")
 DEFAULT_MODEL = "ToggleLSM.Plant"
@@ -74,6 +75,10 @@ class _Commands(click.Group):
             sys.exit(error.exit_code)
         except SystemExit:
             raise
+        except OutputError as error:  # an output path that must not be written: one line naming it
+            interrupts.ignore()  # the work is over: from here the process only ends
+            click.echo(f"error: {error}", err=True)
+            sys.exit(2)
         except OSError as error:  # a file system problem found late (e.g. a disk that filled up): one line
             interrupts.ignore()  # the work is over: from here the process only ends
             if interrupts.is_interrupt(error):
@@ -133,6 +138,16 @@ def inside_project(path: Path, what: str, option: str, root: Path | None = None)
             f"inside it (give a path under it with {option})"
         )
     return resolved
+
+
+def check_output(path: Path | None, what: str) -> None:
+    """A one-line refusal (InputError) when something that is not a regular file lies at the
+    output `path` (`files.outputs.check_destination`; `what` names it); nothing when `path` is None."""
+    if path is not None:
+        try:
+            check_destination(path, what)
+        except OutputError as error:
+            raise InputError(str(error)) from error
 
 
 def out_file_option(help_text: str):  # noqa: ANN201 - a click decorator

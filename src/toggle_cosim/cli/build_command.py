@@ -12,6 +12,7 @@ from toggle_cosim.cli.app import (
     DEFAULT_MODEL,
     DEFAULT_SOURCE,
     InputError,
+    check_output,
     inside_project,
     main,
     out_file_option,
@@ -27,6 +28,7 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     output = inside_project(output, "FMU output", "--out", root)
     if output.suffix != ".fmu":
         raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
+    check_output(output, "FMU (--out)")
     try:
         report = build_fmu(source, model, output, fmi_version=fmi_version, interfaces=interfaces)
     except (ModelCompileError, FMUBuildError) as error:

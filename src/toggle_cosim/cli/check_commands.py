@@ -8,7 +8,15 @@ from pathlib import Path
 
 import click
 
-from toggle_cosim.cli.app import DEFAULT_OUT, DEFAULT_REFERENCES, SHIPPED_SCENARIOS, InputError, RunFailed, main
+from toggle_cosim.cli.app import (
+    DEFAULT_OUT,
+    DEFAULT_REFERENCES,
+    SHIPPED_SCENARIOS,
+    InputError,
+    RunFailed,
+    check_output,
+    main,
+)
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of
 
 
@@ -104,9 +112,8 @@ def references(
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim.experiments import references as refs
 
-    for path, what in ((junit, "JUnit report"), (summary, "Markdown summary")):
-        if path is not None and path.is_dir():
-            raise InputError(f"{path}: is a directory; give a file name for the {what}")
+    check_output(junit, "JUnit report")
+    check_output(summary, "Markdown summary")
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]

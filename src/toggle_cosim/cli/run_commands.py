@@ -15,6 +15,7 @@ from toggle_cosim.cli.app import (
     DEFAULT_SOURCE,
     PAPER_SCENARIOS,
     InputError,
+    check_output,
     main,
     out_file_option,
 )
@@ -55,6 +56,7 @@ def plot(results: tuple[Path, ...], output: Path | None) -> None:
     """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")
+    check_output(output, "figure (--out)")
     for folder in results:
         click.echo(f"wrote {_plot_scenario(folder, output)}")
 

@@ -27,6 +27,7 @@ from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, ResultStore, read_results
+from toggle_cosim.files.outputs import folder_lock
 
 MANIFEST_FILE = "sweep.json"
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -51,24 +52,13 @@ class SweepResult:
 
 @contextlib.contextmanager
 def _exclusive(folder: Path) -> Iterator[None]:
-    """One sweep at a time per output folder."""
-    folder.mkdir(parents=True, exist_ok=True)
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - Windows
-        yield
-        return
-    with open(folder / ".lock", "w") as lock:
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as error:
+    """One sweep at a time per output folder (a lock on the folder itself: no lock file)."""
+    with folder_lock(folder) as locked:
+        if not locked:
             raise SweepError(
                 f"{folder}: another sweep is writing to this folder (wait for it or choose another output:)"
-            ) from error
-        try:
-            yield
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+            )
+        yield
 
 
 def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:

@@ -7,13 +7,12 @@ part files are removed."""
 from __future__ import annotations
 
 import contextlib
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from toggle_cosim.experiments.sweep_spec import METRICS, Sweep
+from toggle_cosim.files.outputs import replacing
 
 RESULTS_FILE = "results.parquet"
 PARTS_DIR = "parts"
@@ -62,30 +61,11 @@ def _table(rows: Sequence[Mapping[str, Any]], schema: Any) -> Any:
     return pa.table(columns, schema=schema)
 
 
-def _current_umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-_UMASK = _current_umask()
-
-
 def _atomic_parquet(table: Any, path: Path) -> None:
     import pyarrow.parquet as pq
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    os.close(handle)
-    try:
-        pq.write_table(table, temporary)
-        with open(temporary, "rb") as stream:
-            os.fsync(stream.fileno())
-        os.chmod(temporary, 0o666 & ~_UMASK)  # mkstemp makes it private; the table is an ordinary file
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    with replacing(path) as temporary:  # a unique temporary name, synced and renamed into place
+        pq.write_table(table, str(temporary))
 
 
 def _read_rows(path: Path) -> list[dict[str, Any]]:

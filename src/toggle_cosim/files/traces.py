@@ -1,21 +1,21 @@
 """Trace and run-record files: CSV in the FMI cross-check layout, and a JSON run record.
 
-Every file is written to a temporary name in the same folder and renamed into place, so a
-reader never sees a half-written file.
+Every file is written through `files.outputs` (a unique temporary name in the same folder,
+renamed into place), so a reader never sees a half-written file.
 """
 
 from __future__ import annotations
 
 import io
 import json
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from toggle_cosim.files.outputs import write_file
 
 
 @dataclass(frozen=True)
@@ -33,34 +33,8 @@ class Trace:
         return self.data[:, 0]
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-FILE_MODE = 0o666 & ~_umask()  # what open() would give: mkstemp's files are private (0600)
-
-
-def atomic_write(path: Path, write: Any, binary: bool = False) -> None:
-    """Call `write(stream)` on a temporary file beside `path` (UTF-8 text, or bytes if `binary`),
-    then rename it into place (its mode follows the umask, like any file the user creates)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        opened = os.fdopen(handle, "wb") if binary else os.fdopen(handle, "w", encoding="utf-8", newline="\n")
-        with opened as stream:
-            write(stream)
-            stream.flush()
-            os.fchmod(stream.fileno(), FILE_MODE)
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-
-
 CHUNK_ROWS = 20_000  # rows formatted at a time: memory stays bounded however long the trace
+ROW_FORMAT = "%.17g"  # 17 significant digits: every float64 reads back exactly
 
 
 def recorded_rows(samples: int, every: int = 1) -> np.ndarray:
@@ -73,21 +47,21 @@ def recorded_rows(samples: int, every: int = 1) -> np.ndarray:
 
 def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
     """FMI cross-check CSV: a header of quoted names, "time" first, then one row per sample
-    (every `every`-th sample and the last one: the scenario key record_every), in chunks; the
-    rows are the bytes np.savetxt(fmt="%.17g", delimiter=",") writes (`csv_rows`)."""
-    from toggle_cosim.files.csv_rows import format_rows_bytes
+    (every `every`-th sample and the last one: the scenario key record_every), written by
+    numpy's `savetxt` with 17 significant digits (`ROW_FORMAT`), which read back as the very
+    same float64 values, in chunks of CHUNK_ROWS rows."""
 
     def write(stream: Any) -> None:
-        stream.write((",".join(f'"{name}"' for name in trace.names) + "\n").encode("utf-8"))
-        if every <= 1:
-            for start in range(0, trace.data.shape[0], CHUNK_ROWS):
-                stream.write(format_rows_bytes(trace.data[start : start + CHUNK_ROWS]))
-            return
-        kept = recorded_rows(trace.data.shape[0], every)
-        for start in range(0, kept.size, CHUNK_ROWS):
-            stream.write(format_rows_bytes(trace.data[kept[start : start + CHUNK_ROWS]]))
+        stream.write(",".join(f'"{name}"' for name in trace.names) + "\n")
+        kept = None if every <= 1 else recorded_rows(trace.data.shape[0], every)
+        rows = trace.data.shape[0] if kept is None else kept.size
+        for start in range(0, rows, CHUNK_ROWS):
+            chunk = (
+                trace.data[start : start + CHUNK_ROWS] if kept is None else trace.data[kept[start : start + CHUNK_ROWS]]
+            )
+            np.savetxt(stream, chunk, fmt=ROW_FORMAT, delimiter=",")
 
-    atomic_write(Path(path), write, binary=True)
+    write_file(Path(path), write)
 
 
 def read_csv(path: Path) -> Trace:
@@ -108,7 +82,7 @@ def read_csv(path: Path) -> Trace:
 
 
 def write_json(path: Path, record: dict[str, Any]) -> None:
-    atomic_write(Path(path), lambda stream: json.dump(record, stream, indent=2, sort_keys=False, default=str))
+    write_file(Path(path), lambda stream: json.dump(record, stream, indent=2, sort_keys=False, default=str))
 
 
 def select(trace: Trace, names: Sequence[str]) -> Trace:

@@ -15,7 +15,6 @@ lists); `instance.c` travels in `sources/` beside the headers.
 
 from __future__ import annotations
 
-import os
 import platform
 import re
 import subprocess
@@ -28,6 +27,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+from toggle_cosim.files.outputs import replacing
 from toggle_cosim.fmu_export import interfaces as interface_types
 from toggle_cosim.fmu_export.compile import GeneratedModel
 from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
@@ -206,11 +206,8 @@ def write_fmu(
         (work / "modelDescription.xml").write_text(
             version.model_description(model, identifier, tool, offered, compiled), encoding="utf-8"
         )
-        output.parent.mkdir(parents=True, exist_ok=True)
-        partial = output.with_name(f".{output.name}.partial")
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            for file in sorted(work.rglob("*")):
+        with replacing(output) as partial, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+            for file in sorted(work.rglob("*")):  # a unique temporary name, renamed into place
                 if file.is_file():
                     archive.write(file, file.relative_to(work).as_posix())
-        os.replace(partial, output)
     return BuiltFMU(output, model.guid, identifier, output.stat().st_size, fmi_version, offered)
