@@ -578,7 +578,7 @@ def main() -> int:
         )
         table.add("  six simulate() calls", f"{sims:.2f} s", "measured in this process")
         table.add(
-            "  writing six trace.csv (csv_rows, %.17g)",
+            "  writing six trace.csv (np.savetxt, %.17g)",
             f"{sum(w[0] for w in writes):.2f} s",
             "traces.write_csv, measured in this process",
         )

@@ -22,13 +22,13 @@ say (a target beyond the toggle position) are checked after it.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from toggle_cosim.files.schema_check import conforms
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import ControllerSettings, PlantSettings, Run
 
@@ -220,17 +220,20 @@ def _reject_non_finite(document: Any) -> None:
     visit(document, ())
 
 
+@functools.cache
+def _validator() -> jsonschema.Draft202012Validator:
+    """The validator of SCHEMA (jsonschema; made once per process)."""
+    import jsonschema
+
+    return jsonschema.Draft202012Validator(SCHEMA)
+
+
 def validate_document(document: Any) -> None:
     """Check a parsed scenario against the schema and the physical limits (raises ScenarioError)."""
     if not isinstance(document, dict):
         raise ScenarioError("the file must hold a YAML mapping of scenario keys (name, t_end, T_s, stroke, ...)")
     _reject_non_finite(document)
-    if conforms(document, SCHEMA):  # the usual case, without importing jsonschema (`schema_check`)
-        return
-    import jsonschema
-
-    validator = jsonschema.Draft202012Validator(SCHEMA)
-    errors = sorted(validator.iter_errors(document), key=lambda e: (len(e.absolute_path), _key(e.absolute_path)))
+    errors = sorted(_validator().iter_errors(document), key=lambda e: (len(e.absolute_path), _key(e.absolute_path)))
     if errors:
         raise ScenarioError(_schema_message(errors[0]))
 
