@@ -285,18 +285,26 @@ def cached_library_from(
 def load_library(library: CachedLibrary) -> ctypes.CDLL:
     """ctypes.CDLL of `library`, loaded only if the file is private and its bytes have the
     recorded SHA-256: hashed from an open descriptor, and on Linux that same descriptor is
-    loaded (/proc/self/fd/N), so the bytes checked are the bytes loaded. CacheError otherwise."""
+    loaded (/proc/self/fd/N), so the bytes checked are the bytes loaded. That descriptor stays
+    open while the process lives, as the library stays loaded: the loader knows a library by
+    the name it was loaded under, so the name must not come back for another file. CacheError
+    when the bytes differ."""
     fd = _open_private(library.path, "library")
+    keep = False
     try:
-        actual = _fd_sha256(fd)
-        if actual != library.sha256:
+        if _fd_sha256(fd) != library.sha256:
             raise CacheError(
                 f"{library.path}: the cached library's SHA-256 is not the one recorded when it was built: not loaded"
             )
-        through = Path(f"/proc/self/fd/{fd}")
-        return ctypes.CDLL(str(through) if through.exists() else str(library.path))
+        through = f"/proc/self/fd/{fd}"
+        if not os.path.exists(through):  # no /proc (macOS): the path, in the private folder
+            return ctypes.CDLL(str(library.path))
+        loaded = ctypes.CDLL(through)
+        keep = True
+        return loaded
     finally:
-        os.close(fd)
+        if not keep:
+            os.close(fd)
 
 
 def load_library_from(

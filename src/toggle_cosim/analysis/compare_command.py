@@ -133,6 +133,9 @@ def run_compare(
             print(f"junit: {write_junit([check], junit)}")
         if summary is not None:
             print(f"summary: {write_markdown_summary([check], summary)}")
+    except OutputError as error:  # one line naming the path already
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     except OSError as error:
         print(
             f"error: {error.filename or out_dir}: cannot write the report ({error.strerror or error}); "

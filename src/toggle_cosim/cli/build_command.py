@@ -25,10 +25,10 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
 
     root = project_of(source)
     source = inside_project(source, "Modelica source", "--source", root)
+    check_output(output, "FMU (--out)")  # before resolving: a link there is refused, not followed
     output = inside_project(output, "FMU output", "--out", root)
     if output.suffix != ".fmu":
         raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
-    check_output(output, "FMU (--out)")
     try:
         report = build_fmu(source, model, output, fmi_version=fmi_version, interfaces=interfaces)
     except (ModelCompileError, FMUBuildError) as error:

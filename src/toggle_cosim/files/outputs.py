@@ -111,13 +111,15 @@ def _through(path: Path) -> Iterator[int]:
         os.close(fd)
 
 
-def _write_all(fd: int, data: bytes, path: Path) -> None:
+def _write_all(fd: int, data: bytes, path: Path, what: str) -> None:
     view = memoryview(data)
     try:
         while view:
             view = view[os.write(fd, view) :]
     except OSError as error:
-        raise OutputError(path, f"cannot be written ({error.strerror})") from error
+        raise OutputError(
+            path, f"cannot be written ({error.strerror}); give another file name for the {what}"
+        ) from error
 
 
 @contextlib.contextmanager
@@ -140,7 +142,7 @@ def replacing(path: Path | str, what: str = "output") -> Iterator[Path]:
         yield temporary
         if through:
             with _through(path) as fd:
-                _write_all(fd, temporary.read_bytes(), path)
+                _write_all(fd, temporary.read_bytes(), path, what)
             temporary.unlink()
             return
         with open(temporary, "rb+") as stream:
