@@ -176,13 +176,17 @@ def test_a_library_is_built_once_recorded_and_loaded_after_its_hash(caches: tupl
     assert native.load_library(built).answer() == 42
 
 
+def built_from_inputs(tmp_path: Path) -> tuple[Path, list[Path], native.CachedLibrary]:
+    """(where a payload would leave its flag, the input files, the library built from them)."""
+    inputs = [tmp_path / "input.txt"]
+    inputs[0].write_text("v1")
+    return tmp_path / "payload-ran", inputs, native.cached_library_from(inputs, lambda: SOURCE, "probe", FLAGS)
+
+
 @needs_compiler
 def test_a_library_whose_bytes_changed_is_not_loaded_but_rebuilt(caches: tuple[Path, Path], tmp_path: Path) -> None:
     configured, _ = caches
-    flag = tmp_path / "payload-ran"
-    inputs = [tmp_path / "input.txt"]
-    inputs[0].write_text("v1")
-    first = native.cached_library_from(inputs, lambda: SOURCE, "probe", FLAGS)
+    flag, inputs, first = built_from_inputs(tmp_path)
     payload = compile_payload(tmp_path, flag)
     shutil.copy(payload, first.path)  # same owner, same name, other bytes
     with pytest.raises(native.CacheError, match="SHA-256 is not the one recorded"):
@@ -212,10 +216,7 @@ def test_a_file_in_the_cache_owned_by_another_user_is_not_used(caches: tuple[Pat
 @needs_compiler
 def test_a_marker_naming_a_library_outside_the_cache_is_ignored(caches: tuple[Path, Path], tmp_path: Path) -> None:
     configured, _ = caches
-    flag = tmp_path / "payload-ran"
-    inputs = [tmp_path / "input.txt"]
-    inputs[0].write_text("v1")
-    first = native.cached_library_from(inputs, lambda: SOURCE, "probe", FLAGS)
+    flag, inputs, first = built_from_inputs(tmp_path)
     marker = next(configured.glob("probe-inputs-*.txt"))
     outside = compile_payload(tmp_path, flag, "probe-x.so")
     marker.write_text(f"../../{outside.name}\n")
