@@ -95,7 +95,7 @@ def check_destination(path: Path | str, what: str = "output") -> None:
 
 
 @contextlib.contextmanager
-def _through(path: Path) -> Iterator[int]:
+def _through(path: Path, what: str) -> Iterator[int]:
     """A write descriptor on STREAMS[path] or on the character device at `path`."""
     if str(path) in STREAMS:
         sys.stdout.flush()
@@ -105,7 +105,7 @@ def _through(path: Path) -> Iterator[int]:
     fd = os.open(path, os.O_WRONLY | os.O_NOFOLLOW | os.O_NOCTTY | getattr(os, "O_CLOEXEC", 0))
     try:
         if not stat.S_ISCHR(os.fstat(fd).st_mode):
-            raise OutputError(path, "changed while it was opened; give another path")
+            raise OutputError(path, f"changed while it was opened; give another file name for the {what}")
         yield fd
     finally:
         os.close(fd)
@@ -141,7 +141,7 @@ def replacing(path: Path | str, what: str = "output") -> Iterator[Path]:
         os.close(handle)
         yield temporary
         if through:
-            with _through(path) as fd:
+            with _through(path, what) as fd:
                 _write_all(fd, temporary.read_bytes(), path, what)
             temporary.unlink()
             return
