@@ -12,7 +12,7 @@ loop allocates nothing per step. run.json says which loop ran and why. The FMU i
 every exit path. A plant fault (an error status, non-finite outputs) ends the run early:
 the trace up to the fault is kept and the run is marked failed with the reason. A run that
 fails after retried steps is reported failed at its first failed step, and its trace ends at
-the sample before that step: no sample of a failed (even if retried) step is kept.
+the sample that step started from: no sample of a failed (even if retried) step is kept.
 A finished run is checked for plausibility (`plausibility`): its warnings go into run.json.
 """
 
@@ -107,8 +107,8 @@ def _cut_at_first_failure(reason: str, recorder: Recorder, first: int | None, T_
     recorder.truncate(first + 1)
     return (
         f"plant FMU failed at t = {first * T_s:.6g} s, its first failed step (retried from a checkpoint; the steps "
-        f"went on failing until the run ended at t = {ended:.6g} s, and no sample from t = {first * T_s:.6g} s on "
-        f"is kept): {reason}"
+        f"went on failing until the run ended at t = {ended:.6g} s; no sample after t = {first * T_s:.6g} s is "
+        f"kept): {reason}"
     )
 
 

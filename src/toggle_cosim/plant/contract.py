@@ -191,7 +191,7 @@ def check_plant(path: Path) -> PlantInterface:
     references: dict[str, int] = {}
     types: dict[str, str] = {}
     absent: list[str] = []
-    warnings: list[str] = []
+    unitless: list[ContractVariable] = []
     for entry in CONTRACT:
         variable = variables.get(entry.name)
         if variable is None or (not entry.required and variable.causality != entry.causality):
@@ -202,9 +202,8 @@ def check_plant(path: Path) -> PlantInterface:
                 )
             absent.append(entry.name)  # an optional name used otherwise in the FMU is not the contract's
             continue
-        warning = _check_variable(path, entry, variable)
-        if warning:
-            warnings.append(warning)
+        if _check_variable(path, entry, variable):
+            unitless.append(entry)
         references[entry.name] = variable.valueReference
         types[entry.name] = variable.type
     shared: dict[tuple[str, int], str] = {}
@@ -219,11 +218,19 @@ def check_plant(path: Path) -> PlantInterface:
     for variable in md.modelVariables:
         references.setdefault(variable.name, variable.valueReference)
         types.setdefault(variable.name, variable.type)
-    return PlantInterface(path, md, md.fmiVersion, references, types, sha256, tuple(absent), tuple(warnings))
+    warnings = ()
+    if unitless:
+        warnings = (
+            "no unit declared for "
+            + ", ".join(f"{v.name} (taken as {v.unit})" for v in unitless)
+            + "; the values are read and written in the contract's units",
+        )
+    return PlantInterface(path, md, md.fmiVersion, references, types, sha256, tuple(absent), warnings)
 
 
-def _check_variable(path: Path, entry: ContractVariable, variable) -> str | None:  # noqa: ANN001 - fmpy's variable
-    """Raise ContractError if `variable` cannot be the contract's `entry`; a warning, or None."""
+def _check_variable(path: Path, entry: ContractVariable, variable) -> bool:  # noqa: ANN001 - fmpy's variable
+    """Raise ContractError if `variable` cannot be the contract's `entry`; True if it declares
+    no unit where the contract has one (a warning, not a refusal)."""
     name, causality = entry.name, entry.causality
     if variable.causality != causality:
         raise ContractError(
@@ -232,12 +239,12 @@ def _check_variable(path: Path, entry: ContractVariable, variable) -> str | None
     declared = (
         variable.unit if variable.unit is not None else (variable.declaredType.unit if variable.declaredType else None)
     )
-    warning = None
+    unitless = False
     if entry.unit == DIMENSIONLESS:
         if declared not in (None, "", DIMENSIONLESS):
             raise ContractError(f"{path}: variable {name!r} has unit {declared!r}, the contract needs it dimensionless")
     elif entry.unit is not None and declared is None:
-        warning = f"variable {name!r} declares no unit; the contract's is {entry.unit!r} (values are taken as in it)"
+        unitless = True
     elif entry.unit is not None and declared != entry.unit:
         raise ContractError(f"{path}: variable {name!r} has unit {declared!r}, the contract needs {entry.unit!r}")
     wanted = FMI_TYPES[entry.type]
@@ -250,4 +257,4 @@ def _check_variable(path: Path, entry: ContractVariable, variable) -> str | None
             f"{path}: variable {name!r} has variability {variable.variability}, the contract needs "
             f"{' or '.join(allowed)} for a {causality}"
         )
-    return warning
+    return unitless
