@@ -164,11 +164,12 @@ def test_plots_summaries_and_sweeps_cope_with_absent_outputs(modelica_template: 
     assert "Claims not checked: the plant has no output E_in, E_fric, N12" in text
 
     sweep = tmp_path / "sweep.yaml"
-    sweep.write_text(
-        yaml.safe_dump({"base": str(SCENARIO), "axes": {"plant.F_E": {"values": [0.0, 20.0]}}, "output": "sweep"})
-    )
+    axes = {"plant.F_E": {"values": [0.0, 20.0]}, "plant.m_B": {"values": [4.43, 6.0]}}
+    document = {"base": str(SCENARIO), "axes": axes, "output": "sweep", "heatmap": {"x": "plant.F_E", "y": "plant.m_B"}}
+    sweep.write_text(yaml.safe_dump(document))
     assert run_sweep(sweep, None, 1, modelica_template, progress=False) == 0
     results = read_results(tmp_path / "sweep")
-    assert len(results) == 4 and (results["status"] == "ok").all()
+    assert len(results) == 8 and (results["status"] == "ok").all()
     assert results["E_in_J"].isna().all() and results["fric_share_end"].isna().all()
     assert results["warnings"].isna().all() and results["final_error_m"].notna().all()
+    assert len(list((tmp_path / "sweep" / "heatmaps").glob("heatmap_*.png"))) == 2  # one per variant
