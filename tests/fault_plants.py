@@ -12,6 +12,8 @@ run whose input F_E is at least TOGGLE_FAULT_MIN_FE (N), misbehaves as TOGGLE_FA
     nan       fmi2GetReal answers NaN for every output
     discard   fmi2DoStep returns fmi2Discard
     error     fmi2DoStep returns fmi2Error
+    chatter   fmi2DoStep returns fmi2Discard for a full step, while smaller steps (a retry's
+              substeps) pass until TOGGLE_FAULT_END (s); from then on every step is discarded
 
 The settings come from the environment, so a command started with them passes them to every
 process that loads the plant (pool workers, supervised children).
@@ -97,8 +99,9 @@ _PROLOGUE = r"""
 #include "fmi2Functions.h"
 
 static void *real_library;
-static int kind; /* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error */
+static int kind; /* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error, 8 chatter */
 static double fault_time = 1e300, fault_min_FE = -1e300, last_time, F_E;
+static double fault_end = 1e300, full_step; /* chatter: substeps pass until fault_end */
 static unsigned int F_E_vr = 0xffffffffu;
 
 static void *real(const char *name) {
@@ -118,8 +121,9 @@ static void *real(const char *name) {
         real_library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
         if (!real_library) abort();
         const char *k = getenv("TOGGLE_FAULT_KIND");
-        const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error"};
-        for (int i = 1; k && i < 8; i++) if (strcmp(k, names[i]) == 0) kind = i;
+        const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error", "chatter"};
+        for (int i = 1; k && i < 9; i++) if (strcmp(k, names[i]) == 0) kind = i;
+        if (getenv("TOGGLE_FAULT_END")) fault_end = atof(getenv("TOGGLE_FAULT_END"));
         if (getenv("TOGGLE_FAULT_TIME")) fault_time = atof(getenv("TOGGLE_FAULT_TIME"));
         if (getenv("TOGGLE_FAULT_MIN_FE")) fault_min_FE = atof(getenv("TOGGLE_FAULT_MIN_FE"));
         if (getenv("TOGGLE_FAULT_FE_VR")) F_E_vr = (unsigned int)atol(getenv("TOGGLE_FAULT_FE_VR"));
@@ -142,6 +146,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
     last_time = t;
+    if (h > full_step) full_step = h;
     if (faulting()) {
         switch (kind) {
         case 1: *(volatile int *)0 = 1; break;
@@ -160,6 +165,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
             }
         case 6: return fmi2Discard;
         case 7: return fmi2Error;
+        case 8:
+            if (h < 0.5 * full_step && t < fault_end) break;
+            return fmi2Discard;
         }
     }
     return ((fmi2DoStepTYPE *)real("fmi2DoStep"))(c, t, h, noSetPrior);

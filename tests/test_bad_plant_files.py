@@ -57,8 +57,8 @@ def _cases(plant_fmu: Path, folder: Path) -> dict[str, tuple[Path, str]]:
             "does not support Co-Simulation",
         ),
         "foreign": (
-            _rewrite(plant_fmu, folder / "foreign.fmu", lambda xml: xml.replace('name="lambda2"', 'name="lambda_two"')),
-            "missing contract variable 'lambda2'",
+            _rewrite(plant_fmu, folder / "foreign.fmu", lambda xml: xml.replace('name="v_B"', 'name="v_slider"')),
+            "missing contract variable 'v_B'",
         ),
         "wrong unit": (
             _rewrite(

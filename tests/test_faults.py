@@ -205,3 +205,32 @@ def test_sigkill_leaves_no_truncated_csv(plant_fmu: Path, tmp_path: Path) -> Non
     for csv in out.rglob("trace.csv"):
         trace = read_csv(csv)
         assert trace.data.shape[0] == 3001
+
+
+def test_a_run_failing_after_retries_is_reported_at_its_first_failed_step(
+    plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A plant that chatters from t = 0.2 s (every full step discarded, a retry's substeps pass)
+    and fails for good at t = 0.25 s: the steps from 0.2 s are retried one by one until the retry
+    fails. The run is reported failed at 0.2 s, its first failed step, and the trace ends at the
+    sample before that step: nothing from a step that failed, retried or not."""
+    from fault_plants import fault_environment, make_faulty_fmu
+
+    faulty = check_plant(make_faulty_fmu(plant_fmu, tmp_path / "Chatter.fmu"))
+    environment = fault_environment("chatter", 0.2, faulty.references)
+    for name in ("TOGGLE_FAULT_KIND", "TOGGLE_FAULT_TIME", "TOGGLE_FAULT_MIN_FE", "TOGGLE_FAULT_FE_VR"):
+        monkeypatch.setenv(name, environment[name])
+    monkeypatch.setenv("TOGGLE_FAULT_END", "0.25")
+    outcome = master.simulate(_nominal(), faulty)
+    retried = [entry["t"] for entry in outcome.record["retries"]]
+    assert len(retried) == 100 and retried[0] == pytest.approx(0.2) and retried[-1] == pytest.approx(0.2495)
+    assert not outcome.complete and outcome.reason.startswith("plant FMU failed at t = 0.2 s, its first failed step")
+    assert "until the run ended at t = 0.25 s" in outcome.reason and "Retried from the checkpoint" in outcome.reason
+    assert outcome.trace.time[-1] == pytest.approx(0.2, abs=1e-12) and len(outcome.trace.time) == 401
+    assert outcome.record["samples"] == 401 and np.all(np.isfinite(outcome.trace.data))
+    clean = master.simulate(_nominal(), check_plant(plant_fmu))  # the samples kept are the undisturbed run's
+    assert np.array_equal(outcome.trace.data, clean.trace.data[:401])
+    from toggle_cosim.cosim.supervision import simulate_supervised
+
+    supervised = simulate_supervised(_nominal(), faulty)  # the parent counts the rows the child left set
+    assert supervised.reason == outcome.reason and np.array_equal(supervised.trace.data, outcome.trace.data)

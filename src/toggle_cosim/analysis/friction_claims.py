@@ -16,6 +16,12 @@ from toggle_cosim.cosim.outcome import RunOutcome
 MODELS = ("paper", "dissipative", "stick_slip")
 CASES = {"fig4_nominal": "nominal", "fig5_external_force": "external_force", "fig6_mass_variation": "mass_variation"}
 JOINTS = ("12", "23", "34", "25", "56")
+CLAIM_COLUMNS = ("E_in", "E_fric", *(f"N{j}" for j in JOINTS))  # optional outputs the claims read
+
+
+def missing_columns(outcomes: Sequence[RunOutcome], columns: Sequence[str]) -> list[str]:
+    """The `columns` some run's trace lacks (optional outputs its plant does not have)."""
+    return [name for name in columns if any(name not in o.trace.names for o in outcomes)]
 
 
 def _label(case: str, model: str) -> str:
@@ -72,6 +78,9 @@ def friction_claims(outcomes: Sequence[RunOutcome]) -> str:
     missing = [label for label in needed if label not in runs or not runs[label].complete]
     if missing:
         return f"## The claims under the friction models\n\nNot checked: runs missing or incomplete: {', '.join(missing)}\n"
+    lacking = missing_columns([runs[label] for label in needed], CLAIM_COLUMNS)
+    if lacking:
+        return f"## The claims under the friction models\n\nNot checked: the plant has no output {', '.join(lacking)}\n"
     cells = {model: _claims_for(model, runs) for model in MODELS}
     claims = (
         "(1) i_q* almost the same with and without friction",

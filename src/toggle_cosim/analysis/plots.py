@@ -33,15 +33,21 @@ def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, tar
     figure, axes = plt.subplots(3, 3, figsize=(14, 10.5))
     figure.subplots_adjust(left=0.055, right=0.99, bottom=0.05, top=0.93, wspace=0.22, hspace=0.33)
     for ax, (label, key, ylabel) in zip(axes.flat, PANELS, strict=True):
+        drawn = False
         for number, (name, trace) in enumerate(traces.items()):
             style = _STYLES[number % len(_STYLES)]
             t = trace.time
             if key.isdigit():
-                ax.plot(t, trace.column(f"N{key}"), style, color="C0", label=f"normal force ({name})")
-                if trace.column(f"Ff{key}").any():
+                if f"N{key}" in trace.names:
+                    ax.plot(t, trace.column(f"N{key}"), style, color="C0", label=f"normal force ({name})")
+                    drawn = True
+                if f"Ff{key}" in trace.names and trace.column(f"Ff{key}").any():
                     ax.plot(t, trace.column(f"Ff{key}"), style, color="C3", label=f"friction force ({name})")
-            else:
+            elif key in trace.names:
                 ax.plot(t, trace.column(key), style, color=f"C{number}", label=name)
+                drawn = True
+        if not drawn:  # an optional output the plant does not have (plant contract)
+            ax.text(0.5, 0.5, "not an output of this plant", ha="center", va="center", transform=ax.transAxes)
         if key == "x_B" and target is not None:
             ax.axhline(target, color="0.6", linewidth=0.8, label="target x_B*")
         ax.set_title(label)
@@ -50,7 +56,8 @@ def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, tar
         ax.grid(True, alpha=0.3)
         # fixed corners: x_B and λ2 settle high after an early dip (lower right is free), the other
         # panels settle low after early peaks; loc="best" searches every vertex, ~25 % of the figure
-        ax.legend(fontsize=7, loc="lower right" if key in ("x_B", "lambda2") else "upper right")
+        if drawn or key == "x_B":
+            ax.legend(fontsize=7, loc="lower right" if key in ("x_B", "lambda2") else "upper right")
     figure.suptitle(title)
     output = Path(output)
     try:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from toggle_cosim.analysis.friction_claims import CLAIM_COLUMNS, missing_columns
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.files.outputs import write_text
 
@@ -17,20 +18,21 @@ def _cell(value: float | None, scale: float = 1.0, fmt: str = ".3f") -> str:
 
 def summary_table(outcomes: Sequence[RunOutcome]) -> str:
     lines = [
-        "| run | status | final error [mm] | settling (2 %) [s] | overshoot [%] | peak abs i_q* [A] | T_h [s] | S(t0) [m/s] | E_in [J] | E_fric [J] | E_fric/E_in at 10 % stroke |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| run | status | final error [mm] | settling (2 %) [s] | overshoot [%] | peak abs i_q* [A] | T_h [s] | S(t0) [m/s] | E_in [J] | E_fric [J] | E_fric/E_in at 10 % stroke | warnings |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for outcome in outcomes:
         s = outcome.summary
         status = "complete" if outcome.complete else f"incomplete: {outcome.reason}"
+        warnings = "; ".join(outcome.warnings).replace("|", "\\|") or "—"
         if s is None:
-            lines.append(f"| {outcome.run.label} | {status} |" + " — |" * 9)
+            lines.append(f"| {outcome.run.label} | {status} |" + " — |" * 9 + f" {warnings} |")
             continue
         lines.append(
             f"| {outcome.run.label} | {status} | {_cell(s.final_error_m, 1e3, '+.4f')} | {_cell(s.settling_time_s)} | "
             f"{_cell(s.overshoot_percent, 1, '.2f')} | {_cell(s.peak_iq_ref_A, 1, '.2f')} | {_cell(s.hitting_time_s, 1, '.4f')} | "
             f"{_cell(s.S0_m_per_s, 1, '.4f')} | {_cell(s.E_in_J, 1, '.4f')} | {_cell(s.E_fric_J, 1, '.4f')} | "
-            f"{_cell(s.fric_share_start, 1, '.3f')} |"
+            f"{_cell(s.fric_share_start, 1, '.3f')} | {warnings} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -60,6 +62,9 @@ def paper_claims(outcomes: Sequence[RunOutcome]) -> str:
     missing = [label for label in needed if label not in by_label or not by_label[label].complete]
     if missing:
         return f"Claims not checked: runs missing or incomplete: {', '.join(missing)}\n"
+    lacking = missing_columns([by_label[label] for label in needed], CLAIM_COLUMNS)
+    if lacking:
+        return f"Claims not checked: the plant has no output {', '.join(lacking)} (optional in the plant contract)\n"
 
     def trace(label: str):  # noqa: ANN202
         return by_label[label].trace

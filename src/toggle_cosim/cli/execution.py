@@ -39,6 +39,8 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
                 probe_binary(plants[chosen])
             except (ContractError, ProbeError) as error:
                 raise InputError(str(error)) from error
+            for note in plants[chosen].contract_notes():  # absent optional outputs, missing units
+                click.echo(note, err=True)
     pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.plant.settings import SettingError, check_settings
 
@@ -62,7 +64,8 @@ def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
 
 def _status_text(outcome) -> str:  # noqa: ANN001
     if outcome.complete:
-        return "complete"
+        count = len(outcome.warnings)
+        return f"complete with {count} warning{'s' if count > 1 else ''}" if count else "complete"
     return f"{'INTERRUPTED' if outcome.interrupted else 'FAILED'} ({outcome.reason})"
 
 
@@ -144,6 +147,8 @@ def execute_runs(pairs, out: Path, quiet: bool, time_limit: float | None = None,
             click.echo(
                 f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}"
             )
+            for warning in outcome.warnings:  # plausibility flags (`cosim.plausibility`)
+                click.echo(f"{label}: warning: {warning}")
             outcomes.append(outcome)
             if on_written is not None:
                 on_written(outcome)

@@ -10,7 +10,10 @@ compiled loop generated from `control.laws`, handed over to Python at a sample t
 back, or all in Python without a C compiler) and the `CheckpointPolicy` (retry.py). The
 loop allocates nothing per step. run.json says which loop ran and why. The FMU is freed on
 every exit path. A plant fault (an error status, non-finite outputs) ends the run early:
-the trace up to the fault is kept and the run is marked failed with the reason.
+the trace up to the fault is kept and the run is marked failed with the reason. A run that
+fails after retried steps is reported failed at its first failed step, and its trace ends at
+the sample that step started from: no sample of a failed (even if retried) step is kept.
+A finished run is checked for plausibility (`plausibility`): its warnings go into run.json.
 """
 
 from __future__ import annotations
@@ -22,11 +25,13 @@ import numpy as np
 
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
+from toggle_cosim.cosim.plausibility import plausibility_warnings
 from toggle_cosim.cosim.recorder import CONTROL_COLUMNS, ProgressHook, Recorder
 from toggle_cosim.cosim.retry import CheckpointPolicy
 from toggle_cosim.cosim.session import PlantSession
 from toggle_cosim.cosim.stepper import CompiledStepper, HandOver, LoopState, PythonStepper, Timing
 from toggle_cosim.cosim.summary import summarize
+from toggle_cosim.physics.mechanism import working_range
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant.contract import PlantInterface
@@ -93,6 +98,20 @@ def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
     session.exit_initialization()
 
 
+def _cut_at_first_failure(reason: str, recorder: Recorder, first: int | None, T_s: float) -> str:
+    """For a run that failed after an earlier step failed and was retried: cut the trace after the
+    sample of that first failed step and say the run failed there; otherwise `reason` as it is."""
+    if first is None or first + 1 >= recorder.rows:
+        return reason
+    ended = (recorder.rows - 1) * T_s
+    recorder.truncate(first + 1)
+    return (
+        f"plant FMU failed at t = {first * T_s:.6g} s, its first failed step (retried from a checkpoint; the steps "
+        f"went on failing until the run ended at t = {ended:.6g} s; no sample after t = {first * T_s:.6g} s is "
+        f"kept): {reason}"
+    )
+
+
 def simulate(
     run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None, buffer: np.ndarray | None = None
 ) -> RunOutcome:
@@ -138,25 +157,30 @@ def simulate(
     finally:
         solver_statistics = session.solver_statistics()
         session.close()
+    if state.reason is not None and not interrupted:
+        state.reason = _cut_at_first_failure(state.reason, recorder, policy.first_failure, run.T_s)
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
     complete = reason is None and rows == n + 1
-    summary = None
+    summary, warnings = None, []
     if rows > 1 and state.controller is not None:
+        x_B, iq_ref = trace.column("x_B"), trace.column("iq_ref")
         summary = summarize(
             trace.time,
-            trace.column("x_B"),
-            trace.column("iq_ref"),
-            trace.column("E_in"),
-            trace.column("E_fric"),
+            x_B,
+            iq_ref,
+            trace.column("E_in") if "E_in" in trace.names else None,
+            trace.column("E_fric") if "E_fric" in trace.names else None,
             run.x_start,
             run.x_target,
             state.controller.T_h,
             state.controller.S0,
         )
+        limits = run.plant.working_range or working_range(MechanismParameters())
+        warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     loop_seconds = loop_finished - loop_started
     record = run_record(
-        run, plant, status, reason, rows, wall, loop_seconds, summary, policy.retries, loop, solver_statistics
+        run, plant, status, reason, rows, wall, loop_seconds, summary, policy.retries, loop, solver_statistics, warnings
     )
     return RunOutcome(run, trace, complete, reason, wall, loop_seconds, summary, record, interrupted)

@@ -29,6 +29,11 @@ class RunOutcome:
     record: dict[str, Any] = field(default_factory=dict)
     interrupted: bool = False  # stopped by SIGINT/SIGTERM: the caller should stop too
 
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The run's plausibility flags (`plausibility`), as run.json records them."""
+        return tuple(self.record.get("warnings") or ())
+
 
 RECORDED_PACKAGES = ("toggle-cosim", "fmpy", "numpy", "scipy", "pandas", "modelica")
 
@@ -69,10 +74,12 @@ def run_record(
     retries: list | None = None,
     loop: dict[str, Any] | None = None,
     solver_statistics: dict[str, int] | str | None = None,
+    warnings: list[str] | None = None,
 ) -> dict[str, Any]:
     """What run.json says about a run: status is "complete", "failed" or "interrupted"; `loop` says
-    which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
-    when the supervised child died before reporting them)."""
+        which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
+        when the supervised child died before reporting them), `warnings` its plausibility flags and
+    `plant_contract` the optional contract variables the plant does not have."""
     return {
         "scenario": run.scenario,
         "variant": run.variant,
@@ -86,8 +93,10 @@ def run_record(
             "fmi_version": plant.fmi_version,
             "model_name": plant.model_description.modelName,
         },
+        "plant_contract": plant.contract_record(),
         "status": status,
         "reason": reason,
+        "warnings": list(warnings or []),
         "samples": rows,
         "retries": retries or [],
         "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},

@@ -45,6 +45,13 @@ class Recorder:
         row = self.data[k]
         return row[self.col_u], row[self.col_u + 1]
 
+    def truncate(self, rows: int) -> None:
+        """Keep the first `rows` samples: the later ones are unset (NaN) again, in the buffer
+        too, so a supervising process that counts the set rows sees the same number."""
+        if rows < self.rows:
+            self.data[rows : self.rows] = np.nan
+            self.rows = rows
+
     def trace(self) -> Trace:
         """The samples recorded so far: a copy of an own array, a view of a given buffer."""
         rows = self.data[: self.rows]

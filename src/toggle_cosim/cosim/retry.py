@@ -2,6 +2,8 @@
 samples; when a doStep fails with Discard or Error, put the FMU back to the checkpoint, replay
 the recorded inputs up to the failed sample, and take its step again in `substeps` smaller
 steps. Fatal is never retried (the FMU is beyond recovery), nor is anything without a checkpoint.
+`first_failure` is the first sample whose step failed (retried or not): a run that fails after
+retries is reported failed there, its trace cut after that sample (`master`).
 
 FMI (2.0 section 4.2.2, 3.0 section 4.2.1): doStep's noSetFMUStatePriorToCurrentPoint = true
 lets the FMU drop its history, after which restoring an earlier state is not allowed. So the
@@ -50,6 +52,7 @@ class CheckpointPolicy:
     every: int = CHECKPOINT_SAMPLES
     substeps: int = RETRY_SUBSTEPS
     retries: list[dict[str, Any]] = field(default_factory=list)
+    first_failure: int | None = None  # the first sample k whose step (k -> k + 1) failed
 
     @property
     def no_set_state_prior_to_current_point(self) -> bool:
@@ -72,6 +75,8 @@ class CheckpointPolicy:
             try:
                 k = stepper.advance(k, stop)
             except StepFailed as failure:
+                if self.first_failure is None:
+                    self.first_failure = failure.k
                 if not self.saving or failure.error.status not in RETRIED_STATUSES:
                     raise failure.error from None
                 self.retry(session, recorder, checkpoint, failure.k, failure.error, T_s)

@@ -17,9 +17,9 @@ class RunSummary:
     peak_iq_ref_A: float  # max |i_q*|
     hitting_time_s: float  # T_h of eq. (21)
     S0_m_per_s: float  # S(t0), the reaching-phase start of eq. (21)
-    E_in_J: float  # work of the thrust at t_end
-    E_fric_J: float  # energy taken by joint friction at t_end (signed)
-    fric_share_start: float | None  # E_fric / E_in when x_B has covered 10 % of the stroke
+    E_in_J: float | None  # work of the thrust at t_end (None: the plant has no output E_in)
+    E_fric_J: float | None  # energy taken by joint friction at t_end, signed (None: no output E_fric)
+    fric_share_start: float | None  # E_fric / E_in when x_B has covered 10 % of the stroke (None: not known)
     time_10_percent_s: float | None  # when x_B has covered 10 % of the stroke
 
     def as_dict(self) -> dict[str, float | None]:
@@ -30,8 +30,8 @@ def summarize(
     time: np.ndarray,
     x_B: np.ndarray,
     iq_ref: np.ndarray,
-    E_in: np.ndarray,
-    E_fric: np.ndarray,
+    E_in: np.ndarray | None,
+    E_fric: np.ndarray | None,
     x_start: float,
     x_target: float,
     hitting_time: float,
@@ -54,7 +54,8 @@ def summarize(
     if reached.size:
         k = int(reached[0])
         t10 = float(time[k])
-        share = float(E_fric[k] / E_in[k]) if E_in[k] != 0 else None
+        if E_in is not None and E_fric is not None and E_in[k] != 0:
+            share = float(E_fric[k] / E_in[k])
     return RunSummary(
         final_error_m=float(error[-1]),
         settling_time_s=settling,
@@ -62,8 +63,8 @@ def summarize(
         peak_iq_ref_A=float(np.max(np.abs(iq_ref))),
         hitting_time_s=hitting_time,
         S0_m_per_s=S0,
-        E_in_J=float(E_in[-1]),
-        E_fric_J=float(E_fric[-1]),
+        E_in_J=None if E_in is None else float(E_in[-1]),
+        E_fric_J=None if E_fric is None else float(E_fric[-1]),
         fric_share_start=share,
         time_10_percent_s=t10,
     )

@@ -29,6 +29,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import ControllerSettings, PlantSettings, Run
 
@@ -54,6 +55,19 @@ _PLANT = {
         "friction_model": {"enum": ["paper", "dissipative", "stick_slip"]},
         "mu_s": {"type": "number", "minimum": 0, "maximum": 1},
         "K": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e6},
+        "rated_current": {
+            "type": "number",
+            "exclusiveMinimum": 0,
+            "maximum": 1e6,
+            "description": "motor rating in A: a run whose |i_q*| exceeds it is flagged (default 10 A, assumed)",
+        },
+        "working_range": {
+            "type": "array",
+            "items": {"type": "number", "exclusiveMinimum": 0, "maximum": 100},
+            "minItems": 2,
+            "maxItems": 2,
+            "description": "[x_min, x_max] of slider B in m: a run whose x_B leaves it is flagged",
+        },
         "parameters": {
             "type": "object",
             "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_.\[\]]*\Z"},
@@ -249,17 +263,6 @@ def merge_documents(base: dict[str, Any], override: Mapping[str, Any]) -> dict[s
     return merged
 
 
-def toggle_limit(geometry: MechanismParameters) -> float:
-    """x_B at the toggle position (links O-A and A-B aligned): the stroke's upper bound."""
-    return math.sqrt((geometry.r1 + geometry.r3) ** 2 - geometry.f**2)
-
-
-def _reach_limit(geometry: MechanismParameters) -> float:
-    """Smallest x_B the linkage reaches (links folded), the stroke's lower bound."""
-    return math.sqrt(max((geometry.r3 - geometry.r1) ** 2 - geometry.f**2, 0.0))
-
-
-SINGULARITY_MARGIN = 0.01  # m: a stroke keeps this far from the toggle and the folded position
 MIN_STROKE = 1e-4  # m: a shorter stroke is refused (the summary's figures divide by it)
 # keys of their own: plant.parameters may not set these FMU parameters behind the record's back
 OWN_KEYS = {
@@ -273,10 +276,22 @@ OWN_KEYS = {
 }
 
 
+def _working_range(given: Any, geometry: MechanismParameters, suffix: str) -> tuple[float, float]:
+    """plant.working_range if given (x_min < x_max), else the linkage's (`physics.mechanism`)."""
+    if given is None:
+        return working_range(geometry)
+    low, high = (float(value) for value in given)
+    if not low < high:
+        raise ScenarioError(
+            f"key plant.working_range{suffix}: [{low}, {high}] is empty (write [x_min, x_max], x_min < x_max)"
+        )
+    return low, high
+
+
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
     stroke = document["stroke"]
     geometry = MechanismParameters()
-    upper, lower = toggle_limit(geometry), _reach_limit(geometry)
+    upper, lower = toggle_limit(geometry), folded_limit(geometry)
     suffix = f" (variant {variant})" if variant else ""
     for key in ("x_start", "x_target"):
         value = stroke[key]
@@ -312,6 +327,8 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         friction_model=plant_doc.get("friction_model", "paper"),
         mu_s=float(plant_doc["mu_s"]) if "mu_s" in plant_doc else None,
         K=float(plant_doc["K"]) if "K" in plant_doc else None,
+        rated_current=float(plant_doc.get("rated_current", PlantSettings.rated_current)),
+        working_range=_working_range(plant_doc.get("working_range"), geometry, suffix),
         parameters=dict(plant_doc.get("parameters", {})),
     )
     controller = ControllerSettings(

@@ -26,7 +26,7 @@ def _arrow_schema(sweep: Sweep) -> Any:
     types = {"float": pa.float64(), "bool": pa.bool_(), "string": pa.string()}
     fields = [pa.field("case", pa.int64()), pa.field("case_id", pa.string()), pa.field("variant", pa.string())]
     fields += [pa.field(c, types[sweep.parameter_types[c]]) for c in sweep.parameter_columns]
-    fields += [pa.field("status", pa.string()), pa.field("reason", pa.string())]
+    fields += [pa.field("status", pa.string()), pa.field("reason", pa.string()), pa.field("warnings", pa.string())]
     fields += [pa.field(m, pa.float64()) for m in METRICS]
     fields += [
         pa.field("samples", pa.int64()),

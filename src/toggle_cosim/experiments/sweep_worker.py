@@ -132,6 +132,7 @@ def run_case(
         **case["parameters"],
         "status": "failed",
         "reason": None,
+        "warnings": None,
         **dict.fromkeys(METRICS),
         "samples": None,
         "wall_s": None,
@@ -155,7 +156,8 @@ def run_case(
                 summary = outcome.summary.as_dict()
                 row.update({k: (None if v is None else float(v)) for k, v in summary.items()})
                 E_in, E_fric = summary["E_in_J"], summary["E_fric_J"]
-                row["fric_share_end"] = float(E_fric / E_in) if E_in else None
+                row["fric_share_end"] = float(E_fric / E_in) if E_in and E_fric is not None else None
+                row["warnings"] = "; ".join(outcome.warnings) or None
             else:
                 row["reason"] = outcome.reason or "the run ended without a summary"
         if row["status"] == "failed" and messages:
@@ -176,6 +178,7 @@ def crash_row(case: Case, fmu_sha256: str | None, reason: str) -> dict[str, Any]
         **case.parameters,
         "status": "failed",
         "reason": reason,
+        "warnings": None,
         **dict.fromkeys(METRICS),
         "samples": None,
         "wall_s": None,

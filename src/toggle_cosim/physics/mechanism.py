@@ -30,9 +30,32 @@ __all__ = [
     "state_from_theta1",
     "initial_state",
     "state_from_slider",
+    "toggle_limit",
+    "folded_limit",
+    "working_range",
+    "SINGULARITY_MARGIN",
 ]
 
 FloatArray = NDArray[np.float64]
+SINGULARITY_MARGIN = 0.01  # m: the working range keeps this far from the toggle and the folded position
+
+
+def toggle_limit(p: MechanismParameters) -> float:
+    """x_B at the toggle position (links O-A and A-B aligned, θ1 = 0): the largest x_B."""
+    return math.sqrt((p.r1 + p.r3) ** 2 - p.f**2)
+
+
+def folded_limit(p: MechanismParameters) -> float:
+    """x_B at the folded position (link A-B folded back over O-A, θ1 = −π): the smallest x_B."""
+    return math.sqrt(max((p.r3 - p.r1) ** 2 - p.f**2, 0.0))
+
+
+def working_range(p: MechanismParameters) -> tuple[float, float]:
+    """The slider positions the toggle works in: SINGULARITY_MARGIN inside the folded and the
+    toggle position, the two dead points where dx_B/dθ1 = 0 and eq. (26) has two branches
+    (0.180 m to 0.360 m for the assumed geometry). A stroke must lie in it (scenario check); a
+    run whose slider leaves it is flagged (`cosim.plausibility`)."""
+    return folded_limit(p) + SINGULARITY_MARGIN, toggle_limit(p) - SINGULARITY_MARGIN
 
 
 # --------------------------------------------------------------------------------------------

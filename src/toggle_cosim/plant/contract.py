@@ -1,14 +1,17 @@
 """The plant's interface contract, and the check that an FMU meets it before a run.
 
-Any FMU that provides these variables (names, causality and units) can be the plant:
+The contract is one machine-readable file, `contract.yaml` beside this module: each variable's
+causality, type, unit, tier and meaning. Two tiers:
 
-* inputs   iq_ref (A, the current command i_q*), F_E (N, >= 0 resists the forward stroke)
-* outputs  x_B v_B theta1 theta2 theta5 x_C i_q F_C lambda1 lambda2, the normal and friction
-           force at joints (1,2) (2,3) (3,4) (2,5) (5,6) as N12.. and Ff12.., and the
-           energies E_in E_fric E_load E_mech
-* parameters m_B (kg), mu (1); optional: idealCurrentLoop (Boolean), K (rad/s), x_B0 (m),
-  frictionModel (1 paper, 2 dissipative, 3 stick_slip; without it only the paper's model), mu_s (1)
-* optional outputs, recorded when present: a_B, omega1, v_C, Phi1, Phi2
+* required: the loop needs it (the inputs iq_ref and F_E, the outputs x_B and v_B, the
+  parameters m_B and mu); an FMU without it is refused in one line;
+* optional: recorded (and plotted) when present; its absence is reported (`PlantInterface.
+  absent`, run.json, the console), not refused. `required_for` names the objectives that need
+  an optional variable (theta1 and omega1 for the theta1 objective): `objective_requirements`.
+
+Units: a different unit is refused; a missing unit attribute (PythonFMU writes none) is a
+warning (`PlantInterface.warnings`). The docs' and the README's tables are generated from the
+same file (`contract_table`).
 """
 
 from __future__ import annotations
@@ -17,41 +20,77 @@ import platform
 import stat
 import zipfile
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from xml.etree import ElementTree
 
 from fmpy.model_description import ModelDescription, read_model_description
 
 from toggle_cosim.files.checksums import file_sha256
+from toggle_cosim.files.yaml_loader import parse_yaml
 
-JOINTS = ("12", "23", "34", "25", "56")
-INPUTS = {"iq_ref": "A", "F_E": "N"}
-OUTPUTS = {
-    "x_B": "m",
-    "v_B": "m/s",
-    "theta1": "rad",
-    "theta2": "rad",
-    "theta5": "rad",
-    "x_C": "m",
-    "i_q": "A",
-    "F_C": "N",
-    "lambda1": "N",
-    "lambda2": "N",
-    **{f"N{j}": "N" for j in JOINTS},
-    **{f"Ff{j}": "N" for j in JOINTS},
-    "E_in": "J",
-    "E_fric": "J",
-    "E_load": "J",
-    "E_mech": "J",
-}
-OPTIONAL_OUTPUTS = {"a_B": "m/s2", "omega1": "rad/s", "v_C": "m/s", "Phi1": "m", "Phi2": "m"}
-PARAMETERS = {"m_B": "kg", "mu": None}
-OPTIONAL_PARAMETERS = {"idealCurrentLoop": None, "K": "rad/s", "x_B0": "m", "frictionModel": None, "mu_s": None}
+CAUSALITIES = ("input", "output", "parameter")
+TIERS = ("required", "optional")
+DIMENSIONLESS = "1"  # a unit the FMU may leave out without a warning
 VARIABILITIES = {
     "input": ("continuous", "discrete"),
     "output": ("continuous", "discrete"),
     "parameter": ("fixed", "tunable"),
 }
+FMI_TYPES = {"Real": ("Real", "Float64"), "Boolean": ("Boolean",)}
+
+
+@dataclass(frozen=True)
+class ContractVariable:
+    """One variable of the contract (a row of contract.yaml)."""
+
+    name: str
+    causality: str
+    type: str  # Real (Real in FMI 2.0, Float64 in FMI 3.0) or Boolean
+    unit: str | None  # None: not checked; "1": dimensionless, may be left out
+    tier: str  # required or optional
+    meaning: str
+    required_for: tuple[str, ...] = ()  # objectives that need this optional variable
+
+    @property
+    def required(self) -> bool:
+        return self.tier == "required"
+
+
+def _variable(name: str, row: dict) -> ContractVariable:
+    unit = row.get("unit")
+    variable = ContractVariable(
+        name=name,
+        causality=row["causality"],
+        type=row["type"],
+        unit=None if unit in (None, "none") else str(unit),
+        tier=row["tier"],
+        meaning=row["meaning"],
+        required_for=tuple(row.get("required_for", ())),
+    )
+    if variable.causality not in CAUSALITIES or variable.tier not in TIERS or variable.type not in FMI_TYPES:
+        raise ValueError(
+            f"contract.yaml: variable {name!r} has a causality, tier or type out of {CAUSALITIES}, {TIERS}"
+        )
+    return variable
+
+
+def load_contract(text: str | None = None) -> tuple[ContractVariable, ...]:
+    """The contract's variables in file order (the package's contract.yaml unless `text` is given)."""
+    if text is None:
+        text = resources.files("toggle_cosim.plant").joinpath("contract.yaml").read_text(encoding="utf-8")
+    return tuple(_variable(name, row) for name, row in parse_yaml(text)["variables"].items())
+
+
+CONTRACT = load_contract()
+INPUTS = tuple(v.name for v in CONTRACT if v.causality == "input")
+OUTPUTS = tuple(v.name for v in CONTRACT if v.causality == "output")  # the trace's order
+REQUIRED = tuple(v.name for v in CONTRACT if v.required)
+
+
+def objective_requirements(objective: str) -> tuple[str, ...]:
+    """The optional variables a controller objective needs (theta1: theta1 and omega1)."""
+    return tuple(v.name for v in CONTRACT if objective in v.required_for)
 
 
 class ContractError(Exception):
@@ -68,11 +107,23 @@ class PlantInterface:
     references: dict[str, int]
     types: dict[str, str]
     sha256: str  # of the FMU file as checked: run records name it, the description cache keys on it
+    absent: tuple[str, ...] = ()  # the optional contract variables this FMU does not have
+    warnings: tuple[str, ...] = ()  # what the check accepted with a warning (a missing unit)
 
     @property
     def recorded_outputs(self) -> tuple[str, ...]:
-        """The contract's outputs, then the optional ones this FMU has."""
-        return (*OUTPUTS, *(name for name in OPTIONAL_OUTPUTS if name in self.references))
+        """The contract's outputs this FMU has, in the contract's order (the trace's columns)."""
+        return tuple(name for name in OUTPUTS if name not in self.absent)
+
+    def contract_record(self) -> dict[str, list[str]]:
+        """What run.json says about the contract: the optional variables absent, the warnings."""
+        return {"absent": list(self.absent), "warnings": list(self.warnings)}
+
+    def contract_notes(self) -> list[str]:
+        """One line each for the console: the optional outputs absent, each warning."""
+        outputs = [name for name in self.absent if name in OUTPUTS]
+        lines = [f"{self.path}: optional outputs absent, not recorded: {', '.join(outputs)}"] if outputs else []
+        return lines + [f"{self.path}: warning: {warning}" for warning in self.warnings]
 
     @property
     def guid(self) -> str:
@@ -138,49 +189,22 @@ def check_plant(path: Path) -> PlantInterface:
     variables = {v.name: v for v in md.modelVariables}
     references: dict[str, int] = {}
     types: dict[str, str] = {}
-
-    def require(name: str, causalities: tuple[str, ...], unit: str | None, optional: bool = False) -> None:
-        variable = variables.get(name)
-        if variable is None:
-            if optional:
-                return
-            raise ContractError(
-                f"{path}: missing contract variable {name!r} ({causalities[0]}); see the README's interface contract"
-            )
-        if variable.causality not in causalities:
-            raise ContractError(
-                f"{path}: variable {name!r} has causality {variable.causality}, the contract needs {causalities[0]}"
-            )
-        declared = (
-            variable.unit
-            if variable.unit is not None
-            else (variable.declaredType.unit if variable.declaredType else None)
-        )
-        if unit is not None and declared != unit:
-            raise ContractError(f"{path}: variable {name!r} has unit {declared!r}, the contract needs {unit!r}")
-        wanted = "Boolean" if name == "idealCurrentLoop" else ("Real", "Float64")
-        if variable.type not in ((wanted,) if isinstance(wanted, str) else wanted):
-            need = wanted if isinstance(wanted, str) else "Real (FMI 2.0) or Float64 (FMI 3.0)"
-            raise ContractError(f"{path}: variable {name!r} has type {variable.type}, the contract needs {need}")
-        allowed = VARIABILITIES[causalities[0]]
-        if variable.variability not in allowed:
-            raise ContractError(
-                f"{path}: variable {name!r} has variability {variable.variability}, the contract needs "
-                f"{' or '.join(allowed)} for a {causalities[0]}"
-            )
-        references[name] = variable.valueReference
-        types[name] = variable.type
-
-    for name, unit in INPUTS.items():
-        require(name, ("input",), unit)
-    for name, unit in OUTPUTS.items():
-        require(name, ("output",), unit)
-    for name, unit in OPTIONAL_OUTPUTS.items():
-        require(name, ("output",), unit, optional=True)
-    for name, unit in PARAMETERS.items():
-        require(name, ("parameter",), unit)
-    for name, unit in OPTIONAL_PARAMETERS.items():
-        require(name, ("parameter",), unit, optional=True)
+    absent: list[str] = []
+    unitless: list[ContractVariable] = []
+    for entry in CONTRACT:
+        variable = variables.get(entry.name)
+        if variable is None or (not entry.required and variable.causality != entry.causality):
+            if entry.required:
+                raise ContractError(
+                    f"{path}: missing contract variable {entry.name!r} (a required {entry.causality}, "
+                    f"{entry.meaning}); see docs/plant-contract.md"
+                )
+            absent.append(entry.name)  # an optional name used otherwise in the FMU is not the contract's
+            continue
+        if _check_variable(path, entry, variable):
+            unitless.append(entry)
+        references[entry.name] = variable.valueReference
+        types[entry.name] = variable.type
     shared: dict[tuple[str, int], str] = {}
     for name in references:  # two contract variables on one value reference read the same number
         kind = "any" if md.fmiVersion.startswith("3") else types[name]
@@ -193,4 +217,43 @@ def check_plant(path: Path) -> PlantInterface:
     for variable in md.modelVariables:
         references.setdefault(variable.name, variable.valueReference)
         types.setdefault(variable.name, variable.type)
-    return PlantInterface(path, md, md.fmiVersion, references, types, sha256)
+    warnings = ()
+    if unitless:
+        warnings = (
+            "no unit declared for "
+            + ", ".join(f"{v.name} (taken as {v.unit})" for v in unitless)
+            + "; the values are read and written in the contract's units",
+        )
+    return PlantInterface(path, md, md.fmiVersion, references, types, sha256, tuple(absent), warnings)
+
+
+def _check_variable(path: Path, entry: ContractVariable, variable) -> bool:  # noqa: ANN001 - fmpy's variable
+    """Raise ContractError if `variable` cannot be the contract's `entry`; True if it declares
+    no unit where the contract has one (a warning, not a refusal)."""
+    name, causality = entry.name, entry.causality
+    if variable.causality != causality:
+        raise ContractError(
+            f"{path}: variable {name!r} has causality {variable.causality}, the contract needs {causality}"
+        )
+    declared = (
+        variable.unit if variable.unit is not None else (variable.declaredType.unit if variable.declaredType else None)
+    )
+    unitless = False
+    if entry.unit == DIMENSIONLESS:
+        if declared not in (None, "", DIMENSIONLESS):
+            raise ContractError(f"{path}: variable {name!r} has unit {declared!r}, the contract needs it dimensionless")
+    elif entry.unit is not None and declared is None:
+        unitless = True
+    elif entry.unit is not None and declared != entry.unit:
+        raise ContractError(f"{path}: variable {name!r} has unit {declared!r}, the contract needs {entry.unit!r}")
+    wanted = FMI_TYPES[entry.type]
+    if variable.type not in wanted:
+        need = "Real (FMI 2.0) or Float64 (FMI 3.0)" if entry.type == "Real" else entry.type
+        raise ContractError(f"{path}: variable {name!r} has type {variable.type}, the contract needs {need}")
+    allowed = VARIABILITIES[causality]
+    if variable.variability not in allowed:
+        raise ContractError(
+            f"{path}: variable {name!r} has variability {variable.variability}, the contract needs "
+            f"{' or '.join(allowed)} for a {causality}"
+        )
+    return unitless

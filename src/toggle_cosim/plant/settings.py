@@ -3,12 +3,13 @@
 `plant.parameters` names must be variables of the FMU that can be set before initialisation
 (causality parameter, variability fixed or tunable), with a value of their type (a number for a
 Real/Float64, true/false for a Boolean); `current_loop: ideal` needs the parameter
-idealCurrentLoop. Each failure is one `SettingError` line naming the key and the variable.
+idealCurrentLoop; a controller objective needs the optional outputs the contract names for it
+(theta1: theta1 and omega1). Each failure is one `SettingError` line naming the key and the variable.
 """
 
 from __future__ import annotations
 
-from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.plant.contract import PlantInterface, objective_requirements
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import Run
 
@@ -23,6 +24,14 @@ def check_settings(run: Run, plant: PlantInterface) -> None:
         friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, plant.references, plant.path)
     except ValueError as error:
         raise SettingError(str(error)) from None
+    objective = run.controller.objective
+    lacking = [name for name in objective_requirements(objective) if name in plant.absent]
+    if lacking:
+        raise SettingError(
+            f"key controller.objective: {objective} needs the plant outputs "
+            f"{' and '.join(objective_requirements(objective))}; the plant FMU {plant.path} lacks "
+            f"{', '.join(repr(name) for name in lacking)} (use objective x_B, or add the outputs to the plant)"
+        )
     if run.plant.current_loop == "ideal" and "idealCurrentLoop" not in variables:
         raise SettingError(
             f"key plant.current_loop: the plant FMU {plant.path} has no parameter idealCurrentLoop, "

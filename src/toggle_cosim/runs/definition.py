@@ -26,6 +26,10 @@ class PlantSettings:
     friction_model: Literal["paper", "dissipative", "stick_slip"] = "paper"
     mu_s: float | None = None  # static coefficient (stick_slip); None: the same as mu
     K: float | None = None
+    # Plausibility limits (`cosim.plausibility`). The paper gives no rating for its motor: 10 A is
+    # assumed (the integral law's i_max; 2x the largest command of the shipped cases, 4.95 A).
+    rated_current: float = 10.0  # A
+    working_range: tuple[float, float] | None = None  # m, slider B; None: the linkage's (scenario)
     parameters: Mapping[str, float | bool] = field(default_factory=dict)
 
 
