@@ -73,8 +73,9 @@ class Scenario(Mapping[str, Run]):
 
     def updated(self, changes: Mapping[str, Any]) -> Scenario:
         """This scenario with `changes` merged in key by key (nested mappings merged, as a variant
-        is), validated again: e.g. `updated({"t_end": 0.3, "plant": {"F_E": 50.0}})`. A change to
-        every variant goes at the top level; `{"variants": {"friction": {...}}}` changes one."""
+        is), validated again: e.g. `updated({"t_end": 0.3, "plant": {"F_E": 50.0}})`. A top-level
+        key applies to every variant that does not set it itself (a variant's own keys win, as in
+        the file); `{"variants": {"friction": {"plant": {"mu": 0.1}}}}` changes one variant."""
         if not isinstance(changes, Mapping):
             raise ScenarioError(f"changes must be a mapping of scenario keys, not {type(changes).__name__}")
         return _build(merge_documents(dict(self.document), _plain(changes)), self.source)
