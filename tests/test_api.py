@@ -33,13 +33,13 @@ from toggle_cosim.plant.contract import INPUTS, OPTIONAL_OUTPUTS, OUTPUTS, check
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG4 = ROOT / "scenarios" / "fig4_nominal.yaml"
-SHORT = {  # the faulty-plant layout of test_supervision: 0.3 s, the fault at 0.1 s when F_E >= 50 N
+# Fig. 4's stroke, gains and plant (mu = 0.2) for 0.3 s, in the faulty plant's layout of
+# test_supervision: the fault comes at 0.1 s in runs with F_E >= 50 N ("hit"), never in "clean"
+SHORT = {
+    **{key: value for key, value in yaml.safe_load(FIG4.read_text()).items() if key not in ("fmu", "variants")},
     "name": "short",
     "t_end": 0.3,
-    "T_s": 0.0005,
-    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
     "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
-    "controller": {"objective": "x_B", "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
     "variants": {"hit": {"plant": {"F_E": 60.0}}, "clean": {"plant": {"F_E": 0.0}}},
 }
 T_FAULT, ROWS_TO_FAULT = 0.1, 201  # samples t = 0 .. 0.1 s at T_s = 0.5 ms
