@@ -138,9 +138,18 @@ def test_the_project_s_files_are_found(plant_fmu: Path, tmp_path: Path, monkeypa
     # a project folder with the FMU in place: found from a folder below it, not built again
     for folder in ("scenarios", "modelica/ToggleLSM", "fmus", "examples"):
         (tmp_path / folder).mkdir(parents=True)
-    shutil.copy(plant_fmu, tmp_path / "fmus" / "ToggleLSM.fmu")
+    fmu = tmp_path / "fmus" / "ToggleLSM.fmu"
+    shutil.copy(plant_fmu, fmu)
+    source = tmp_path / "modelica" / "ToggleLSM" / "package.mo"
+    source.write_text("package ToggleLSM end ToggleLSM;\n")
+    built = fmu.stat().st_mtime
+    os.utime(source, (built - 60, built - 60))
+    builds = []
+    monkeypatch.setattr("toggle_cosim.fmu_export.build_fmu", lambda *arguments: builds.append(arguments))
     monkeypatch.chdir(tmp_path / "examples")
-    assert tc.plant_fmu() == tmp_path / "fmus" / "ToggleLSM.fmu"
+    assert tc.plant_fmu() == fmu and builds == []
+    os.utime(source, (built + 60, built + 60))  # the source changed after the build: build again
+    assert tc.plant_fmu() == fmu and builds == [(tmp_path / "modelica" / "ToggleLSM", "ToggleLSM.Plant", fmu)]
     with pytest.raises(ValueError, match="not a shipped plant .*ToggleLSM.Plant, ToggleLSM.PlantNoGravity"):
         tc.plant_fmu("ToggleLSM.Other")
 

@@ -35,20 +35,27 @@ def shipped_scenarios() -> dict[str, Path]:
     return {name: folder / f"{name}.yaml" for name in shipped.SHIPPED_SCENARIOS if (folder / f"{name}.yaml").is_file()}
 
 
+def _older_than_source(fmu: Path, source: Path) -> bool:
+    """Whether a file of the Modelica source changed after `fmu` was written (as make decides)."""
+    built = fmu.stat().st_mtime_ns
+    return any(path.stat().st_mtime_ns > built for path in source.rglob("*") if path.is_file())
+
+
 def plant_fmu(model: str = shipped.DEFAULT_MODEL, *, rebuild: bool = False) -> Path:
     """The path of a shipped plant FMU (default `fmus/ToggleLSM.fmu`, the paper's plant;
     "ToggleLSM.PlantNoGravity" is the other), built from the project's Modelica source first if
-    it is not there yet or `rebuild` is true (the Modelica compiler and a C compiler: about a
-    minute). Raises the build's ModelCompileError or FMUBuildError if it cannot be built."""
+    it is not there, is older than a file of the source, or `rebuild` is true (the Modelica
+    compiler and a C compiler: about a minute). Raises the build's ModelCompileError or
+    FMUBuildError if it cannot be built."""
     builds = dict(shipped.DEFAULT_BUILDS)
     if model not in builds:
         raise ValueError(f"model {model!r} is not a shipped plant (choose one of {', '.join(builds)})")
     root = project_folder()
-    path = root / builds[model]
-    if rebuild or not path.is_file():
+    path, source = root / builds[model], root / shipped.DEFAULT_SOURCE
+    if rebuild or not path.is_file() or _older_than_source(path, source):
         from toggle_cosim.fmu_export import build_fmu
 
-        build_fmu(root / shipped.DEFAULT_SOURCE, model, path)
+        build_fmu(source, model, path)
     return path
 
 
