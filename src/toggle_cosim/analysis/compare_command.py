@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 from toggle_cosim.analysis.ci_reports import CheckedTrace, write_junit, write_markdown_summary
@@ -24,8 +25,9 @@ from toggle_cosim.analysis.tolerance_files import tolerances_for_reference
 from toggle_cosim.analysis.trace_formats import read_any_trace
 from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
 from toggle_cosim.files.outputs import OutputError, check_destination
+from toggle_cosim.files.traces import Trace
 
-__all__ = ["plots_of", "run_compare", "trace_label"]
+__all__ = ["FileComparison", "compare_with_file", "plots_of", "run_compare", "solver_check", "trace_label"]
 
 
 def trace_label(reference_path: Path) -> str:
@@ -60,6 +62,72 @@ def _check_output(path: Path | None, what: str) -> None:
         raise CompareInputError(str(error)) from error
 
 
+@dataclass(frozen=True)
+class FileComparison:
+    """A trace compared with a reference file: the verdict per variable, the tolerance files
+    that applied (by place, or the one given) and the reference as read."""
+
+    comparison: ComparisonResult
+    tolerance_files: list[Path]
+    reference: Trace
+
+
+def compare_with_file(
+    result: Trace, reference_path: Path | str, tolerance_path: Path | str | None = None, result_label: str = "result"
+) -> FileComparison:
+    """Compare `result` with the reference trace file `reference_path` as `toggle-cosim compare`
+    does: its tolerance files by place (or `tolerance_path`), and for a `<name>_ref.csv` with its
+    `<name>_ref.opt` beside it, the span check of both traces. Raises CompareInputError."""
+    reference_path = Path(reference_path)
+    reference = read_any_trace(reference_path)
+    options = _reference_options(reference, reference_path)
+    return _compared(reference, options, result, reference_path, tolerance_path, result_label)
+
+
+def _reference_options(reference: Trace, reference_path: Path) -> dict[str, float | str] | None:
+    """The options file of a `<name>_ref.csv` (None for another trace), the reference's span checked against it."""
+    _, opt_path = reference_paths(reference_path)
+    if not (reference_path.name.endswith("_ref.csv") and opt_path.exists()):
+        return None
+    options = read_options(opt_path)
+    check_span(reference, options, str(reference_path), opt_path)
+    return options
+
+
+def _compared(
+    reference: Trace,
+    options: dict[str, float | str] | None,
+    result: Trace,
+    reference_path: Path,
+    tolerance_path: Path | str | None,
+    result_label: str,
+) -> FileComparison:
+    default, tolerances, files = tolerances_for_reference(reference_path, tolerance_path)
+    if options is not None:
+        span = float(options["StopTime"]) - float(options["StartTime"])
+        slack = min(tolerances.get(name, default).ttol for name in reference.names[1:]) * span
+        check_span(result, options, result_label, reference_paths(reference_path)[1], slack)
+    comparison = compare_traces(
+        result,
+        reference,
+        tolerances,
+        default,
+        result_label=result_label,
+        reference_label=str(reference_path),
+        tolerances_label=str(files[-1]) if files else "tolerances",
+    )
+    return FileComparison(comparison, files, reference)
+
+
+def solver_check(reference_path: Path | str, current: dict[str, int] | str | None) -> SolverCheck | None:
+    """The solver statistics stored beside a reference against a result's (`current`, from its
+    run record); None when neither has any."""
+    stored = read_statistics_file(statistics_path(Path(reference_path)))
+    if stored is not None or isinstance(current, dict):
+        return compare_solver_statistics(stored, current)
+    return None
+
+
 def run_compare(
     result_path: Path | str,
     reference_path: Path | str,
@@ -86,31 +154,11 @@ def run_compare(
         _check_output(None if junit is None else Path(junit), "JUnit report")
         _check_output(None if summary is None else Path(summary), "Markdown summary")
         reference = read_any_trace(reference_path)
-        _, opt_path = reference_paths(reference_path)
-        options = None
-        if reference_path.name.endswith("_ref.csv") and opt_path.exists():
-            options = read_options(opt_path)
-            check_span(reference, options, str(reference_path), opt_path)
+        options = _reference_options(reference, reference_path)
         result = read_any_trace(result_path)
-        default, tolerances, files = tolerances_for_reference(reference_path, tolerance_path)
-        if options is not None:
-            span = float(options["StopTime"]) - float(options["StartTime"])
-            slack = min(tolerances.get(name, default).ttol for name in reference.names[1:]) * span
-            check_span(result, options, str(result_path), opt_path, slack)
-        comparison = compare_traces(
-            result,
-            reference,
-            tolerances,
-            default,
-            result_label=str(result_path),
-            reference_label=str(reference_path),
-            tolerances_label=str(files[-1]) if files else "tolerances",
-        )
-        stored = read_statistics_file(statistics_path(reference_path))
-        current = _result_statistics(result_path)
-        solver: SolverCheck | None = None
-        if stored is not None or isinstance(current, dict):
-            solver = compare_solver_statistics(stored, current)
+        checked = _compared(reference, options, result, reference_path, tolerance_path, str(result_path))
+        comparison, files = checked.comparison, checked.tolerance_files
+        solver = solver_check(reference_path, _result_statistics(result_path))
     except (CompareInputError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -10,20 +10,18 @@ from pathlib import Path
 import click
 
 from toggle_cosim import __version__, interrupts
+from toggle_cosim.experiments.shipped import (  # noqa: F401 - the commands' defaults, imported from here
+    DEFAULT_BUILDS,
+    DEFAULT_FMU,
+    DEFAULT_MODEL,
+    DEFAULT_REFERENCES,
+    DEFAULT_SOURCE,
+    PAPER_SCENARIOS,
+    SHIPPED_SCENARIOS,
+)
 from toggle_cosim.files.outputs import OutputError, check_destination
 
-DEFAULT_SOURCE = Path("modelica/ToggleLSM")
-DEFAULT_MODEL = "ToggleLSM.Plant"
-DEFAULT_FMU = Path("fmus/ToggleLSM.fmu")
 DEFAULT_OUT = Path("out")
-DEFAULT_REFERENCES = Path("scenarios/references")
-PAPER_SCENARIOS = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
-# What `toggle-cosim build` writes when no --model is given: every shipped plant.
-DEFAULT_BUILDS = (
-    (DEFAULT_MODEL, DEFAULT_FMU),
-    ("ToggleLSM.PlantNoGravity", Path("fmus/ToggleLSM_NoGravity.fmu")),
-)
-SHIPPED_SCENARIOS = (*PAPER_SCENARIOS, "swap_no_gravity", "integral_load", "friction_models")
 
 
 class InputError(click.ClickException):

@@ -370,8 +370,9 @@ def runs_from_document(document: Any, source: Path | None = None) -> list[Run]:
     return [_build_run(merge_documents(base, override), name, source) for name, override in variants.items()]
 
 
-def load_scenario(path: Path) -> list[Run]:
-    """Read and validate a scenario file (`yaml_loader`). Raises ScenarioError with 'FILE: problem'."""
+def read_scenario(path: Path) -> tuple[Any, list[Run]]:
+    """A scenario file's parsed document and its runs (`yaml_loader`, then `runs_from_document`).
+    Raises ScenarioError with 'FILE: problem'."""
     from toggle_cosim.files.yaml_loader import YamlError, load_yaml
 
     path = Path(path)
@@ -382,6 +383,11 @@ def load_scenario(path: Path) -> list[Run]:
     if document is None:
         raise ScenarioError(f"{path}: the file is empty (a scenario needs name, t_end, T_s and stroke)")
     try:
-        return runs_from_document(document, path)
+        return document, runs_from_document(document, path)
     except ScenarioError as error:
         raise ScenarioError(f"{path}: {error}") from error
+
+
+def load_scenario(path: Path) -> list[Run]:
+    """Read and validate a scenario file: its runs. Raises ScenarioError with 'FILE: problem'."""
+    return read_scenario(path)[1]

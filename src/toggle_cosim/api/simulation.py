@@ -1,0 +1,138 @@
+"""`simulate`: one run of a scenario against a plant FMU, from Python, with the command line's
+checks and its crash guard.
+
+    result = tc.simulate(tc.load_scenario("scenarios/fig4_nominal.yaml")["friction"], "fmus/ToggleLSM.fmu")
+
+Supervised (the default), the run happens in a forked child process, as every run of
+`toggle-cosim run` does (`cosim.supervision`): a plant that crashes (segfault, abort), hangs past
+the time limit or allocates without end fails the run, with the reason, and the Python process
+(a notebook's kernel) goes on. `supervised=False` runs it in this process: no fork, no time limit
+and no crash guard. Both give the same trace, bit for bit.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from toggle_cosim.api.result import Result, RunInterrupted
+from toggle_cosim.api.scenarios import Scenario
+from toggle_cosim.api.units import trace_units
+from toggle_cosim.cosim import master
+from toggle_cosim.cosim.outcome import RunOutcome
+from toggle_cosim.experiments.scenario import ScenarioError
+from toggle_cosim.plant.contract import ContractError, PlantInterface, check_plant
+from toggle_cosim.runs.definition import Run
+
+__all__ = ["checked_plant", "simulate"]
+
+_checked: dict[tuple[Path, int, int], PlantInterface] = {}  # (path, size, mtime) -> the checked plant
+
+
+def checked_plant(fmu: str | Path) -> PlantInterface:
+    """The plant FMU checked against the interface contract and its binary probed (in a forked
+    child), as `toggle-cosim run` does before any run; kept while the file is unchanged.
+    Raises ContractError with one line naming the file and the problem."""
+    from toggle_cosim.plant.probe import ProbeError, probe_binary
+
+    path = Path(fmu).resolve()
+    try:
+        status = path.stat()
+    except OSError:
+        status = None
+    key = (path, status.st_size, status.st_mtime_ns) if status is not None else None
+    if key is not None and key in _checked:
+        return _checked[key]
+    plant = check_plant(path)
+    try:
+        probe_binary(plant)
+    except ProbeError as error:
+        raise ContractError(str(error)) from None
+    if key is not None:
+        _checked[key] = plant
+    return plant
+
+
+def _one_run(run: Run | Scenario) -> Run:
+    if isinstance(run, Scenario):
+        return run.run  # a ValueError naming the variants when there are several
+    if not isinstance(run, Run):
+        raise TypeError(f"simulate needs a Run (a scenario's variant: scenario[name]), not {type(run).__name__}")
+    return run
+
+
+def _checks(run: Run, plant: PlantInterface) -> None:
+    """What the command line checks before a run starts: the settings against the plant's
+    variables and the size of the trace buffer (ScenarioError, one line)."""
+    from toggle_cosim.experiments.resources import ResourceError, check_runs
+    from toggle_cosim.plant.settings import SettingError, check_settings
+
+    try:
+        check_settings(run, plant)
+        check_runs([(run, plant)], None)
+    except SettingError as error:
+        raise ScenarioError(f"{run.source or run.label}: {error}") from None
+    except ResourceError as error:
+        raise ScenarioError(f"{run.source or run.label}: {error.message}") from None
+
+
+def _outcome(
+    run: Run,
+    plant: PlantInterface,
+    supervised: bool,
+    time_limit: float | None,
+    progress: Callable[[float], None] | None,
+) -> RunOutcome:
+    """The one place a run starts, supervised or in this process."""
+    if not supervised:
+        return master.simulate(run, plant, progress)
+    from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
+
+    remove_stale_folders()
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, capture_log=True)
+
+
+def simulate(
+    run: Run | Scenario,
+    fmu: str | Path | None = None,
+    *,
+    supervised: bool = True,
+    time_limit: float | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> Result:
+    """Simulate one run (one variant of a scenario: `scenario["friction"]`; a scenario with one
+    run may be given itself) against the plant FMU `fmu` (default: the scenario's `fmu:` key).
+
+    The master samples the plant every T_s, runs the paper's two-phase VSC (eqs. (19)-(25)) on
+    the measured x_B, v_B and holds i_q* until the next sample, as `toggle-cosim run` does.
+
+    Args:
+        supervised: run in a forked child (default): a plant crash or hang fails the run, not
+            this process. False: in this process, without a time limit.
+        time_limit: wall-clock limit of a supervised run in s (default: the scenario's
+            time_limit key, else max(30 s, 20 x t_end)).
+        progress: called with the fraction of the run done, every 1 %.
+
+    Returns:
+        The `Result`, complete or failed (a plant failure is a result, not an exception).
+
+    Raises:
+        ScenarioError: a setting the plant cannot take, or a run too large to record.
+        ContractError: the FMU is missing or does not meet the plant's interface contract.
+        RunInterrupted: an interrupt (Ctrl-C, the notebook's stop button) stopped the run; the
+            partial result is its `.result`.
+    """
+    run = _one_run(run)
+    chosen = fmu if fmu is not None else run.fmu
+    if chosen is None:
+        raise ScenarioError(f"{run.source or run.label}: no fmu: key and no fmu argument (name the plant FMU)")
+    if time_limit is not None and not time_limit > 0:
+        raise ValueError(f"time_limit: give a positive number of seconds, not {time_limit!r}")
+    plant = checked_plant(os.fspath(chosen))
+    _checks(run, plant)
+    outcome = _outcome(run, plant, supervised, time_limit, progress)
+    result = Result.from_outcome(outcome, trace_units(outcome.trace.names, plant, run.controller.objective))
+    if outcome.interrupted:
+        raise RunInterrupted(result)
+    return result

@@ -1,0 +1,30 @@
+"""What the project ships and where it lies in the project folder: the plant's Modelica source
+and the FMUs built from it, the scenario files and their stored references. The command line's
+defaults (`cli.app`) and the Python API's look-ups (`api.project`) both read these."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+DEFAULT_SOURCE = Path("modelica/ToggleLSM")
+DEFAULT_MODEL = "ToggleLSM.Plant"
+DEFAULT_FMU = Path("fmus/ToggleLSM.fmu")
+# What `toggle-cosim build` writes when no --model is given: every shipped plant.
+DEFAULT_BUILDS = (
+    (DEFAULT_MODEL, DEFAULT_FMU),
+    ("ToggleLSM.PlantNoGravity", Path("fmus/ToggleLSM_NoGravity.fmu")),
+)
+SCENARIOS = Path("scenarios")
+DEFAULT_REFERENCES = SCENARIOS / "references"
+PAPER_SCENARIOS = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
+SHIPPED_SCENARIOS = (*PAPER_SCENARIOS, "swap_no_gravity", "integral_load", "friction_models")
+
+
+def project_folder(start: Path | None = None) -> Path | None:
+    """The nearest folder from `start` (default: the current folder) upward that holds the
+    project's scenarios and Modelica source; None when there is none."""
+    here = (Path(start) if start is not None else Path.cwd()).resolve()
+    for folder in (here, *here.parents):
+        if (folder / SCENARIOS).is_dir() and (folder / DEFAULT_SOURCE).is_dir():
+            return folder
+    return None
