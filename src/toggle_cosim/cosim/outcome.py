@@ -99,10 +99,12 @@ def run_record(
     retries: list | None = None,
     loop: dict[str, Any] | None = None,
     solver_statistics: dict[str, int] | str | None = None,
+    controller: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """What run.json says about a run: status is "complete", "failed" or "interrupted"; `loop` says
     which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
-    when the supervised child died before reporting them)."""
+    when the supervised child died before reporting them), `controller` which controller ran
+    (`controllers.controller_record`; None: not known, e.g. it could not be built)."""
     return {
         "scenario": run.scenario,
         "variant": run.variant,
@@ -120,6 +122,7 @@ def run_record(
         "reason": reason,
         "samples": rows,
         "retries": retries or [],
+        "controller": controller,
         "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},
         "wall_time_s": wall,
         "loop_time_s": loop_seconds,

@@ -3,11 +3,14 @@
 `plant.parameters` names must be variables of the FMU that can be set before initialisation
 (causality parameter, variability fixed or tunable), with a value of their type (a number for a
 Real/Float64, true/false for a Boolean); `current_loop: ideal` needs the parameter
-idealCurrentLoop. Each failure is one `SettingError` line naming the key and the variable.
+idealCurrentLoop; the built-in controller's objective needs the outputs it reads (x_B and v_B,
+or theta1 and omega1: `control.controller.MEASURED`). Each failure is one `SettingError` line
+naming the key and the variable.
 """
 
 from __future__ import annotations
 
+from toggle_cosim.control.controller import MEASURED
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import Run
@@ -23,6 +26,13 @@ def check_settings(run: Run, plant: PlantInterface) -> None:
         friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, plant.references, plant.path)
     except ValueError as error:
         raise SettingError(str(error)) from None
+    objective = run.controller.objective
+    missing = [name for name in MEASURED[objective] if name not in plant.recorded_outputs]
+    if run.controller.python is None and missing:
+        raise SettingError(
+            f"key controller.objective: {objective} reads the plant outputs {' and '.join(MEASURED[objective])};"
+            f" the plant FMU {plant.path} has no output {missing[0]} (add it to the plant, or use objective: x_B)"
+        )
     if run.plant.current_loop == "ideal" and "idealCurrentLoop" not in variables:
         raise SettingError(
             f"key plant.current_loop: the plant FMU {plant.path} has no parameter idealCurrentLoop, "
