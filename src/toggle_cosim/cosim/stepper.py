@@ -64,7 +64,7 @@ def compiled_law(controller: object, state: object) -> LawParameters | str:
     of another class with the same methods, runs in Python at every sample), with the built-in
     diagnostics and a state `VSCController.start` made."""
     kind = type(controller)
-    for method in ("start", "step"):
+    for method in ("step", "start"):
         own = getattr(kind, method, None)
         if own is not getattr(VSCController, method) or method in getattr(controller, "__dict__", {}):
             return (

@@ -94,6 +94,7 @@ _CONTROLLER = {
         "parameters": {
             "type": "object",
             "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\Z"},
+            "additionalProperties": {"description": "any value the factory takes (a sweep axis may set one)"},
             "description": "keyword arguments of the controller.python factory",
         },
         "error": {
