@@ -324,3 +324,21 @@ def test_live_controllers_passed_to_simulate(plant_fmu: Path, supervised: bool) 
         step = controller.step(state, k * run.T_s, measurement)
         state = step.state
         assert u[k] == (10.0 if k == 0 else step.command), k
+
+
+def test_a_factory_parameter_is_a_sweep_axis(tmp_path: Path) -> None:
+    """controller.parameters.<name> can be swept: one case per value, each case's document
+    (what its worker builds the run from) carrying it, and the base scenario as its source."""
+    from toggle_cosim.experiments.sweep import load_sweep
+
+    base = _short_example(tmp_path)
+    sweep = {"base": base.name, "variant": "pd", "axes": {"controller.parameters.Kp": {"values": [8.0, 16.0]}}}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    cases = load_sweep(tmp_path / "sweep.yaml").cases
+    assert [case.document["controller"]["parameters"] for case in cases] == [
+        {"Kp": 8.0, "Kd": 2.5},
+        {"Kp": 16.0, "Kd": 2.5},
+    ]
+    assert all(Path(case.payload()["source"]) == base for case in cases)
+    (run,) = runs_from_document(cases[1].document, base)
+    assert run.controller.python == "my_controllers:make_pd" and run.controller.parameters["Kp"] == 16.0

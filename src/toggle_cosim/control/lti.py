@@ -43,12 +43,12 @@ class DiscreteSystemController:
         import control  # present: the system is one of its objects
 
         dt = system.dt
-        if dt is None or dt is False or (not isinstance(dt, bool) and dt == 0):
+        if dt is None or dt is True:
+            raise ValueError(f"a system without a sample time (dt = {dt}); give dt = T_s = {T_s:g} s")
+        if dt is False or dt == 0:
             raise ValueError(
                 "a continuous-time system (dt = 0); discretise it with sample time T_s (system.sample(T_s)) or give dt = T_s"
             )
-        if dt is True:
-            raise ValueError(f"a discrete-time system without a sample time (dt = True); give dt = T_s = {T_s:g} s")
         if not math.isclose(float(dt), T_s, rel_tol=1e-9, abs_tol=0.0):
             raise ValueError(f"a system with dt = {dt:g} s, not the run's T_s = {T_s:g} s (give dt = T_s)")
         if system.ninputs != 1 or system.noutputs != 1:
