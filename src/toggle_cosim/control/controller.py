@@ -272,7 +272,8 @@ class VSCController:
         Returns:
             the command, the diagnostics (S, phase, e) and the state at the next sample.
         """
-        q, qd = (float(measurement[name]) for name in self.measured)
+        coordinate, rate = self.measured
+        q, qd = float(measurement[coordinate]), float(measurement[rate])
         law = state.law if state.law is not None else self.law_parameters(state.t0, state.T_h)
         u, S, phase, e, z_next = law_step(t, q, qd, state.z, law)
         following = state if z_next == state.z else replace(state, z=z_next)

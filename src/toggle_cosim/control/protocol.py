@@ -179,11 +179,11 @@ def checked_command(result: object, diagnostics: int, t: float) -> tuple[float, 
             " (return ControlStep(command, diagnostics, state))"
         )
     u = result.command
-    if isinstance(u, bool) or not isinstance(u, numbers.Real) or not math.isfinite(u):
+    if type(u) is not float and (isinstance(u, bool) or not isinstance(u, numbers.Real)) or not math.isfinite(u):
         raise ControllerError(f"the controller's command at t = {t:.6g} s is {u!r}, not a finite float (i_q* in A)")
     values = result.diagnostics
     try:
-        values = tuple(float(value) for value in values)
+        values = tuple(map(float, values))
     except (TypeError, ValueError):
         raise ControllerError(
             f"the controller's diagnostics at t = {t:.6g} s are {values!r}, not a tuple of floats"
