@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,7 @@ from fault_plants import fault_environment, make_faulty_fmu
 import toggle_cosim as tc
 from toggle_cosim.analysis.compare_command import run_compare
 from toggle_cosim.cli import main
+from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.files.traces import read_csv
 from toggle_cosim.plant.contract import CONTRACT, check_plant
 
@@ -306,3 +308,39 @@ def test_sweep_returns_the_rows_the_runs_give(plant_fmu: Path, tmp_path: Path) -
         assert (row["final_error_m"], row["peak_iq_ref_A"]) == (summary.final_error_m, summary.peak_iq_ref_A)
     with pytest.raises(tc.SweepError, match=r"^\S*nope.yaml: no such sweep file$"):
         tc.sweep(tmp_path / "nope.yaml")
+
+
+class _Proportional:
+    """A user's controller meeting the protocol: i_q* = K (x* − x_B), its error recorded."""
+
+    diagnostics = ("err",)
+
+    def __init__(self, gain: float, target: float) -> None:
+        self.gain, self.target = gain, target
+
+    def start(self, t0: float, measurement: object) -> None:
+        return None
+
+    def step(self, state: None, t: float, measurement: Mapping[str, float]) -> ControlStep:
+        error = self.target - measurement["x_B"]
+        return ControlStep(self.gain * error, (error,), state)
+
+
+@pytest.mark.parametrize("supervised", [False, True], ids=["in-process", "supervised"])
+def test_a_user_s_controller_object_gives_its_command_at_every_sample(plant_fmu: Path, supervised: bool) -> None:
+    """simulate(controller=...) runs the user's law at every sample (never the compiled built-in
+    law), the trace carries its own diagnostic, and run.json says the Python loop ran."""
+    run = tc.load_scenario(FIG4).updated({"t_end": 0.05})["friction"]
+    result = tc.simulate(run, plant_fmu, supervised=supervised, controller=_Proportional(20.0, run.x_target))
+    frame = result.to_dataframe()
+    assert result.status == "complete" and "err" in frame.columns and "S" not in frame.columns
+    np.testing.assert_array_equal(frame["err"].to_numpy(), run.x_target - frame["x_B"].to_numpy())
+    np.testing.assert_array_equal(frame["iq_ref"].to_numpy(), 20.0 * frame["err"].to_numpy())
+    assert result.record["loop"]["kind"] == "python"
+
+
+def test_an_object_that_is_not_a_controller_is_refused_in_one_line(plant_fmu: Path) -> None:
+    run = tc.load_scenario(FIG4).updated({"t_end": 0.05})["friction"]
+    with pytest.raises(tc.ScenarioError, match=r"^controller: .*has no start\(\) method") as caught:
+        tc.simulate(run, plant_fmu, supervised=False, controller=object())
+    assert "\n" not in str(caught.value)

@@ -54,7 +54,7 @@ def test_compiled_and_python_loops_agree_bit_for_bit(
     python = simulate(run, plant)
     assert compiled.record["loop"]["kind"] == "compiled", compiled.record["loop"]
     assert python.record["loop"] == {"kind": "python", "reason": "disabled by TOGGLE_COSIM_KERNEL=0"}
-    # the θ1 case with friction stops at the plant's Zeno guard (t = 1.22 s): both loops alike
+    # the θ1 case with friction stops at the plant's Zeno guard (t = 1.0845 s): both loops alike
     assert (compiled.complete, compiled.reason) == (python.complete, python.reason)
     assert compiled.trace.names == python.trace.names
     for j, name in enumerate(compiled.trace.names):
@@ -80,8 +80,10 @@ def _law(law: float, objective: float) -> LawParameters:
 @pytest.mark.parametrize("objective", [0.0, 1.0], ids=["x_B", "theta1"])
 def test_generated_law_matches_the_python_at_every_sample_point(law: float, objective: float) -> None:
     """kernel_control (the generated C) against laws.law_step at states across and beyond the
-    stroke, both phases, moving both ways, with the integrator positive and negative: the same
-    bits where the Python returns finite values, a hand-back (None) where it raises."""
+    stroke (x_B beyond the reach at both ends; θ1 over a turn and a half, past the folded
+    position at −180°), both phases, moving both ways, with the integrator positive and
+    negative, and at non-finite measurements: the same bits where the Python returns finite
+    values, a hand-back (None) where it raises or returns a non-finite value."""
     library = compiled_loop.kernel_library()
     if library is None:
         pytest.skip(f"no compiled loop: {compiled_loop.kernel_reason()}")
@@ -92,24 +94,28 @@ def test_generated_law_matches_the_python_at_every_sample_point(law: float, obje
         setattr(k.law, name, getattr(p, name))
     loop._library, loop._state, loop._pointer = library, k, __import__("ctypes").pointer(k)
     loop._out = (__import__("ctypes").c_double * 5)()
+    if objective == 0.0:  # the measured (q, q̇): (x_B [m], v_B [m/s]) or (θ1 [rad], ω1 [rad/s])
+        coordinates, rates = np.linspace(0.05, 0.40, 36), (-0.9, -0.2, 0.0, 0.3, 1.1)
+    else:
+        coordinates, rates = np.linspace(-2.0 * math.pi, math.pi, 36), (-9.0, -2.0, 0.0, 3.0, 11.0)
     checked = deferred = 0
-    for x_B in np.linspace(0.05, 0.40, 36):  # beyond the reach at both ends
-        for v_B in (-0.9, -0.2, 0.0, 0.3, 1.1):
+    for q in [*coordinates, math.nan, math.inf]:
+        for qd in rates:
             for t in (0.0, 0.05, 1.0):
                 for z in (-0.02, 0.0, 0.01):
                     try:
-                        expected = laws.law_step(t, float(x_B), v_B, z, p)
+                        expected = laws.law_step(t, float(q), qd, z, p)
                         if not all(math.isfinite(v) for v in expected):
                             expected = None
                     except (ArithmeticError, ValueError):
                         expected = None
-                    got = loop.control(t, float(x_B), v_B, z)
+                    got = loop.control(t, float(q), qd, z)
                     if expected is None:
-                        assert got is None, (x_B, v_B, t, z)
+                        assert got is None, (q, qd, t, z)
                         deferred += 1
                     else:
-                        assert got is not None, (x_B, v_B, t, z)
-                        assert _bits(np.array(got)).tolist() == _bits(np.array(expected)).tolist(), (x_B, v_B, t, z)
+                        assert got is not None, (q, qd, t, z)
+                        assert _bits(np.array(got)).tolist() == _bits(np.array(expected)).tolist(), (q, qd, t, z)
                         checked += 1
     assert checked > 500 and deferred > 0  # both kinds of sample were exercised
 

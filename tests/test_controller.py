@@ -27,6 +27,11 @@ NOMINAL = MechanismParameters(mu=0.0)
 GAINS = ControllerGains()
 
 
+def at(x_B: float, v_B: float = 0.0) -> dict[str, float]:
+    """A measurement of the slider alone (what the x_B objective reads)."""
+    return {"x_B": x_B, "v_B": v_B}
+
+
 @dataclass
 class Run:
     state: ControllerState
@@ -40,7 +45,7 @@ class Run:
 
 
 def simulate(ctrl: VSCController, plant: MechanismParameters, T: float, F_E: float = 0.0) -> Run:
-    """Discrete loop: sample (x_B, v_B) at t_k = k T_s, u_k = controller, hold u_k on [t_k, t_k+1)
+    """Discrete loop: sample (x_B, v_B, θ1, ω1) at t_k = k T_s, u_k = controller, hold u_k on [t_k, t_k+1)
     while solve_ivp integrates the plant's reduced state (θ1, ω1) (θ2, θ5 and their rates from the
     constraints, θ̈1 from the full eq. (18))."""
 
@@ -58,9 +63,11 @@ def simulate(ctrl: VSCController, plant: MechanismParameters, T: float, F_E: flo
         t = k * TS
         q, qd = state_from_theta1(y[0], y[1], plant)
         x_B, v_B, _ = slider_B(q, qd, np.zeros(3), plant)
+        measured = {"x_B": x_B, "v_B": v_B, "theta1": y[0], "omega1": y[1]}
         if state is None:
-            state = ctrl.start(t, (x_B, v_B))
-        u, out = ctrl.step(state, t, x_B, v_B)
+            state = ctrl.start(t, measured)
+        out = ctrl.step(state, t, measured)
+        u = out.command
         qdd, _ = dynamics(q, qd, K_F * u, F_E, plant)
         a_B = slider_B(q, qd, qdd, plant)[2]
         rows.append((t, x_B, v_B, a_B, u, out.S, out.phase == "reaching"))
@@ -101,24 +108,25 @@ def reaching_tolerance(S0: float, max_abs_aB: float) -> float:
 def test_initial_switching_function_and_hitting_time() -> None:
     """S(t0) = C (x* − x_B0) = 5 × 0.087 = 0.435 m/s and T_h = ln(P S0/Q + 1)/P = 0.0373 s, eq. (21)."""
     ctrl = VSCController(gains=GAINS, nominal=NOMINAL, K_f=K_F, target=X_END)
-    st = ctrl.start(0.0, (X_START, 0.0))
+    st = ctrl.start(0.0, at(X_START))
     assert st.S0 == pytest.approx(0.435, abs=1e-12)
     assert st.T_h == pytest.approx(0.0373, abs=1e-4)
     assert st.T_h == pytest.approx(math.log(50 * 0.435 / 4 + 1) / 50, rel=1e-14)
     # T_h is measured from t0
-    assert ctrl.start(2.0, (X_START, 0.0)).T_h == st.T_h
-    assert ctrl.phase(ctrl.start(2.0, (X_START, 0.0)), 2.0 + 0.037) == "reaching"
-    assert ctrl.phase(ctrl.start(2.0, (X_START, 0.0)), 2.0 + 0.0373) == "sliding"
+    assert ctrl.start(2.0, at(X_START)).T_h == st.T_h
+    assert ctrl.phase(ctrl.start(2.0, at(X_START)), 2.0 + 0.037) == "reaching"
+    assert ctrl.phase(ctrl.start(2.0, at(X_START)), 2.0 + 0.0373) == "sliding"
     assert hitting_time(-st.S0, GAINS) == st.T_h  # |S(t0)|
 
 
 def test_control_laws_eq23_eq24() -> None:
     """u_r and u_s are eqs. (23) and (24) with d = 0 and the nominal f, G."""
     ctrl = VSCController(gains=GAINS, nominal=NOMINAL, K_f=K_F, target=X_END)
-    st = ctrl.start(0.0, (X_START, 0.0))
+    st = ctrl.start(0.0, at(X_START))
     x_B, v_B = 0.25, 0.2
-    u_r, o_r = ctrl.step(st, 0.01, x_B, v_B)
-    u_s, o_s = ctrl.step(st, 0.05, x_B, v_B)
+    o_r = ctrl.step(st, 0.01, at(x_B, v_B))
+    o_s = ctrl.step(st, 0.05, at(x_B, v_B))
+    u_r, u_s = o_r.command, o_s.command
     e, ed = X_END - x_B, -v_B
     S = 5 * e + ed
     assert (o_r.phase, o_s.phase) == ("reaching", "sliding")
@@ -131,8 +139,8 @@ def test_controller_ignores_nominal_friction() -> None:
     """The nominal model has no friction: the controller's output does not depend on nominal.mu."""
     a = VSCController(nominal=MechanismParameters(mu=0.0), K_f=K_F)
     b = VSCController(nominal=MechanismParameters(mu=0.2), K_f=K_F)
-    st = a.start(0.0, (X_START, 0.0))
-    assert a.step(st, 0.1, 0.27, 0.3)[0] == b.step(st, 0.1, 0.27, 0.3)[0]
+    st = a.start(0.0, at(X_START))
+    assert a.step(st, 0.1, at(0.27, 0.3)).command == b.step(st, 0.1, at(0.27, 0.3)).command
 
 
 def test_invalid_controller_configuration() -> None:

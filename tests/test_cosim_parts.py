@@ -11,14 +11,14 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.controller import ControllerGains, VSCController
 from toggle_cosim.cosim import compiled_loop
-from toggle_cosim.cosim.recorder import CONTROL_COLUMNS, ProgressHook, Recorder
+from toggle_cosim.cosim.recorder import ProgressHook, Recorder
 from toggle_cosim.cosim.retry import RETRY_SUBSTEPS, CheckpointPolicy, RetryFailed
 from toggle_cosim.cosim.session import FunctionNames
 from toggle_cosim.cosim.stepper import CompiledStepper, HandOver, LoopState, PythonStepper, StepFailed, Timing
 from toggle_cosim.physics.parameters import MechanismParameters
 
 T_S, N, F_E = 0.001, 30, 5.0
-NAMES = ("time", "x_B", "v_B", *CONTROL_COLUMNS)
+NAMES = ("time", "x_B", "v_B", "iq_ref", "F_E", *VSCController.diagnostics)
 
 
 class MockSession:
@@ -179,10 +179,10 @@ class FakeCompiledLoop:
         if k <= self.back_at < k_end:
             self.python.advance(k, self.back_at)
             self.python.session.read_outputs(self.python.recorder.outputs(self.back_at))
-            self.z = self.python.state.z
+            self.z = self.python.state.controller.z
             return compiled_loop.HAND_BACK, self.back_at
         self.python.advance(k, k_end)
-        self.z = self.python.state.z
+        self.z = self.python.state.controller.z
         return compiled_loop.DONE, k_end
 
 

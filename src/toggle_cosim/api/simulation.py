@@ -19,6 +19,7 @@ from pathlib import Path
 from toggle_cosim.api.result import Result, RunInterrupted
 from toggle_cosim.api.scenarios import Scenario
 from toggle_cosim.api.units import trace_units
+from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.experiments.scenario import ScenarioError
@@ -83,14 +84,17 @@ def _outcome(
     supervised: bool,
     time_limit: float | None,
     progress: Callable[[float], None] | None,
+    controller: Controller | None = None,
 ) -> RunOutcome:
     """The one place a run starts, supervised or in this process."""
     if not supervised:
-        return master.simulate(run, plant, progress)
+        return master.simulate(run, plant, progress, controller=controller)
     from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
 
     remove_stale_folders()
-    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, capture_log=True)
+    return simulate_supervised(
+        run, plant, time_limit=time_limit, progress=progress, capture_log=True, controller=controller
+    )
 
 
 def simulate(
@@ -100,6 +104,7 @@ def simulate(
     supervised: bool = True,
     time_limit: float | None = None,
     progress: Callable[[float], None] | None = None,
+    controller: Controller | None = None,
 ) -> Result:
     """Simulate one run (one variant of a scenario: `scenario["friction"]`; a scenario with one
     run may be given itself) against the plant FMU `fmu` (default: the scenario's `fmu:` key).
@@ -113,6 +118,9 @@ def simulate(
         time_limit: wall-clock limit of a supervised run in s (default: the scenario's
             time_limit key, else max(30 s, 20 x t_end)).
         progress: called with the fraction of the run done, every 1 %.
+        controller: any object that meets the controller protocol (`toggle_cosim.control.protocol`:
+            start, step, diagnostics) instead of the scenario's controller; it runs in the Python
+            loop at every sample (docs/controllers.md).
 
     Returns:
         The `Result`, complete or failed (a plant failure is a result, not an exception).
@@ -131,7 +139,12 @@ def simulate(
         raise ValueError(f"time_limit: give a positive number of seconds, not {time_limit!r}")
     plant = checked_plant(os.fspath(chosen))
     _checks(run, plant)
-    outcome = _outcome(run, plant, supervised, time_limit, progress)
+    if controller is not None:
+        try:
+            check_controller(controller, plant.recorded_outputs)
+        except ControllerError as error:
+            raise ScenarioError(f"controller: {error}") from None
+    outcome = _outcome(run, plant, supervised, time_limit, progress, controller)
     result = Result.from_outcome(outcome, trace_units(outcome.trace.names, plant, run.controller.objective))
     if outcome.interrupted:
         raise RunInterrupted(result)

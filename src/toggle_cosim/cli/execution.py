@@ -42,12 +42,15 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
             for note in plants[chosen].contract_notes():  # absent optional outputs, missing units
                 click.echo(note, err=True)
     pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+    from toggle_cosim.control.protocol import ControllerError
+    from toggle_cosim.cosim.controllers import controller_for
     from toggle_cosim.plant.settings import SettingError, check_settings
 
-    for run, plant in pairs:  # every name and value the run sets, before any run starts
+    for run, plant in pairs:  # every name and value the run sets, and its controller, before any run starts
         try:
             check_settings(run, plant)
-        except SettingError as error:
+            controller_for(run, plant.recorded_outputs)
+        except (SettingError, ControllerError) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
     return pairs
 
@@ -139,8 +142,8 @@ def execute_runs(pairs, out: Path, quiet: bool, time_limit: float | None = None,
             folder = _write_outcome(outcome, out)
             s = outcome.summary
             detail = (
-                f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A, "
-                f"T_h {s.hitting_time_s:.4f} s"
+                f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A"
+                + (f", T_h {s.hitting_time_s:.4f} s" if s.hitting_time_s is not None else "")
                 if s and s.final_error_m is not None
                 else "no summary"
             )

@@ -10,26 +10,29 @@ nominal masses, ideal current loop, d = 0); it never sees the true plant's param
 * Hitting time, eq. (21): T_h = (1/P) ln(P |S(t0)|/Q + 1), with S(t0) from the first sample.
 * u = r u_r + (1 − r) u_s, eq. (25).
 
-The controller is discrete: the co-simulation master calls :meth:`VSCController.step` at each
-sample with the measured (x_B, v_B) and holds u until the next sample. The law itself is
-`control.laws.law_step` (pure floats, the one definition the compiled loop is generated from);
-this class validates the settings and keeps what the law reads in a `LawParameters`.
+The controller is discrete and meets the controller protocol (`control.protocol`): the
+co-simulation master calls :meth:`VSCController.start` at the first sample and
+:meth:`VSCController.step` at each sample with the plant's outputs by name, and holds u until
+the next sample. The law itself is `control.laws.law_step` (pure floats, the one definition
+the compiled loop is generated from); this class validates the settings and keeps what the
+law reads in a `LawParameters`. Its diagnostics, recorded in the trace, are S, phase
+(0 reaching, 1 sliding) and e.
 
 Law "integral" (``law="integral"``): the integral-compensated variant, S = C e + ė + K_I ∫e dt,
 with the current clipped to ±i_max and conditional integration as anti-windup (README).
 
-Objectives: "x_B" (default; the paper's section 4: "regulate the position of slider B") and
-"theta1" (the lever angle, as eq. (26) hints): e = θ1* − θ1, with θ1, ω1 computed from the
-measured (x_B, v_B) by the nominal kinematics and θ1* from the slider target by eq. (26).
-In both cases ``target`` is the slider-B target position x_B* [m].
+Objectives: "x_B" (default; the paper's section 4: "regulate the position of slider B"), which
+reads the plant's x_B and v_B, and "theta1" (the lever angle, as eq. (26) hints), which reads
+the plant's theta1 and omega1 (an encoder on the lever): e = θ1* − θ1, with θ1* from the slider
+target by eq. (26). In both cases ``target`` is the slider-B target position x_B* [m].
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Literal
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import ClassVar, Literal
 
 from toggle_cosim.control.laws import error_terms, law_step
 from toggle_cosim.control.parameters import (
@@ -40,15 +43,17 @@ from toggle_cosim.control.parameters import (
     LawParameters,
     mechanism_terms,
 )
+from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters, MotorParameters
 
-__all__ = ["VSCController", "ControllerState", "ControlOutput", "hitting_time"]
+__all__ = ["VSCController", "ControllerState", "ControlOutput", "MEASURED", "hitting_time"]
 
 Objective = Literal["x_B", "theta1"]
 Law = Literal["paper", "integral"]
 Phase = Literal["reaching", "sliding"]
+MEASURED = {"x_B": ("x_B", "v_B"), "theta1": ("theta1", "omega1")}  # the plant outputs each objective reads
 
 
 def hitting_time(S0: float, gains: ControllerGains) -> float:
@@ -66,7 +71,8 @@ class ControllerState:
         S0: S(t0), the switching function at the first sample (m/s or rad/s).
         T_h: hitting time of eq. (21), measured from t0 [s].
         law: what `control.laws.law_step` reads (the settings, t0 and T_h).
-        z: the law's state, ∫e dt of the integral law (0 for the paper's law).
+        z: the law's state at the sample the state is given to, ∫e dt of the integral law
+            (0 for the paper's law).
     """
 
     t0: float
@@ -77,42 +83,64 @@ class ControllerState:
 
 
 @dataclass(frozen=True)
-class ControlOutput:
-    """Diagnostics of one controller sample.
+class ControlOutput(ControlStep):
+    """One sample of the VSC: the protocol's command, diagnostics (S, phase, e) and next state,
+    with what they were computed from.
 
     Attributes:
-        S: switching function S = C e + ė (integral law: C_I e + ė + K_I z).
-        phase: "reaching" (r = 1, eq. (23)) or "sliding" (r = 0, eq. (24)).
-        u: control input i_q* [A], eq. (25).
-        e: tracking error e = x* − x (m, or rad for the θ1 objective).
-        z: the law's state at the next sample (∫e dt for the integral law).
-        x_B, v_B, law: the sample's measurement and law parameters, from which the properties
-            edot, f and G are evaluated on demand (the master's loop never needs them).
+        command: control input u = i_q* [A], eq. (25).
+        diagnostics: (S, phase, e): S = C e + ė (integral law: C_I e + ė + K_I z), phase 0
+            reaching (r = 1, eq. (23)) or 1 sliding (r = 0, eq. (24)), e = q* − q (m, or rad for
+            the θ1 objective).
+        state: the controller's state at the next sample (z: ∫e dt of the integral law).
+        q, qd: the sample's measured coordinate and rate (x_B, v_B or θ1, ω1).
+        law: the law's parameters, from which edot, f and G are evaluated on demand (the
+            master's loop never needs them).
     """
 
-    S: float
-    phase: Phase
-    u: float
-    e: float
-    z: float
-    x_B: float
-    v_B: float
-    law: LawParameters = field(repr=False)
+    q: float = 0.0
+    qd: float = 0.0
+    law: LawParameters | None = field(default=None, repr=False)
+
+    @property
+    def u(self) -> float:
+        """i_q* [A]."""
+        return self.command
+
+    @property
+    def S(self) -> float:
+        """Switching function."""
+        return self.diagnostics[0]
+
+    @property
+    def phase(self) -> Phase:
+        """ "reaching" (r = 1, eq. (23)) or "sliding" (r = 0, eq. (24))."""
+        return "reaching" if self.diagnostics[1] == 0.0 else "sliding"
+
+    @property
+    def e(self) -> float:
+        """Tracking error e = q* − q."""
+        return self.diagnostics[2]
+
+    @property
+    def z(self) -> float:
+        """The law's state at the next sample."""
+        return self.state.z
 
     @property
     def edot(self) -> float:
-        """ė = −ẋ."""
-        return error_terms(self.x_B, self.v_B, self.law)[1]
+        """ė = −q̇."""
+        return error_terms(self.q, self.qd, self.law)[1]
 
     @property
     def f(self) -> float:
         """Drift of the nominal model (m/s² or rad/s²)."""
-        return error_terms(self.x_B, self.v_B, self.law)[2]
+        return error_terms(self.q, self.qd, self.law)[2]
 
     @property
     def G(self) -> float:
         """Input gain of the nominal model (m/s² per A or rad/s² per A)."""
-        return error_terms(self.x_B, self.v_B, self.law)[3]
+        return error_terms(self.q, self.qd, self.law)[3]
 
 
 @dataclass(frozen=True)
@@ -133,6 +161,8 @@ class VSCController:
         i_max: current limit of the integral law [A].
         T_s: sample time [s] (the integral law's integrator).
     """
+
+    diagnostics: ClassVar[tuple[str, ...]] = ("S", "phase", "e")
 
     gains: ControllerGains = field(default_factory=ControllerGains)
     nominal: MechanismParameters = field(default_factory=lambda: MechanismParameters(mu=0.0))
@@ -187,26 +217,38 @@ class VSCController:
             **mechanism_terms(p),
         )
 
-    def switching_function(self, x_B: float, v_B: float) -> float:
-        """S = C e + ė for the measured state (with ∫e dt = 0, as at the first sample)."""
-        e, edot, _, _ = error_terms(x_B, v_B, self.law_parameters())
+    @property
+    def measured(self) -> tuple[str, str]:
+        """The plant outputs the law reads: (x_B, v_B), or (theta1, omega1) for the θ1 objective."""
+        return MEASURED[self.objective]
+
+    def switching_function(self, q: float, qd: float) -> float:
+        """S = C e + ė for the measured coordinate and rate (with ∫e dt = 0, as at the first sample)."""
+        e, edot, _, _ = error_terms(q, qd, self.law_parameters())
         return self.gains.C * e + edot
 
-    def start(self, t0: float, measurement: Sequence[float]) -> ControllerState:
+    def start(self, t0: float, measurement: Mapping[str, float]) -> ControllerState:
         """Initialise at the first sample: S(t0) and the hitting time T_h of eq. (21).
 
         Args:
             t0: time of the first sample [s].
-            measurement: (x_B, v_B) measured at t0 [m, m/s].
+            measurement: the plant's outputs at t0 by name; the law reads `measured`
+                (x_B [m] and v_B [m/s], or theta1 [rad] and omega1 [rad/s]).
         """
-        x_B, v_B = float(measurement[0]), float(measurement[1])
-        S0 = self.switching_function(x_B, v_B)
+        missing = [name for name in self.measured if name not in measurement]
+        if missing:
+            raise ValueError(
+                f"the {self.objective} objective reads the plant outputs {' and '.join(self.measured)};"
+                f" the measurement has no {missing[0]}"
+            )
+        q, qd = (float(measurement[name]) for name in self.measured)
+        S0 = self.switching_function(q, qd)
         z0 = 0.0
         if self.law == "integral":
             # the integral surface S = C_I e + ė + K_I z starts at S(t0) = 0 when K_I > 0, with
             # z(t0) = −(C_I e0 + ė0)/K_I: eq. (21) gives T_h = 0, and the error follows
             # ë + C_I ė + K_I e = 0 from t0 (README, "An integral-compensated VSC")
-            e0, edot0, _, _ = error_terms(x_B, v_B, self.law_parameters())
+            e0, edot0, _, _ = error_terms(q, qd, self.law_parameters())
             S0 = self.C_I * e0 + edot0
             if self.K_I > 0:
                 z0 = -S0 / self.K_I
@@ -218,20 +260,21 @@ class VSCController:
         """r of eq. (25): "reaching" while t − t0 < T_h, "sliding" afterwards."""
         return "reaching" if t - state.t0 < state.T_h else "sliding"
 
-    def step(self, state: ControllerState, t: float, x_B: float, v_B: float) -> tuple[float, ControlOutput]:
+    def step(self, state: ControllerState, t: float, measurement: Mapping[str, float]) -> ControlOutput:
         """Control input u = i_q* [A] for the sample at time t, eqs. (23)-(25) with d = 0
         (`control.laws.law_step`).
 
         Args:
-            state: from :meth:`start` (for the integral law: with z of this sample).
+            state: from :meth:`start`, or the previous step's ``state``.
             t: sample time [s].
-            x_B, v_B: measured slider-B position [m] and velocity [m/s].
+            measurement: the plant's outputs at t by name (the law reads `measured`).
 
         Returns:
-            (u, diagnostics); diagnostics.z is the law's state for the next sample.
+            the command, the diagnostics (S, phase, e) and the state at the next sample.
         """
+        coordinate, rate = self.measured
+        q, qd = float(measurement[coordinate]), float(measurement[rate])
         law = state.law if state.law is not None else self.law_parameters(state.t0, state.T_h)
-        u, S, phase, e, z_next = law_step(t, x_B, v_B, state.z, law)
-        return u, ControlOutput(
-            S=S, phase="reaching" if phase == 0.0 else "sliding", u=u, e=e, z=z_next, x_B=x_B, v_B=v_B, law=law
-        )
+        u, S, phase, e, z_next = law_step(t, q, qd, state.z, law)
+        following = state if z_next == state.z else replace(state, z=z_next)
+        return ControlOutput(command=u, diagnostics=(S, phase, e), state=following, q=q, qd=qd, law=law)

@@ -16,22 +16,26 @@ from toggle_cosim.control.parameters import LawParameters
 __all__ = ["error_terms", "law_step"]
 
 
-def error_terms(x_B: float, v_B: float, p: LawParameters) -> tuple[float, float, float, float]:
-    """(e, ė, f, G) for the objective: e = x* − x, ė = −ẋ and the nominal plant ẍ = f + G u
-    (u = i_q*; eq. (18) with μ = 0, F_E = 0 and F_C = K_f u).
+def error_terms(q: float, qd: float, p: LawParameters) -> tuple[float, float, float, float]:
+    """(e, ė, f, G) for the objective, from its own measured coordinate q and rate qd:
+    e = q* − q, ė = −q̇ and the nominal plant q̈ = f + G u (u = i_q*; eq. (18) with μ = 0,
+    F_E = 0 and F_C = K_f u).
 
-    For x_B: f = a_B(F_C = 0) = dx_B/dθ1 θ̈1(0) + b_B, G = K_f dx_B/dθ1 ∂θ̈1/∂F_C.
-    For θ1: f = θ̈1(0), G = K_f ∂θ̈1/∂F_C, with θ1, ω1 from (x_B, v_B) by eq. (26).
+    For x_B (q, qd = x_B, v_B): θ1, ω1 from (x_B, v_B) by eq. (26), valid for −180° < θ1 < 0,
+    f = a_B(F_C = 0) = dx_B/dθ1 θ̈1(0) + b_B, G = K_f dx_B/dθ1 ∂θ̈1/∂F_C.
+    For θ1 (q, qd = θ1, ω1, measured on the lever): f = θ̈1(0), G = K_f ∂θ̈1/∂F_C, at any θ1.
     """
-    t1, w1 = theta1_omega1(x_B, v_B, p)
-    acc0, dacc, dxB, bB = nominal_reduced(t1, w1, p)
     if p.objective == 0.0:
-        return p.target - x_B, -v_B, dxB * acc0 + bB, p.K_f * dxB * dacc
-    return p.target - t1, -w1, acc0, p.K_f * dacc
+        t1, w1 = theta1_omega1(q, qd, p)
+        acc0, dacc, dxB, bB = nominal_reduced(t1, w1, p)
+        return p.target - q, -qd, dxB * acc0 + bB, p.K_f * dxB * dacc
+    acc0, dacc, dxB, bB = nominal_reduced(q, qd, p)
+    return p.target - q, -qd, acc0, p.K_f * dacc
 
 
-def law_step(t: float, x_B: float, v_B: float, z: float, p: LawParameters) -> tuple[float, float, float, float, float]:
-    """One controller sample at time t from the measured (x_B, v_B) and the integrator state z.
+def law_step(t: float, q: float, qd: float, z: float, p: LawParameters) -> tuple[float, float, float, float, float]:
+    """One controller sample at time t from the objective's measured coordinate and rate (q, qd:
+    x_B and v_B, or θ1 and ω1) and the integrator state z.
 
     Paper (p.law = 0), with S = C e + ė:
         reaching (t − t0 < T_h), eq. (23): u = G⁻¹ (C ė + P S + Q sgn(S) − f)
@@ -44,7 +48,7 @@ def law_step(t: float, x_B: float, v_B: float, z: float, p: LawParameters) -> tu
 
     Returns (u = i_q* [A], S, phase (0 reaching, 1 sliding), e, z at the next sample).
     """
-    e, edot, f, G = error_terms(x_B, v_B, p)
+    e, edot, f, G = error_terms(q, qd, p)
     reaching = t - p.t0 < p.T_h
     if p.law == 0.0:
         S = p.C * e + edot

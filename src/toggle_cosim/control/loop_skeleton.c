@@ -18,7 +18,7 @@ typedef struct {
     void *get, *set, *step, *component;
     const unsigned int *out_vr, *in_vr;
     double *data;
-    long fmi3, n_out, ncols, i_x, i_v, col_u, n;
+    long fmi3, n_out, ncols, i_q, i_qd, col_u, n;  /* i_q, i_qd: the columns the law reads (x_B, v_B or theta1, omega1) */
     long k, fault, status;  /* next sample; the failed FMI function (1 get, 2 set, 3 step), its status */
     long no_prior;          /* doStep's noSetFMUStatePriorToCurrentPoint: 1 only if no checkpoint is restored */
     double T_s, F_E, z;     /* z: the law's state (an integrator) at sample k */
@@ -27,12 +27,13 @@ typedef struct {
 
 enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2 };
 
-/* One law sample: out = (u, S, phase, e, z_next). Returns 0, or 1 where the Python must
-   evaluate the sample itself (it raises there, or a result is not finite). */
-int kernel_control(const kernel_t *s, double t, double x_B, double v_B, double z, double out[5]) {
+/* One law sample from the measured coordinate and rate (q, qd): out = (u, S, phase, e, z_next).
+   Returns 0, or 1 where the Python must evaluate the sample itself (it raises there, or a
+   result is not finite). */
+int kernel_control(const kernel_t *s, double t, double q, double qd, double z, double out[5]) {
     int i;
-    if (!(isfinite(x_B) && isfinite(v_B))) { return 1; }
-    if (law_step(t, x_B, v_B, z, &s->law, &out[0], &out[1], &out[2], &out[3], &out[4])) { return 1; }
+    if (!(isfinite(q) && isfinite(qd))) { return 1; }
+    if (law_step(t, q, qd, z, &s->law, &out[0], &out[1], &out[2], &out[3], &out[4])) { return 1; }
     for (i = 0; i < 5; i++) {
         if (!isfinite(out[i])) { return 1; }
     }
@@ -55,7 +56,7 @@ int kernel_run(kernel_t *s, long k_end) {
         status = s->fmi3 ? ((get3_t)s->get)(s->component, s->out_vr, (size_t)s->n_out, row + 1, (size_t)s->n_out)
                          : ((get2_t)s->get)(s->component, s->out_vr, (size_t)s->n_out, row + 1);
         if (status > 1) { s->k = k; s->fault = 1; s->status = status; return FMI_FAILED; }
-        if (kernel_control(s, t, row[s->i_x], row[s->i_v], s->z, c)) {
+        if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, c)) {
             s->k = k;
             return HAND_BACK;
         }

@@ -68,7 +68,9 @@ def mass_terms(
 
 
 def theta1_omega1(x_B: float, v_B: float, p: LawParameters) -> tuple[float, float]:
-    """(θ1, ω1) from the measured (x_B, v_B): eq. (26) and ω1 = v_B/(dx_B/dθ1).
+    """(θ1, ω1) from the measured (x_B, v_B): eq. (26) and ω1 = v_B/(dx_B/dθ1). Eq. (26) has
+    one solution in −180° < θ1 < 0 (the stroke's side of the folded position), which this is:
+    the x_B objective's reduction. The θ1 objective reads θ1 and ω1 from the plant instead.
 
     √(x_B² + f²) is written with math.sqrt (the C library's hypot and CPython's may differ in
     the last bit; for the paper's f = 0 both give |x_B| exactly).

@@ -45,7 +45,7 @@ if TYPE_CHECKING:
 KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
 _POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr", "data")
-_LONGS = ("fmi3", "n_out", "ncols", "i_x", "i_v", "col_u", "n", "k", "fault", "status", "no_prior")
+_LONGS = ("fmi3", "n_out", "ncols", "i_q", "i_qd", "col_u", "n", "k", "fault", "status", "no_prior")
 _DOUBLES = ("T_s", "F_E", "z")
 
 
@@ -164,8 +164,9 @@ class CompiledLoop:
     """Samples k .. k_end - 1 of the master loop in one C call (see the module docstring).
 
     `data` is the master's preallocated (n + 1, ncols) float64 trace: column 0 time, columns
-    1 .. n_out the FMU outputs, col_u .. col_u + 4 (iq_ref, F_E, S, phase, e). `law` is the
-    controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
+    1 .. n_out the FMU outputs, col_u .. col_u + 4 (iq_ref, F_E, S, phase, e); the law reads
+    the columns i_q and i_qd (x_B and v_B, or theta1 and omega1 for the θ1 objective). `law` is
+    the controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
     at the first sample the loop runs.
     """
 
@@ -175,8 +176,8 @@ class CompiledLoop:
         fmu: CFunctions,
         data: np.ndarray,
         n_out: int,
-        i_x: int,
-        i_v: int,
+        i_q: int,
+        i_qd: int,
         col_u: int,
         n: int,
         T_s: float,
@@ -193,7 +194,7 @@ class CompiledLoop:
         k.component, k.out_vr, k.in_vr = fmu.component, fmu.out_vr, fmu.in_vr
         k.data = data.ctypes.data
         k.fmi3 = 1 if fmu.fmi3 else 0
-        k.n_out, k.ncols, k.i_x, k.i_v, k.col_u, k.n = n_out, data.shape[1], i_x, i_v, col_u, n
+        k.n_out, k.ncols, k.i_q, k.i_qd, k.col_u, k.n = n_out, data.shape[1], i_q, i_qd, col_u, n
         k.T_s, k.F_E, k.z = float(T_s), float(F_E), float(z)
         k.no_prior = 0  # the FMU keeps its history unless a policy that never restores says so
         for name in LawParameters.__dataclass_fields__:
@@ -219,11 +220,10 @@ class CompiledLoop:
         """The law's state at the next sample."""
         return float(self._state.z)
 
-    def control(
-        self, t: float, x_B: float, v_B: float, z: float = 0.0
-    ) -> tuple[float, float, float, float, float] | None:
-        """(u, S, phase, e, z_next) of the compiled law, or None where it defers to Python."""
-        if self._library.kernel_control(self._pointer, t, x_B, v_B, z, self._out):
+    def control(self, t: float, q: float, qd: float, z: float = 0.0) -> tuple[float, float, float, float, float] | None:
+        """(u, S, phase, e, z_next) of the compiled law at the measured (q, qd), or None where it
+        defers to Python."""
+        if self._library.kernel_control(self._pointer, t, q, qd, z, self._out):
             return None
         return tuple(self._out)
 

@@ -1,19 +1,21 @@
-"""The co-simulation master: a plant FMU and the discrete VSC, stepped every T_s.
+"""The co-simulation master: a plant FMU and a discrete controller, stepped every T_s.
 
     instantiate -> set parameters -> initialise -> every T_s: read outputs, control,
     set inputs, doStep -> terminate, free
 
 `simulate` assembles the parts (after FMPy's simulateCS, with its Recorder and step hook):
-a `PlantSession` (session.py), a `Recorder` and step hooks (recorder.py), the steppers
-(stepper.py: the first sample in Python, which starts the controller; the rest in the
-compiled loop generated from `control.laws`, handed over to Python at a sample the C hands
-back, or all in Python without a C compiler) and the `CheckpointPolicy` (retry.py). The
-loop allocates nothing per step. run.json says which loop ran and why. The FMU is freed on
-every exit path. A plant fault (an error status, non-finite outputs) ends the run early:
-the trace up to the fault is kept and the run is marked failed with the reason. A run that
-fails after retried steps is reported failed at its first failed step, and its trace ends at
-the sample that step started from: no sample of a failed (even if retried) step is kept.
-A finished run is checked for plausibility (`plausibility`): its warnings go into run.json.
+a `PlantSession` (session.py), a `Recorder` and step hooks (recorder.py), the controller
+(the one given, else the scenario's: `controllers`), the steppers (stepper.py: the first
+sample in Python, which starts the controller; for the built-in law the rest in the compiled
+loop generated from `control.laws`, handed over to Python at a sample the C hands back, or
+all in Python without a C compiler; any other controller in Python at every sample) and the
+`CheckpointPolicy` (retry.py). run.json says which loop ran and why. The FMU is freed on
+every exit path. A plant fault (an error status, non-finite outputs) or a controller failure
+ends the run early: the trace up to the fault is kept and the run is marked failed with the
+reason. A run that fails after retried steps is reported failed at its first failed step, and
+its trace ends at the sample that step started from: no sample of a failed (even if retried)
+step is kept. A finished run is checked for plausibility (`plausibility`): its warnings go
+into run.json.
 """
 
 from __future__ import annotations
@@ -24,39 +26,32 @@ from collections.abc import Callable
 import numpy as np
 
 from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
+from toggle_cosim.cosim.controllers import controller_for, controller_record
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plausibility import plausibility_warnings
-from toggle_cosim.cosim.recorder import CONTROL_COLUMNS, ProgressHook, Recorder
+from toggle_cosim.cosim.recorder import ProgressHook, Recorder
 from toggle_cosim.cosim.retry import CheckpointPolicy
 from toggle_cosim.cosim.session import PlantSession
-from toggle_cosim.cosim.stepper import CompiledStepper, HandOver, LoopState, PythonStepper, Timing
+from toggle_cosim.cosim.stepper import (
+    CompiledStepper,
+    ControllerFailed,
+    HandOver,
+    LoopState,
+    PythonStepper,
+    Timing,
+    compiled_law,
+)
 from toggle_cosim.cosim.summary import summarize
+from toggle_cosim.files.traces import Trace
 from toggle_cosim.physics.mechanism import working_range
-from toggle_cosim.physics.motor import thrust_constant
-from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
+from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["RunOutcome", "make_controller", "plant_settings", "simulate", "trace_names"]
-INPUTS = ("iq_ref", "F_E")
-
-
-def make_controller(run: Run) -> VSCController:
-    """The controller of a run, with its own nominal model (never the plant's parameters)."""
-    nominal = MechanismParameters(mB=run.controller.nominal_m_B, mu=0.0)
-    return VSCController(
-        gains=run.controller.gains,
-        nominal=nominal,
-        K_f=thrust_constant(MotorParameters()),
-        target=run.x_target,
-        objective=run.controller.objective,
-        law=run.controller.law,
-        C_I=run.controller.C_I,
-        K_I=run.controller.K_I,
-        i_max=run.controller.i_max,
-        T_s=run.T_s,
-    )
+__all__ = ["RunOutcome", "plant_settings", "refused_outcome", "simulate", "trace_names"]
+INPUTS = COMMAND_COLUMNS
 
 
 def plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | bool]]:
@@ -81,9 +76,14 @@ def plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | b
     return settings
 
 
-def trace_names(plant: PlantInterface) -> tuple[str, ...]:
-    """The columns of a run's trace: time, the plant's recorded outputs, the controller's columns."""
-    return ("time", *plant.recorded_outputs, *CONTROL_COLUMNS)
+def trace_names(plant: PlantInterface, diagnostics: tuple[str, ...] = VSCController.diagnostics) -> tuple[str, ...]:
+    """The columns of a run's trace: time, the plant's recorded outputs, the inputs (iq_ref,
+    F_E), the controller's diagnostics (the built-in law's by default)."""
+    return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics)
+
+
+def _number(value: object) -> float | None:
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
 def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
@@ -113,16 +113,31 @@ def _cut_at_first_failure(reason: str, recorder: Recorder, first: int | None, T_
 
 
 def simulate(
-    run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None, buffer: np.ndarray | None = None
+    run: Run,
+    plant: PlantInterface,
+    progress: Callable[[float], None] | None = None,
+    buffer: np.ndarray | None = None,
+    controller: Controller | None = None,
 ) -> RunOutcome:
-    """Run one scenario variant against `plant`. Never raises for a plant fault: see RunOutcome.
+    """Run one scenario variant against `plant`. Never raises for a plant or controller fault:
+    see RunOutcome.
+
+    `controller`: any object that meets the controller protocol (`control.protocol`); None: the
+    run's own (`controllers.controller_for`: the scenario's built-in law, or its
+    controller.python). The compiled loop runs the built-in law only; any other controller runs
+    in Python at every sample, and run.json says which loop ran and why.
 
     `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
     file-backed map shared with a supervising process (`supervision`); the trace is then a view of it."""
     started = clock.perf_counter()
-    controller = make_controller(run)
+    try:
+        if controller is None:
+            controller = controller_for(run, plant.recorded_outputs)
+        diagnostics = check_controller(controller, plant.recorded_outputs)
+    except ControllerError as error:
+        return refused_outcome(run, plant, str(error), started)
     n = run.steps
-    recorder = Recorder(trace_names(plant), n, buffer)
+    recorder = Recorder(trace_names(plant, diagnostics), n, buffer)
     session = PlantSession(plant, run.label, list(plant.recorded_outputs), list(INPUTS))
     timing, state = Timing(n, run.T_s, run.plant.F_E), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
@@ -137,9 +152,13 @@ def simulate(
         loop_started = clock.perf_counter()
         k = python.advance(0, 1)  # the first sample starts the controller (S0, T_h)
         if k == 1 and n > 0:
-            stepper = HandOver(
-                python, CompiledStepper.build(session, recorder, timing, state, state.controller.law, hooks)
+            law = compiled_law(controller, state.controller)
+            compiled = (
+                law
+                if isinstance(law, str)
+                else CompiledStepper.build(session, recorder, timing, state, law, controller.measured, hooks)
             )
+            stepper = HandOver(python, compiled)
             if stepper.compiled is not None:
                 policy.configure(stepper.compiled.loop)
             try:
@@ -151,6 +170,9 @@ def simulate(
         loop_finished = clock.perf_counter()
         interrupted = True
         state.reason = f"interrupted (SIGINT or SIGTERM) at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s"
+    except ControllerFailed as error:
+        loop_finished = clock.perf_counter()
+        state.reason = f"controller failed: {error}"
     except Exception as error:  # noqa: BLE001 - any plant failure ends the run cleanly
         loop_finished = clock.perf_counter()
         state.reason = f"plant FMU failed at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s: {error}"
@@ -162,7 +184,7 @@ def simulate(
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
     complete = reason is None and rows == n + 1
     summary, warnings = None, []
-    if rows > 1 and state.controller is not None:
+    if rows > 1:
         x_B, iq_ref = trace.column("x_B"), trace.column("iq_ref")
         summary = summarize(
             trace.time,
@@ -172,8 +194,8 @@ def simulate(
             trace.column("E_fric") if "E_fric" in trace.names else None,
             run.x_start,
             run.x_target,
-            state.controller.T_h,
-            state.controller.S0,
+            _number(getattr(state.controller, "T_h", None)),
+            _number(getattr(state.controller, "S0", None)),
         )
         limits = run.plant.working_range or working_range(MechanismParameters())
         warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
@@ -181,6 +203,32 @@ def simulate(
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     loop_seconds = loop_finished - loop_started
     record = run_record(
-        run, plant, status, reason, rows, wall, loop_seconds, summary, policy.retries, loop, solver_statistics, warnings
+        run,
+        plant,
+        status,
+        reason,
+        rows,
+        wall,
+        loop_seconds,
+        summary,
+        policy.retries,
+        loop,
+        solver_statistics,
+        warnings=warnings,
+        controller=controller_record(run, controller),
     )
     return RunOutcome(run, trace, complete, reason, wall, loop_seconds, summary, record, interrupted)
+
+
+def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:
+    """The outcome of a run whose controller could not be built (`reason`, a ControllerError's
+    message): failed, no sample; `started` is the run's perf_counter() start."""
+    names = trace_names(plant)
+    trace = Trace(names, np.empty((0, len(names))))
+    reason = f"controller: {reason}"
+    loop = {"kind": "none", "reason": "the controller could not be built"}
+    wall = clock.perf_counter() - started
+    record = run_record(
+        run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None, warnings=None, controller=None
+    )
+    return RunOutcome(run, trace, False, reason, wall, 0.0, None, record)

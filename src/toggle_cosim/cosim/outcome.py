@@ -75,11 +75,13 @@ def run_record(
     loop: dict[str, Any] | None = None,
     solver_statistics: dict[str, int] | str | None = None,
     warnings: list[str] | None = None,
+    controller: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """What run.json says about a run: status is "complete", "failed" or "interrupted"; `loop` says
-        which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
-        when the supervised child died before reporting them), `warnings` its plausibility flags and
-    `plant_contract` the optional contract variables the plant does not have."""
+    which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
+    when the supervised child died before reporting them), `warnings` its plausibility flags,
+    `plant_contract` the optional contract variables the plant does not have, `controller` which
+    controller ran (`controllers.controller_record`; None: not known, e.g. it could not be built)."""
     return {
         "scenario": run.scenario,
         "variant": run.variant,
@@ -99,6 +101,7 @@ def run_record(
         "warnings": list(warnings or []),
         "samples": rows,
         "retries": retries or [],
+        "controller": controller,
         "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},
         "wall_time_s": wall,
         "loop_time_s": loop_seconds,

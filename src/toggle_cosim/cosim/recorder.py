@@ -17,11 +17,10 @@ import numpy as np
 
 from toggle_cosim.files.traces import Trace
 
-CONTROL_COLUMNS = ("iq_ref", "F_E", "S", "phase", "e")
-
 
 class Recorder:
-    """Columns: time, the plant outputs, then CONTROL_COLUMNS; one row per sample 0 .. n."""
+    """Columns: time, the plant outputs, the inputs iq_ref and F_E, then the controller's
+    diagnostics; one row per sample 0 .. n."""
 
     def __init__(self, names: Sequence[str], n: int, buffer: np.ndarray | None = None) -> None:
         self.names = tuple(names)
@@ -31,9 +30,9 @@ class Recorder:
             raise ValueError(f"the trace buffer must be float64 of shape {shape}, not {buffer.dtype} {buffer.shape}")
         self.data = np.full(shape, np.nan) if buffer is None else buffer
         self._owned = buffer is None
-        self.n_out = len(self.names) - 1 - len(CONTROL_COLUMNS)
+        self.col_u = self.names.index("iq_ref")
+        self.n_out = self.col_u - 1
         self.i_x, self.i_v = self.names.index("x_B"), self.names.index("v_B")
-        self.col_u = 1 + self.n_out
         self.rows = 0
 
     def outputs(self, k: int) -> np.ndarray:

@@ -2,9 +2,11 @@
 inputs, doStep). Every stepper writes into the same `Recorder` and shares one `LoopState`, so
 one can take over from another at any sample.
 
-* `PythonStepper`: the loop in Python over the `PlantSession` and the `VSCController`.
+* `PythonStepper`: the loop in Python over the `PlantSession` and any controller that meets
+  the protocol (`control.protocol`).
 * `CompiledStepper`: the same loop in C (`compiled_loop`, generated from `control.laws`),
-  stopping at every sample a step hook wants to see.
+  stopping at every sample a step hook wants to see. It runs the built-in law only
+  (`compiled_law` says whether the controller is that law, and why not).
 * `HandOver`: the compiled stepper while it can, then, from a sample the C hands back (non-
   finite outputs, a law that raises there), the Python stepper. It says which loop ran, and why.
 
@@ -23,11 +25,10 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.parameters import LawParameters
+from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
 from toggle_cosim.cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop, kernel_library, kernel_reason
 from toggle_cosim.cosim.recorder import Recorder, StepHook
 from toggle_cosim.cosim.session import PlantSession
-
-PHASES = {"reaching": 0.0, "sliding": 1.0}
 
 
 class StepFailed(Exception):
@@ -38,14 +39,43 @@ class StepFailed(Exception):
         self.k, self.error = k, error
 
 
+class ControllerFailed(Exception):
+    """The controller raised, or returned something unusable, at a sample; str() says what."""
+
+
 @dataclass
 class LoopState:
-    """What the steppers share: the controller's state, the law's state z at the next sample,
-    and why the run ended early (non-finite outputs), if it did."""
+    """What the steppers share: the controller's state at the next sample (None before the
+    first), and why the run ended early (non-finite outputs), if it did."""
 
-    controller: ControllerState | None = None
-    z: float = 0.0
+    controller: Any = None
     reason: str | None = None
+
+
+def _name(function: object) -> str:
+    return getattr(function, "__qualname__", repr(function))
+
+
+def compiled_law(controller: object, state: object) -> LawParameters | str:
+    """The law the compiled loop may run in place of `controller`, or why it may not.
+
+    The compiled loop is the C translation of `VSCController.step`, so it runs only a controller
+    whose start and step *are* those functions (a subclass that overrides either, or an object
+    of another class with the same methods, runs in Python at every sample), with the built-in
+    diagnostics and a state `VSCController.start` made."""
+    kind = type(controller)
+    for method in ("step", "start"):
+        own = getattr(kind, method, None)
+        if own is not getattr(VSCController, method) or method in getattr(controller, "__dict__", {}):
+            return (
+                f"the controller's {method} is {_name(own)}, not the built-in law's {_name(getattr(VSCController, method))}: "
+                "the compiled loop runs only the built-in law"
+            )
+    if getattr(controller, "diagnostics", None) != VSCController.diagnostics:
+        return "the controller's diagnostics are not the built-in law's: the compiled loop runs only the built-in law"
+    if not isinstance(state, ControllerState) or state.law is None:
+        return "the controller's state is not the built-in law's: the compiled loop runs only the built-in law"
+    return state.law
 
 
 class Stepper(Protocol):
@@ -64,10 +94,12 @@ class Timing:
 
 
 class PythonStepper:
+    """The loop in Python over any controller that meets the protocol (`control.protocol`)."""
+
     def __init__(
         self,
         session: PlantSession,
-        controller: VSCController,
+        controller: Controller,
         recorder: Recorder,
         timing: Timing,
         state: LoopState,
@@ -75,6 +107,13 @@ class PythonStepper:
     ) -> None:
         self.session, self.controller, self.recorder = session, controller, recorder
         self.timing, self.state, self.hooks = timing, state, tuple(hooks)
+        self.index = {name: j for j, name in enumerate(recorder.names[1 : 1 + recorder.n_out], start=1)}
+
+    def _start(self, t: float, measurement: Measurement) -> Any:
+        try:
+            return self.controller.start(t, measurement)
+        except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run with the reason
+            raise ControllerFailed(f"the controller's start raised at t = {t:.6g} s: {_error(error)}") from None
 
     def advance(self, k0: int, k_end: int, read_first: bool = True) -> int:
         """As Stepper.advance; with read_first False the outputs of sample k0 are in the trace
@@ -83,8 +122,9 @@ class PythonStepper:
         data, n_out, i_x, i_v, col_u = rec.data, rec.n_out, rec.i_x, rec.i_v, rec.col_u
         T_s, n, F_E = self.timing.T_s, self.timing.n, self.timing.F_E
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
-        control_step, isfinite, hooks = self.controller.step, math.isfinite, self.hooks
-        state, z = st.controller, st.z
+        control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
+        n_diagnostics = len(rec.names) - col_u - 2
+        state = st.controller
         try:
             for k in range(k0, k_end):
                 t = k * T_s
@@ -92,18 +132,23 @@ class PythonStepper:
                 row[0] = t
                 if read_first or k != k0:
                     read_outputs(row[1 : 1 + n_out])
-                x_B, v_B = row[i_x], row[i_v]
-                if not (isfinite(x_B) and isfinite(v_B)):
+                if not (isfinite(row[i_x]) and isfinite(row[i_v])):
                     st.reason = f"plant outputs became non-finite at t = {t:.6g} s"
                     return -1
+                measurement = Measurement(index, row)
                 if state is None:
-                    state = self.controller.start(t, (x_B, v_B))
-                    z = state.z
-                elif state.z != z:
-                    state = replace(state, z=z)
-                u, control = control_step(state, t, x_B, v_B)
-                z = control.z
-                row[col_u : col_u + 5] = (u, F_E, control.S, PHASES[control.phase], control.e)
+                    state = self._start(t, measurement)
+                try:
+                    result = control_step(state, t, measurement)
+                except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                    raise ControllerFailed(f"the controller's step raised at t = {t:.6g} s: {_error(error)}") from None
+                try:
+                    u, diagnostics, state = checked_command(result, n_diagnostics, t)
+                except ControllerError as error:
+                    raise ControllerFailed(str(error)) from None
+                row[col_u] = u
+                row[col_u + 1] = F_E
+                row[col_u + 2 :] = diagnostics
                 rec.rows = k + 1
                 if k == n:
                     return k + 1
@@ -117,7 +162,11 @@ class PythonStepper:
                         hook(k)
             return k_end
         finally:
-            st.controller, st.z = state, z
+            st.controller = state
+
+
+def _error(error: BaseException) -> str:
+    return " ".join(f"{type(error).__name__}: {error}".split())
 
 
 class CompiledStepper:
@@ -146,9 +195,11 @@ class CompiledStepper:
         timing: Timing,
         state: LoopState,
         law: LawParameters,
+        measured: tuple[str, str],
         hooks: Sequence[StepHook] = (),
     ) -> CompiledStepper | str:
-        """The compiled stepper from the current sample on, or why there is none."""
+        """The compiled stepper from the current sample on, or why there is none. `law` is the
+        built-in law to run (`compiled_law`), `measured` the plant outputs it reads."""
         library = kernel_library()
         functions = session.c_functions()
         if library is None or functions is None:
@@ -158,14 +209,14 @@ class CompiledStepper:
             functions,
             recorder.data,
             recorder.n_out,
-            recorder.i_x,
-            recorder.i_v,
+            recorder.names.index(measured[0]),
+            recorder.names.index(measured[1]),
             recorder.col_u,
             timing.n,
             timing.T_s,
             timing.F_E,
             law,
-            state.z,
+            state.controller.z,
         )
         return cls(loop, session, recorder, timing, state, hooks)
 
@@ -182,7 +233,9 @@ class CompiledStepper:
                     raise StepFailed(k, error)
                 raise error
             rec.rows = k
-            self.state.z = loop.z
+            controller = self.state.controller
+            if loop.z != controller.z:
+                self.state.controller = replace(controller, z=loop.z)
             if code == HAND_BACK:
                 self.handed_back = True
                 return k
@@ -200,7 +253,7 @@ class HandOver:
         self.python = python
         self.compiled = compiled if isinstance(compiled, CompiledStepper) else None
         self.loop: dict[str, Any] = (
-            {"kind": "compiled", "reason": "generated from control.laws; C compiler available"}
+            {"kind": "compiled", "reason": "the built-in law, generated from control.laws; C compiler available"}
             if self.compiled
             else {"kind": "python", "reason": compiled}
         )

@@ -15,8 +15,8 @@ class RunSummary:
     settling_time_s: float | None  # last entry into the 2 % band of the stroke, None if never settled
     overshoot_percent: float  # max(x_B - x_B*, 0) over the stroke, in %
     peak_iq_ref_A: float  # max |i_q*|
-    hitting_time_s: float  # T_h of eq. (21)
-    S0_m_per_s: float  # S(t0), the reaching-phase start of eq. (21)
+    hitting_time_s: float | None  # T_h of eq. (21); None for a controller without one
+    S0_m_per_s: float | None  # S(t0), the reaching-phase start of eq. (21); None for a controller without one
     E_in_J: float | None  # work of the thrust at t_end (None: the plant has no output E_in)
     E_fric_J: float | None  # energy taken by joint friction at t_end, signed (None: no output E_fric)
     fric_share_start: float | None  # E_fric / E_in when x_B has covered 10 % of the stroke (None: not known)
@@ -34,8 +34,8 @@ def summarize(
     E_fric: np.ndarray | None,
     x_start: float,
     x_target: float,
-    hitting_time: float,
-    S0: float,
+    hitting_time: float | None,
+    S0: float | None,
 ) -> RunSummary:
     stroke = x_target - x_start
     error = x_target - x_B

@@ -46,8 +46,11 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim import interrupts
+from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
+from toggle_cosim.cosim.controllers import controller_for, controller_record
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
@@ -165,6 +168,7 @@ def _child(
     write_fd: int,
     parent: int,
     capture_log: bool,
+    controller: Controller,
 ) -> None:
     """The child's whole life: run, send the outcome (no trace) back, exit without cleanup."""
     code = 0
@@ -183,7 +187,9 @@ def _child(
         def progress(fraction: float) -> None:
             progress_slot[0] = fraction
 
-        outcome = master.simulate(run, plant, progress if progress_slot is not None else None, buffer=buffer)
+        outcome = master.simulate(
+            run, plant, progress if progress_slot is not None else None, buffer=buffer, controller=controller
+        )
         answer = (
             "outcome",
             outcome.complete,
@@ -243,7 +249,11 @@ class SupervisedRun:
 
     `stop()` kills a child that is still running (an interrupt) and `close()` releases its
     descriptors and folder; both are safe to call at any moment and more than once. Several
-    children may run at once (`supervised_batch`), each under its own deadline."""
+    children may run at once (`supervised_batch`), each under its own deadline.
+
+    The controller (`controller`, else the run's own, `controllers.controller_for`) is built
+    here, in the parent, since its diagnostics are columns of the trace buffer; the child
+    inherits it. One that cannot be built fails the run before any child starts."""
 
     def __init__(
         self,
@@ -254,12 +264,19 @@ class SupervisedRun:
         scratch: Path | None = None,
         capture_log: bool = False,
         with_progress: bool = False,
+        controller: Controller | None = None,
     ) -> None:
         self.run = run
         self.plant = plant
         self.limit = time_limit_of(run, time_limit)
         self.started = clock.perf_counter()
-        self.names = master.trace_names(plant)
+        self.refused: str | None = None  # why the controller could not be built
+        try:
+            self.controller = controller if controller is not None else controller_for(run, plant.recorded_outputs)
+            diagnostics = check_controller(self.controller, plant.recorded_outputs)
+        except ControllerError as error:
+            self.controller, diagnostics, self.refused = None, VSCController.diagnostics, str(error)
+        self.names = master.trace_names(plant, diagnostics)
         self.pid = -1
         self.status: int | None = None
         self.reason: str | None = None
@@ -277,6 +294,9 @@ class SupervisedRun:
 
     def start(self) -> None:
         """Map the trace buffer and fork the child; its deadline runs from here."""
+        if self.refused is not None:
+            self.done = True
+            return
         try:
             self._fork()
         except BaseException:
@@ -309,6 +329,7 @@ class SupervisedRun:
                         write_fd,
                         parent,
                         self._capture_log,
+                        self.controller,
                     )
         finally:
             os.close(write_fd)
@@ -386,6 +407,8 @@ class SupervisedRun:
         trace = Trace(self.names, self.buffer[:rows])
         wall = clock.perf_counter() - self.started
         reason = self.reason
+        if self.refused is not None:
+            return master.refused_outcome(run, plant, self.refused, self.started)
         if answer is not None and answer[0] == "outcome" and reason is None:
             _, complete, child_reason, _, loop_s, summary, record, child_interrupted, log = answer
             if log:
@@ -400,7 +423,9 @@ class SupervisedRun:
         at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
         reason = f"{reason}{at}"
         status_word = "interrupted" if self.interrupted else "failed"
-        record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall)
+        record = outcomes.run_record(
+            run, plant, status_word, reason, rows, wall, wall, controller=controller_record(run, self.controller)
+        )
         return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
 
     def _exit_reason(self, answer: tuple | None) -> str:
@@ -438,13 +463,21 @@ def simulate_supervised(
     progress: Callable[[float], None] | None = None,
     scratch: Path | None = None,
     capture_log: bool = False,
+    controller: Controller | None = None,
 ) -> outcomes.RunOutcome:
-    """`master.simulate` in a supervised child process; never raises for anything the plant does.
+    """`master.simulate` in a supervised child process; never raises for anything the plant or
+    the controller does. `controller`: as for `master.simulate` (the child inherits it).
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
     interrupted (`outcome.interrupted`); the caller stops after writing it."""
     child = SupervisedRun(
-        run, plant, time_limit=time_limit, scratch=scratch, capture_log=capture_log, with_progress=progress is not None
+        run,
+        plant,
+        time_limit=time_limit,
+        scratch=scratch,
+        capture_log=capture_log,
+        with_progress=progress is not None,
+        controller=controller,
     )
     try:
         child.start()

@@ -14,6 +14,7 @@ say (a target beyond the toggle position) are checked after it.
     plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, current_loop: first_order, parameters: {},
             friction_model: paper, mu_s: 0.2}     # friction_model: paper | dissipative | stick_slip
     controller: {objective: x_B, gains: {C: 5, Q: 4, P: 50, delta: 0.25, beta: 65}}
+    # or a user's controller: {python: "module:factory", parameters: {...}} (docs/controllers.md)
     variants:
       friction: {plant: {mu: 0.2}}
       no_friction: {plant: {mu: 0.0}}
@@ -31,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
-from toggle_cosim.runs.definition import ControllerSettings, PlantSettings, Run
+from toggle_cosim.runs.definition import ControllerSettings, ErrorSignal, PlantSettings, Run
 
 if TYPE_CHECKING:
     import jsonschema
@@ -97,6 +98,29 @@ _CONTROLLER = {
         "C_I": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # 1/s, integral law only
         "K_I": {"type": "number", "minimum": 0, "maximum": 1e6},  # 1/s², integral law only
         "i_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # A, integral law only
+        # the user's controller (cosim/controllers.py): a factory, its parameters, and for a
+        # python-control system the error it acts on and the command it gives
+        "python": {
+            "type": "string",
+            "pattern": r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z",
+            "description": "package.module:callable, imported from the scenario's folder or sys.path",
+        },
+        "parameters": {
+            "type": "object",
+            "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\Z"},
+            "additionalProperties": {"description": "any value the factory takes (a sweep axis may set one)"},
+            "description": "keyword arguments of the controller.python factory",
+        },
+        "error": {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["output"],
+            "properties": {
+                "output": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_.\[\]]*\Z"},
+                "target": {"type": "number"},
+            },
+        },
+        "command": {"enum": ["iq_ref"]},
     },
 }
 _STROKE = {
@@ -288,6 +312,26 @@ def _working_range(given: Any, geometry: MechanismParameters, suffix: str) -> tu
     return low, high
 
 
+def _user_controller(controller_doc: Mapping[str, Any], suffix: str) -> dict[str, Any]:
+    """The ControllerSettings fields of a user's controller (controller.python and the keys that
+    go with it); the factory itself is imported and called by `cosim.controllers`."""
+    if "python" not in controller_doc:
+        extra = [key for key in ("parameters", "error", "command") if key in controller_doc]
+        if extra:
+            raise ScenarioError(
+                f"key controller.{extra[0]}{suffix}: only with controller.python (name the controller's factory as"
+                " python: module:callable)"
+            )
+        return {}
+    error = controller_doc.get("error")
+    return {
+        "python": controller_doc["python"],
+        "parameters": copy.deepcopy(dict(controller_doc.get("parameters", {}))),
+        "error": None if error is None else ErrorSignal(error["output"], error.get("target")),
+        "command": controller_doc.get("command", "iq_ref"),
+    }
+
+
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
     stroke = document["stroke"]
     geometry = MechanismParameters()
@@ -339,6 +383,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         C_I=float(controller_doc.get("C_I", ControllerSettings.C_I)),
         K_I=float(controller_doc.get("K_I", ControllerSettings.K_I)),
         i_max=float(controller_doc.get("i_max", ControllerSettings.i_max)),
+        **_user_controller(controller_doc, suffix),
     )
     fmu = document.get("fmu")
     fmu_path = None

@@ -99,17 +99,27 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
                 f" columns, about {size / 1e9:.2f} GB while it runs, over the {max_output() / 1e9:.2f} GB"
                 " output limit; raise T_s or shorten t_end (or raise TOGGLE_COSIM_MAX_OUTPUT)"
             )
+    from toggle_cosim.control.protocol import ControllerError
+    from toggle_cosim.cosim.controllers import controller_for
+
     seen = set()
-    for case in sweep.cases:  # each distinct setting of the plant (all but F_E and m_B), before any case runs
+    for (
+        case
+    ) in sweep.cases:  # each distinct setting of the plant (all but F_E and m_B) and controller, before any case runs
         plant_doc = case.document.get("plant") or {}
-        key = (case.variant, repr(sorted(((k, v) for k, v in plant_doc.items() if k not in ("F_E", "m_B")), key=repr)))
+        key = (
+            case.variant,
+            repr(sorted(((k, v) for k, v in plant_doc.items() if k not in ("F_E", "m_B")), key=repr)),
+            repr(case.document.get("controller")),
+        )
         if key in seen:
             continue
         seen.add(key)
-        (run,) = runs_from_document(copy.deepcopy(case.document))  # validated by load_sweep already
+        (run,) = runs_from_document(copy.deepcopy(case.document), sweep.base)  # validated by load_sweep already
         try:
             check_settings(run, plant)
-        except SettingError as error:
+            controller_for(run, plant.recorded_outputs)  # the user's controller imports, builds and meets the protocol
+        except (SettingError, ControllerError) as error:
             raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
     return chosen, plant.sha256
 

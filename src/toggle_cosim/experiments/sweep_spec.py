@@ -122,6 +122,7 @@ class Case:
     values: dict[str, Any]  # axis key -> value
     document: dict[str, Any]  # the validated scenario document (no variants, no fmu)
     parameters: dict[str, Any]  # table columns: standard parameters and axis values
+    source: str | None = None  # the base scenario file (controller.python is imported from its folder)
 
     def payload(self) -> dict[str, Any]:
         return {
@@ -130,6 +131,7 @@ class Case:
             "variant": self.variant,
             "document": self.document,
             "parameters": self.parameters,
+            "source": self.source,
         }
 
 
@@ -359,7 +361,7 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
             index = len(cases)
             label = ", ".join(f"{k}={v!r}" for k, v in values.items())
             try:
-                (run,) = runs_from_document(case_doc)
+                (run,) = runs_from_document(case_doc, base_path)
             except ScenarioError as error:
                 where = f"variant {variant}, " if variant else ""
                 raise SweepError(f"case {index} ({where}{label}): {error}") from error
@@ -379,7 +381,7 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
             }
             for key, value in values.items():
                 parameters[key] = float(value) if isinstance(value, int) and not isinstance(value, bool) else value
-            cases.append(Case(index, identifier, variant, values, case_doc, parameters))
+            cases.append(Case(index, identifier, variant, values, case_doc, parameters, str(base_path)))
 
     parameter_columns = [*STANDARD_PARAMETERS, *(k for k in axes if k not in STANDARD_PARAMETERS)]
     parameter_types = {k: "float" for k in STANDARD_PARAMETERS}

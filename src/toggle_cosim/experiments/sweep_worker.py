@@ -142,7 +142,8 @@ def run_case(
     try:
         with _captured_fmu_log() as log:
             try:
-                (run,) = runs_from_document(copy.deepcopy(case["document"]))
+                source = case.get("source")  # the base scenario: controller.python is imported from its folder
+                (run,) = runs_from_document(copy.deepcopy(case["document"]), Path(source) if source else None)
                 plant = _plant(resolve_fmu(fmu, fmu_sha256, fmu_data))
                 outcome = simulate_supervised(run, plant, time_limit=time_limit, capture_log=True)
             except Exception as error:  # noqa: BLE001 - any failure is the case's result

@@ -3,8 +3,9 @@
 `plant.parameters` names must be variables of the FMU that can be set before initialisation
 (causality parameter, variability fixed or tunable), with a value of their type (a number for a
 Real/Float64, true/false for a Boolean); `current_loop: ideal` needs the parameter
-idealCurrentLoop; a controller objective needs the optional outputs the contract names for it
-(theta1: theta1 and omega1). Each failure is one `SettingError` line naming the key and the variable.
+idealCurrentLoop; the built-in controller's objective needs the optional outputs the contract
+names for it (theta1: theta1 and omega1). Each failure is one `SettingError` line naming the key
+and the variable.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ def check_settings(run: Run, plant: PlantInterface) -> None:
         raise SettingError(str(error)) from None
     objective = run.controller.objective
     lacking = [name for name in objective_requirements(objective) if name in plant.absent]
-    if lacking:
+    if run.controller.python is None and lacking:
         raise SettingError(
             f"key controller.objective: {objective} needs the plant outputs "
             f"{' and '.join(objective_requirements(objective))}; the plant FMU {plant.path} lacks "

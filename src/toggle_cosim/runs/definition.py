@@ -34,7 +34,19 @@ class PlantSettings:
 
 
 @dataclass(frozen=True)
+class ErrorSignal:
+    """The error a python-control system acts on: e = target − the plant output `output`
+    (target None: stroke.x_target for x_B, θ1* of eq. (26) for theta1)."""
+
+    output: str
+    target: float | None = None
+
+
+@dataclass(frozen=True)
 class ControllerSettings:
+    """The built-in controller's settings, or (python) the user's controller factory
+    "module:callable" with its keyword parameters (`cosim.controllers`)."""
+
     objective: Literal["x_B", "theta1"] = "x_B"
     gains: ControllerGains = field(default_factory=ControllerGains)
     nominal_m_B: float = 4.43
@@ -42,6 +54,10 @@ class ControllerSettings:
     C_I: float = 16.0  # 1/s, the integral law's surface slope (unused by the paper's law)
     K_I: float = 64.0  # 1/s², the integral law's gain: C_I = 2λ, K_I = λ², λ = 8/s (unused by the paper's law)
     i_max: float = 10.0  # A, the integral law's current limit (unused by the paper's law)
+    python: str | None = None  # "module:callable", the user's controller factory; None: the built-in law
+    parameters: Mapping[str, Any] = field(default_factory=dict)  # the factory's keyword arguments
+    error: ErrorSignal | None = None  # python-control systems: the error they act on
+    command: Literal["iq_ref"] = "iq_ref"  # python-control systems: the plant input they drive
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,183 @@
+"""The controller of a run: the scenario's built-in VSC, or the user's own, checked against the
+controller protocol (`control.protocol`) before the run.
+
+A scenario names a user's controller by a factory::
+
+    controller:
+      python: "my_controllers:make_pid"    # module:callable, imported from the scenario's folder or sys.path
+      parameters: {Kp: 40.0, Ki: 5.0}       # passed to the factory as keyword arguments
+      error: {output: x_B}                  # python-control systems only: e = target − output
+      command: iq_ref                       # python-control systems only: the input the system drives
+
+The factory is called as ``factory(context, **parameters)`` with a `ControllerContext` (T_s, the
+stroke, the scenario's built-in controller, ...) and returns an object that meets the protocol,
+or a python-control discrete-time system (`control.StateSpace`/`TransferFunction` with dt = T_s),
+which `control.lti` adapts. Every failure is a `ControllerError` whose message names the key and
+the fix; the run commands prefix the scenario file.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
+from toggle_cosim.physics.mechanism import theta1_from_xB
+from toggle_cosim.physics.motor import thrust_constant
+from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
+from toggle_cosim.runs.definition import Run
+
+__all__ = ["builtin_controller", "controller_for", "controller_record", "load_factory"]
+
+
+def builtin_controller(run: Run) -> VSCController:
+    """The scenario's built-in controller, with its own nominal model (never the plant's parameters)."""
+    nominal = MechanismParameters(mB=run.controller.nominal_m_B, mu=0.0)
+    return VSCController(
+        gains=run.controller.gains,
+        nominal=nominal,
+        K_f=thrust_constant(MotorParameters()),
+        target=run.x_target,
+        objective=run.controller.objective,
+        law=run.controller.law,
+        C_I=run.controller.C_I,
+        K_I=run.controller.K_I,
+        i_max=run.controller.i_max,
+        T_s=run.T_s,
+    )
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(f"{type(error).__name__}: {error}".split())
+
+
+def load_factory(spec: str, folder: Path | None) -> Callable[..., Any]:
+    """The callable named by "package.module:attribute", imported from `folder` (the scenario's)
+    first, then sys.path. Raises ControllerError naming key controller.python and the fix."""
+    module_name, _, attribute = spec.partition(":")
+    where = f"beside the scenario file ({folder}) or on sys.path (PYTHONPATH)" if folder else "on sys.path (PYTHONPATH)"
+    entry = str(folder) if folder is not None else None
+    added = entry is not None and entry not in sys.path
+    if added:
+        sys.path.insert(0, entry)
+    try:
+        importlib.invalidate_caches()
+        module = importlib.import_module(module_name)
+    except (Exception, SystemExit) as error:  # noqa: BLE001 - the user's module: any failure is the message
+        raise ControllerError(
+            f"key controller.python: cannot import {module_name!r} ({_one_line(error)}); put the module {where}"
+        ) from None
+    finally:
+        if added:
+            sys.path.remove(entry)
+    found: Any = module
+    for part in attribute.split("."):
+        try:
+            found = getattr(found, part)
+        except AttributeError:
+            raise ControllerError(
+                f"key controller.python: module {module_name!r} has no {attribute!r} (name a factory in it as {module_name}:NAME)"
+            ) from None
+    if not callable(found):
+        raise ControllerError(
+            f"key controller.python: {spec} is a {type(found).__name__}, not a callable (name a factory function or class)"
+        )
+    return found
+
+
+def _context(run: Run, outputs: Sequence[str]) -> ControllerContext:
+    return ControllerContext(
+        T_s=run.T_s,
+        t_end=run.t_end,
+        x_start=run.x_start,
+        x_target=run.x_target,
+        objective=run.controller.objective,
+        label=run.label,
+        outputs=tuple(outputs),
+        builtin=builtin_controller(run),
+    )
+
+
+def _error_target(run: Run, output: str, given: float | None) -> float:
+    """The target of a python-control system's error: given, or stroke.x_target for x_B and
+    θ1* (eq. (26), the nominal geometry) for theta1."""
+    if given is not None:
+        return given
+    if output == "x_B":
+        return run.x_target
+    if output == "theta1":
+        return theta1_from_xB(run.x_target, MechanismParameters(mB=run.controller.nominal_m_B, mu=0.0))
+    raise ControllerError(
+        f"key controller.error.target: missing; the error acts on {output!r}, so give its target value"
+        " (only x_B and theta1 have a default, from stroke.x_target)"
+    )
+
+
+def _is_python_control_system(candidate: object) -> bool:
+    control = sys.modules.get("control")  # imported by the user's factory if it made such a system
+    return control is not None and isinstance(candidate, control.LTI)
+
+
+def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
+    """The controller of `run`: the built-in VSC, or what controller.python's factory returns
+    (a python-control system adapted), checked against the protocol; `outputs` are the plant's
+    recorded outputs (the measurement's names, which diagnostics may not reuse). Raises
+    ControllerError with the one-line reason."""
+    settings = run.controller
+    if settings.python is None:
+        controller: Any = builtin_controller(run)
+    else:
+        factory = load_factory(settings.python, run.source.parent if run.source is not None else None)
+        try:
+            controller = factory(_context(run, outputs), **dict(settings.parameters))
+        except Exception as error:  # noqa: BLE001 - the user's factory: any failure is the message
+            names = ", ".join(settings.parameters) or "none"
+            raise ControllerError(
+                f"key controller.python: {settings.python} raised {_one_line(error)} (called with the context and"
+                f" controller.parameters: {names}; fix the factory or the parameters)"
+            ) from None
+        if _is_python_control_system(controller):
+            from toggle_cosim.control.lti import DiscreteSystemController
+
+            if settings.error is None:
+                raise ControllerError(
+                    f"key controller.error: missing; {settings.python} returned a python-control system, so name the"
+                    " plant output its error acts on (error: {output: x_B})"
+                )
+            output = settings.error.output
+            if outputs and output not in outputs:
+                raise ControllerError(
+                    f"key controller.error.output: the plant has no output {output!r} (choose one of {', '.join(outputs)})"
+                )
+            try:
+                controller = DiscreteSystemController(
+                    controller, output, _error_target(run, output, settings.error.target), run.T_s
+                )
+            except ValueError as error:
+                raise ControllerError(f"key controller.python: {settings.python} returned {error}") from None
+        elif settings.error is not None:
+            raise ControllerError(
+                f"key controller.error: {settings.python} returned a controller, not a python-control system; the error"
+                " is for python-control systems only (remove it: the controller reads the measurement itself)"
+            )
+    try:
+        check_controller(controller, outputs)
+    except ControllerError as error:
+        key = "key controller.python: " if settings.python is not None else ""
+        raise ControllerError(f"{key}{error}") from None
+    return controller
+
+
+def controller_record(run: Run, controller: object) -> dict[str, Any]:
+    """What run.json says about the controller: the scenario's spec and the object's class."""
+    kind = type(controller)
+    return {
+        "python": run.controller.python,
+        "parameters": dict(run.controller.parameters) if run.controller.python else {},
+        "class": f"{kind.__module__}.{kind.__qualname__}",
+        "diagnostics": list(getattr(controller, "diagnostics", ())),
+    }
