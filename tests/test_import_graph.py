@@ -158,6 +158,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("analysis",),
     ("experiments",),
     ("cli",),
+    ("__main__",),  # `python -m toggle_cosim`: the command line as a program
 )
 
 
