@@ -75,7 +75,11 @@ def require(*modules: str) -> None:
     from importlib.util import find_spec
 
     for module in modules:
-        if find_spec(module) is None:
+        try:
+            found = sys.modules[module] is not None if module in sys.modules else find_spec(module) is not None
+        except (ImportError, ValueError):  # a module blocked in sys.modules, or a broken one
+            found = False
+        if not found:
             raise ModuleNotFoundError(f"No module named {module!r}", name=module)
 
 
