@@ -1,7 +1,7 @@
 """Chattering of the control laws over the robustness map: the total variation of i_q* per
 second, Σ|Δi_q*| / t_end, for each law at every point of scenarios/sweep_law_FE_mB.yaml's map
 (F_E 0..150 N every 10 N by m_B 4.43..8.86 kg, 9 values, μ = 0.2). Prints the largest value
-per law and where it occurs; the README holds the integral law to ≤ 10 A/s.
+per law and where it occurs; docs/controllers.md holds the integral law to ≤ 10 A/s.
 
     .venv/bin/python benchmarks/chattering.py [--fmu fmus/ToggleLSM.fmu] [--quick]
 

@@ -146,7 +146,7 @@ def check_plant(path: Path) -> PlantInterface:
             if optional:
                 return
             raise ContractError(
-                f"{path}: missing contract variable {name!r} ({causalities[0]}); see the README's interface contract"
+                f"{path}: missing contract variable {name!r} ({causalities[0]}); see docs/plant-contract.md"
             )
         if variable.causality not in causalities:
             raise ContractError(
