@@ -33,6 +33,7 @@ EXTRAS = {
     "distributed": "sweep",
     "dask": "sweep",
     "pyarrow": "sweep",
+    "pandas": "sweep",
     "tqdm": "sweep",
     "junitparser": "ci",
     "buildingspy": "ci",

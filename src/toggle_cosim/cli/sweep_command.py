@@ -45,7 +45,7 @@ def sweep(
     quiet: bool,
 ) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
-    require("pyarrow", "distributed", "tqdm", "matplotlib")
+    require("pyarrow", "pandas", "distributed", "tqdm", "matplotlib")
     from toggle_cosim.experiments.sweep_run import run_sweep
 
     code = run_sweep(
