@@ -39,6 +39,8 @@ ALLOWED_FIRST_WORDS = (
     "cd",
     "dask",
     "kill",
+    "mkdir",
+    "cat",
 )
 
 
