@@ -1,18 +1,19 @@
 """The verdict of the funnel comparison against the sampling ratio, for the unchanged and perturbed plant.
 
-    .venv/bin/python benchmarks/sampling_table.py [fmus/ToggleLSM.fmu]
+    .venv/bin/python benchmarks/sampling_table.py [fmus/ToggleLSM.fmu] [--quick]
 
 Runs fig4_nominal/friction once unchanged and once per perturbation (mu 0.2 -> 0.25; one
 controller gain +5 %), then compares each with the unchanged run, one of the two traces
 decimated by 3, 7 and 10: "result ×k" = the result keeps every k-th sample against the
 full-resolution reference, "reference ×k" = the reverse. Tolerances: scenarios/references.
-Prints a Markdown table (pass / FAIL and the number of failing variables).
+Prints a Markdown table (pass / FAIL and the number of failing variables). `--quick` (for the
+test suite): the ratios 1 and 10 only.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -55,20 +56,28 @@ def verdict(result: Trace, reference: Trace) -> tuple[bool, int]:
     return comparison.passed, len(comparison.failed)
 
 
-def main(fmu: Path) -> None:
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("fmu", type=Path, nargs="?", default=ROOT / "fmus" / "ToggleLSM.fmu")
+    parser.add_argument("--quick", action="store_true", help="the ratios 1 and 10 only")
+    args = parser.parse_args()
+    table(args.fmu, (1, 10) if args.quick else RATIOS)
+
+
+def table(fmu: Path, ratios: tuple[int, ...]) -> None:
     plant = check_plant(fmu)
     run = nominal_run()
     nominal = simulate(run, plant).trace
     cases = {"unchanged": nominal, **{name: simulate(r, plant).trace for name, r in perturbations(run).items()}}
-    header = ["model"] + [f"result ×{k}" for k in RATIOS] + [f"reference ×{k}" for k in RATIOS if k > 1]
+    header = ["model"] + [f"result ×{k}" for k in ratios] + [f"reference ×{k}" for k in ratios if k > 1]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))
     for name, trace in cases.items():
         cells = []
-        for k in RATIOS:
+        for k in ratios:
             passed, failed = verdict(decimated(trace, k), nominal)
             cells.append("pass" if passed else f"FAIL ({failed})")
-        for k in RATIOS[1:]:
+        for k in ratios[1:]:
             passed, failed = verdict(trace, decimated(nominal, k))
             cells.append("pass" if passed else f"FAIL ({failed})")
         print(f"| {name} | " + " | ".join(cells) + " |")
@@ -76,4 +85,4 @@ def main(fmu: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "fmus" / "ToggleLSM.fmu")
+    main()

@@ -1,5 +1,5 @@
-"""The README's tables drawn from sweep results: the worst case over m_B for each F_E and law
-(`scenarios/sweep_law_FE_mB.yaml`), and the summary per friction model
+"""The sweep tables of docs/controllers.md and docs/friction-models.md, drawn from sweep
+results: the worst case over m_B for each F_E and law (`scenarios/sweep_law_FE_mB.yaml`), and the summary per friction model
 (`scenarios/sweep_friction_models.yaml`).
 
     toggle-cosim sweep scenarios/sweep_law_FE_mB.yaml

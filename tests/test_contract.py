@@ -26,10 +26,10 @@ SHIPPED_COLUMNS = (
 ).split()
 
 
-@pytest.mark.parametrize("page", ["docs/plant-contract.md", "README.md"])
+@pytest.mark.parametrize("page", ["docs/plant-contract.md"])
 def test_each_contract_table_is_the_generated_one(page: str) -> None:
     """The tables are generated from contract.yaml, never written by hand: regenerate them with
-    `python -m toggle_cosim.plant.contract_table docs/plant-contract.md README.md`."""
+    `python -m toggle_cosim.plant.contract_table docs/plant-contract.md`."""
     text = (ROOT / page).read_text(encoding="utf-8")
     assert text.count(BEGIN) == 1 and text.count(END) == 1
     assert replace_table(text) == text, f"{page}: the contract table differs from contract.yaml's"

@@ -1,49 +1,113 @@
-"""Every command the README shows works when pasted: each `toggle-cosim ...` line of its sh/bash
-code blocks names a command and options that exist (parsed by the click command itself, without
-running it), and no block calls a bare `python` that would be the system's interpreter."""
+"""Every example in the README and the documentation works when a reader runs it.
+
+The shell examples (```sh / ```bash blocks) of README.md and of the documentation pages, in the
+order a reader meets them (the README, then the pages in the order of mkdocs.yml's nav), are
+run one block after the other, each block as one bash script, in a working copy of the
+repository's top folder with `.venv/bin` first on PATH: so no example breaks the next. Only
+`scripts/test` is left out (it is the command that runs this test). Examples that cannot run
+here are written as ```text; their `toggle-cosim` lines are still parsed by the command itself.
+The documentation site builds with `mkdocs build --strict`."""
 
 from __future__ import annotations
 
+import os
 import re
 import shlex
+import shutil
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import click
 import pytest
+import yaml
 
 from toggle_cosim.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 PROGRAMS = ("toggle-cosim", ".venv/bin/toggle-cosim")
-# what a line of a README shell block may start with (after the set-up line activates .venv)
-ALLOWED_FIRST_WORDS = (*PROGRAMS, ".venv/bin/python", "scripts/run-paper", "scripts/test", ".")
+NOT_RUN = ("scripts/test",)  # the test command itself
+# what a line of a shell block may start with (the set-up line activates .venv)
+ALLOWED_FIRST_WORDS = (
+    *PROGRAMS,
+    ".venv/bin/python",
+    "scripts/run-paper",
+    "scripts/test",
+    ".",
+    "cd",
+    "dask",
+    "pythonfmu",  # the PythonFMU template plant (the test extra installs it)
+    "kill",
+    "mkdir",
+    "cat",
+)
 
 
-def shell_commands(text: str) -> list[tuple[int, str]]:
-    """(line number, command) for every command in the ```sh / ```bash blocks: continuation lines
-    joined, comments dropped."""
-    commands: list[tuple[int, str]] = []
-    inside, pending, start = False, "", 0
-    for number, line in enumerate(text.splitlines(), start=1):
+def _nav_pages(nav: list) -> list[str]:  # noqa: ANN001 - mkdocs.yml's nav, nested lists of {title: page}
+    pages: list[str] = []
+    for entry in nav:
+        for value in entry.values() if isinstance(entry, dict) else [entry]:
+            pages += _nav_pages(value) if isinstance(value, list) else [value]
+    return pages
+
+
+def documents() -> list[Path]:
+    """README.md, then every documentation page in the order of the site's navigation."""
+    config = yaml.safe_load((ROOT / "mkdocs.yml").read_text(encoding="utf-8"))
+    return [README, *(ROOT / "docs" / page for page in _nav_pages(config["nav"]))]
+
+
+def code_blocks(path: Path, languages: tuple[str, ...]) -> list[tuple[int, str]]:
+    """(first line number, text) of each fenced block in one of `languages`."""
+    blocks: list[tuple[int, str]] = []
+    inside, start, lines = False, 0, []
+    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         if line.startswith("```"):
-            inside = not inside and line[3:].strip() in ("sh", "bash")
+            if inside:
+                blocks.append((start, "\n".join(lines)))
+                inside = False
+            elif line[3:].strip() in languages:
+                inside, start, lines = True, number + 1, []
             continue
-        if not inside:
+        if inside:
+            lines.append(line)
+    return blocks
+
+
+def shell_commands(text: str) -> list[str]:
+    """The commands of a shell block: continuation lines joined, comments dropped, a heredoc's
+    body skipped."""
+    commands: list[str] = []
+    pending, heredoc = "", None
+    for line in text.splitlines():
+        if heredoc is not None:
+            heredoc = None if line.strip() == heredoc else heredoc
             continue
-        if not pending:
-            start = number
-        pending += line.rstrip().removesuffix("\\") + ("\n" if not line.rstrip().endswith("\\") else " ")
+        pending += line.rstrip().removesuffix("\\") + (" " if line.rstrip().endswith("\\") else "\n")
         if line.rstrip().endswith("\\"):
             continue
+        marker = re.search(r"<<-?'?(\w+)'?", pending)
         try:
             words = shlex.split(pending, comments=True)
         except ValueError:  # an open quotation: the command goes on over the next line
             continue
         pending = ""
+        heredoc = marker.group(1) if marker else None
         if words:
-            commands.append((start, shlex.join(words)))
+            commands.append(shlex.join(words))
     return commands
+
+
+def cli_lines(text: str) -> list[str]:
+    """`toggle-cosim ...` lines of any block (shell or text), comments dropped."""
+    found = []
+    for line in re.sub(r"\\\n\s*", " ", text).splitlines():  # continuation lines joined
+        words = shlex.split(line, comments=True) if line.startswith(PROGRAMS) else []
+        if words and words[0] in PROGRAMS and "&&" not in words and "|" not in words:
+            found.append(shlex.join(words))
+    return found
 
 
 def dry_parse(arguments: list[str]) -> None:
@@ -57,44 +121,64 @@ def dry_parse(arguments: list[str]) -> None:
             pass
 
 
-COMMANDS = shell_commands(README.read_text(encoding="utf-8"))
-CLI_LINES = [(n, c) for n, c in COMMANDS if shlex.split(c)[0] in PROGRAMS]
+SHELL_BLOCKS = [(path, line, text) for path in documents() for line, text in code_blocks(path, ("sh", "bash"))]
+CLI_LINES = [
+    (f"{path.relative_to(ROOT)}:{line}", command)
+    for path in documents()
+    for line, text in code_blocks(path, ("sh", "bash", "text"))
+    for command in cli_lines(text)
+]
 
 
-def test_the_readme_has_examples_to_check() -> None:
-    assert len(CLI_LINES) >= 15  # build, run, plot, compare, references, sweep, ... (a broken extraction finds none)
+def test_the_documents_have_examples_to_run() -> None:
+    """A broken extraction finds none: the README's two commands and the everyday tasks, the
+    pages' examples of every command."""
+    assert len(SHELL_BLOCKS) >= 12
+    commands = [shlex.split(c) for _, _, text in SHELL_BLOCKS for c in shell_commands(text)]
+    assert commands[0][0] == "scripts/run-paper"
+    used = {words[1] for words in commands if words[0] in PROGRAMS}
+    assert used >= {"run", "plot", "compare", "references", "sweep", "init", "build"}
     assert {shlex.split(c)[1] for _, c in CLI_LINES} >= {"build", "run", "plot", "compare", "references", "sweep"}
 
 
-@pytest.mark.parametrize(("line", "command"), COMMANDS, ids=[f"line{n}" for n, _ in COMMANDS])
-def test_every_shell_line_uses_the_projects_programs(line: int, command: str) -> None:
+@pytest.mark.parametrize(("path", "line", "text"), SHELL_BLOCKS, ids=[f"{p.name}:{n}" for p, n, _ in SHELL_BLOCKS])
+def test_every_shell_line_uses_the_projects_programs(path: Path, line: int, text: str) -> None:
     """A bare `python` (or any program the set-up does not provide) would not be the project's."""
-    first = shlex.split(command)[0]
-    assert first in ALLOWED_FIRST_WORDS, f"README.md:{line}: {command!r} starts with {first!r}"
+    for command in shell_commands(text):
+        first = shlex.split(command)[0]
+        assert first in ALLOWED_FIRST_WORDS, f"{path.name}:{line}: {command!r} starts with {first!r}"
 
 
-@pytest.mark.parametrize(("line", "command"), CLI_LINES, ids=[f"line{n}" for n, _ in CLI_LINES])
-def test_every_toggle_cosim_example_parses(line: int, command: str) -> None:
+@pytest.mark.parametrize(("where", "command"), CLI_LINES, ids=[w for w, _ in CLI_LINES])
+def test_every_toggle_cosim_example_parses(where: str, command: str) -> None:
     try:
         dry_parse(shlex.split(command)[1:])
     except click.UsageError as error:
-        pytest.fail(f"README.md:{line}: {command!r}: {error.format_message()}")
+        pytest.fail(f"{where}: {command!r}: {error.format_message()}")
 
 
 def test_the_set_up_block_activates_the_environment() -> None:
     """After the set-up command the reader activates .venv, so bare `toggle-cosim` is found."""
-    first_block = [c for n, c in COMMANDS][:3]
+    first_block = shell_commands(code_blocks(README, ("sh",))[0][1])
     assert first_block[0].startswith("scripts/run-paper")
     assert ". .venv/bin/activate" in first_block
 
 
 def test_inline_python_commands_name_the_projects_interpreter() -> None:
-    """`python benchmarks/...` in the prose would run the system's Python (3.11 here)."""
-    text = README.read_text(encoding="utf-8")
-    bare = [
-        m.group(0) for m in re.finditer(r"`(?:[^`]*\s)?python3? [^`]*`", text) if ".venv/bin/python" not in m.group(0)
-    ]
-    assert not bare, bare
+    """`python benchmarks/...` in the prose would run the system's Python (3.11 here); only the
+    installed package's `python -m toggle_cosim` is meant for any interpreter."""
+    for path in documents():
+        text = path.read_text(encoding="utf-8")
+        bare = [
+            m.group(0)
+            for m in re.finditer(r"`(?:[^`]*\s)?python3? [^`]*`", text)
+            if ".venv/bin/python" not in m.group(0) and m.group(0) != "`python -m toggle_cosim`"
+        ]
+        assert not bare, (path.name, bare)
+
+
+def test_the_readme_stays_short() -> None:
+    assert len(README.read_text(encoding="utf-8").splitlines()) <= 150
 
 
 @pytest.mark.parametrize(
@@ -117,3 +201,61 @@ def test_the_same_option_name_for_the_output_everywhere() -> None:
         options = {opt for p in main.commands[name].params for opt in getattr(p, "opts", [])}
         assert "--out" in options, name
         assert "--output" not in options, name
+
+
+def test_the_documentation_site_builds_strictly(tmp_path: Path) -> None:
+    """Every page in the nav, every link and anchor resolves, the API reference renders from
+    the docstrings and the changelog is included (mkdocs.yml sets strict)."""
+    mkdocs = Path(sys.executable).parent / "mkdocs"
+    if not mkdocs.is_file():
+        pytest.skip("mkdocs is not installed (the extra [docs])")
+    result = subprocess.run(
+        [mkdocs, "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "NO_MKDOCS_2_WARNING": "1"},
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "doc-heading" in (tmp_path / "site" / "api" / "index.html").read_text(encoding="utf-8")
+    assert "Unreleased" in (tmp_path / "site" / "changelog" / "index.html").read_text(encoding="utf-8")
+
+
+@pytest.fixture
+def working_copy(tmp_path: Path) -> Path:
+    """The repository's top folder as a reader has it: the scenarios copied (examples write
+    references), everything else linked; fmus/, out/ and reports/ start empty."""
+    copy = tmp_path / "toggle-cosim"
+    copy.mkdir()
+    for entry in ROOT.iterdir():
+        if entry.name in ("scenarios",):
+            shutil.copytree(entry, copy / entry.name)
+        elif entry.name not in ("out", "fmus", "reports", "site", "build", ".git", ".pytest_cache", ".hypothesis"):
+            (copy / entry.name).symlink_to(entry)
+    return copy
+
+
+def test_every_shell_example_runs_in_reading_order(working_copy: Path) -> None:
+    env = {**os.environ, "PATH": f"{ROOT / '.venv' / 'bin'}{os.pathsep}{os.environ['PATH']}"}
+    for path, line, text in SHELL_BLOCKS:
+        script = "\n".join(
+            row for row in text.splitlines() if not any(row.lstrip().startswith(skip) for skip in NOT_RUN)
+        )
+        process = subprocess.Popen(
+            ["bash", "-e", "-o", "pipefail", "-c", script],
+            cwd=working_copy,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            start_new_session=True,  # its own process group: whatever the block left running is ended below
+        )
+        try:
+            output, _ = process.communicate(timeout=600)
+        finally:
+            try:
+                os.killpg(process.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        assert process.returncode == 0, f"{path.relative_to(ROOT)}:{line}: exit {process.returncode}\n{output[-3000:]}"

@@ -23,7 +23,7 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
      (alpha, lambda). The events of models 2 and 3 have indicators that are identically zero
      under model 1, so the paper's model integrates exactly as before. */
   constant Real pi = 3.141592653589793;
-  // Geometry (assumed, see shared/spec/mechanism.md)
+  // Geometry (assumed, see docs/model.md)
   parameter Real r1(unit = "m") = 0.10 "Lever arm O-A (assumed)";
   parameter Real r3(unit = "m") = 0.27 "Length of link A-B (assumed)";
   parameter Real r4(unit = "m") = 0.10 "Lever arm O-D (assumed)";

@@ -7,5 +7,5 @@ package ToggleLSM "Toggle mechanism driven by a permanent-magnet linear synchron
        LoadForce               the external force F_E on slider B
        Plant                   the three connected; the FMU's interface contract
      Values marked "assumed" are not in the paper (its mechanism data come from its
-     reference [8], not available to us); ../../shared/spec/mechanism.md says why each was chosen. */
+     reference [8], not available to us); docs/model.md says why each was chosen. */
 end ToggleLSM;

@@ -1,10 +1,11 @@
-"""Command line: `toggle-cosim build | run | plot | paper | compare | references | sweep`.
+"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep`.
 
 The only package that knows about files, exit codes and progress display. Exit status:
 0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
 
     app.py             the command group, its exit-status policy, the shared errors and paths
     build_command.py   build
+    init_command.py    init: the shipped scenarios copied into a working folder
     execution.py       what the run commands share: checks, supervised runs, files, options
     run_commands.py    run, plot, paper
     check_commands.py  compare, references
@@ -20,12 +21,14 @@ from pathlib import Path
 
 from toggle_cosim import interrupts
 
-# As a program (the `toggle-cosim` script, or `python -m toggle_cosim.cli`, while Python still
-# locates the module and argv[0] is "-m"): an interrupt at start-up exits 130 too.
-if Path(sys.argv[0]).name == "toggle-cosim" or sys.argv[0] == "-m":
+# As a program (the `toggle-cosim` script; `python -m toggle_cosim.cli`, while Python still
+# locates the module and argv[0] is "-m"; `python -m toggle_cosim`, whose __main__.py imports
+# this): an interrupt at start-up exits 130 too.
+_program = Path(sys.argv[0])
+if _program.name == "toggle-cosim" or sys.argv[0] == "-m" or _program.parts[-2:] == ("toggle_cosim", "__main__.py"):
     interrupts.install_for_start_up()  # before the heavy imports
 
-from toggle_cosim.cli import build_command, check_commands, run_commands, sweep_command  # noqa: E402, F401 - they add the commands
+from toggle_cosim.cli import build_command, check_commands, init_command, run_commands, sweep_command  # noqa: E402, F401 - they add the commands
 from toggle_cosim.cli.app import main  # noqa: E402
 
 __all__ = ["main"]

@@ -1,6 +1,6 @@
 """The command group and what every command shares: the exit-status policy (0 success, 1 a
 run or comparison failed, 2 bad input in one line, 130 interrupted), the errors that carry it,
-the project's default paths, and the check that a path lies inside the project."""
+the default paths, and the one-line message for a command whose optional extra is not installed."""
 
 from __future__ import annotations
 
@@ -17,11 +17,23 @@ from toggle_cosim.experiments.shipped import (  # noqa: F401 - the commands' def
     DEFAULT_REFERENCES,
     DEFAULT_SOURCE,
     PAPER_SCENARIOS,
+    SHIPPED_SCENARIO_FOLDER,
     SHIPPED_SCENARIOS,
 )
 from toggle_cosim.files.outputs import OutputError, check_destination
 
 DEFAULT_OUT = Path("out")
+# The optional extras (pyproject.toml) and the top-level modules that each brings.
+EXTRAS = {
+    "modelica": "build",
+    "distributed": "sweep",
+    "dask": "sweep",
+    "pyarrow": "sweep",
+    "tqdm": "sweep",
+    "junitparser": "ci",
+    "buildingspy": "ci",
+    "matplotlib": "plot",
+}
 
 
 class InputError(click.ClickException):
@@ -38,6 +50,33 @@ class RunFailed(click.ClickException):
 
     def show(self, file=None) -> None:  # noqa: ANN001
         click.echo(f"failed: {self.message}", err=True)
+
+
+def missing_extra(error: ModuleNotFoundError, command: str) -> str | None:
+    """The one-line message for a module of an optional extra that is not installed, or None
+    when the missing module belongs to no extra (a broken installation: the traceback stays)."""
+    top = (error.name or "").split(".")[0]
+    extra = EXTRAS.get(top)
+    if extra is None:
+        return None
+    return (
+        f"{command} needs the Python package '{top}' of the extra [{extra}]: "
+        f"pip install 'toggle-cosim[{extra}]' (or 'toggle-cosim[all]')"
+    )
+
+
+def require(*modules: str) -> None:
+    """Check before any work that the optional modules a command will import are installed: a
+    missing one raises the ModuleNotFoundError that the command group turns into its one line."""
+    from importlib.util import find_spec
+
+    for module in modules:
+        try:
+            found = sys.modules[module] is not None if module in sys.modules else find_spec(module) is not None
+        except (ImportError, ValueError):  # a module blocked in sys.modules, or a broken one
+            found = False
+        if not found:
+            raise ModuleNotFoundError(f"No module named {module!r}", name=module)
 
 
 class _Commands(click.Group):
@@ -77,6 +116,14 @@ class _Commands(click.Group):
             interrupts.ignore()  # the work is over: from here the process only ends
             click.echo(f"error: {error}", err=True)
             sys.exit(2)
+        except ModuleNotFoundError as error:  # an optional extra is not installed: say which, exit 2
+            interrupts.ignore()  # the work is over: from here the process only ends
+            words = [word for word in (sys.argv[1:] if args is None else args) if not word.startswith("-")]
+            message = missing_extra(error, " ".join(["toggle-cosim", *words[:1]]))
+            if message is None:
+                raise
+            click.echo(f"error: {message}", err=True)
+            sys.exit(2)
         except OSError as error:  # a file system problem found late (e.g. a disk that filled up): one line
             interrupts.ignore()  # the work is over: from here the process only ends
             if interrupts.is_interrupt(error):
@@ -102,40 +149,6 @@ class _Commands(click.Group):
 @click.version_option(__version__, prog_name="toggle-cosim")
 def main() -> None:
     """Co-simulation of the PMLSM-driven toggle mechanism (Fung, Wu and Chen 2001)."""
-
-
-def project_root() -> Path:
-    """The project this command runs in: the nearest folder up from here with a pyproject.toml."""
-    here = Path.cwd().resolve()
-    for folder in (here, *here.parents):
-        if (folder / "pyproject.toml").is_file():
-            return folder
-    return here
-
-
-def project_of(source: Path) -> Path:
-    """The project a Modelica source belongs to: the nearest folder up from it with a
-    pyproject.toml (whatever the current folder is); a one-line refusal if there is none."""
-    resolved = source.resolve()
-    for folder in (resolved, *resolved.parents):
-        if (folder / "pyproject.toml").is_file():
-            return folder
-    raise InputError(
-        f"{source}: the Modelica source lies in no project (no pyproject.toml above it); "
-        "the build only reads and writes inside a project"
-    )
-
-
-def inside_project(path: Path, what: str, option: str, root: Path | None = None) -> Path:
-    """`path`, resolved, if it lies inside the project; else a one-line refusal."""
-    root = root or project_root()
-    resolved = path.resolve()
-    if not resolved.is_relative_to(root):
-        raise InputError(
-            f"{path}: the {what} lies outside the project {root}; the build only reads and writes "
-            f"inside it (give a path under it with {option})"
-        )
-    return resolved
 
 
 def check_output(path: Path | None, what: str) -> None:

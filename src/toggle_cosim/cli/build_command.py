@@ -1,4 +1,4 @@
-"""`toggle-cosim build`: Modelica source to FMU (`fmu_export`), inside the project only."""
+"""`toggle-cosim build`: Modelica source to FMU (`fmu_export`), from any folder into any folder."""
 
 from __future__ import annotations
 
@@ -13,22 +13,37 @@ from toggle_cosim.cli.app import (
     DEFAULT_SOURCE,
     InputError,
     check_output,
-    inside_project,
     main,
     out_file_option,
-    project_of,
+    require,
 )
+
+# The default file name's tag for an FMU that offers one interface only: the default FMU offers both.
+INTERFACE_TAGS = {"both": "", "cs": "_CS", "me": "_ME"}
+
+
+def _is_fmu(path: Path) -> bool:
+    """A zip archive with a modelDescription.xml: a file the build may replace."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return "modelDescription.xml" in archive.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return False
 
 
 def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0", interfaces: str = "both") -> None:
     from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
 
-    root = project_of(source)
-    source = inside_project(source, "Modelica source", "--source", root)
-    check_output(output, "FMU (--out)")  # before resolving: a link there is refused, not followed
-    output = inside_project(output, "FMU output", "--out", root)
+    require("modelica")
+    check_output(output, "FMU (--out)")  # a link there is refused, not followed
+    if not source.exists():
+        raise InputError(f"{source}: no such Modelica package folder or .mo file (fix --source)")
     if output.suffix != ".fmu":
         raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
+    if output.is_dir() or (output.exists() and not _is_fmu(output)):
+        raise InputError(f"{output}: exists and is not an FMU; the build replaces only an FMU (give another --out)")
     try:
         report = build_fmu(source, model, output, fmi_version=fmi_version, interfaces=interfaces)
     except (ModelCompileError, FMUBuildError) as error:
@@ -46,8 +61,8 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     "--source",
     type=click.Path(path_type=Path),
     default=DEFAULT_SOURCE,
-    show_default=True,
-    help="Modelica package directory (or a .mo file).",
+    show_default="the shipped ToggleLSM package",
+    help="Modelica package folder (or a .mo file), anywhere.",
 )
 @click.option("--model", default=None, help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first).")
 @out_file_option(f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).")
@@ -63,11 +78,13 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     type=click.Choice(["both", "cs", "me"]),
     default="both",
     show_default=True,
-    help="Interface types the FMU offers: Co-Simulation and Model Exchange in one FMU, or one of them.",
+    help="Interface types the FMU offers: Co-Simulation and Model Exchange in one FMU, or one of them "
+    "(then the default file name ends in _CS or _ME).",
 )
 def build(source: Path, model: str | None, output: Path | None, fmi_version: str, interfaces: str) -> None:
-    """Compile the Modelica source into FMI 2.0 or 3.0 FMUs (Co-Simulation and/or Model Exchange)."""
-    suffix = "3" if fmi_version == "3.0" else ""
+    """Compile the Modelica source into FMI 2.0 or 3.0 FMUs (Co-Simulation and/or Model Exchange);
+    by default every shipped plant into ./fmus of the current folder."""
+    suffix = ("3" if fmi_version == "3.0" else "") + INTERFACE_TAGS[interfaces]
     if model is None and output is not None:
         model = DEFAULT_MODEL
     if model is None:

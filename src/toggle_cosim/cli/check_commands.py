@@ -16,6 +16,7 @@ from toggle_cosim.cli.app import (
     RunFailed,
     check_output,
     main,
+    require,
 )
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of
 
@@ -59,6 +60,8 @@ def compare(
 ) -> None:
     """Compare RESULT with REFERENCE (CSV or Modelica .mat traces) in a funnel; exit 0 pass, 1 fail, 2 bad input."""
     from toggle_cosim.analysis.compare_command import run_compare
+
+    require(*(("junitparser",) if junit else ()), *(("matplotlib",) if out else ()))
 
     sys.exit(
         run_compare(
@@ -108,7 +111,8 @@ def references(
     time_limit: float | None,
     jobs: int | None,
 ) -> None:
-    """Check the shipped runs against their stored reference traces (or --update them)."""
+    """Check scenario runs against their stored reference traces in --folder (or --update them);
+    without SCENARIOS, the shipped scenarios in ./scenarios (`toggle-cosim init` copies them there)."""
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim.experiments import references as refs
 
@@ -116,7 +120,13 @@ def references(
     check_output(summary, "Markdown summary")
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
+    if not update:
+        require("junitparser", "matplotlib")
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
+    if not scenarios and not Path("scenarios").is_dir():
+        raise InputError(
+            "scenarios: no such folder here; name scenario files, or copy the shipped ones with 'toggle-cosim init'"
+        )
     pairs = load_runs(files, fmu)
     failures: list[str] = []
     checks = []

@@ -14,10 +14,12 @@ from toggle_cosim.cli.app import (
     DEFAULT_OUT,
     DEFAULT_SOURCE,
     PAPER_SCENARIOS,
+    SHIPPED_SCENARIO_FOLDER,
     InputError,
     check_output,
     main,
     out_file_option,
+    require,
 )
 from toggle_cosim.cli.build_command import build_plant
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_runs, load_runs, raise_if_failed
@@ -54,6 +56,7 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
 @out_file_option("PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
 def plot(results: tuple[Path, ...], output: Path | None) -> None:
     """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
+    require("matplotlib")
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")
     check_output(output, "figure (--out)")
@@ -62,15 +65,24 @@ def plot(results: tuple[Path, ...], output: Path | None) -> None:
 
 
 @main.command()
-@click.option("--scenarios", type=click.Path(path_type=Path), default=Path("scenarios"), show_default=True)
+@click.option(
+    "--scenarios",
+    type=click.Path(path_type=Path),
+    default=SHIPPED_SCENARIO_FOLDER,
+    show_default="the shipped scenarios",
+    help="Folder with the paper's scenario files (their fmu: keys give way to --fmu).",
+)
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True)
 @click.option("--fmu", type=click.Path(path_type=Path), default=DEFAULT_FMU, show_default=True)
 @click.option("--skip-build", is_flag=True, help="Use the existing FMU.")
 @TIME_LIMIT_OPTION
 @JOBS_OPTION
 def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: float | None, jobs: int | None) -> None:
-    """The main job: build the FMU, run the paper's six runs, write traces, figures and a summary."""
+    """The main job: build the FMUs, run the paper's six runs (and, where SCENARIOS has it,
+    friction_models.yaml's seven: 13 runs), write traces, figures and a summary."""
     from toggle_cosim.analysis.report import write_summary
+
+    require("matplotlib", *(() if skip_build else ("modelica",)))
 
     started = time.perf_counter()
     if not skip_build:

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from toggle_cosim import interrupts
-from toggle_cosim.cli.app import main
+from toggle_cosim.cli.app import main, require
 
 
 @main.command()
@@ -45,6 +45,7 @@ def sweep(
     quiet: bool,
 ) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
+    require("pyarrow", "pandas", "distributed", "tqdm", "matplotlib")
     from toggle_cosim.experiments.sweep_run import run_sweep
 
     code = run_sweep(

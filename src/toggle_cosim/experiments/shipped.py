@@ -1,4 +1,4 @@
-"""What the project ships and where it lies in the project folder: the plant's Modelica source
+"""What the project ships and where it lies, in the package and in a project folder: the plant's Modelica source
 and the FMUs built from it, the scenario files and their stored references. The command line's
 defaults (`cli.app`) and the Python API's look-ups (`api.project`) both read these."""
 
@@ -6,7 +6,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-DEFAULT_SOURCE = Path("modelica/ToggleLSM")
+# The Modelica package and the scenarios shipped with the package (package data; in a clone,
+# links to the repository's modelica/ToggleLSM and scenarios/, so there is one copy of each).
+SHIPPED = Path(__file__).resolve().parent.parent / "shipped"
+DEFAULT_SOURCE = SHIPPED / "ToggleLSM"  # what `toggle-cosim build` compiles when no --source is given
+SHIPPED_SCENARIO_FOLDER = SHIPPED / "scenarios"
+PROJECT_SOURCE = Path("modelica/ToggleLSM")  # where a project folder (a clone) keeps the Modelica source
 DEFAULT_MODEL = "ToggleLSM.Plant"
 DEFAULT_FMU = Path("fmus/ToggleLSM.fmu")
 # What `toggle-cosim build` writes when no --model is given: every shipped plant.
@@ -25,6 +30,6 @@ def project_folder(start: Path | None = None) -> Path | None:
     project's scenarios and Modelica source; None when there is none."""
     here = (Path(start) if start is not None else Path.cwd()).resolve()
     for folder in (here, *here.parents):
-        if (folder / SCENARIOS).is_dir() and (folder / DEFAULT_SOURCE).is_dir():
+        if (folder / SCENARIOS).is_dir() and (folder / PROJECT_SOURCE).is_dir():
             return folder
     return None

@@ -1,9 +1,9 @@
 """The plant contract as a Markdown table, generated from contract.yaml (`plant.contract`).
 
-The table stands between the markers BEGIN and END in docs/plant-contract.md and the README;
+The table stands between the markers BEGIN and END in docs/plant-contract.md;
 `tests/test_contract.py` checks that each equals what this module generates, and
 
-    python -m toggle_cosim.plant.contract_table docs/plant-contract.md README.md
+    python -m toggle_cosim.plant.contract_table docs/plant-contract.md
 
 writes it there again after a change of contract.yaml.
 """
