@@ -12,6 +12,14 @@ run whose input F_E is at least TOGGLE_FAULT_MIN_FE (N), misbehaves as TOGGLE_FA
     nan       fmi2GetReal answers NaN for every output
     discard   fmi2DoStep returns fmi2Discard
     error     fmi2DoStep returns fmi2Error
+    status    fmi2DoStep returns TOGGLE_FAULT_STATUS (any integer, e.g. -1 or 5) and does not step
+    log       fmi2DoStep logs a message in invalid UTF-8 with status TOGGLE_FAULT_STATUS, then steps
+
+and, whatever the time and F_E (the helper processes live TOGGLE_FAULT_SLEEP s, default 40):
+
+    fork      fmi2Instantiate forks a helper (no exec: it holds every descriptor the plant has)
+    daemon    the library's constructor starts `sleep N &` through system() (at load: the probe too)
+    chdir     fmi2Instantiate changes the working directory to TOGGLE_FAULT_DIR
 
 The settings come from the environment, so a command started with them passes them to every
 process that loads the plant (pool workers, supervised children).
@@ -35,12 +43,6 @@ _FUNCTIONS = [
     ("fmi2GetTypesPlatform", "const char*", ""),
     ("fmi2GetVersion", "const char*", ""),
     ("fmi2SetDebugLogging", "fmi2Status", "fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]"),
-    (
-        "fmi2Instantiate",
-        "fmi2Component",
-        "fmi2String name, fmi2Type type, fmi2String guid, fmi2String location, "
-        "const fmi2CallbackFunctions* functions, fmi2Boolean visible, fmi2Boolean logging",
-    ),
     ("fmi2FreeInstance", "void", "fmi2Component c"),
     (
         "fmi2SetupExperiment",
@@ -93,13 +95,33 @@ _PROLOGUE = r"""
 #include <math.h>
 #include <signal.h>
 #include <stdlib.h>
+#include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 #include "fmi2Functions.h"
 
 static void *real_library;
-static int kind; /* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error */
+/* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error, 8 status, 9 log,
+   10 fork, 11 daemon, 12 chdir */
+static int kind;
 static double fault_time = 1e300, fault_min_FE = -1e300, last_time, F_E;
 static unsigned int F_E_vr = 0xffffffffu;
+static int fault_status;
+static fmi2CallbackFunctions callbacks;
+
+static double sleep_seconds(void) {
+    const char *text = getenv("TOGGLE_FAULT_SLEEP");
+    return text ? atof(text) : 40.0;
+}
+
+__attribute__((constructor)) static void on_load(void) {
+    const char *k = getenv("TOGGLE_FAULT_KIND");
+    if (k && strcmp(k, "daemon") == 0) {
+        char command[64];
+        snprintf(command, sizeof command, "sleep %g &", sleep_seconds());
+        if (system(command) != 0) abort();
+    }
+}
 
 static void *real(const char *name) {
     if (!real_library) {
@@ -118,8 +140,10 @@ static void *real(const char *name) {
         real_library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
         if (!real_library) abort();
         const char *k = getenv("TOGGLE_FAULT_KIND");
-        const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error"};
-        for (int i = 1; k && i < 8; i++) if (strcmp(k, names[i]) == 0) kind = i;
+        const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error",
+                               "status", "log", "fork", "daemon", "chdir"};
+        for (int i = 1; k && i < 13; i++) if (strcmp(k, names[i]) == 0) kind = i;
+        if (getenv("TOGGLE_FAULT_STATUS")) fault_status = atoi(getenv("TOGGLE_FAULT_STATUS"));
         if (getenv("TOGGLE_FAULT_TIME")) fault_time = atof(getenv("TOGGLE_FAULT_TIME"));
         if (getenv("TOGGLE_FAULT_MIN_FE")) fault_min_FE = atof(getenv("TOGGLE_FAULT_MIN_FE"));
         if (getenv("TOGGLE_FAULT_FE_VR")) F_E_vr = (unsigned int)atol(getenv("TOGGLE_FAULT_FE_VR"));
@@ -138,6 +162,18 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
     fmi2Status status = ((fmi2GetRealTYPE *)real("fmi2GetReal"))(c, vr, n, v);
     if (faulting() && kind == 5) for (size_t i = 0; i < n; i++) v[i] = NAN;
     return status;
+}
+
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String location,
+                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
+    fmi2InstantiateTYPE *instantiate = (fmi2InstantiateTYPE *)real("fmi2Instantiate");
+    if (functions) callbacks = *functions;
+    if (kind == 10 && fork() == 0) {
+        usleep((useconds_t)(sleep_seconds() * 1e6));
+        _exit(0);
+    }
+    if (kind == 12 && chdir(getenv("TOGGLE_FAULT_DIR") ? getenv("TOGGLE_FAULT_DIR") : "/") != 0) abort();
+    return instantiate(name, type, guid, location, functions, visible, logging);
 }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
@@ -160,6 +196,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
             }
         case 6: return fmi2Discard;
         case 7: return fmi2Error;
+        case 8: return (fmi2Status)fault_status;
+        case 9:
+            if (callbacks.logger)
+                callbacks.logger(callbacks.componentEnvironment, "shim", (fmi2Status)fault_status, "logAll",
+                                 "bad bytes \xff\xfe\x80 at %g s", t);
+            break;
         }
     }
     return ((fmi2DoStepTYPE *)real("fmi2DoStep"))(c, t, h, noSetPrior);

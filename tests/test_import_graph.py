@@ -149,7 +149,7 @@ def test_no_module_touches_a_private_attribute_of_another_object() -> None:
 # experiments (scenarios, sweeps, references) drive all of them; the CLI is on top.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("toggle_cosim",),
-    ("native", "interrupts"),
+    ("native", "interrupts", "limits", "process_tree"),
     ("files", "physics", "fmu_export"),
     ("control",),
     ("runs",),

@@ -172,9 +172,24 @@ JOBS_OPTION = click.option(
     "is a line per run as it is written (in order), not a bar; the traces are the same.",
 )
 
+
+class Seconds(click.ParamType):
+    """A wall-clock limit in seconds, checked by `limits.seconds` (finite, positive, bounded)."""
+
+    name = "seconds"
+
+    def convert(self, value, param, ctx):  # noqa: ANN001, ANN201 - click's signature
+        from toggle_cosim import limits
+
+        try:
+            return limits.seconds(value, f"--{param.name.replace('_', '-')}" if param else "value")
+        except limits.LimitError as error:
+            self.fail(str(error), param, ctx)
+
+
 TIME_LIMIT_OPTION = click.option(
     "--time-limit",
-    type=click.FloatRange(min=0, min_open=True),
+    type=Seconds(),
     default=None,
     metavar="SECONDS",
     help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).",

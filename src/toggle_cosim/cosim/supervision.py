@@ -6,7 +6,7 @@
             trace) back through a pipe -> _exit
 
 A segfault, abort, endless loop or huge allocation (the child's address space may grow by
-TOGGLE_COSIM_PLANT_MEMORY, default 4 GiB) in the plant's native code ends the child,
+TOGGLE_COSIM_PLANT_MEMORY, default 4 GiB: `limits`) in the plant's native code ends the child,
 not the command: the parent keeps the trace up to the last sample the child recorded (it is in
 the shared buffer), writes the run as `failed` with the reason (the signal's name, "time limit
 30 s exceeded", the exit status) and goes on with the next run. SIGINT/SIGTERM in the parent
@@ -45,14 +45,13 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim import interrupts
+from toggle_cosim import interrupts, limits, process_tree
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
 
-PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process as forked
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
 TIME_LIMIT_PER_SIMULATED_S = 20.0
 _PR_SET_PDEATHSIG = 1
@@ -112,28 +111,19 @@ def _die_with_parent(parent: int) -> None:
         os._exit(1)
 
 
-def plant_memory_limit() -> int:
-    """TOGGLE_COSIM_PLANT_MEMORY (bytes, or with a K/M/G suffix), default 4 GiB."""
-    text = os.environ.get("TOGGLE_COSIM_PLANT_MEMORY", "").strip().upper()
-    if not text:
-        return PLANT_MEMORY_DEFAULT
-    scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1], 1)
-    try:
-        return int(float(text.rstrip("KMG")) * scale)
-    except ValueError:
-        return PLANT_MEMORY_DEFAULT
-
-
 def _limit_memory() -> None:
-    """The child's address space may grow by plant_memory_limit(): a plant that allocates without
-    end gets NULL from malloc instead of taking the machine's memory."""
+    """The child's address space may grow by `limits.plant_memory()` (checked by the command
+    before any run, `limits.check_environment`): a plant that allocates without
+    end gets NULL from malloc instead of taking the machine's memory. A bad value raises (the
+    run fails, naming the variable) rather than leaving the plant without a limit."""
+    allowed = limits.plant_memory()
     with contextlib.suppress(Exception):
         import resource
 
         with open("/proc/self/statm") as stream:
             current = int(stream.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
         soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-        wanted = current + plant_memory_limit()
+        wanted = current + allowed
         if hard != resource.RLIM_INFINITY:
             wanted = min(wanted, hard)
         resource.setrlimit(resource.RLIMIT_AS, (wanted, hard))
@@ -172,6 +162,7 @@ def _child(
         gc.disable()  # a collection would touch, and so copy, the whole inherited heap; the child lives briefly
         faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
         interrupts.as_child()  # the parent decides about interrupts
+        process_tree.become_leader()  # its own group, and the adoptive parent of its helpers' orphans
         _die_with_parent(parent)
         _limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
@@ -208,6 +199,8 @@ def _child(
         sys.stderr.flush()
     except BaseException:  # noqa: BLE001
         code = 4
+    with contextlib.suppress(BaseException):
+        process_tree.end_descendants()  # helper processes the plant started end with the run
     os._exit(code)
 
 
@@ -222,10 +215,14 @@ def _rows_recorded(buffer: np.ndarray) -> int:
 def _map_buffer(folder: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndarray]:
     """A shared map of rows x columns doubles, NaN-filled, backed by a file in `folder` that has
     no name: O_TMPFILE on Linux (TemporaryFile falls back to create-and-unlink elsewhere), so no
-    moment exists at which a kill could leave it behind."""
+    moment exists at which a kill could leave it behind. Its blocks are allocated before it is
+    mapped (a full file system is an OSError here, not a SIGBUS when the run writes a sample);
+    the map holds the file's only descriptor, released with the last view of the map."""
     size = max(rows * columns * 8, 8)
     with tempfile.TemporaryFile(dir=folder) as stream:
         stream.truncate(size)
+        if hasattr(os, "posix_fallocate"):
+            os.posix_fallocate(stream.fileno(), 0, size)
         mapped = mmap.mmap(stream.fileno(), size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
     array = np.frombuffer(mapped, dtype=np.float64, count=rows * columns).reshape(rows, columns)
     array.fill(np.nan)
@@ -273,18 +270,33 @@ class SupervisedRun:
         self.deadline = math.inf
         self._capture_log = capture_log
         self._with_progress = with_progress
-        self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=scratch))
+        self._scratch = Path(scratch) if scratch is not None else Path(tempfile.gettempdir())
+        self._workdir: Path | None = None
 
     def start(self) -> None:
-        """Map the trace buffer and fork the child; its deadline runs from here."""
+        """Make the run's folder, map the trace buffer and fork the child; its deadline runs from
+        here. A run that cannot start (no scratch space, no descriptor left) is done at once and
+        fails alone, with the reason."""
         try:
             self._fork()
+        except OSError as error:
+            self._kill()
+            self.reason = self.reason or f"the run could not start: {error.strerror or error}"
+            self.done = True
         except BaseException:
             self.stop()
             raise
 
     def _fork(self) -> None:
-        _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
+        try:
+            self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=self._scratch))
+            _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
+        except OSError as error:
+            self.reason = (
+                f"no scratch space for the run's trace buffer in {self._scratch} ({error.strerror or error}); "
+                "free space there or set TMPDIR"
+            )
+            raise
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
         _warm_up()
@@ -298,6 +310,8 @@ class SupervisedRun:
             with warnings.catch_warnings(), interrupts.starting_children():
                 warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
                 self.pid = os.fork()
+                if self.pid > 0:
+                    process_tree.adopt(self.pid)
                 if self.pid == 0:  # the child never leaves this block: _child ends in os._exit
                     os.close(read_fd)
                     _child(
@@ -312,6 +326,7 @@ class SupervisedRun:
                     )
         finally:
             os.close(write_fd)
+        os.set_blocking(read_fd, False)  # a helper the plant forked may hold the pipe open: never wait on it
         self.deadline = clock.monotonic() + self.limit
         try:
             self._pidfd = os.pidfd_open(self.pid)
@@ -340,26 +355,29 @@ class SupervisedRun:
             self._kill()
             return True
         if self._read_fd in ready and self._read_fd in self._watch:
-            chunk = os.read(self._read_fd, 1 << 16)
-            if chunk:
-                self._chunks.append(chunk)
-            else:
-                self._watch.remove(self._read_fd)
-        if self._pidfd in ready or self._pidfd < 0:
-            finished, got = os.waitpid(self.pid, os.WNOHANG)
-            if finished:
-                self.status = got
-                while self._read_fd in self._watch and (chunk := os.read(self._read_fd, 1 << 16)):
-                    self._chunks.append(chunk)  # what the child wrote before select saw its exit
-                self.done = True
+            self._drain()
+        if (self._pidfd in ready or self._pidfd < 0) and process_tree.has_ended(self.pid):
+            self.status = process_tree.finish(self.pid)  # its helpers end with it; then reaped
+            self._drain()  # what the child wrote before select saw its exit
+            self.done = True
         return self.done
+
+    def _drain(self) -> None:
+        """Read what the pipe holds now, without waiting (a helper may keep it open)."""
+        while self._read_fd in self._watch:
+            try:
+                chunk = os.read(self._read_fd, 1 << 16)
+            except BlockingIOError:
+                return
+            if not chunk:
+                self._watch.remove(self._read_fd)
+                return
+            self._chunks.append(chunk)
 
     def _kill(self) -> None:
         if self.pid > 0 and self.status is None:
             with contextlib.suppress(OSError):
-                os.kill(self.pid, signal.SIGKILL)
-            with contextlib.suppress(OSError):
-                _, self.status = os.waitpid(self.pid, 0)
+                self.status = process_tree.finish(self.pid)
         self.done = True
 
     def stop(self, reason: str = "interrupted (SIGINT or SIGTERM)") -> None:
@@ -375,7 +393,8 @@ class SupervisedRun:
                 with contextlib.suppress(OSError):
                     os.close(fd)
         self._read_fd = self._pidfd = -1
-        shutil.rmtree(self._workdir, ignore_errors=True)  # the map outlives its file
+        if self._workdir is not None:
+            shutil.rmtree(self._workdir, ignore_errors=True)  # the map outlives its file
 
     def outcome(self) -> outcomes.RunOutcome:
         """The run's outcome (call once done, after close()): the child's, or failed/interrupted

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import click
 
-DEFAULT_MAX_OUTPUT = 2_000_000_000  # bytes
+from toggle_cosim import limits
+
 CSV_BYTES_PER_VALUE = 24  # "%.17g" and a comma: 20 to 25 characters
 
 
@@ -33,11 +34,11 @@ class ResourceError(click.ClickException):
 
 
 def max_output() -> int:
-    value = os.environ.get("TOGGLE_COSIM_MAX_OUTPUT")
+    """TOGGLE_COSIM_MAX_OUTPUT (`limits`), or a ResourceError (one line, exit 2)."""
     try:
-        return int(float(value)) if value else DEFAULT_MAX_OUTPUT
-    except ValueError:
-        raise ResourceError(f"TOGGLE_COSIM_MAX_OUTPUT={value!r}: give a number of bytes") from None
+        return limits.max_output()
+    except limits.LimitError as error:
+        raise ResourceError(str(error)) from None
 
 
 @dataclass(frozen=True)
@@ -126,7 +127,12 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
 
 def check_runs(pairs: Sequence[tuple], out: Path | None, jobs: int = 1) -> None:
     """Before the first run: each run's size, then the output folder and the scratch space for
-    the `jobs` biggest trace buffers (that many runs may be under way at once)."""
+    the `jobs` biggest trace buffers (that many runs may be under way at once). The environment's
+    numbers come first (`limits.check_environment`): a bad one must not surface in a run's child."""
+    try:
+        limits.check_environment()
+    except limits.LimitError as error:
+        raise ResourceError(str(error)) from None
     sizes = [check_size(run, plant) for run, plant in pairs]
     if out is not None:
         check_output_folder(out, sum(s.csv_bytes for s in sizes))

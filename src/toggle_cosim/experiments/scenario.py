@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from toggle_cosim.files.schema_check import conforms
+from toggle_cosim.limits import MAX_SECONDS
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import ControllerSettings, PlantSettings, Run
 
@@ -104,7 +105,7 @@ _OVERRIDE = {
         "time_limit": {
             "type": "number",
             "exclusiveMinimum": 0,
-            "maximum": 1e6,
+            "maximum": MAX_SECONDS,
             "description": "wall-clock limit of the run in s (default max(30 s, 20 x t_end))",
         },
         "record_every": {
