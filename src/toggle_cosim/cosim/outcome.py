@@ -7,8 +7,10 @@ import os
 import platform
 import re
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
+
+import numpy as np
 
 from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.files.traces import Trace
@@ -29,6 +31,13 @@ class RunOutcome:
     summary: RunSummary | None
     record: dict[str, Any] = field(default_factory=dict)
     interrupted: bool = False  # stopped by SIGINT/SIGTERM: the caller should stop too
+
+    def detached(self, keep_trace: bool = False) -> RunOutcome:
+        """This outcome without its hold on the run's trace buffer (a supervised run's trace is a
+        view of a file-backed map, which keeps a descriptor and scratch space until its last view
+        goes): the trace copied into memory, or, without `keep_trace`, only its column names."""
+        rows = self.trace.data if keep_trace else self.trace.data[:0]
+        return replace(self, trace=Trace(self.trace.names, np.array(rows)))
 
 
 RECORDED_PACKAGES = ("toggle-cosim", "fmpy", "numpy", "scipy", "pandas", "modelica")

@@ -187,6 +187,8 @@ def _child(
             log.getvalue() if log else "",
         )
     except BaseException as error:  # noqa: BLE001 - everything goes back to the parent
+        if isinstance(error, OSError) and error.filename is None:
+            error.filename = str(workdir)  # e.g. no space to unzip the FMU: say where
         answer = ("error", " ".join(f"{type(error).__name__}: {error}".split()))
         code = 3
     try:
@@ -293,8 +295,8 @@ class SupervisedRun:
             _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
         except OSError as error:
             self.reason = (
-                f"no scratch space for the run's trace buffer in {self._scratch} ({error.strerror or error}); "
-                "free space there or set TMPDIR"
+                f"no scratch space for the run's trace buffer in {self._scratch} ({error.strerror or error}; "
+                "free space there or set TMPDIR)"
             )
             raise
         if self._with_progress:

@@ -4,12 +4,14 @@ A run records (steps + 1) samples x columns. While it runs, the samples sit in a
 buffer of 8 bytes each (`supervision`); trace.csv then holds every `record_every`-th sample at
 about CSV_BYTES_PER_VALUE bytes per value. A run whose buffer or CSV would pass the output limit
 (default 2 GB, `TOGGLE_COSIM_MAX_OUTPUT` in bytes overrides it) is refused in one line naming the
-estimate and the fix, as is an output folder that is a file, cannot be created or written, has a
+estimate and the fix, as is an output folder that is a file, a symbolic link that leads nowhere
+(dangling, or in a loop; also any folder on its path), cannot be created or written, has a
 name longer than the file system allows, or lacks free space for the estimate.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -89,6 +91,19 @@ def _name_max(folder: Path) -> int:
         return 255
 
 
+def _broken_link(path: Path) -> str | None:
+    """What is wrong with `path` if it is a symbolic link that leads nowhere (None otherwise)."""
+    if not path.is_symlink():
+        return None
+    try:
+        os.stat(path)
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            return "a symbolic link in a loop"
+        return f"a symbolic link to {os.readlink(path)}, which does not exist"
+    return None
+
+
 def check_output_folder(out: Path, needed: int = 0) -> None:
     """`out` is a folder, or can be made one; it is writable and has `needed` bytes free. Nothing
     is created (a probe file in the nearest existing folder is removed at once)."""
@@ -102,6 +117,10 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
     existing = out
     try:
         while not existing.exists() and existing != existing.parent:
+            broken = _broken_link(existing)
+            if broken:
+                where = "the output folder" if existing == out else f"{existing}, a part of the output folder's path,"
+                raise ResourceError(f"{out}: {where} is {broken} (remove it or choose another --out)")
             existing = existing.parent
     except OSError as error:
         raise ResourceError(

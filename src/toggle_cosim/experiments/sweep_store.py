@@ -72,6 +72,13 @@ _UMASK = _current_umask()
 
 
 def _atomic_parquet(table: Any, path: Path) -> None:
+    from toggle_cosim.files.naming import naming
+
+    with naming(path):  # a full disk names the table it could not write
+        _write_parquet(table, path)
+
+
+def _write_parquet(table: Any, path: Path) -> None:
     import pyarrow.parquet as pq
 
     path.parent.mkdir(parents=True, exist_ok=True)
