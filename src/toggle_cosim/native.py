@@ -32,13 +32,19 @@ def c_compiler() -> str:
 
 
 def cache_folders() -> list[Path]:
-    """Where compiled libraries are kept, in the order they are tried."""
-    if os.environ.get("TOGGLE_COSIM_CACHE"):
-        first = Path(os.environ["TOGGLE_COSIM_CACHE"])
-    else:
-        first = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "toggle-cosim"
+    """Where compiled libraries are kept, in the order they are tried. Without a home folder
+    (HOME unset and no passwd entry for the user) only the temporary directory's."""
     user = os.getuid() if hasattr(os, "getuid") else "user"
-    return [first, Path(tempfile.gettempdir()) / f"toggle-cosim-{user}"]
+    fallback = Path(tempfile.gettempdir()) / f"toggle-cosim-{user}"
+    if os.environ.get("TOGGLE_COSIM_CACHE"):
+        return [Path(os.environ["TOGGLE_COSIM_CACHE"]), fallback]
+    if os.environ.get("XDG_CACHE_HOME"):
+        return [Path(os.environ["XDG_CACHE_HOME"]) / "toggle-cosim", fallback]
+    try:
+        home = Path.home()
+    except (RuntimeError, KeyError, OSError):  # no HOME and no passwd entry: no home cache
+        return [fallback]
+    return [home / ".cache" / "toggle-cosim", fallback]
 
 
 def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequence[str] = ()) -> Path:

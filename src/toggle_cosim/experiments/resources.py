@@ -11,7 +11,6 @@ name longer than the file system allows, or lacks free space for the estimate.
 
 from __future__ import annotations
 
-import errno
 import os
 import shutil
 import tempfile
@@ -22,6 +21,7 @@ from pathlib import Path
 import click
 
 from toggle_cosim import limits
+from toggle_cosim.files.bounded import link_problem
 
 CSV_BYTES_PER_VALUE = 24  # "%.17g" and a comma: 20 to 25 characters
 
@@ -91,19 +91,6 @@ def _name_max(folder: Path) -> int:
         return 255
 
 
-def _broken_link(path: Path) -> str | None:
-    """What is wrong with `path` if it is a symbolic link that leads nowhere (None otherwise)."""
-    if not path.is_symlink():
-        return None
-    try:
-        os.stat(path)
-    except OSError as error:
-        if error.errno == errno.ELOOP:
-            return "a symbolic link in a loop"
-        return f"a symbolic link to {os.readlink(path)}, which does not exist"
-    return None
-
-
 def check_output_folder(out: Path, needed: int = 0) -> None:
     """`out` is a folder, or can be made one; it is writable and has `needed` bytes free. Nothing
     is created (a probe file in the nearest existing folder is removed at once)."""
@@ -117,7 +104,7 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
     existing = out
     try:
         while not existing.exists() and existing != existing.parent:
-            broken = _broken_link(existing)
+            broken = link_problem(existing)
             if broken:
                 where = "the output folder" if existing == out else f"{existing}, a part of the output folder's path,"
                 raise ResourceError(f"{out}: {where} is {broken} (remove it or choose another --out)")
