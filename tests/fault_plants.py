@@ -227,8 +227,19 @@ def shim_source() -> str:
     return "\n".join(lines) + "\n"
 
 
-def make_faulty_fmu(plant: Path, out: Path) -> Path:
-    """A copy of the FMI 2.0 `plant` whose binary is the fault shim (see the module doc)."""
+HELPER_LIBRARY = "libtoggle_helper.so"
+_HELPER_SOURCE = "int toggle_helper_answer(void) { return 42; }\n"
+_NEEDS_HELPER = """
+int toggle_helper_answer(void);
+__attribute__((constructor)) static void needs_helper(void) { if (toggle_helper_answer() != 42) abort(); }
+"""
+
+
+def make_faulty_fmu(plant: Path, out: Path, needs_library: bool = False) -> Path:
+    """A copy of the FMI 2.0 `plant` whose binary is the fault shim (see the module doc). With
+    `needs_library` the shim is linked against HELPER_LIBRARY, shipped beside it in the FMU's
+    binaries/linux64/ and found there through the run path $ORIGIN (as vendors ship
+    dependencies): the binary loads only from the whole extracted platform folder."""
     compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         raise RuntimeError("no C compiler for the fault shim")
@@ -238,10 +249,22 @@ def make_faulty_fmu(plant: Path, out: Path) -> Path:
     folder, file = binary.rsplit("/", 1)
     with tempfile.TemporaryDirectory() as scratch:
         source = Path(scratch) / "shim.c"
-        source.write_text(shim_source())
+        source.write_text(shim_source() + (_NEEDS_HELPER if needs_library else ""))
         library = Path(scratch) / file
+        extra: list[str] = []
+        if needs_library:
+            (Path(scratch) / "helper.c").write_text(_HELPER_SOURCE)
+            helper = Path(scratch) / HELPER_LIBRARY
+            subprocess.run(
+                [compiler, "-shared", "-fPIC", "-o", str(helper), str(Path(scratch) / "helper.c")],
+                check=True,
+                capture_output=True,
+            )
+            members[f"{folder}/{HELPER_LIBRARY}"] = helper.read_bytes()
+            extra = [f"-L{scratch}", "-ltoggle_helper", "-Wl,-rpath,$ORIGIN"]
         subprocess.run(
-            [compiler, "-shared", "-fPIC", "-O1", "-I", str(HEADERS), "-o", str(library), str(source), "-ldl", "-lm"],
+            [compiler, "-shared", "-fPIC", "-O1", "-I", str(HEADERS), "-o", str(library), str(source), *extra]
+            + ["-ldl", "-lm"],
             check=True,
             capture_output=True,
             text=True,
