@@ -4,6 +4,7 @@ afresh, and a damaged entry is parsed again instead of being trusted."""
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -12,6 +13,7 @@ from fmpy import read_model_description
 
 from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.plant import description_cache
+from toggle_cosim.plant.contract import check_plant
 
 
 def _signature(md) -> tuple:  # noqa: ANN001
@@ -62,3 +64,24 @@ def test_the_plant_carries_its_fmus_hash_into_the_run_record(plant_fmu: Path) ->
     assert plant.sha256 == file_sha256(plant_fmu)
     run = load_scenario(Path(__file__).resolve().parent.parent / "scenarios" / "fig4_nominal.yaml")[0]
     assert run_record(run, plant, "complete", None, 0, 0.0, 0.0)["fmu"]["sha256"] == plant.sha256
+
+
+def test_without_a_home_folder_the_plant_is_still_read(
+    plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """HOME unset and no passwd entry (Path.home() raises): the cache lives in the temporary
+    directory only, and the FMU is read, not reported as an unreadable modelDescription.xml."""
+    import tempfile
+
+    from toggle_cosim.native import cache_folders
+
+    def no_home() -> Path:
+        raise RuntimeError("Could not determine home directory.")
+
+    for name in ("HOME", "XDG_CACHE_HOME", "TOGGLE_COSIM_CACHE"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setattr(Path, "home", staticmethod(no_home))
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    assert cache_folders() == [tmp_path / f"toggle-cosim-{os.getuid()}"]
+    plant = check_plant(plant_fmu)
+    assert plant.model_identifier and "x_B" in plant.references

@@ -197,3 +197,22 @@ def test_a_library_shipped_beside_the_binary_is_found(plant_fmu: Path, tmp_path:
     assert same.exit_code == 0, same.output
     ours, theirs = (read_csv(folder / "shim" / "hit" / "trace.csv").data for folder in (out, out / "p"))
     assert np.array_equal(ours, theirs)
+
+
+def test_a_plant_that_changes_directory_does_not_move_the_output(shim_fmu: Path, tmp_path: Path) -> None:
+    """Unsupervised (TOGGLE_COSIM_SUPERVISE=0: the plant runs in the command's own process), a
+    plant that calls chdir in fmi2Instantiate: the relative --out still means the folder the
+    command was started in."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    env = {
+        **fault_environment("chdir", T_FAULT, check_plant(shim_fmu).references),
+        "TOGGLE_FAULT_DIR": str(elsewhere),
+        "TOGGLE_COSIM_SUPERVISE": "0",
+    }
+    scenario = _scenario(tmp_path)
+    command = [sys.executable, "-m", "toggle_cosim.cli", "run", scenario.name, "--fmu", str(shim_fmu), "--out", "out"]
+    result = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.parent.name for p in (tmp_path / "out").glob("shim/*/run.json")) == ["clean", "hit"]
+    assert list(elsewhere.iterdir()) == []

@@ -530,7 +530,7 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     path = Path(path)
     problem = file_problem(path)  # a link to /dev/zero, a loop, a folder: bad input, never skipped
     if problem:
-        raise CompareInputError(f"{path}: {problem}; give the YAML tolerance file (a regular file)")
+        raise CompareInputError(f"{path}: {problem}; give the YAML tolerance file")
     try:
         document = load_yaml(path, "tolerance file")  # one hardened loader for every YAML file
     except YamlError as error:
