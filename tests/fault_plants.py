@@ -37,6 +37,16 @@ from pathlib import Path
 import fmpy
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
+# A scenario for the shim: the "hit" run (F_E = 60 N) meets the fault, the "clean" one (0 N) not.
+SCENARIO = {
+    "name": "faulty",
+    "t_end": 0.3,
+    "T_s": 0.0005,
+    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+    "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
+    "controller": {"objective": "x_B", "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
+    "variants": {"hit": {"plant": {"F_E": 60.0}}, "clean": {"plant": {"F_E": 0.0}}},
+}
 
 # name, return type, parameters (type name pairs as C text); the fmi2 functions fmpy loads
 _FUNCTIONS = [

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
-from fault_plants import fault_environment, make_faulty_fmu
+from fault_plants import SCENARIO, fault_environment, make_faulty_fmu
 
 from toggle_cosim import process_tree
 from toggle_cosim.cli import main
@@ -27,19 +27,10 @@ from toggle_cosim.plant.probe import probe_binary
 
 T_FAULT = 0.1
 ROWS_TO_FAULT = 201  # samples 0 .. 0.1 s at T_s = 0.5 ms
-SCENARIO = {
-    "name": "shim",
-    "t_end": 0.3,
-    "T_s": 0.0005,
-    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
-    "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
-    "controller": {"objective": "x_B", "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
-    "variants": {"hit": {"plant": {"F_E": 60.0}}, "clean": {"plant": {"F_E": 0.0}}},
-}
 
 
 def _scenario(folder: Path, **changes: object) -> Path:
-    path = folder / "shim.yaml"
+    path = folder / "faulty.yaml"
     path.write_text(yaml.safe_dump({**SCENARIO, **changes}, sort_keys=False))
     return path
 
@@ -66,12 +57,12 @@ def test_a_status_the_standard_does_not_define_fails_the_run(
     out = tmp_path / "out"
     result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(shim_fmu), "--out", str(out)])
     assert result.exit_code == 1, result.output
-    hit = json.loads((out / "shim" / "hit" / "run.json").read_text())
+    hit = json.loads((out / "faulty" / "hit" / "run.json").read_text())
     assert hit["status"] == "failed"
     assert f"fmi2DoStep failed with status {status}" in hit["reason"] and "t = 0.1 s" in hit["reason"]
-    assert hit["samples"] == ROWS_TO_FAULT == read_csv(out / "shim" / "hit" / "trace.csv").data.shape[0]
+    assert hit["samples"] == ROWS_TO_FAULT == read_csv(out / "faulty" / "hit" / "trace.csv").data.shape[0]
     assert hit["loop"]["kind"] == ("compiled" if loop == "compiled" else "python")
-    assert json.loads((out / "shim" / "clean" / "run.json").read_text())["status"] == "complete"
+    assert json.loads((out / "faulty" / "clean" / "run.json").read_text())["status"] == "complete"
 
 
 def test_log_messages_in_any_bytes_and_status_are_printed(shim_fmu: Path, tmp_path: Path) -> None:
@@ -126,7 +117,7 @@ def test_a_plants_helper_process_ends_with_its_run(
         assert result.returncode == (1 if limit else 0), result.stderr
         assert took < 20, took  # the helpers sleep 30 s
         if limit:
-            record = json.loads((tmp_path / "out" / "shim" / "hit" / "run.json").read_text())
+            record = json.loads((tmp_path / "out" / "faulty" / "hit" / "run.json").read_text())
             assert record["reason"].startswith(f"time limit {limit} s exceeded")
         assert "Traceback" not in result.stderr
         time.sleep(0.2)
@@ -195,7 +186,7 @@ def test_a_library_shipped_beside_the_binary_is_found(plant_fmu: Path, tmp_path:
     assert result.exit_code == 0, result.output
     same = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out / "p")])
     assert same.exit_code == 0, same.output
-    ours, theirs = (read_csv(folder / "shim" / "hit" / "trace.csv").data for folder in (out, out / "p"))
+    ours, theirs = (read_csv(folder / "faulty" / "hit" / "trace.csv").data for folder in (out, out / "p"))
     assert np.array_equal(ours, theirs)
 
 
@@ -214,5 +205,5 @@ def test_a_plant_that_changes_directory_does_not_move_the_output(shim_fmu: Path,
     command = [sys.executable, "-m", "toggle_cosim.cli", "run", scenario.name, "--fmu", str(shim_fmu), "--out", "out"]
     result = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert sorted(p.parent.name for p in (tmp_path / "out").glob("shim/*/run.json")) == ["clean", "hit"]
+    assert sorted(p.parent.name for p in (tmp_path / "out").glob("faulty/*/run.json")) == ["clean", "hit"]
     assert list(elsewhere.iterdir()) == []
