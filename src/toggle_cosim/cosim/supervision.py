@@ -12,12 +12,17 @@ the shared buffer), writes the run as `failed` with the reason (the signal's nam
 30 s exceeded", the exit status) and goes on with the next run. SIGINT/SIGTERM in the parent
 kill the child at once (a plant stuck in C cannot ignore SIGKILL) and the run is `interrupted`.
 The child dies with its parent (PR_SET_PDEATHSIG), and the FMU's unzipped copy lives in the
-run's own temporary folder, which the parent removes on every path.
+run's own temporary folder, which the parent removes on every path. Processes the plant starts
+end with the run (`process_tree`: the child leads its own group and adopts orphans; its tree
+is killed when it answers, ends or reaches its limit), and the parent never waits on the pipe
+alone, which a helper forked without exec holds open.
 
 The trace buffer is a file in that folder that never has a name (O_TMPFILE), mapped shared (the
 map, and the child's copy of it, outlive the descriptor), so a long run's trace lives in the
 page cache backed by disk, not in memory, and nothing of it is left on disk whatever ends the
-command. The folder's name carries the supervising process's id: a command killed by SIGKILL
+command. Its blocks are allocated before the fork (no SIGBUS on a full disk: the run fails
+alone, naming the folder), and the map's descriptor goes with its last view
+(`RunOutcome.detached` once the run's files are written). The folder's name carries the supervising process's id: a command killed by SIGKILL
 cannot remove its folders (the unzipped FMU), so each command removes those of supervising
 processes that no longer exist before it starts its own (`remove_stale_folders`).
 """

@@ -56,8 +56,11 @@ def _log3(_environment: Any, status: int, _category: Any, message: Any) -> None:
     _print(status, message)
 
 
+@functools.cache
 def fmi2_callbacks() -> fmi2CallbackFunctions:
-    """fmpy's default FMI 2.0 callbacks (its allocator, its formatting proxy) with our logger."""
+    """fmpy's default FMI 2.0 callbacks (its allocator, its formatting proxy) with our logger:
+    made once per process and kept (the C proxy that formats the message keeps a pointer to
+    the logger, so it must outlive every FMU that may log)."""
     from fmpy.fmi2 import defaultCallbacks
     from fmpy.logging import addLoggerProxy
 
@@ -94,8 +97,8 @@ def _checked(base: type) -> dict[str, Any]:
 
 
 def _instantiate2(self: Any, visible: bool = False, callbacks: Any = None, loggingOn: bool = False) -> None:  # noqa: N803
-    self.log_callbacks = callbacks if callbacks is not None else fmi2_callbacks()  # kept alive with the FMU
-    FMU2Slave.instantiate(self, visible=visible, callbacks=self.log_callbacks, loggingOn=loggingOn)
+    chosen = callbacks if callbacks is not None else fmi2_callbacks()
+    FMU2Slave.instantiate(self, visible=visible, callbacks=chosen, loggingOn=loggingOn)
 
 
 def _instantiate3(self: Any, *args: Any, logMessage: Any = None, **kwargs: Any) -> None:  # noqa: N803
