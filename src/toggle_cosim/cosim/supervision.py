@@ -22,9 +22,10 @@ map, and the child's copy of it, outlive the descriptor), so a long run's trace 
 page cache backed by disk, not in memory, and nothing of it is left on disk whatever ends the
 command. Its blocks are allocated before the fork (no SIGBUS on a full disk: the run fails
 alone, naming the folder), and the map's descriptor goes with its last view
-(`RunOutcome.detached` once the run's files are written). The folder's name carries the supervising process's id: a command killed by SIGKILL
-cannot remove its folders (the unzipped FMU), so each command removes those of supervising
-processes that no longer exist before it starts its own (`remove_stale_folders`).
+(`RunOutcome.detached` once the run's files are written). The folder's name carries the
+supervising process's id: a command killed by SIGKILL cannot remove its folders (the unzipped
+FMU), so each command removes those of supervising processes that no longer exist before it
+starts its own (`remove_stale_folders`).
 """
 
 from __future__ import annotations
