@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 import uuid
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -131,7 +132,9 @@ def test_a_helper_in_its_own_session_is_ended_with_the_tree() -> None:
     """process_tree on its own: a child that leads its group and adopts orphans starts a
     grandchild that leaves the group (setsid) and is orphaned; end_tree ends it too."""
     read_fd, write_fd = os.pipe()
-    pid = os.fork()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork with pytest's threads
+        pid = os.fork()
     if pid == 0:
         process_tree.become_leader()
         helper = os.fork()

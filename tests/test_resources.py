@@ -281,3 +281,29 @@ def test_a_full_scratch_file_system_fails_runs_alone(tmp_path: Path, plant_fmu: 
         assert list(small.iterdir()) == []
     finally:
         subprocess.run(["umount", str(small)], check=False)
+
+
+def test_a_full_disk_in_a_sweep_names_the_table_it_could_not_write(
+    tmp_path: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    _scenario(tmp_path, t_end=0.02)
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(yaml.safe_dump({"base": "s.yaml", "axes": {"plant.F_E": {"values": [0.0, 5.0]}}}))
+    original = os.fsync
+
+    def fsync(fd: int) -> None:
+        if os.readlink(f"/proc/self/fd/{fd}").endswith(".partial"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        original(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        main, ["sweep", str(sweep), "--fmu", str(plant_fmu), "--out", str(out), "--workers", "1", "-q"]
+    )
+    assert result.exit_code == 2, result.output
+    line = result.output.strip().splitlines()[-1]  # after the sweep's own header line
+    assert line.startswith(f"error: {out}") and ".parquet: No space left on device" in line, result.output
+    assert "Traceback" not in result.output
