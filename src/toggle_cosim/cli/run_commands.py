@@ -71,7 +71,6 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
     from toggle_cosim.analysis.report import write_summary
 
     started = time.perf_counter()
-    out = out.absolute()  # before any plant runs (one may change directory)
     if not skip_build:
         build_plant(DEFAULT_SOURCE, DEFAULT_MODEL, fmu)
         for name, path in DEFAULT_BUILDS[1:]:
