@@ -20,6 +20,8 @@ and, whatever the time and F_E (the helper processes live TOGGLE_FAULT_SLEEP s, 
     fork      fmi2Instantiate forks a helper (no exec: it holds every descriptor the plant has)
     daemon    the library's constructor starts `sleep N &` through system() (at load: the probe too)
     chdir     fmi2Instantiate changes the working directory to TOGGLE_FAULT_DIR
+    orphan    fmi2Instantiate starts a daemon (double fork, setsid: it leaves the plant's group
+              and tree), then fmi2DoStep segfaults at the fault time
 
 The settings come from the environment, so a command started with them passes them to every
 process that loads the plant (pool workers, supervised children).
@@ -112,7 +114,7 @@ _PROLOGUE = r"""
 
 static void *real_library;
 /* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error, 8 status, 9 log,
-   10 fork, 11 daemon, 12 chdir */
+   10 fork, 11 daemon, 12 chdir, 13 orphan */
 static int kind;
 static double fault_time = 1e300, fault_min_FE = -1e300, last_time, F_E;
 static unsigned int F_E_vr = 0xffffffffu;
@@ -151,8 +153,8 @@ static void *real(const char *name) {
         if (!real_library) abort();
         const char *k = getenv("TOGGLE_FAULT_KIND");
         const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error",
-                               "status", "log", "fork", "daemon", "chdir"};
-        for (int i = 1; k && i < 13; i++) if (strcmp(k, names[i]) == 0) kind = i;
+                               "status", "log", "fork", "daemon", "chdir", "orphan"};
+        for (int i = 1; k && i < 14; i++) if (strcmp(k, names[i]) == 0) kind = i;
         if (getenv("TOGGLE_FAULT_STATUS")) fault_status = atoi(getenv("TOGGLE_FAULT_STATUS"));
         if (getenv("TOGGLE_FAULT_TIME")) fault_time = atof(getenv("TOGGLE_FAULT_TIME"));
         if (getenv("TOGGLE_FAULT_MIN_FE")) fault_min_FE = atof(getenv("TOGGLE_FAULT_MIN_FE"));
@@ -182,6 +184,13 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         usleep((useconds_t)(sleep_seconds() * 1e6));
         _exit(0);
     }
+    if (kind == 13 && fork() == 0) {
+        setsid();
+        if (fork() == 0) {
+            usleep((useconds_t)(sleep_seconds() * 1e6));
+        }
+        _exit(0);
+    }
     if (kind == 12 && chdir(getenv("TOGGLE_FAULT_DIR") ? getenv("TOGGLE_FAULT_DIR") : "/") != 0) abort();
     return instantiate(name, type, guid, location, functions, visible, logging);
 }
@@ -190,7 +199,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     last_time = t;
     if (faulting()) {
         switch (kind) {
-        case 1: *(volatile int *)0 = 1; break;
+        case 1:
+        case 13: *(volatile int *)0 = 1; break;
         case 2: abort();
         case 3: {
             sigset_t all;

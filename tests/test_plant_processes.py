@@ -93,15 +93,18 @@ def _marked(mark: str) -> list[int]:
     return found
 
 
-@pytest.mark.parametrize("kind", ["fork", "daemon"])
-@pytest.mark.parametrize("limit", [None, "0.3"])
+@pytest.mark.parametrize(
+    ("kind", "limit"),
+    [("fork", None), ("daemon", None), ("fork", "0.3"), ("daemon", "0.3"), ("orphan", None)],
+)
 def test_a_plants_helper_process_ends_with_its_run(
     shim_fmu: Path, tmp_path: Path, kind: str, limit: str | None
 ) -> None:
-    """A helper forked in fmi2Instantiate (holding every descriptor) or started by the library's
-    constructor with system("sleep 30 &") (holding the command's stdout): the command ends as
-    soon as its runs do, its stdout closes (`| cat` would end), no helper is left, and with a
-    time limit the run that cannot finish ends at it."""
+    """A helper forked in fmi2Instantiate (holding every descriptor), started by the library's
+    constructor with system("sleep 30 &") (holding the command's stdout), or a daemon that
+    leaves the plant's group and session before the plant segfaults: the command ends as soon
+    as its runs do, its stdout closes (`| cat` would end), no helper is left, and with a time
+    limit the run that cannot finish ends at it."""
     mark = f"TOGGLE_TEST_MARK_{uuid.uuid4().hex}"
     env = {
         **fault_environment(kind, T_FAULT, check_plant(shim_fmu).references),
@@ -115,8 +118,11 @@ def test_a_plants_helper_process_ends_with_its_run(
     result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=60)  # reads to EOF
     took = time.monotonic() - started
     try:
-        assert result.returncode == (1 if limit else 0), result.stderr
+        assert result.returncode == (1 if limit or kind == "orphan" else 0), result.stderr
         assert took < 20, took  # the helpers sleep 30 s
+        if kind == "orphan":
+            record = json.loads((tmp_path / "out" / "faulty" / "hit" / "run.json").read_text())
+            assert "killed by SIGSEGV" in record["reason"]
         if limit:
             record = json.loads((tmp_path / "out" / "faulty" / "hit" / "run.json").read_text())
             assert record["reason"].startswith(f"time limit {limit} s exceeded")

@@ -13,7 +13,11 @@ own life. So a child made with `fork_child`
 and `end_tree(pid)` ends the child's whole tree: it stops what it finds (a stopped process
 cannot fork), looks again until nothing new appears, then kills the process group and every
 process found with SIGKILL. The child calls `end_descendants()` before it exits; the parent
-calls `end_tree` when the child has ended or must end (its time limit, an interrupt).
+calls `end_tree` when the child has ended or must end (its time limit, an interrupt). A
+process that crashes cannot end what it started, and its orphans would go to init: so the
+child does its work in a grandchild (`run_kept`) and stays as the keeper, which adopts those
+orphans, ends them when the grandchild has ended, and then ends as the grandchild did (the
+same exit status, or the same signal).
 """
 
 from __future__ import annotations
@@ -22,8 +26,11 @@ import contextlib
 import ctypes
 import os
 import signal
+from collections.abc import Callable
 from pathlib import Path
+from typing import NoReturn
 
+_PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
 ROUNDS = 8  # tree walks at most: each finds what the processes found before forked meanwhile
 
@@ -100,6 +107,50 @@ def end_descendants() -> None:
     _signal(_stop_tree(os.getpid()), signal.SIGKILL)
 
 
+def die_with(parent: int) -> None:
+    """In a child: SIGKILL when `parent` ends (PR_SET_PDEATHSIG); exit now if it already has."""
+    with contextlib.suppress(Exception):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def run_kept(work: Callable[[], None]) -> NoReturn:
+    """In a child that called `become_leader`: run `work` (which should end in os._exit) in a
+    grandchild, wait for it, end everything else in the tree, and end as it ended."""
+    keeper = os.getpid()
+    pid = os.fork()
+    if pid == 0:
+        die_with(keeper)
+        try:
+            work()
+        finally:
+            os._exit(0)
+    status = 0
+    while True:
+        try:
+            status = os.waitpid(pid, 0)[1]
+            break
+        except InterruptedError:
+            continue
+        except ChildProcessError:
+            break
+    with contextlib.suppress(BaseException):
+        end_descendants()
+    if os.WIFSIGNALED(status):
+        number = os.WTERMSIG(status)
+        with contextlib.suppress(Exception):
+            import resource
+
+            resource.setrlimit(resource.RLIMIT_CORE, (0, resource.getrlimit(resource.RLIMIT_CORE)[1]))
+        with contextlib.suppress(Exception):  # the keeper's own core would repeat the plant's
+            signal.signal(number, signal.SIG_DFL)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, [number])
+            os.kill(keeper, number)
+    os._exit(os.waitstatus_to_exitcode(status) if os.WIFEXITED(status) else 1)
+
+
 def has_ended(pid: int) -> bool:
     """True once the child `pid` has exited (it is left unreaped: `finish` reaps it)."""
     try:
@@ -117,4 +168,14 @@ def finish(pid: int) -> int | None:
         return None
 
 
-__all__ = ["adopt", "become_leader", "descendants", "end_descendants", "end_tree", "finish", "has_ended"]
+__all__ = [
+    "adopt",
+    "become_leader",
+    "descendants",
+    "die_with",
+    "end_descendants",
+    "end_tree",
+    "finish",
+    "has_ended",
+    "run_kept",
+]

@@ -13,8 +13,9 @@ the shared buffer), writes the run as `failed` with the reason (the signal's nam
 kill the child at once (a plant stuck in C cannot ignore SIGKILL) and the run is `interrupted`.
 The child dies with its parent (PR_SET_PDEATHSIG), and the FMU's unzipped copy lives in the
 run's own temporary folder, which the parent removes on every path. Processes the plant starts
-end with the run (`process_tree`: the child leads its own group and adopts orphans; its tree
-is killed when it answers, ends or reaches its limit), and the parent never waits on the pipe
+end with the run (`process_tree`: the child leads its own group, adopts orphans and runs the
+plant in a grandchild it keeps, so even a crashed plant's daemons are found; the tree is killed
+when the plant ends or the run reaches its limit), and the parent never waits on the pipe
 alone, which a helper forked without exec holds open.
 
 The trace buffer is a file in that folder that never has a name (O_TMPFILE), mapped shared (the
@@ -31,7 +32,6 @@ starts its own (`remove_stale_folders`).
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import faulthandler
 import gc
 import io
@@ -60,7 +60,6 @@ from toggle_cosim.runs.definition import Run
 
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
 TIME_LIMIT_PER_SIMULATED_S = 20.0
-_PR_SET_PDEATHSIG = 1
 FOLDER_PREFIX = "toggle-cosim-run-"  # then the supervising process's id, "-", a random part
 
 
@@ -109,14 +108,6 @@ def _seconds(value: float) -> str:
     return f"{value:.0f} s" if value >= 10 else f"{value:.3g} s"
 
 
-def _die_with_parent(parent: int) -> None:
-    with contextlib.suppress(Exception):
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    if os.getppid() != parent:  # the parent died before prctl took effect
-        os._exit(1)
-
-
 def _limit_memory() -> None:
     """The child's address space may grow by `limits.plant_memory()` (checked by the command
     before any run, `limits.check_environment`): a plant that allocates without
@@ -162,14 +153,32 @@ def _child(
     parent: int,
     capture_log: bool,
 ) -> None:
-    """The child's whole life: run, send the outcome (no trace) back, exit without cleanup."""
-    code = 0
+    """The child's whole life: lead its own group and adopt orphans, then (`run_kept`) run the
+    plant in a grandchild, end whatever the plant started once that has ended, and end as it
+    did (a segfault in the plant is the child's segfault for the parent)."""
     try:
         gc.disable()  # a collection would touch, and so copy, the whole inherited heap; the child lives briefly
         faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
         interrupts.as_child()  # the parent decides about interrupts
         process_tree.become_leader()  # its own group, and the adoptive parent of its helpers' orphans
-        _die_with_parent(parent)
+        process_tree.die_with(parent)
+    except BaseException:  # noqa: BLE001
+        os._exit(3)
+    process_tree.run_kept(lambda: _plant_process(run, plant, buffer, progress_slot, workdir, write_fd, capture_log))
+
+
+def _plant_process(
+    run: Run,
+    plant: PlantInterface,
+    buffer: np.ndarray,
+    progress_slot: np.ndarray | None,
+    workdir: Path,
+    write_fd: int,
+    capture_log: bool,
+) -> None:
+    """The plant's process: run, send the outcome (no trace) back, exit without cleanup."""
+    code = 0
+    try:
         _limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
         log = None
@@ -207,9 +216,7 @@ def _child(
         sys.stderr.flush()
     except BaseException:  # noqa: BLE001
         code = 4
-    with contextlib.suppress(BaseException):
-        process_tree.end_descendants()  # helper processes the plant started end with the run
-    os._exit(code)
+    os._exit(code)  # the keeper (`_child`) then ends the helper processes the plant started
 
 
 def _rows_recorded(buffer: np.ndarray) -> int:

@@ -125,10 +125,20 @@ def _read_available(read_fd: int) -> bytes:
         data += chunk
 
 
+def _answer(target: Path, wanted: tuple[str, ...], write_fd: int) -> None:
+    code = 0
+    try:
+        os.write(write_fd, _load(target, wanted).encode()[:4000])
+    except BaseException:  # noqa: BLE001
+        code = 1
+    os._exit(code)
+
+
 def probe_binary(plant: PlantInterface) -> None:
     """Raise ProbeError if the plant's binary does not load or misses an FMI function it needs.
-    The child leads its own process group and adopts orphans (`process_tree`): whatever the
-    binary's constructors start ends with the probe."""
+    The child leads its own process group, adopts orphans and loads the binary in a grandchild
+    it keeps (`process_tree`): whatever the binary's constructors start ends with the probe,
+    even when loading crashes."""
     wanted = FMI3 if plant.fmi_version.startswith("3") else FMI2
     folder = Path(tempfile.mkdtemp(prefix="toggle-cosim-probe-"))
     try:
@@ -140,17 +150,13 @@ def probe_binary(plant: PlantInterface) -> None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
             pid = os.fork()
-        if pid == 0:  # the child: load, answer, leave without cleanup
-            code = 0
+        if pid == 0:  # the child: load (in a grandchild it keeps, `run_kept`), answer, leave
             try:
                 process_tree.become_leader()
                 os.close(read_fd)
-                os.write(write_fd, _load(target, wanted).encode()[:4000])
             except BaseException:  # noqa: BLE001
-                code = 1
-            with contextlib.suppress(BaseException):
-                process_tree.end_descendants()
-            os._exit(code)
+                os._exit(1)
+            process_tree.run_kept(lambda: _answer(target, wanted, write_fd))
         process_tree.adopt(pid)
         os.close(write_fd)
         os.set_blocking(read_fd, False)
