@@ -233,10 +233,8 @@ def test_a_run_without_scratch_space_fails_alone(
     assert list(scratch.iterdir()) == []
 
 
-def test_a_full_disk_names_the_file_it_could_not_write(
-    tmp_path: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """fsync of trace.csv fails with ENOSPC (as on a full disk): one line naming that file."""
+def _fill_the_disk(monkeypatch: pytest.MonkeyPatch) -> None:
+    """fsync of every file being written (a temporary `.partial` name) fails with ENOSPC."""
     import errno
 
     original = os.fsync
@@ -247,6 +245,13 @@ def test_a_full_disk_names_the_file_it_could_not_write(
         original(fd)
 
     monkeypatch.setattr(os, "fsync", fsync)
+
+
+def test_a_full_disk_names_the_file_it_could_not_write(
+    tmp_path: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """fsync of trace.csv fails with ENOSPC (as on a full disk): one line naming that file."""
+    _fill_the_disk(monkeypatch)
     out = tmp_path / "out"
     line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out), "-j", "1"])
     assert f"{out / 'small' / 'run' / 'trace.csv'}: No space left on device" in line
@@ -286,19 +291,10 @@ def test_a_full_scratch_file_system_fails_runs_alone(tmp_path: Path, plant_fmu: 
 def test_a_full_disk_in_a_sweep_names_the_table_it_could_not_write(
     tmp_path: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import errno
-
     _scenario(tmp_path, t_end=0.02)
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(yaml.safe_dump({"base": "s.yaml", "axes": {"plant.F_E": {"values": [0.0, 5.0]}}}))
-    original = os.fsync
-
-    def fsync(fd: int) -> None:
-        if os.readlink(f"/proc/self/fd/{fd}").endswith(".partial"):
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        original(fd)
-
-    monkeypatch.setattr(os, "fsync", fsync)
+    _fill_the_disk(monkeypatch)
     out = tmp_path / "out"
     result = CliRunner().invoke(
         main, ["sweep", str(sweep), "--fmu", str(plant_fmu), "--out", str(out), "--workers", "1", "-q"]

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import faulthandler
+import functools
 import gc
 import io
 import math
@@ -143,16 +144,7 @@ def _warm_up() -> None:
         kernel_library()
 
 
-def _child(
-    run: Run,
-    plant: PlantInterface,
-    buffer: np.ndarray,
-    progress_slot: np.ndarray | None,
-    workdir: Path,
-    write_fd: int,
-    parent: int,
-    capture_log: bool,
-) -> None:
+def _child(parent: int, plant_process: Callable[[], None]) -> None:
     """The child's whole life: lead its own group and adopt orphans, then (`run_kept`) run the
     plant in a grandchild, end whatever the plant started once that has ended, and end as it
     did (a segfault in the plant is the child's segfault for the parent)."""
@@ -164,7 +156,7 @@ def _child(
         process_tree.die_with(parent)
     except BaseException:  # noqa: BLE001
         os._exit(3)
-    process_tree.run_kept(lambda: _plant_process(run, plant, buffer, progress_slot, workdir, write_fd, capture_log))
+    process_tree.run_kept(plant_process)
 
 
 def _plant_process(
@@ -329,16 +321,17 @@ class SupervisedRun:
                     process_tree.adopt(self.pid)
                 if self.pid == 0:  # the child never leaves this block: _child ends in os._exit
                     os.close(read_fd)
-                    _child(
+                    plant_process = functools.partial(
+                        _plant_process,
                         self.run,
                         self.plant,
                         self.buffer,
                         self.progress_slot,
                         self._workdir,
                         write_fd,
-                        parent,
                         self._capture_log,
                     )
+                    _child(parent, plant_process)
         finally:
             os.close(write_fd)
         os.set_blocking(read_fd, False)  # a helper the plant forked may hold the pipe open: never wait on it
