@@ -32,3 +32,12 @@ def no_gravity_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     output = tmp_path_factory.mktemp("fmu-nog") / "ToggleLSM_NoGravity.fmu"
     return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.PlantNoGravity", output).fmu.path
+
+
+@pytest.fixture(scope="session")
+def shim_fmu(plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The plant behind the fault shim of `fault_plants` (TOGGLE_FAULT_* in the environment
+    decide how it misbehaves; without them it is the plant)."""
+    from fault_plants import make_faulty_fmu
+
+    return make_faulty_fmu(plant_fmu, tmp_path_factory.mktemp("shim") / "Shim.fmu")

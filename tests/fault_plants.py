@@ -12,8 +12,18 @@ run whose input F_E is at least TOGGLE_FAULT_MIN_FE (N), misbehaves as TOGGLE_FA
     nan       fmi2GetReal answers NaN for every output
     discard   fmi2DoStep returns fmi2Discard
     error     fmi2DoStep returns fmi2Error
+    status    fmi2DoStep returns TOGGLE_FAULT_STATUS (any integer, e.g. -1 or 5) and does not step
+    log       fmi2DoStep logs a message in invalid UTF-8 with status TOGGLE_FAULT_STATUS, then steps
     chatter   fmi2DoStep returns fmi2Discard for a full step, while smaller steps (a retry's
               substeps) pass until TOGGLE_FAULT_END (s); from then on every step is discarded
+
+and, whatever the time and F_E (the helper processes live TOGGLE_FAULT_SLEEP s, default 40):
+
+    fork      fmi2Instantiate forks a helper (no exec: it holds every descriptor the plant has)
+    daemon    the library's constructor starts `sleep N &` through system() (at load: the probe too)
+    chdir     fmi2Instantiate changes the working directory to TOGGLE_FAULT_DIR
+    orphan    fmi2Instantiate starts a daemon (double fork, setsid: it leaves the plant's group
+              and tree), then fmi2DoStep segfaults at the fault time
 
 The settings come from the environment, so a command started with them passes them to every
 process that loads the plant (pool workers, supervised children).
@@ -31,18 +41,22 @@ from pathlib import Path
 import fmpy
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
+# A scenario for the shim: the "hit" run (F_E = 60 N) meets the fault, the "clean" one (0 N) not.
+SCENARIO = {
+    "name": "faulty",
+    "t_end": 0.3,
+    "T_s": 0.0005,
+    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+    "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
+    "controller": {"objective": "x_B", "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
+    "variants": {"hit": {"plant": {"F_E": 60.0}}, "clean": {"plant": {"F_E": 0.0}}},
+}
 
 # name, return type, parameters (type name pairs as C text); the fmi2 functions fmpy loads
 _FUNCTIONS = [
     ("fmi2GetTypesPlatform", "const char*", ""),
     ("fmi2GetVersion", "const char*", ""),
     ("fmi2SetDebugLogging", "fmi2Status", "fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]"),
-    (
-        "fmi2Instantiate",
-        "fmi2Component",
-        "fmi2String name, fmi2Type type, fmi2String guid, fmi2String location, "
-        "const fmi2CallbackFunctions* functions, fmi2Boolean visible, fmi2Boolean logging",
-    ),
     ("fmi2FreeInstance", "void", "fmi2Component c"),
     (
         "fmi2SetupExperiment",
@@ -95,14 +109,34 @@ _PROLOGUE = r"""
 #include <math.h>
 #include <signal.h>
 #include <stdlib.h>
+#include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 #include "fmi2Functions.h"
 
 static void *real_library;
-static int kind; /* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error, 8 chatter */
+/* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error, 8 status, 9 log,
+   10 fork, 11 daemon, 12 chdir, 13 orphan, 14 chatter */
+static int kind;
 static double fault_time = 1e300, fault_min_FE = -1e300, last_time, F_E;
 static double fault_end = 1e300, full_step; /* chatter: substeps pass until fault_end */
 static unsigned int F_E_vr = 0xffffffffu;
+static int fault_status;
+static fmi2CallbackFunctions callbacks;
+
+static double sleep_seconds(void) {
+    const char *text = getenv("TOGGLE_FAULT_SLEEP");
+    return text ? atof(text) : 40.0;
+}
+
+__attribute__((constructor)) static void on_load(void) {
+    const char *k = getenv("TOGGLE_FAULT_KIND");
+    if (k && strcmp(k, "daemon") == 0) {
+        char command[64];
+        snprintf(command, sizeof command, "sleep %g &", sleep_seconds());
+        if (system(command) != 0) abort();
+    }
+}
 
 static void *real(const char *name) {
     if (!real_library) {
@@ -121,8 +155,10 @@ static void *real(const char *name) {
         real_library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
         if (!real_library) abort();
         const char *k = getenv("TOGGLE_FAULT_KIND");
-        const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error", "chatter"};
-        for (int i = 1; k && i < 9; i++) if (strcmp(k, names[i]) == 0) kind = i;
+        const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error",
+                               "status", "log", "fork", "daemon", "chdir", "orphan", "chatter"};
+        for (int i = 1; k && i < 15; i++) if (strcmp(k, names[i]) == 0) kind = i;
+        if (getenv("TOGGLE_FAULT_STATUS")) fault_status = atoi(getenv("TOGGLE_FAULT_STATUS"));
         if (getenv("TOGGLE_FAULT_END")) fault_end = atof(getenv("TOGGLE_FAULT_END"));
         if (getenv("TOGGLE_FAULT_TIME")) fault_time = atof(getenv("TOGGLE_FAULT_TIME"));
         if (getenv("TOGGLE_FAULT_MIN_FE")) fault_min_FE = atof(getenv("TOGGLE_FAULT_MIN_FE"));
@@ -144,12 +180,32 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
     return status;
 }
 
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String location,
+                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
+    fmi2InstantiateTYPE *instantiate = (fmi2InstantiateTYPE *)real("fmi2Instantiate");
+    if (functions) callbacks = *functions;
+    if (kind == 10 && fork() == 0) {
+        usleep((useconds_t)(sleep_seconds() * 1e6));
+        _exit(0);
+    }
+    if (kind == 13 && fork() == 0) {
+        setsid();
+        if (fork() == 0) {
+            usleep((useconds_t)(sleep_seconds() * 1e6));
+        }
+        _exit(0);
+    }
+    if (kind == 12 && chdir(getenv("TOGGLE_FAULT_DIR") ? getenv("TOGGLE_FAULT_DIR") : "/") != 0) abort();
+    return instantiate(name, type, guid, location, functions, visible, logging);
+}
+
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
     last_time = t;
     if (h > full_step) full_step = h;
     if (faulting()) {
         switch (kind) {
-        case 1: *(volatile int *)0 = 1; break;
+        case 1:
+        case 13: *(volatile int *)0 = 1; break;
         case 2: abort();
         case 3: {
             sigset_t all;
@@ -165,7 +221,13 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
             }
         case 6: return fmi2Discard;
         case 7: return fmi2Error;
-        case 8:
+        case 8: return (fmi2Status)fault_status;
+        case 9:
+            if (callbacks.logger)
+                callbacks.logger(callbacks.componentEnvironment, "shim", (fmi2Status)fault_status, "logAll",
+                                 "bad bytes \xff\xfe\x80 at %g s", t);
+            break;
+        case 14:
             if (h < 0.5 * full_step && t < fault_end) break;
             return fmi2Discard;
         }
@@ -193,8 +255,19 @@ def shim_source() -> str:
     return "\n".join(lines) + "\n"
 
 
-def make_faulty_fmu(plant: Path, out: Path) -> Path:
-    """A copy of the FMI 2.0 `plant` whose binary is the fault shim (see the module doc)."""
+HELPER_LIBRARY = "libtoggle_helper.so"
+_HELPER_SOURCE = "int toggle_helper_answer(void) { return 42; }\n"
+_NEEDS_HELPER = """
+int toggle_helper_answer(void);
+__attribute__((constructor)) static void needs_helper(void) { if (toggle_helper_answer() != 42) abort(); }
+"""
+
+
+def make_faulty_fmu(plant: Path, out: Path, needs_library: bool = False) -> Path:
+    """A copy of the FMI 2.0 `plant` whose binary is the fault shim (see the module doc). With
+    `needs_library` the shim is linked against HELPER_LIBRARY, shipped beside it in the FMU's
+    binaries/linux64/ and found there through the run path $ORIGIN (as vendors ship
+    dependencies): the binary loads only from the whole extracted platform folder."""
     compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         raise RuntimeError("no C compiler for the fault shim")
@@ -204,10 +277,22 @@ def make_faulty_fmu(plant: Path, out: Path) -> Path:
     folder, file = binary.rsplit("/", 1)
     with tempfile.TemporaryDirectory() as scratch:
         source = Path(scratch) / "shim.c"
-        source.write_text(shim_source())
+        source.write_text(shim_source() + (_NEEDS_HELPER if needs_library else ""))
         library = Path(scratch) / file
+        extra: list[str] = []
+        if needs_library:
+            (Path(scratch) / "helper.c").write_text(_HELPER_SOURCE)
+            helper = Path(scratch) / HELPER_LIBRARY
+            subprocess.run(
+                [compiler, "-shared", "-fPIC", "-o", str(helper), str(Path(scratch) / "helper.c")],
+                check=True,
+                capture_output=True,
+            )
+            members[f"{folder}/{HELPER_LIBRARY}"] = helper.read_bytes()
+            extra = [f"-L{scratch}", "-ltoggle_helper", "-Wl,-rpath,$ORIGIN"]
         subprocess.run(
-            [compiler, "-shared", "-fPIC", "-O1", "-I", str(HEADERS), "-o", str(library), str(source), "-ldl", "-lm"],
+            [compiler, "-shared", "-fPIC", "-O1", "-I", str(HEADERS), "-o", str(library), str(source), *extra]
+            + ["-ldl", "-lm"],
             check=True,
             capture_output=True,
             text=True,

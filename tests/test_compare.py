@@ -447,3 +447,30 @@ def test_tolerance_rejects_negative_or_relative_above_one():
         Tolerance(atol=-1.0, rtol=0.0, ttol=0.0)
     with pytest.raises(ValueError):
         Tolerance(atol=0.0, rtol=0.0, ttol=1.5)
+
+
+@pytest.mark.parametrize(
+    ("case", "phrase"),
+    [
+        ("device", "is not a regular file"),
+        ("loop", "is a symbolic link in a loop"),
+        ("folder", "is a directory"),
+        ("dangling", "which does not exist"),
+    ],
+)
+def test_a_tolerance_file_found_by_place_that_is_not_a_regular_file_is_bad_input(case, phrase, files, capsys):
+    """tolerances.yaml beside the reference exists but cannot be read as a file: one line, exit
+    2; it is never skipped for the defaults."""
+    folder, res, ref = files
+    place = folder / "tolerances.yaml"
+    if case == "device":
+        place.symlink_to("/dev/zero")
+    elif case == "loop":
+        place.symlink_to(folder / "tolerances.yaml")
+    elif case == "folder":
+        place.mkdir()
+    else:
+        place.symlink_to(folder / "absent.yaml")
+    assert run_compare(res, ref) == 2
+    out, err = capsys.readouterr()
+    assert len(err.splitlines()) == 1 and "tolerances.yaml" in err and phrase in err, err

@@ -103,3 +103,22 @@ def test_a_file_that_is_not_a_modelica_result_is_one_line_of_bad_input(tmp_path,
     assert run_compare(tmp_path / "r.csv", garbage) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"error: {garbage}: is not a Modelica result file") and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("block", [1, 2])
+def test_data_info_pointing_past_the_data_is_bad_input(tmp_path, capsys, block):
+    """dataInfo names column 9 of data_1 or data_2, which have 2: one line, exit 2 (the
+    comparison did not fail: the file is damaged)."""
+    path = write_modelica_mat(tmp_path / "bad.mat", T, {"x_B": np.sin(T)}, {"m_B": 4.43})
+    contents = scipy.io.loadmat(str(path))
+    info = contents["dataInfo"].copy()
+    info[1, 2 if block == 2 else 1] = 9  # the column of x_B (block 2) or of m_B (block 1)
+    contents["dataInfo"] = info
+    scipy.io.savemat(str(path), {k: v for k, v in contents.items() if not k.startswith("__")}, format="4")
+    with pytest.raises(CompareInputError, match="is not a Modelica result file"):
+        read_mat_trace(path)
+    csv = tmp_path / "res.csv"
+    write_csv(csv, Trace(("time", "x_B"), np.column_stack([T, np.sin(T)])))
+    assert run_compare(csv, path) == 2
+    _, err = capsys.readouterr()
+    assert len(err.strip().splitlines()) == 1 and err.startswith(f"error: {path}: ")

@@ -301,3 +301,25 @@ def test_a_run_ignores_a_cache_planted_by_another_user_and_completes(shared: Pat
         assert list((private_tmp / f"toggle-cosim-{os.geteuid()}").glob("loop-kernel-*.so"))
     finally:
         shutil.rmtree(private_tmp, ignore_errors=True)
+
+
+def test_without_a_home_folder_the_cache_is_the_temporary_one_and_the_plant_is_read(
+    plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """HOME unset and no passwd entry (Path.home() raises): the cache is the per-user folder in
+    the temporary directory, and the FMU is read, not reported as an unreadable modelDescription.xml."""
+    import tempfile
+
+    from toggle_cosim.native import cache_folder
+    from toggle_cosim.plant.contract import check_plant
+
+    def no_home() -> Path:
+        raise RuntimeError("Could not determine home directory.")
+
+    for name in ("HOME", "XDG_CACHE_HOME", "TOGGLE_COSIM_CACHE"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setattr(Path, "home", staticmethod(no_home))
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    assert cache_folder() == tmp_path / f"toggle-cosim-{os.geteuid()}"
+    plant = check_plant(plant_fmu)
+    assert "x_B" in plant.references

@@ -147,3 +147,159 @@ def test_a_plant_binary_that_cannot_serve_is_bad_input(tmp_path: Path, plant_fmu
     out = tmp_path / "out"
     line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(fmu), "--out", str(out)])
     assert ("cannot be loaded" if binary == "script" else "lacks fmi2Instantiate") in line and not out.exists()
+
+
+@pytest.mark.parametrize("case", ["dangling", "loop", "dangling-parent"])
+def test_output_folder_symlinks_that_lead_nowhere_are_refused_before_any_run(
+    tmp_path: Path, plant_fmu: Path, case: str
+) -> None:
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    (tmp_path / "loop_a").symlink_to(tmp_path / "loop_b")
+    (tmp_path / "loop_b").symlink_to(tmp_path / "loop_a")
+    out = {"dangling": "dangling", "loop": "loop_a", "dangling-parent": "dangling/sub"}[case]
+    line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(tmp_path / out)])
+    assert ("in a loop" if case == "loop" else "which does not exist") in line
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_two_scenario_files_with_one_name_are_refused_naming_both(tmp_path: Path, plant_fmu: Path) -> None:
+    first = _scenario(tmp_path)
+    (tmp_path / "other").mkdir()
+    second = _scenario(tmp_path / "other", t_end=0.1)
+    out = tmp_path / "out"
+    line = _bad_input(["run", str(first), str(second), "--fmu", str(plant_fmu), "--out", str(out)])
+    assert str(first) in line and str(second) in line and "'small'" in line and not out.exists()
+    assert "given twice" in _bad_input(["run", str(first), str(first), "--fmu", str(plant_fmu), "--out", str(out)])
+
+
+def _variants(folder: Path, count: int) -> Path:
+    variants = {f"v{k:03d}": {"plant": {"F_E": float(k)}} for k in range(count)}
+    return _scenario(folder, t_end=0.01, variants=variants)
+
+
+def test_finished_runs_hold_no_descriptor(tmp_path: Path, plant_fmu: Path) -> None:
+    """Under `ulimit -n 20` a run of 40 variants writes all 40 (each finished run releases its
+    trace buffer's descriptor) and leaves no run folder in TMPDIR."""
+    import resource
+    import subprocess
+    import sys
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "toggle_cosim.cli", "run", str(_variants(tmp_path, 40)), "--fmu", str(plant_fmu)]
+    result = subprocess.run(
+        [*command, "--out", str(out), "-q"],
+        env={**os.environ, "TMPDIR": str(scratch)},
+        preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_NOFILE, (20, 20)),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    assert len(list(out.glob("small/*/run.json"))) == 40
+    assert list(scratch.iterdir()) == []
+
+
+def test_a_run_without_scratch_space_fails_alone(
+    tmp_path: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The second run's trace buffer cannot get its blocks (ENOSPC): that run fails, naming the
+    folder; the others complete; nothing is left in the scratch folder."""
+    import errno
+    import tempfile
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    calls = []
+    original = os.posix_fallocate
+
+    def fallocate(fd: int, offset: int, length: int) -> None:
+        calls.append(length)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        original(fd, offset, length)
+
+    monkeypatch.setattr(os, "posix_fallocate", fallocate)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        main, ["run", str(_variants(tmp_path, 3)), "--fmu", str(plant_fmu), "--out", str(out), "-j", "1"]
+    )
+    assert result.exit_code == 1, result.output
+    records = {p.parent.name: json.loads(p.read_text()) for p in out.glob("small/*/run.json")}
+    assert [records[v]["status"] for v in ("v000", "v001", "v002")] == ["complete", "failed", "complete"]
+    assert f"no scratch space for the run's trace buffer in {scratch}" in records["v001"]["reason"]
+    assert list(scratch.iterdir()) == []
+
+
+def _fill_the_disk(monkeypatch: pytest.MonkeyPatch) -> None:
+    """fsync of every file being written (a temporary `.partial` name) fails with ENOSPC."""
+    import errno
+
+    original = os.fsync
+
+    def fsync(fd: int) -> None:
+        if os.readlink(f"/proc/self/fd/{fd}").endswith(".partial"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        original(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+
+
+def test_a_full_disk_names_the_file_it_could_not_write(
+    tmp_path: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """fsync of trace.csv fails with ENOSPC (as on a full disk): one line naming that file."""
+    _fill_the_disk(monkeypatch)
+    out = tmp_path / "out"
+    line = _bad_input(["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out), "-j", "1"])
+    assert f"{out / 'small' / 'run' / 'trace.csv'}: No space left on device" in line
+
+
+def test_a_full_scratch_file_system_fails_runs_alone(tmp_path: Path, plant_fmu: Path) -> None:
+    """A real 192 KiB tmpfs as TMPDIR (where this test may mount one): too small to unzip the
+    FMU. No SIGBUS and no traceback: each run fails alone with a reason naming the folder in
+    which it found no space, and nothing is left there."""
+    import subprocess
+    import sys
+
+    small = tmp_path / "small"
+    small.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=192k", "tmpfs", str(small)], capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here (not root)")
+    try:
+        out = tmp_path / "out"
+        command = [sys.executable, "-m", "toggle_cosim.cli", "run", str(_variants(tmp_path, 6))]
+        result = subprocess.run(
+            [*command, "--fmu", str(plant_fmu), "--out", str(out), "-q"],
+            env={**os.environ, "TMPDIR": str(small)},
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert result.returncode == 1, result.stderr
+        assert "Traceback" not in result.stderr
+        records = [json.loads(p.read_text()) for p in out.glob("small/*/run.json")]
+        assert len(records) == 6 and all(r["status"] == "failed" for r in records)
+        assert all("No space left on device" in r["reason"] and str(small) in r["reason"] for r in records)
+        assert list(small.iterdir()) == []
+    finally:
+        subprocess.run(["umount", str(small)], check=False)
+
+
+def test_a_full_disk_in_a_sweep_names_the_table_it_could_not_write(
+    tmp_path: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _scenario(tmp_path, t_end=0.02)
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(yaml.safe_dump({"base": "s.yaml", "axes": {"plant.F_E": {"values": [0.0, 5.0]}}}))
+    _fill_the_disk(monkeypatch)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        main, ["sweep", str(sweep), "--fmu", str(plant_fmu), "--out", str(out), "--workers", "1", "-q"]
+    )
+    assert result.exit_code == 2, result.output
+    line = result.output.strip().splitlines()[-1]  # after the sweep's own header line
+    assert line.startswith(f"error: {out}") and ".parquet: No space left on device" in line, result.output
+    assert "Traceback" not in result.output

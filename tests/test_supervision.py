@@ -25,7 +25,7 @@ import pyarrow.parquet as pq
 import pytest
 import yaml
 from click.testing import CliRunner
-from fault_plants import fault_environment, make_faulty_fmu
+from fault_plants import SCENARIO, fault_environment, make_faulty_fmu
 
 from toggle_cosim.cli import main
 from toggle_cosim.experiments.sweep import run_sweep
@@ -35,15 +35,6 @@ from toggle_cosim.plant.contract import check_plant
 ROOT = Path(__file__).resolve().parent.parent
 T_FAULT = 0.1
 ROWS_TO_FAULT = 201  # samples t = 0 .. 0.1 s at T_s = 0.5 ms, the last one before the faulty step
-SCENARIO = {
-    "name": "faulty",
-    "t_end": 0.3,
-    "T_s": 0.0005,
-    "stroke": {"x_start": 0.2329, "x_target": 0.3199},
-    "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
-    "controller": {"objective": "x_B", "gains": {"C": 5, "Q": 4, "P": 50, "delta": 0.25, "beta": 65}},
-    "variants": {"hit": {"plant": {"F_E": 60.0}}, "clean": {"plant": {"F_E": 0.0}}},
-}
 REASONS = {
     "segfault": "killed by SIGSEGV",
     "abort": "killed by SIGABRT",

@@ -519,12 +519,13 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     """
     import jsonschema
 
+    from toggle_cosim.files.bounded import file_problem
     from toggle_cosim.files.yaml_loader import YamlError, load_yaml
 
     path = Path(path)
-    if not path.is_file():
-        what = "is a directory" if path.is_dir() else "no such file"
-        raise CompareInputError(f"{path}: {what}; give the YAML tolerance file")
+    problem = file_problem(path)  # a link to /dev/zero, a loop, a folder: bad input, never skipped
+    if problem:
+        raise CompareInputError(f"{path}: {problem}; give the YAML tolerance file")
     try:
         document = load_yaml(path, "tolerance file")  # one hardened loader for every YAML file
     except YamlError as error:

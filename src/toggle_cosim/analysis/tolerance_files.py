@@ -4,11 +4,14 @@ For a reference `<folder>/<name>_ref.csv` (or any trace used as a reference) the
 `<folder>/../tolerances.yaml` and `<folder>/tolerances.yaml` apply, in that order: the parent
 folder's file holds the defaults of a collection of references (`scenarios/references/`), the
 reference's own folder adds or overrides entries for its scenario. `--tolerances FILE` replaces
-both. Each file is read by `toggle_cosim.analysis.compare.load_tolerances`.
+both. Each file is read by `toggle_cosim.analysis.compare.load_tolerances`; anything at one of
+those places that is not a readable regular file (a folder, a link to a device, a link that
+leads nowhere) is bad input, not a file to skip.
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, Tolerance, load_tolerances
@@ -26,7 +29,7 @@ def applicable_tolerance_files(reference: Path | str) -> list[Path]:
     return [
         path.relative_to(here) if path.is_relative_to(here) else path
         for path in dict.fromkeys(candidates)
-        if path.is_file()
+        if os.path.lexists(path)  # whatever is there: a folder or a link to a device is refused, not skipped
     ]
 
 

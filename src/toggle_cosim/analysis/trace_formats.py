@@ -29,14 +29,17 @@ def read_mat_trace(path: Path | str) -> Trace:
     """A Dymola/OpenModelica MAT v4 result file as a Trace (see the module text)."""
     from buildingspy.io.outputfile import Reader
 
+    from toggle_cosim.files.bounded import file_problem
+
     path = Path(path)
-    if not path.is_file():
-        what = "is a directory" if path.is_dir() else "no such file"
-        raise CompareInputError(f"{path}: {what}; give the Modelica result .mat file")
-    try:
+    problem = file_problem(path)
+    if problem:
+        raise CompareInputError(f"{path}: {problem}; give the Modelica result .mat file")
+    try:  # every variable's values too: dataInfo may point past data_1 or data_2
         with contextlib.redirect_stdout(io.StringIO()):
             reader = Reader(str(path), "dymola")
-        names = [name for name in reader.varNames() if name.lower() != "time"]
+            names = [name for name in reader.varNames() if name.lower() != "time"]
+            series = {name: reader.values(name) for name in names}
     except Exception as error:  # noqa: BLE001 - any defect of a foreign file is bad input
         detail = " ".join(str(error).split())[:120] or type(error).__name__
         raise CompareInputError(
@@ -45,7 +48,6 @@ def read_mat_trace(path: Path | str) -> Trace:
         ) from error
     if not names:
         raise CompareInputError(f"{path}: holds no variables besides time; nothing to compare")
-    series = {name: reader.values(name) for name in names}
     longest = max(series.values(), key=lambda pair: pair[0].size)[0]
     time = np.asarray(longest, dtype=float)
     if time.size < 2 or not np.all(np.isfinite(time)):

@@ -22,11 +22,21 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
     from toggle_cosim.plant.probe import ProbeError, probe_binary
 
     runs = []
+    named: dict[str, Path] = {}  # scenario name -> the file that gave it: its runs' folder OUT/<name>/
     for path in scenarios:
         try:
-            runs.extend(load_scenario(path))
+            loaded = load_scenario(path)
         except ScenarioError as error:
             raise InputError(str(error)) from error
+        for name in dict.fromkeys(run.scenario for run in loaded):
+            if name in named:
+                both = "is given twice" if Path(named[name]).resolve() == Path(path).resolve() else f"and {path}"
+                raise InputError(
+                    f"{named[name]} {both}: both name the scenario {name!r}, so their runs would write the same "
+                    f"folders; give each scenario file its own name: key (or the file once)"
+                )
+            named[name] = path
+        runs.extend(loaded)
     plants = {}
     for run in runs:
         chosen = fmu if fmu is not None else run.fmu
@@ -56,12 +66,15 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
 
 
 def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
+    from toggle_cosim.files.naming import naming
     from toggle_cosim.files.traces import write_csv, write_json
 
     folder = out / outcome.run.scenario / (outcome.run.variant or "run")
     with interrupts.deferred():  # both files whole, or an interrupt waits for them
-        write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
-        write_json(folder / "run.json", outcome.record)
+        with naming(folder / "trace.csv"):  # a full disk names the file it could not write
+            write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
+        with naming(folder / "run.json"):
+            write_json(folder / "run.json", outcome.record)
     return folder
 
 
@@ -74,11 +87,18 @@ def _status_text(outcome) -> str:  # noqa: ANN001
 
 def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN001, ANN202
     """One run, supervised (`supervision`); TOGGLE_COSIM_SUPERVISE=0 runs it in this process
-    instead (for the benchmark's comparison and for debugging: no time limit, no crash guard)."""
+    instead (for the benchmark's comparison and for debugging: no time limit, no crash guard;
+    the working directory is restored after it, whatever the plant did with it)."""
     if not _supervised():
         from toggle_cosim.cosim.master import simulate
 
-        return simulate(run, plant, progress)
+        here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        try:
+            return simulate(run, plant, progress)
+        finally:  # a plant that changed directory must not move the relative paths that follow
+            with contextlib.suppress(OSError):
+                os.fchdir(here)
+            os.close(here)
     from toggle_cosim.cosim.supervision import simulate_supervised
 
     return simulate_supervised(run, plant, time_limit=time_limit, progress=progress)
@@ -132,14 +152,26 @@ def outcomes_of(pairs, out: Path | None, quiet: bool, time_limit: float | None, 
         yield outcome
 
 
-def execute_runs(pairs, out: Path, quiet: bool, time_limit: float | None = None, on_written=None, jobs=None) -> list:  # noqa: ANN001
+def execute_runs(  # noqa: ANN201
+    pairs,  # noqa: ANN001
+    out: Path,
+    quiet: bool,
+    time_limit: float | None = None,
+    on_written=None,  # noqa: ANN001
+    jobs=None,  # noqa: ANN001
+    keep_traces: bool = False,
+) -> list:
     """Run each (run, plant) pair supervised (up to `jobs` at once), write its files in order,
-    print a line; `on_written(outcome)` after each run's files are written."""
+    print a line; `on_written(outcome)` after each run's files are written. The outcomes come
+    back detached from their runs' buffers (`RunOutcome.detached`): with their traces in memory
+    if `keep_traces`, else without them, so that any number of runs holds no descriptor or
+    scratch space once written."""
+    target = Path(out).absolute()  # before any plant runs: one that changes directory must not move it
     outcomes = []
     with contextlib.closing(outcomes_of(pairs, out, quiet, time_limit, jobs)) as results:
         for number, outcome in enumerate(results, start=1):
             label = f"[{number}/{len(pairs)}] {outcome.run.label}"
-            folder = _write_outcome(outcome, out)
+            folder = Path(out) / _write_outcome(outcome, target).relative_to(target)  # as the user named it
             s = outcome.summary
             detail = (
                 f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A"
@@ -152,9 +184,10 @@ def execute_runs(pairs, out: Path, quiet: bool, time_limit: float | None = None,
             )
             for warning in outcome.warnings:  # plausibility flags (`cosim.plausibility`)
                 click.echo(f"{label}: warning: {warning}")
-            outcomes.append(outcome)
             if on_written is not None:
                 on_written(outcome)
+            outcome = outcome.detached(keep_traces)  # the buffer goes with the last view of it
+            outcomes.append(outcome)
             if outcome.interrupted:
                 click.echo(
                     f"interrupted: {label} written as interrupted; {len(pairs) - number} later run(s) not written",
@@ -180,9 +213,24 @@ JOBS_OPTION = click.option(
     "is a line per run as it is written (in order), not a bar; the traces are the same.",
 )
 
+
+class Seconds(click.ParamType):
+    """A wall-clock limit in seconds, checked by `limits.seconds` (finite, positive, bounded)."""
+
+    name = "seconds"
+
+    def convert(self, value, param, ctx):  # noqa: ANN001, ANN201 - click's signature
+        from toggle_cosim import limits
+
+        try:
+            return limits.seconds(value, f"--{param.name.replace('_', '-')}" if param else "value")
+        except limits.LimitError as error:
+            self.fail(str(error), param, ctx)
+
+
 TIME_LIMIT_OPTION = click.option(
     "--time-limit",
-    type=click.FloatRange(min=0, min_open=True),
+    type=Seconds(),
     default=None,
     metavar="SECONDS",
     help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).",

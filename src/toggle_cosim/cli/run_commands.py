@@ -106,7 +106,9 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             if left[outcome.run.scenario] == 0:
                 figures.submit(out / outcome.run.scenario)
 
-        outcomes = execute_runs(pairs, out, quiet=False, time_limit=time_limit, on_written=written, jobs=jobs)
+        outcomes = execute_runs(
+            pairs, out, quiet=False, time_limit=time_limit, on_written=written, jobs=jobs, keep_traces=True
+        )
         extra = scenarios / "friction_models.yaml"
         if extra.is_file():  # the claims re-checked under the dissipative and stick-slip models
             try:
@@ -114,7 +116,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
             except InputError as error:  # e.g. a plant without the friction models: the paper's runs stand
                 click.echo(f"skipped {extra}: {error.message}", err=True)
                 extra_pairs = []
-            outcomes = [*outcomes, *execute_runs(extra_pairs, out, quiet=False, jobs=jobs)]
+            outcomes = [*outcomes, *execute_runs(extra_pairs, out, quiet=False, jobs=jobs, keep_traces=True)]
         summary = write_summary(outcomes, out / "summary.md")
         lines = figures.results()
     except BaseException:

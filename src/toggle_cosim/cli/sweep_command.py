@@ -9,6 +9,7 @@ import click
 
 from toggle_cosim import interrupts
 from toggle_cosim.cli.app import main, require
+from toggle_cosim.cli.execution import Seconds
 
 
 @main.command()
@@ -28,7 +29,7 @@ from toggle_cosim.cli.app import main, require
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
 @click.option(
     "--case-timeout",
-    type=click.FloatRange(min=0, min_open=True),
+    type=Seconds(),
     default=None,
     metavar="SECONDS",
     help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",

@@ -27,6 +27,9 @@ typedef struct {
 
 enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2 };
 
+/* Only OK (0) and Warning (1) let the loop go on: Discard, Error, Fatal, Pending and any value
+   the standard does not define (a negative one, 5, ...) fail the run. */
+
 /* One law sample from the measured coordinate and rate (q, qd): out = (u, S, phase, e, z_next).
    Returns 0, or 1 where the Python must evaluate the sample itself (it raises there, or a
    result is not finite). */
@@ -55,7 +58,7 @@ int kernel_run(kernel_t *s, long k_end) {
         row = s->data + k * s->ncols;
         status = s->fmi3 ? ((get3_t)s->get)(s->component, s->out_vr, (size_t)s->n_out, row + 1, (size_t)s->n_out)
                          : ((get2_t)s->get)(s->component, s->out_vr, (size_t)s->n_out, row + 1);
-        if (status > 1) { s->k = k; s->fault = 1; s->status = status; return FMI_FAILED; }
+        if (status != 0 && status != 1) { s->k = k; s->fault = 1; s->status = status; return FMI_FAILED; }
         if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, c)) {
             s->k = k;
             return HAND_BACK;
@@ -72,10 +75,10 @@ int kernel_run(kernel_t *s, long k_end) {
         in[1] = s->F_E;
         status = s->fmi3 ? ((set3_t)s->set)(s->component, s->in_vr, 2, in, 2)
                          : ((set2_t)s->set)(s->component, s->in_vr, 2, in);
-        if (status > 1) { s->k = k; s->fault = 2; s->status = status; return FMI_FAILED; }
+        if (status != 0 && status != 1) { s->k = k; s->fault = 2; s->status = status; return FMI_FAILED; }
         status = s->fmi3 ? ((step3_t)s->step)(s->component, t, s->T_s, s->no_prior != 0, &event, &terminate, &early, &last)
                          : ((step2_t)s->step)(s->component, t, s->T_s, s->no_prior != 0);
-        if (status > 1) { s->k = k; s->fault = 3; s->status = status; return FMI_FAILED; }
+        if (status != 0 && status != 1) { s->k = k; s->fault = 3; s->status = status; return FMI_FAILED; }
     }
     s->k = k_end;
     return DONE;

@@ -6,8 +6,10 @@ import functools
 import os
 import platform
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
+
+import numpy as np
 
 from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.files.traces import Trace
@@ -33,6 +35,13 @@ class RunOutcome:
     def warnings(self) -> tuple[str, ...]:
         """The run's plausibility flags (`plausibility`), as run.json records them."""
         return tuple(self.record.get("warnings") or ())
+
+    def detached(self, keep_trace: bool = False) -> RunOutcome:
+        """This outcome without its hold on the run's trace buffer (a supervised run's trace is a
+        view of a file-backed map, which keeps a descriptor and scratch space until its last view
+        goes): the trace copied into memory, or, without `keep_trace`, only its column names."""
+        rows = self.trace.data if keep_trace else self.trace.data[:0]
+        return replace(self, trace=Trace(self.trace.names, np.array(rows)))
 
 
 RECORDED_PACKAGES = ("toggle-cosim", "fmpy", "numpy", "scipy", "pandas", "modelica")

@@ -7,8 +7,9 @@ fmpy's `FMU2Slave.getReal([..])` builds ctypes arrays on every call, and each of
 methods goes through a Python `_call` that looks the function up, optionally logs, and checks
 the status. Here the value-reference arrays and value buffers are built once, and the hot
 calls go straight to the FMU's C functions (bound here from fmpy's loaded library `dll` with
-their FMI prototypes), checking the status as fmpy does: anything worse than a warning raises
-fmpy's `FMICallException` naming the function.
+their FMI prototypes). Any status but OK and Warning (`fmi_calls`: also values the standard does
+not define) raises fmpy's `FMICallException` naming the function, in these calls and in every
+other call fmpy makes for us; the FMU's log messages go through our logger (`fmi_calls`).
 
 `c_functions()` hands the same pointers and buffers to the compiled loop (`compiled_loop`).
 `no_set_state_prior_to_current_point` is the flag passed to every doStep; it stays False
@@ -26,12 +27,10 @@ from typing import Any
 import numpy as np
 from fmpy import extract
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave
-from fmpy.fmi3 import FMU3Slave
 
 from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.plant.fmi_calls import FMU2SlaveChecked, FMU3SlaveChecked, failed
 
-_WARNING = 1  # fmi2Warning == fmi3Warning: a status above it is a failure, as fmpy's _call says
 _VR, _DOUBLES = ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_double)
 _BOOL_OUT = ctypes.POINTER(ctypes.c_bool)
 # The FMI prototypes of the three hot functions (fmi2FunctionTypes.h, fmi3FunctionTypes.h).
@@ -94,9 +93,9 @@ class PlantSession:
         try:
             if self.is_fmi3:
                 # fmpy passes the instantiationToken of FMI 3.0 under the name guid
-                self.fmu = FMU3Slave(guid=md.instantiationToken, **kwargs)
+                self.fmu = FMU3SlaveChecked(guid=md.instantiationToken, **kwargs)
             else:
-                self.fmu = FMU2Slave(guid=md.guid, **kwargs)
+                self.fmu = FMU2SlaveChecked(guid=md.guid, **kwargs)
         except BaseException:
             shutil.rmtree(self._unzipped, ignore_errors=True)
             raise
@@ -221,7 +220,7 @@ class PlantSession:
             status = self._get(self._component, self._out_vr, self._n_out, self._out_val, self._n_out)
         else:
             status = self._get(self._component, self._out_vr, self._n_out, self._out_val)
-        if status is not None and status > _WARNING:
+        if failed(status):
             raise FMICallException(function=self.function_names.get, status=status)
         into[:] = self._out_view
 
@@ -233,7 +232,7 @@ class PlantSession:
             status = self._set(self._component, self._in_vr, self._n_in, buffer, self._n_in)
         else:
             status = self._set(self._component, self._in_vr, self._n_in, buffer)
-        if status is not None and status > _WARNING:
+        if failed(status):
             raise FMICallException(function=self.function_names.set, status=status)
 
     def do_step(self, t: float, h: float) -> None:
@@ -243,7 +242,7 @@ class PlantSession:
             status = self._step(self._component, t, h, keep, *self._step_outputs)
         else:
             status = self._step(self._component, t, h, 1 if keep else 0)
-        if status is not None and status > _WARNING:
+        if failed(status):
             raise FMICallException(function=self.function_names.step, status=status)
 
     # -- for the compiled loop and the run record ---------------------------------------------

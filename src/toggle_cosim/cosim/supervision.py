@@ -6,27 +6,34 @@
             trace) back through a pipe -> _exit
 
 A segfault, abort, endless loop or huge allocation (the child's address space may grow by
-TOGGLE_COSIM_PLANT_MEMORY, default 4 GiB) in the plant's native code ends the child,
+TOGGLE_COSIM_PLANT_MEMORY, default 4 GiB: `limits`) in the plant's native code ends the child,
 not the command: the parent keeps the trace up to the last sample the child recorded (it is in
 the shared buffer), writes the run as `failed` with the reason (the signal's name, "time limit
 30 s exceeded", the exit status) and goes on with the next run. SIGINT/SIGTERM in the parent
 kill the child at once (a plant stuck in C cannot ignore SIGKILL) and the run is `interrupted`.
 The child dies with its parent (PR_SET_PDEATHSIG), and the FMU's unzipped copy lives in the
-run's own temporary folder, which the parent removes on every path.
+run's own temporary folder, which the parent removes on every path. Processes the plant starts
+end with the run (`process_tree`: the child leads its own group, adopts orphans and runs the
+plant in a grandchild it keeps, so even a crashed plant's daemons are found; the tree is killed
+when the plant ends or the run reaches its limit), and the parent never waits on the pipe
+alone, which a helper forked without exec holds open.
 
 The trace buffer is a file in that folder that never has a name (O_TMPFILE), mapped shared (the
 map, and the child's copy of it, outlive the descriptor), so a long run's trace lives in the
 page cache backed by disk, not in memory, and nothing of it is left on disk whatever ends the
-command. The folder's name carries the supervising process's id: a command killed by SIGKILL
-cannot remove its folders (the unzipped FMU), so each command removes those of supervising
-processes that no longer exist before it starts its own (`remove_stale_folders`).
+command. Its blocks are allocated before the fork (no SIGBUS on a full disk: the run fails
+alone, naming the folder), and the map's descriptor goes with its last view
+(`RunOutcome.detached` once the run's files are written). The folder's name carries the
+supervising process's id: a command killed by SIGKILL cannot remove its folders (the unzipped
+FMU), so each command removes those of supervising processes that no longer exist before it
+starts its own (`remove_stale_folders`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import faulthandler
+import functools
 import gc
 import io
 import math
@@ -45,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim import interrupts
+from toggle_cosim import interrupts, limits, process_tree
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim import master
@@ -55,10 +62,8 @@ from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
 
-PLANT_MEMORY_DEFAULT = 4 << 30  # bytes a plant may allocate beyond the process as forked
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
 TIME_LIMIT_PER_SIMULATED_S = 20.0
-_PR_SET_PDEATHSIG = 1
 FOLDER_PREFIX = "toggle-cosim-run-"  # then the supervising process's id, "-", a random part
 
 
@@ -107,36 +112,19 @@ def _seconds(value: float) -> str:
     return f"{value:.0f} s" if value >= 10 else f"{value:.3g} s"
 
 
-def _die_with_parent(parent: int) -> None:
-    with contextlib.suppress(Exception):
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    if os.getppid() != parent:  # the parent died before prctl took effect
-        os._exit(1)
-
-
-def plant_memory_limit() -> int:
-    """TOGGLE_COSIM_PLANT_MEMORY (bytes, or with a K/M/G suffix), default 4 GiB."""
-    text = os.environ.get("TOGGLE_COSIM_PLANT_MEMORY", "").strip().upper()
-    if not text:
-        return PLANT_MEMORY_DEFAULT
-    scale = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}.get(text[-1], 1)
-    try:
-        return int(float(text.rstrip("KMG")) * scale)
-    except ValueError:
-        return PLANT_MEMORY_DEFAULT
-
-
 def _limit_memory() -> None:
-    """The child's address space may grow by plant_memory_limit(): a plant that allocates without
-    end gets NULL from malloc instead of taking the machine's memory."""
+    """The child's address space may grow by `limits.plant_memory()` (checked by the command
+    before any run, `limits.check_environment`): a plant that allocates without
+    end gets NULL from malloc instead of taking the machine's memory. A bad value raises (the
+    run fails, naming the variable) rather than leaving the plant without a limit."""
+    allowed = limits.plant_memory()
     with contextlib.suppress(Exception):
         import resource
 
         with open("/proc/self/statm") as stream:
             current = int(stream.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
         soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-        wanted = current + plant_memory_limit()
+        wanted = current + allowed
         if hard != resource.RLIM_INFINITY:
             wanted = min(wanted, hard)
         resource.setrlimit(resource.RLIMIT_AS, (wanted, hard))
@@ -159,24 +147,34 @@ def _warm_up() -> None:
         kernel_library()
 
 
-def _child(
+def _child(parent: int, plant_process: Callable[[], None]) -> None:
+    """The child's whole life: lead its own group and adopt orphans, then (`run_kept`) run the
+    plant in a grandchild, end whatever the plant started once that has ended, and end as it
+    did (a segfault in the plant is the child's segfault for the parent)."""
+    try:
+        gc.disable()  # a collection would touch, and so copy, the whole inherited heap; the child lives briefly
+        faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
+        interrupts.as_child()  # the parent decides about interrupts
+        process_tree.become_leader()  # its own group, and the adoptive parent of its helpers' orphans
+        process_tree.die_with(parent)
+    except BaseException:  # noqa: BLE001
+        os._exit(3)
+    process_tree.run_kept(plant_process)
+
+
+def _plant_process(
     run: Run,
     plant: PlantInterface,
     buffer: np.ndarray,
     progress_slot: np.ndarray | None,
     workdir: Path,
     write_fd: int,
-    parent: int,
     capture_log: bool,
     controller: Controller,
 ) -> None:
-    """The child's whole life: run, send the outcome (no trace) back, exit without cleanup."""
+    """The plant's process: run, send the outcome (no trace) back, exit without cleanup."""
     code = 0
     try:
-        gc.disable()  # a collection would touch, and so copy, the whole inherited heap; the child lives briefly
-        faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
-        interrupts.as_child()  # the parent decides about interrupts
-        _die_with_parent(parent)
         _limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
         log = None
@@ -202,6 +200,8 @@ def _child(
             log.getvalue() if log else "",
         )
     except BaseException as error:  # noqa: BLE001 - everything goes back to the parent
+        if isinstance(error, OSError) and error.filename is None:
+            error.filename = str(workdir)  # e.g. no space to unzip the FMU: say where
         answer = ("error", " ".join(f"{type(error).__name__}: {error}".split()))
         code = 3
     try:
@@ -214,7 +214,7 @@ def _child(
         sys.stderr.flush()
     except BaseException:  # noqa: BLE001
         code = 4
-    os._exit(code)
+    os._exit(code)  # the keeper (`_child`) then ends the helper processes the plant started
 
 
 def _rows_recorded(buffer: np.ndarray) -> int:
@@ -228,10 +228,14 @@ def _rows_recorded(buffer: np.ndarray) -> int:
 def _map_buffer(folder: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndarray]:
     """A shared map of rows x columns doubles, NaN-filled, backed by a file in `folder` that has
     no name: O_TMPFILE on Linux (TemporaryFile falls back to create-and-unlink elsewhere), so no
-    moment exists at which a kill could leave it behind."""
+    moment exists at which a kill could leave it behind. Its blocks are allocated before it is
+    mapped (a full file system is an OSError here, not a SIGBUS when the run writes a sample);
+    the map holds the file's only descriptor, released with the last view of the map."""
     size = max(rows * columns * 8, 8)
     with tempfile.TemporaryFile(dir=folder) as stream:
         stream.truncate(size)
+        if hasattr(os, "posix_fallocate"):
+            os.posix_fallocate(stream.fileno(), 0, size)
         mapped = mmap.mmap(stream.fileno(), size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
     array = np.frombuffer(mapped, dtype=np.float64, count=rows * columns).reshape(rows, columns)
     array.fill(np.nan)
@@ -290,21 +294,36 @@ class SupervisedRun:
         self.deadline = math.inf
         self._capture_log = capture_log
         self._with_progress = with_progress
-        self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=scratch))
+        self._scratch = Path(scratch) if scratch is not None else Path(tempfile.gettempdir())
+        self._workdir: Path | None = None
 
     def start(self) -> None:
-        """Map the trace buffer and fork the child; its deadline runs from here."""
+        """Make the run's folder, map the trace buffer and fork the child; its deadline runs from
+        here. A run that cannot start (no scratch space, no descriptor left) is done at once and
+        fails alone, with the reason."""
         if self.refused is not None:
             self.done = True
             return
         try:
             self._fork()
+        except OSError as error:
+            self._kill()
+            self.reason = self.reason or f"the run could not start: {error.strerror or error}"
+            self.done = True
         except BaseException:
             self.stop()
             raise
 
     def _fork(self) -> None:
-        _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
+        try:
+            self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=self._scratch))
+            _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
+        except OSError as error:
+            self.reason = (
+                f"no scratch space for the run's trace buffer in {self._scratch} ({error.strerror or error}; "
+                "free space there or set TMPDIR)"
+            )
+            raise
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
         _warm_up()
@@ -318,21 +337,25 @@ class SupervisedRun:
             with warnings.catch_warnings(), interrupts.starting_children():
                 warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
                 self.pid = os.fork()
+                if self.pid > 0:
+                    process_tree.adopt(self.pid)
                 if self.pid == 0:  # the child never leaves this block: _child ends in os._exit
                     os.close(read_fd)
-                    _child(
+                    plant_process = functools.partial(
+                        _plant_process,
                         self.run,
                         self.plant,
                         self.buffer,
                         self.progress_slot,
                         self._workdir,
                         write_fd,
-                        parent,
                         self._capture_log,
                         self.controller,
                     )
+                    _child(parent, plant_process)
         finally:
             os.close(write_fd)
+        os.set_blocking(read_fd, False)  # a helper the plant forked may hold the pipe open: never wait on it
         self.deadline = clock.monotonic() + self.limit
         try:
             self._pidfd = os.pidfd_open(self.pid)
@@ -361,26 +384,29 @@ class SupervisedRun:
             self._kill()
             return True
         if self._read_fd in ready and self._read_fd in self._watch:
-            chunk = os.read(self._read_fd, 1 << 16)
-            if chunk:
-                self._chunks.append(chunk)
-            else:
-                self._watch.remove(self._read_fd)
-        if self._pidfd in ready or self._pidfd < 0:
-            finished, got = os.waitpid(self.pid, os.WNOHANG)
-            if finished:
-                self.status = got
-                while self._read_fd in self._watch and (chunk := os.read(self._read_fd, 1 << 16)):
-                    self._chunks.append(chunk)  # what the child wrote before select saw its exit
-                self.done = True
+            self._drain()
+        if (self._pidfd in ready or self._pidfd < 0) and process_tree.has_ended(self.pid):
+            self.status = process_tree.finish(self.pid)  # its helpers end with it; then reaped
+            self._drain()  # what the child wrote before select saw its exit
+            self.done = True
         return self.done
+
+    def _drain(self) -> None:
+        """Read what the pipe holds now, without waiting (a helper may keep it open)."""
+        while self._read_fd in self._watch:
+            try:
+                chunk = os.read(self._read_fd, 1 << 16)
+            except BlockingIOError:
+                return
+            if not chunk:
+                self._watch.remove(self._read_fd)
+                return
+            self._chunks.append(chunk)
 
     def _kill(self) -> None:
         if self.pid > 0 and self.status is None:
             with contextlib.suppress(OSError):
-                os.kill(self.pid, signal.SIGKILL)
-            with contextlib.suppress(OSError):
-                _, self.status = os.waitpid(self.pid, 0)
+                self.status = process_tree.finish(self.pid)
         self.done = True
 
     def stop(self, reason: str = "interrupted (SIGINT or SIGTERM)") -> None:
@@ -396,7 +422,8 @@ class SupervisedRun:
                 with contextlib.suppress(OSError):
                     os.close(fd)
         self._read_fd = self._pidfd = -1
-        shutil.rmtree(self._workdir, ignore_errors=True)  # the map outlives its file
+        if self._workdir is not None:
+            shutil.rmtree(self._workdir, ignore_errors=True)  # the map outlives its file
 
     def outcome(self) -> outcomes.RunOutcome:
         """The run's outcome (call once done, after close()): the child's, or failed/interrupted

@@ -4,7 +4,8 @@ A run records (steps + 1) samples x columns. While it runs, the samples sit in a
 buffer of 8 bytes each (`supervision`); trace.csv then holds every `record_every`-th sample at
 about CSV_BYTES_PER_VALUE bytes per value. A run whose buffer or CSV would pass the output limit
 (default 2 GB, `TOGGLE_COSIM_MAX_OUTPUT` in bytes overrides it) is refused in one line naming the
-estimate and the fix, as is an output folder that is a file, cannot be created or written, has a
+estimate and the fix, as is an output folder that is a file, a symbolic link that leads nowhere
+(dangling, or in a loop; also any folder on its path), cannot be created or written, has a
 name longer than the file system allows, or lacks free space for the estimate.
 """
 
@@ -19,7 +20,9 @@ from pathlib import Path
 
 import click
 
-DEFAULT_MAX_OUTPUT = 2_000_000_000  # bytes
+from toggle_cosim import limits
+from toggle_cosim.files.bounded import link_problem
+
 CSV_BYTES_PER_VALUE = 24  # "%.17g" and a comma: 20 to 25 characters
 
 
@@ -33,11 +36,11 @@ class ResourceError(click.ClickException):
 
 
 def max_output() -> int:
-    value = os.environ.get("TOGGLE_COSIM_MAX_OUTPUT")
+    """TOGGLE_COSIM_MAX_OUTPUT (`limits`), or a ResourceError (one line, exit 2)."""
     try:
-        return int(float(value)) if value else DEFAULT_MAX_OUTPUT
-    except ValueError:
-        raise ResourceError(f"TOGGLE_COSIM_MAX_OUTPUT={value!r}: give a number of bytes") from None
+        return limits.max_output()
+    except limits.LimitError as error:
+        raise ResourceError(str(error)) from None
 
 
 @dataclass(frozen=True)
@@ -101,6 +104,10 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
     existing = out
     try:
         while not existing.exists() and existing != existing.parent:
+            broken = link_problem(existing)
+            if broken:
+                where = "the output folder" if existing == out else f"{existing}, a part of the output folder's path,"
+                raise ResourceError(f"{out}: {where} is {broken} (remove it or choose another --out)")
             existing = existing.parent
     except OSError as error:
         raise ResourceError(
@@ -126,7 +133,12 @@ def check_output_folder(out: Path, needed: int = 0) -> None:
 
 def check_runs(pairs: Sequence[tuple], out: Path | None, jobs: int = 1) -> None:
     """Before the first run: each run's size, then the output folder and the scratch space for
-    the `jobs` biggest trace buffers (that many runs may be under way at once)."""
+    the `jobs` biggest trace buffers (that many runs may be under way at once). The environment's
+    numbers come first (`limits.check_environment`): a bad one must not surface in a run's child."""
+    try:
+        limits.check_environment()
+    except limits.LimitError as error:
+        raise ResourceError(str(error)) from None
     sizes = [check_size(run, plant) for run, plant in pairs]
     if out is not None:
         check_output_folder(out, sum(s.csv_bytes for s in sizes))

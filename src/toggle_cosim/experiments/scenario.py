@@ -30,6 +30,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from toggle_cosim.limits import MAX_SECONDS
 from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import ControllerSettings, ErrorSignal, PlantSettings, Run
@@ -142,7 +143,7 @@ _OVERRIDE = {
         "time_limit": {
             "type": "number",
             "exclusiveMinimum": 0,
-            "maximum": 1e6,
+            "maximum": MAX_SECONDS,
             "description": "wall-clock limit of the run in s (default max(30 s, 20 x t_end))",
         },
         "record_every": {

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import math
 import os
 import platform
 import sys
@@ -142,8 +141,14 @@ def execute_sweep(
         raise SweepError(
             "--workers sets the local pool's size; with --scheduler the Dask cluster's workers run the cases"
         )
-    if case_timeout is not None and not (case_timeout > 0 and math.isfinite(case_timeout)):
-        raise SweepError(f"--case-timeout {case_timeout}: give a positive number of seconds")
+    from toggle_cosim import limits
+
+    try:
+        if case_timeout is not None:
+            limits.seconds(case_timeout, "--case-timeout")
+        limits.check_environment()  # before any case: a bad number must not surface in a worker
+    except limits.LimitError as error:
+        raise SweepError(str(error)) from None
     fmu_path, sha = _resolve_plant(sweep, fmu)
     from toggle_cosim.cosim.supervision import remove_stale_folders
 

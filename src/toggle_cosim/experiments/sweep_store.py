@@ -62,6 +62,13 @@ def _table(rows: Sequence[Mapping[str, Any]], schema: Any) -> Any:
 
 
 def _atomic_parquet(table: Any, path: Path) -> None:
+    from toggle_cosim.files.naming import naming
+
+    with naming(path):  # a full disk names the table it could not write
+        _write_parquet(table, path)
+
+
+def _write_parquet(table: Any, path: Path) -> None:
     import pyarrow.parquet as pq
 
     with replacing(path) as temporary:  # a unique temporary name, synced and renamed into place

@@ -9,6 +9,7 @@ message that names the limit. The limits are generous for real files and small a
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from pathlib import Path
@@ -26,6 +27,41 @@ class InputFileError(ValueError):
 
 def _size(limit: int) -> str:
     return f"{limit // MiB} MiB" if limit >= MiB else f"{limit} bytes"
+
+
+def link_problem(path: Path | str) -> str | None:
+    """What is wrong with `path` if it is a symbolic link that leads nowhere (dangling, or in a
+    loop); None for anything else."""
+    path = Path(path)
+    if not path.is_symlink():
+        return None
+    try:
+        os.stat(path)
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            return "a symbolic link in a loop"
+        return f"a symbolic link to {os.readlink(path)}, which does not exist"
+    return None
+
+
+def file_problem(path: Path | str) -> str | None:
+    """Why `path` cannot be read as an input file (no such file, a link that leads nowhere, a
+    directory, a device or FIFO), or None for a regular file (or a link to one)."""
+    path = Path(path)
+    link = link_problem(path)
+    if link:
+        return f"is {link}"
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        return "no such file"
+    except OSError as error:
+        return f"cannot be read ({error.strerror or error})"
+    if stat.S_ISDIR(info.st_mode):
+        return "is a directory"
+    if not stat.S_ISREG(info.st_mode):
+        return "is not a regular file (a FIFO, device or socket)"
+    return None
 
 
 def read_bounded(path: Path | str, limit: int, what: str = "file") -> bytes:

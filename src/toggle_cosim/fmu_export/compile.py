@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import sys
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ from modelica.sim.cgen import unit
 from modelica.sim.dialect import C
 from modelica.sim.emit import Emitter, emit_expr, settings
 
+from toggle_cosim.fmu_export.c_names import check_c_names
 from toggle_cosim.fmu_export.experiment import Experiment, ExperimentError, experiment_of
 from toggle_cosim.fmu_export.source import ModelSourceError, load_program
 from toggle_cosim.fmu_export.structure import Dependencies, model_dependencies
@@ -187,7 +189,19 @@ def _c_string(text: str) -> str:
 
 
 def compile_model(source: Path, model: str) -> GeneratedModel:
-    """Compile class `model` (a dotted name) found in `source` (package directory or .mo file)."""
+    """Compile class `model` (a dotted name) found in `source` (package directory or .mo file).
+    ModelCompileError (one line first) for anything the model's text makes fail, an expression
+    nested deeper than the compiler can follow included."""
+    try:
+        return _compile_model(source, model)
+    except RecursionError:
+        raise ModelCompileError(
+            f"{source}: cannot compile {model}: an expression is nested too deeply for the compiler "
+            f"(limit about {sys.getrecursionlimit() // 5} levels); split it with intermediate variables"
+        ) from None
+
+
+def _compile_model(source: Path, model: str) -> GeneratedModel:
     try:
         program = load_program(source)
     except ModelSourceError as error:
@@ -208,6 +222,10 @@ def compile_model(source: Path, model: str) -> GeneratedModel:
         raise ModelCompileError(f"{source}: cannot emit C for {model}: {error}") from error
 
     emitter = Emitter(system)
+    try:
+        check_c_names({name: emitter.symbols[name] for name in emitter.observed}, body)
+    except ValueError as error:
+        raise ModelCompileError(f"{source}: cannot emit C for {model}: {error}") from error
     events = emitter.events()
     observed = emitter.observed
     parameters = system.parameters

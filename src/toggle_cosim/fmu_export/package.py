@@ -15,6 +15,7 @@ lists); `instance.c` travels in `sources/` beside the headers.
 
 from __future__ import annotations
 
+import os
 import platform
 import re
 import subprocess
@@ -145,6 +146,16 @@ FMI_VERSIONS = {
 }
 
 
+def first_compiler_error(messages: str, returncode: int) -> str:
+    """The compiler's first error line (file:line:column: error: ...), else its first line, else
+    its exit status: what a one-line build error shows."""
+    lines = [line.strip() for line in messages.splitlines() if line.strip()]
+    for line in lines:
+        if "error" in line.lower() and not line.lower().startswith("compilation terminated"):
+            return line
+    return lines[0] if lines else f"it exited with status {returncode} and printed nothing"
+
+
 def write_fmu(
     model: GeneratedModel,
     output: Path,
@@ -197,7 +208,11 @@ def write_fmu(
         ]
         result = subprocess.run(command, capture_output=True, text=True, check=False)
         if result.returncode != 0:
-            raise FMUBuildError(f"C compiler failed for {model.name}:\n{result.stderr.strip()[:4000]}")
+            messages = result.stderr.replace(f"{sources}{os.sep}", "").strip()
+            raise FMUBuildError(
+                f"C compiler failed for {model.name}: {first_compiler_error(messages, result.returncode)}\n"
+                f"{messages[:4000]}"
+            )
         if not binary.is_file() or binary.stat().st_size == 0:
             raise FMUBuildError(
                 f"C compiler exited 0 but wrote no library {binary.name} for {model.name} "

@@ -1,0 +1,113 @@
+"""What the master asks of every FMI call, beyond what fmpy checks.
+
+* A status is a success only when it is OK (0) or Warning (1). fmpy raises for a status above
+  Warning; a value the standard does not define (a negative one, or 5 from an FMI 3.0 FMU or a
+  Co-Simulation FMU that was not asked to run asynchronously) would pass as success. Here it
+  fails, in the hot calls (`failed`), in every other call fmpy makes (`FMU2SlaveChecked`,
+  `FMU3SlaveChecked`) and in the compiled loop (`control/loop_skeleton.c`, the same rule in C, for `cosim.compiled_loop`).
+* An FMU's log message is printed `[LABEL] message` as fmpy prints it, but decoded with
+  replacement (a message that is not UTF-8 is still shown) and with a label for any status
+  (`[STATUS 7]`): fmpy's own logger raises inside the callback for both, and the message is lost.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import inspect
+import sys
+from typing import Any
+
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi3 import FMU3Slave
+
+SUCCESS = (0, 1)  # fmi2OK/fmi3OK, fmi2Warning/fmi3Warning
+LABELS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
+
+
+def failed(status: int) -> bool:
+    """True for every status but OK and Warning, including values the standard does not define."""
+    return status not in SUCCESS
+
+
+def log_line(status: int, message: bytes | str | None) -> str:
+    """`[LABEL] message`, whatever the status and the bytes of the message."""
+    label = LABELS[status] if isinstance(status, int) and 0 <= status < len(LABELS) else f"STATUS {status}"
+    if isinstance(message, bytes):
+        text = message.decode("utf-8", errors="replace")
+    else:
+        text = "" if message is None else str(message)
+    return f"[{label}] {text}"
+
+
+def _print(status: int, message: bytes | str | None) -> None:
+    try:
+        sys.stdout.write(log_line(status, message) + "\n")
+    except Exception:  # noqa: BLE001, S110 - a log line never fails the FMU's call
+        pass
+
+
+def _log2(_environment: Any, _instance: Any, status: int, _category: Any, message: Any) -> None:
+    _print(status, message)
+
+
+def _log3(_environment: Any, status: int, _category: Any, message: Any) -> None:
+    _print(status, message)
+
+
+@functools.cache
+def fmi2_callbacks() -> fmi2CallbackFunctions:
+    """fmpy's default FMI 2.0 callbacks (its allocator, its formatting proxy) with our logger:
+    made once per process and kept (the C proxy that formats the message keeps a pointer to
+    the logger, so it must outlive every FMU that may log)."""
+    from fmpy.fmi2 import defaultCallbacks
+    from fmpy.logging import addLoggerProxy
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(_log2)
+    callbacks.allocateMemory = defaultCallbacks.allocateMemory
+    callbacks.freeMemory = defaultCallbacks.freeMemory
+    addLoggerProxy(ctypes.byref(callbacks))  # formats the variadic message in C, then calls _log2
+    return callbacks
+
+
+def _checking(method: Any) -> Any:
+    """fmpy's method for one FMI function, raising for every status but OK and Warning."""
+
+    @functools.wraps(method)  # fmpy reads the C prototype from the signature: wraps keeps it
+    def call(self: Any, *args: Any) -> Any:
+        status = method(self, *args)  # fmpy has raised already for a status above Warning
+        if isinstance(status, int) and failed(status):
+            raise FMICallException(function=method.__name__, status=status)
+        return status
+
+    return call
+
+
+def _checked(base: type) -> dict[str, Any]:
+    """Checking versions of `base`'s methods for the FMI functions that return a status."""
+    prefix = "fmi" + base.__name__[3]  # FMU2Slave: "fmi2", FMU3Slave: "fmi3"
+    methods = {}
+    for name in dir(base):
+        method = getattr(base, name)
+        if name.startswith(prefix) and callable(method) and inspect.signature(method).return_annotation is int:
+            methods[name] = _checking(method)
+    return methods
+
+
+def _instantiate2(self: Any, visible: bool = False, callbacks: Any = None, loggingOn: bool = False) -> None:  # noqa: N803
+    chosen = callbacks if callbacks is not None else fmi2_callbacks()
+    FMU2Slave.instantiate(self, visible=visible, callbacks=chosen, loggingOn=loggingOn)
+
+
+def _instantiate3(self: Any, *args: Any, logMessage: Any = None, **kwargs: Any) -> None:  # noqa: N803
+    FMU3Slave.instantiate(self, *args, logMessage=logMessage or _log3, **kwargs)
+
+
+# fmpy finds an FMU class's functions by the class name's prefix: these names start "FMU2"/"FMU3".
+FMU2SlaveChecked = type("FMU2SlaveChecked", (FMU2Slave,), {**_checked(FMU2Slave), "instantiate": _instantiate2})
+FMU3SlaveChecked = type("FMU3SlaveChecked", (FMU3Slave,), {**_checked(FMU3Slave), "instantiate": _instantiate3})
+
+
+__all__ = ["FMU2SlaveChecked", "FMU3SlaveChecked", "failed", "log_line"]

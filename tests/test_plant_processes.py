@@ -1,0 +1,218 @@
+"""What a plant's native code does beyond the FMI calls: statuses the standard does not define,
+log messages that are not UTF-8, helper processes it starts, libraries it ships beside its
+binary. The plants are the shipped FMU behind the fault shim (`fault_plants`)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+import uuid
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+from fault_plants import SCENARIO, fault_environment, make_faulty_fmu
+
+from toggle_cosim import process_tree
+from toggle_cosim.cli import main
+from toggle_cosim.files.traces import read_csv
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.plant.fmi_calls import failed, log_line
+from toggle_cosim.plant.probe import probe_binary
+
+T_FAULT = 0.1
+ROWS_TO_FAULT = 201  # samples 0 .. 0.1 s at T_s = 0.5 ms
+
+
+def _scenario(folder: Path, **changes: object) -> Path:
+    path = folder / "faulty.yaml"
+    path.write_text(yaml.safe_dump({**SCENARIO, **changes}, sort_keys=False))
+    return path
+
+
+def _arm(monkeypatch: pytest.MonkeyPatch, shim_fmu: Path, kind: str, **extra: str) -> None:
+    references = check_plant(shim_fmu).references
+    for key, value in {**fault_environment(kind, T_FAULT, references, min_F_E=50.0), **extra}.items():
+        monkeypatch.setenv(key, value)
+
+
+def test_only_ok_and_warning_are_success() -> None:
+    assert [status for status in range(-3, 9) if not failed(status)] == [0, 1]
+
+
+@pytest.mark.parametrize("loop", ["compiled", "python"])
+@pytest.mark.parametrize("status", [-1, 5, 7])
+def test_a_status_the_standard_does_not_define_fails_the_run(
+    shim_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, status: int, loop: str
+) -> None:
+    """doStep answers -1, 5 (fmi2Pending, never asked for) or 7 at t = 0.1 s and does not step:
+    the run fails there, in the compiled loop as in the Python loop; the clean run completes."""
+    _arm(monkeypatch, shim_fmu, "status", TOGGLE_FAULT_STATUS=str(status))
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1" if loop == "compiled" else "0")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(shim_fmu), "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    hit = json.loads((out / "faulty" / "hit" / "run.json").read_text())
+    assert hit["status"] == "failed"
+    assert f"fmi2DoStep failed with status {status}" in hit["reason"] and "t = 0.1 s" in hit["reason"]
+    assert hit["samples"] == ROWS_TO_FAULT == read_csv(out / "faulty" / "hit" / "trace.csv").data.shape[0]
+    assert hit["loop"]["kind"] == ("compiled" if loop == "compiled" else "python")
+    assert json.loads((out / "faulty" / "clean" / "run.json").read_text())["status"] == "complete"
+
+
+def test_log_messages_in_any_bytes_and_status_are_printed(shim_fmu: Path, tmp_path: Path) -> None:
+    """From t = 0.1 s every doStep logs invalid UTF-8 with status 9: each message is printed with
+    the bytes replaced, the run completes, and nothing raises in the callback."""
+    env = {**fault_environment("log", T_FAULT, check_plant(shim_fmu).references, 50.0), "TOGGLE_FAULT_STATUS": "9"}
+    command = [sys.executable, "-m", "toggle_cosim.cli", "run", str(_scenario(tmp_path)), "--fmu", str(shim_fmu)]
+    result = subprocess.run([*command, "--out", str(tmp_path / "out"), "-q"], env=env, capture_output=True, timeout=120)
+    stdout, stderr = result.stdout.decode(), result.stderr.decode()
+    assert result.returncode == 0, stderr
+    assert "[STATUS 9] bad bytes \ufffd\ufffd\ufffd at 0.1 s" in stdout
+    assert stdout.count("[STATUS 9]") == 400  # every step from 0.1 s to 0.3 s, hit run only
+    assert "Traceback" not in stderr and "Exception ignored" not in stderr
+    assert log_line(3, b"\xff ok") == "[ERROR] \ufffd ok" and log_line(-2, None) == "[STATUS -2] "
+
+
+def _marked(mark: str) -> list[int]:
+    """The processes whose environment carries `mark` (the helpers of one test)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if mark.encode() in (entry / "environ").read_bytes():
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found
+
+
+@pytest.mark.parametrize(
+    ("kind", "limit"),
+    [("fork", None), ("daemon", None), ("fork", "0.3"), ("daemon", "0.3"), ("orphan", None)],
+)
+def test_a_plants_helper_process_ends_with_its_run(
+    shim_fmu: Path, tmp_path: Path, kind: str, limit: str | None
+) -> None:
+    """A helper forked in fmi2Instantiate (holding every descriptor), started by the library's
+    constructor with system("sleep 30 &") (holding the command's stdout), or a daemon that
+    leaves the plant's group and session before the plant segfaults: the command ends as soon
+    as its runs do, its stdout closes (`| cat` would end), no helper is left, and with a time
+    limit the run that cannot finish ends at it."""
+    mark = f"TOGGLE_TEST_MARK_{uuid.uuid4().hex}"
+    env = {
+        **fault_environment(kind, T_FAULT, check_plant(shim_fmu).references),
+        "TOGGLE_FAULT_SLEEP": "30",
+        mark: "1",
+    }
+    scenario = _scenario(tmp_path, t_end=50.0) if limit else _scenario(tmp_path)  # 100,000 steps: over 0.3 s
+    command = [sys.executable, "-m", "toggle_cosim.cli", "run", str(scenario), "--fmu", str(shim_fmu)]
+    command += ["--out", str(tmp_path / "out"), "-q"] + (["--time-limit", limit] if limit else [])
+    started = time.monotonic()
+    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=60)  # reads to EOF
+    took = time.monotonic() - started
+    try:
+        assert result.returncode == (1 if limit or kind == "orphan" else 0), result.stderr
+        assert took < 20, took  # the helpers sleep 30 s
+        if kind == "orphan":
+            record = json.loads((tmp_path / "out" / "faulty" / "hit" / "run.json").read_text())
+            assert "killed by SIGSEGV" in record["reason"]
+        if limit:
+            record = json.loads((tmp_path / "out" / "faulty" / "hit" / "run.json").read_text())
+            assert record["reason"].startswith(f"time limit {limit} s exceeded")
+        assert "Traceback" not in result.stderr
+        time.sleep(0.2)
+        assert _marked(mark) == []
+    finally:
+        for pid in _marked(mark):
+            os.kill(pid, 9)
+
+
+def test_a_helper_in_its_own_session_is_ended_with_the_tree() -> None:
+    """process_tree on its own: a child that leads its group and adopts orphans starts a
+    grandchild that leaves the group (setsid) and is orphaned; end_tree ends it too."""
+    read_fd, write_fd = os.pipe()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork with pytest's threads
+        pid = os.fork()
+    if pid == 0:
+        process_tree.become_leader()
+        helper = os.fork()
+        if helper == 0:
+            if os.fork() == 0:  # the daemon: own session, its parent gone
+                os.setsid()
+                os.write(write_fd, str(os.getpid()).encode() + b"\n")
+                time.sleep(30)
+            os._exit(0)
+        os.waitpid(helper, 0)
+        time.sleep(30)
+        os._exit(0)
+    process_tree.adopt(pid)
+    os.close(write_fd)
+    daemon = int(os.read(read_fd, 64).split()[0])
+    os.close(read_fd)
+    deadline = time.monotonic() + 5
+    while daemon not in process_tree.descendants(pid) and time.monotonic() < deadline:
+        time.sleep(0.01)  # adopted by the child once its parent has exited
+    assert daemon in process_tree.descendants(pid)
+    process_tree.finish(pid)
+    deadline = time.monotonic() + 5
+    while Path(f"/proc/{daemon}").exists() and time.monotonic() < deadline:
+        state = (Path(f"/proc/{daemon}") / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        if state == "Z":  # killed, waiting for init to reap it
+            break
+        time.sleep(0.01)
+    assert not Path(f"/proc/{daemon}").exists() or state == "Z"
+
+
+def test_the_probe_ends_a_helper_its_binary_starts(shim_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    mark = f"TOGGLE_TEST_MARK_{uuid.uuid4().hex}"
+    monkeypatch.setenv("TOGGLE_FAULT_KIND", "daemon")
+    monkeypatch.setenv("TOGGLE_FAULT_SLEEP", "30")
+    monkeypatch.setenv(mark, "1")
+    started = time.monotonic()
+    probe_binary(check_plant(shim_fmu))
+    assert time.monotonic() - started < 5
+    time.sleep(0.2)
+    assert _marked(mark) == []
+
+
+def test_a_library_shipped_beside_the_binary_is_found(plant_fmu: Path, tmp_path: Path) -> None:
+    """The binary needs libtoggle_helper.so from its own folder (run path $ORIGIN): the probe
+    loads it from the whole extracted platform folder, as the run does, and the run completes
+    with the plant's trace."""
+    fmu = make_faulty_fmu(plant_fmu, tmp_path / "WithLibrary.fmu", needs_library=True)
+    plant = check_plant(fmu)
+    probe_binary(plant)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(fmu), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    same = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(plant_fmu), "--out", str(out / "p")])
+    assert same.exit_code == 0, same.output
+    ours, theirs = (read_csv(folder / "faulty" / "hit" / "trace.csv").data for folder in (out, out / "p"))
+    assert np.array_equal(ours, theirs)
+
+
+def test_a_plant_that_changes_directory_does_not_move_the_output(shim_fmu: Path, tmp_path: Path) -> None:
+    """Unsupervised (TOGGLE_COSIM_SUPERVISE=0: the plant runs in the command's own process), a
+    plant that calls chdir in fmi2Instantiate: the relative --out still means the folder the
+    command was started in."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    env = {
+        **fault_environment("chdir", T_FAULT, check_plant(shim_fmu).references),
+        "TOGGLE_FAULT_DIR": str(elsewhere),
+        "TOGGLE_COSIM_SUPERVISE": "0",
+    }
+    scenario = _scenario(tmp_path)
+    command = [sys.executable, "-m", "toggle_cosim.cli", "run", scenario.name, "--fmu", str(shim_fmu), "--out", "out"]
+    result = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.parent.name for p in (tmp_path / "out").glob("faulty/*/run.json")) == ["clean", "hit"]
+    assert list(elsewhere.iterdir()) == []
