@@ -33,7 +33,7 @@ from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["RunOutcome", "make_controller", "plant_settings", "simulate", "trace_names"]
+__all__ = ["RunOutcome", "make_controller", "open_session", "plant_settings", "simulate", "trace_names"]
 INPUTS = ("iq_ref", "F_E")
 
 
@@ -81,6 +81,12 @@ def trace_names(plant: PlantInterface) -> tuple[str, ...]:
     return ("time", *plant.recorded_outputs, *CONTROL_COLUMNS)
 
 
+def open_session(plant: PlantInterface, instance_name: str) -> PlantSession:
+    """A session of `plant` with the master's outputs and inputs: the FMU unzipped and its binary
+    loaded, no instance yet. `simulate(..., session=)` runs on it, run after run."""
+    return PlantSession(plant, instance_name, list(plant.recorded_outputs), list(INPUTS))
+
+
 def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
     session.instantiate(0.0, run.t_end)
     for name, value in plant_settings(run, plant):
@@ -94,17 +100,25 @@ def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
 
 
 def simulate(
-    run: Run, plant: PlantInterface, progress: Callable[[float], None] | None = None, buffer: np.ndarray | None = None
+    run: Run,
+    plant: PlantInterface,
+    progress: Callable[[float], None] | None = None,
+    buffer: np.ndarray | None = None,
+    session: PlantSession | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`. Never raises for a plant fault: see RunOutcome.
 
     `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
-    file-backed map shared with a supervising process (`supervision`); the trace is then a view of it."""
+    file-backed map shared with a supervising process (`supervision`); the trace is then a view of it.
+    `session`, if given (`open_session`), is a plant already loaded that the caller keeps: the run
+    gets an instance of it (reset after a complete run for the next, else freed), not a new copy."""
     started = clock.perf_counter()
     controller = make_controller(run)
     n = run.steps
     recorder = Recorder(trace_names(plant), n, buffer)
-    session = PlantSession(plant, run.label, list(plant.recorded_outputs), list(INPUTS))
+    own_session = session is None
+    if session is None:
+        session = open_session(plant, run.label)
     timing, state = Timing(n, run.T_s, run.plant.F_E), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
     policy = CheckpointPolicy(saving=session.can_save_state)
@@ -137,9 +151,12 @@ def simulate(
         state.reason = f"plant FMU failed at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s: {error}"
     finally:
         solver_statistics = session.solver_statistics()
-        session.close()
+        complete = state.reason is None and recorder.rows == n + 1 and not interrupted
+        if own_session:
+            session.close()
+        else:
+            session.release(reuse=complete)
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
-    complete = reason is None and rows == n + 1
     summary = None
     if rows > 1 and state.controller is not None:
         summary = summarize(

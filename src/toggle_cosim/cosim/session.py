@@ -11,6 +11,12 @@ their FMI prototypes), checking the status as fmpy does: anything worse than a w
 fmpy's `FMICallException` naming the function.
 
 `c_functions()` hands the same pointers and buffers to the compiled loop (`compiled_loop`).
+
+A session may serve run after run (a sweep worker keeps its plant loaded): `release(reuse=True)`
+after a complete run terminates the instance and brings it back with fmi2Reset / fmi3Reset to
+the state instantiation leaves, and the next `instantiate` only sets up the experiment; after a
+failed run, or when the FMU refuses the reset, the instance is freed and the next `instantiate`
+makes a new one from the binary already loaded. `close()` frees it and deletes the unzipped copy.
 `no_set_state_prior_to_current_point` is the flag passed to every doStep; it stays False
 (history kept) unless a checkpoint policy that never restores sets it True (`retry`).
 """
@@ -101,6 +107,7 @@ class PlantSession:
             shutil.rmtree(self._unzipped, ignore_errors=True)
             raise
         self._instantiated = False
+        self._was_reset = False  # an instance kept by release(reuse=True), in the state instantiation leaves
         ref = plant.references
         self._out_vr = (ctypes.c_uint32 * len(outputs))(*(ref[n] for n in outputs))
         self._out_val = (ctypes.c_double * len(outputs))()
@@ -146,6 +153,12 @@ class PlantSession:
         return self._instantiated
 
     def instantiate(self, start: float, stop: float) -> None:
+        if self._was_reset:  # the instance kept by release(reuse=True)
+            self._was_reset = False
+            if not self.is_fmi3:
+                self.fmu.setupExperiment(startTime=start, stopTime=stop)
+            self._start, self._stop = start, stop
+            return
         if self.is_fmi3:
             self.fmu.instantiate(visible=False, loggingOn=False)
         else:
@@ -200,17 +213,41 @@ class PlantSession:
         else:
             self.fmu.setFMUstate(self._saved)
 
+    def release(self, reuse: bool = False) -> None:
+        """End the run on this instance: with `reuse`, terminate and reset it for the next run;
+        else (or if the FMU refuses either call) free it. The loaded binary stays."""
+        if not self._instantiated:
+            return
+        if self._saved is not None:  # the checkpoint belongs to this run
+            try:
+                if self.is_fmi3:
+                    self.fmu.freeFMUState(self._saved)
+                else:
+                    self.fmu.freeFMUstate(self._saved)
+            except Exception:  # noqa: BLE001 - freeInstance releases it in any case
+                reuse = False
+            self._saved = None
+        if reuse and not self._was_reset:
+            try:
+                self.fmu.terminate()
+                self.fmu.reset()
+                self._was_reset = True
+                return
+            except Exception:  # noqa: BLE001 - an FMU that cannot reset gets a new instance
+                pass
+        try:
+            self.fmu.terminate()
+        except Exception:  # noqa: BLE001 - an FMU in error state may refuse terminate
+            pass
+        self._was_reset = False
+        self._instantiated = False
+        self._component = None
+        self.fmu.freeInstance()
+
     def close(self) -> None:
         """Terminate and free the instance, whatever state it is in, and delete the unzipped copy."""
         try:
-            if self._instantiated:
-                try:
-                    self.fmu.terminate()
-                except Exception:  # noqa: BLE001 - an FMU in error state may refuse terminate
-                    pass
-                self.fmu.freeInstance()
-                self._instantiated = False
-                self._component = None
+            self.release(reuse=False)
         finally:
             shutil.rmtree(self._unzipped, ignore_errors=True)
 

@@ -100,11 +100,11 @@ def time_limit_of(run: Run, override: float | None = None) -> float:
     return float(own) if own is not None else default_time_limit(run.t_end)
 
 
-def _seconds(value: float) -> str:
+def seconds_text(value: float) -> str:
     return f"{value:.0f} s" if value >= 10 else f"{value:.3g} s"
 
 
-def _die_with_parent(parent: int) -> None:
+def die_with_parent(parent: int) -> None:
     with contextlib.suppress(Exception):
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
@@ -124,7 +124,7 @@ def plant_memory_limit() -> int:
         return PLANT_MEMORY_DEFAULT
 
 
-def _limit_memory() -> None:
+def limit_memory() -> None:
     """The child's address space may grow by plant_memory_limit(): a plant that allocates without
     end gets NULL from malloc instead of taking the machine's memory."""
     with contextlib.suppress(Exception):
@@ -139,7 +139,7 @@ def _limit_memory() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (wanted, hard))
 
 
-def _warm_up() -> None:
+def warm_up() -> None:
     """Work each child would repeat, done once in the parent before forking: the run record's
     versions, the compiled loop, and the modules a child would otherwise import each time
     (`resource` for its memory limit, `urllib.parse` for the FMU's resource URI that fmpy
@@ -172,8 +172,8 @@ def _child(
         gc.disable()  # a collection would touch, and so copy, the whole inherited heap; the child lives briefly
         faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
         interrupts.as_child()  # the parent decides about interrupts
-        _die_with_parent(parent)
-        _limit_memory()
+        die_with_parent(parent)
+        limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
         log = None
         if capture_log:
@@ -211,7 +211,7 @@ def _child(
     os._exit(code)
 
 
-def _rows_recorded(buffer: np.ndarray) -> int:
+def rows_recorded(buffer: np.ndarray) -> int:
     """Samples the child finished: the leading rows whose last column (written last) is set."""
     if buffer.shape[0] == 0:
         return 0
@@ -287,7 +287,7 @@ class SupervisedRun:
         _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
-        _warm_up()
+        warm_up()
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
         sys.stdout.flush()
@@ -336,7 +336,7 @@ class SupervisedRun:
         if self.done:
             return True
         if clock.monotonic() >= self.deadline:
-            self.reason = f"time limit {_seconds(self.limit)} exceeded"
+            self.reason = f"time limit {seconds_text(self.limit)} exceeded"
             self._kill()
             return True
         if self._read_fd in ready and self._read_fd in self._watch:
@@ -382,7 +382,7 @@ class SupervisedRun:
         with the reason and the trace up to the last sample the child recorded."""
         run, plant = self.run, self.plant
         answer = _answer(self._chunks)
-        rows = _rows_recorded(self.buffer)
+        rows = rows_recorded(self.buffer)
         trace = Trace(self.names, self.buffer[:rows])
         wall = clock.perf_counter() - self.started
         reason = self.reason
@@ -404,16 +404,20 @@ class SupervisedRun:
         return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
 
     def _exit_reason(self, answer: tuple | None) -> str:
-        status = self.status
         if answer is not None and answer[0] == "error":
             return f"the plant could not be run: {answer[1]}"
-        if status is not None and os.WIFSIGNALED(status):
-            number = os.WTERMSIG(status)
-            name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
-            return f"the plant process was killed by {name}"
-        if status is not None:
-            return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
-        return "the plant process ended without an answer"
+        return exit_reason(self.status)
+
+
+def exit_reason(status: int | None) -> str:
+    """Why a plant process ended without answering, from its wait status."""
+    if status is not None and os.WIFSIGNALED(status):
+        number = os.WTERMSIG(status)
+        name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
+        return f"the plant process was killed by {name}"
+    if status is not None:
+        return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
+    return "the plant process ended without an answer"
 
 
 def wait_for(children: list[SupervisedRun], poll: float | None = None) -> None:

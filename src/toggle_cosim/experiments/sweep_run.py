@@ -4,8 +4,9 @@ backend, record each as it finishes, then write the table, the heat maps and `sw
     from toggle_cosim.experiments.sweep_run import run_sweep
     run_sweep(Path("scenarios/sweep_FE_mB.yaml"), output=Path("out/sweeps/sweep_FE_mB"))
 
-Exit status of `run_sweep`: 0 every case ok, 1 some case failed, 2 bad input (one `error: ...`
-line on stderr, nothing run), 130 interrupted (finished cases are kept; run again to finish)."""
+Exit status of `run_sweep`: 0 every case ok, 1 some case failed (or a Dask cluster lost some: they
+are "not run", and a re-run does them), 2 bad input (one `error: ...` line on stderr, nothing
+run), 130 interrupted (finished cases are kept; run again to finish)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from toggle_cosim.analysis.sweep_heatmaps import write_heatmaps
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
-from toggle_cosim.experiments.sweep_store import RESULTS_FILE, ResultStore, read_results
+from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore
 
 MANIFEST_FILE = "sweep.json"
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -40,6 +41,8 @@ class SweepResult:
     done: int = 0  # cases in the final table
     failed: int = 0  # failed cases in the final table
     interrupted: bool = False
+    lost: int = 0  # cases a Dask cluster lost (not run)
+    lost_reason: str = ""
     wall_seconds: float = 0.0
     results: Path | None = None
     figures: list[Path] = field(default_factory=list)
@@ -47,6 +50,16 @@ class SweepResult:
     @property
     def rate(self) -> float:
         return self.ran / self.wall_seconds if self.wall_seconds > 0 else 0.0
+
+
+def _open_lock(path: Path) -> Any:
+    """The lock file, never opened through a symbolic link (one planted there would make us
+    truncate or create a file elsewhere)."""
+    try:
+        handle = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    except OSError as error:
+        raise SweepError(f"{path}: cannot open the sweep's lock file ({error.strerror}); remove it") from error
+    return os.fdopen(handle, "w")
 
 
 @contextlib.contextmanager
@@ -58,7 +71,7 @@ def _exclusive(folder: Path) -> Iterator[None]:
     except ImportError:  # pragma: no cover - Windows
         yield
         return
-    with open(folder / ".lock", "w") as lock:
+    with _open_lock(folder / ".lock") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as error:
@@ -71,7 +84,7 @@ def _exclusive(folder: Path) -> Iterator[None]:
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
+def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) -> tuple[Path, Any]:
     from toggle_cosim.plant.contract import ContractError, check_plant
 
     chosen = fmu if fmu is not None else sweep.fmu
@@ -109,6 +122,16 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
                 f" columns, about {size / 1e9:.2f} GB while it runs, over the {max_output() / 1e9:.2f} GB"
                 " output limit; raise T_s or shorten t_end (or raise TOGGLE_COSIM_MAX_OUTPUT)"
             )
+    if keep_traces and sweep.cases:  # every case's trace, stored
+        columns = len(trace_names(plant))
+        samples = sum(int(round(c.parameters["t_end"] / c.parameters["T_s"])) + 1 for c in sweep.cases)
+        size = samples * columns * 8
+        if size > max_output():
+            raise SweepError(
+                f"{sweep.path}: --keep-traces would store {len(sweep.cases)} traces, {samples} samples x {columns}"
+                f" columns, about {size / 1e9:.2f} GB before compression, over the {max_output() / 1e9:.2f} GB"
+                " output limit; sweep fewer cases, raise T_s, shorten t_end or raise TOGGLE_COSIM_MAX_OUTPUT"
+            )
     seen = set()
     for case in sweep.cases:  # each distinct setting of the plant (all but F_E and m_B), before any case runs
         plant_doc = case.document.get("plant") or {}
@@ -121,7 +144,7 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
             check_settings(run, plant)
         except SettingError as error:
             raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
-    return chosen, plant.sha256
+    return chosen, plant
 
 
 def execute_sweep(
@@ -133,8 +156,10 @@ def execute_sweep(
     retry_failed: bool = False,
     log: Callable[[str], None] | None = None,
     case_timeout: float | None = None,
+    keep_traces: bool = False,
 ) -> SweepResult:
-    """Run the cases of `sweep` that are not done yet, write the table and the heat maps."""
+    """Run the cases of `sweep` that are not done yet, write the table and the heat maps (and,
+    with `keep_traces`, every case's trace into OUTPUT/traces/)."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
     if workers is not None and workers < 1:
         raise SweepError(f"--workers {workers}: give at least 1")
@@ -144,14 +169,14 @@ def execute_sweep(
         )
     if case_timeout is not None and not (case_timeout > 0 and math.isfinite(case_timeout)):
         raise SweepError(f"--case-timeout {case_timeout}: give a positive number of seconds")
-    fmu_path, sha = _resolve_plant(sweep, fmu)
+    fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces)
     from toggle_cosim.cosim.supervision import remove_stale_folders
 
     remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
     client = connect(scheduler) if scheduler else None  # before anything is written
     try:
         return _execute_sweep(
-            sweep, fmu_path, sha, scheduler, client, workers, progress, retry_failed, say, case_timeout
+            sweep, fmu_path, plant, scheduler, client, workers, progress, retry_failed, say, case_timeout, keep_traces
         )
     finally:
         if client is not None:
@@ -162,7 +187,7 @@ def execute_sweep(
 def _execute_sweep(
     sweep: Sweep,
     fmu_path: Path,
-    sha: str,
+    plant: Any,
     scheduler: str | None,
     client: Any,
     workers: int | None,
@@ -170,17 +195,23 @@ def _execute_sweep(
     retry_failed: bool,
     say: Callable[[str], None],
     case_timeout: float | None = None,
+    keep_traces: bool = False,
 ) -> SweepResult:
+    from toggle_cosim.cosim.master import trace_names
+
+    sha = plant.sha256
     with _exclusive(sweep.output):
-        store = ResultStore(sweep)
-        store.load()
+        store = ResultStore(sweep, keep_traces=keep_traces, trace_columns=trace_names(plant))
+        store.load(sha)
         if store.unreadable:
             say(f"warning: unreadable result files, their cases run again: {', '.join(store.unreadable[:5])}")
         if retry_failed:
-            store.rows = {k: r for k, r in store.rows.items() if r.get("status") == "ok"}
-        todo = [c for c in sweep.cases if c.case_id not in store.rows]
+            store.forget_failed()
+        todo = [c for c in sweep.cases if c.case_id not in store.done]
+        if keep_traces:
+            store.drop_traces(c.case_id for c in todo)
         result = SweepResult(total=len(sweep.cases), skipped=len(sweep.cases) - len(todo))
-        other_fmu = sum(1 for r in store.rows.values() if r.get("fmu_sha256") not in (None, sha))
+        other_fmu = len(store.other_fmu & store.done.keys())
         backend = (
             f"Dask scheduler {scheduler}" if scheduler else f"local process pool, {workers or os.cpu_count()} workers"
         )
@@ -208,10 +239,10 @@ def _execute_sweep(
             )
         run_started = time.perf_counter()
 
-        def on_row(row: dict[str, Any]) -> None:
+        def on_row(row: dict[str, Any], trace: Any = None) -> None:
             nonlocal failed_now
-            with interrupts.deferred():  # a part file is whole or not there
-                store.add(row)
+            with interrupts.deferred():  # a batch file is whole or not there
+                store.add(row, trace)
             result.ran += 1
             if row["status"] != "ok":
                 failed_now += 1
@@ -221,7 +252,10 @@ def _execute_sweep(
                 bar.update(1)
 
         try:
-            execute(todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout)
+            loss = execute(todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout, keep_traces, plant)
+            result.lost = loss.cases
+            if loss.cases:
+                result.lost_reason = loss.reasons[0] if loss.reasons else "unknown"
         except BaseException as error:
             if not interrupts.is_interrupt(error):
                 raise
@@ -233,11 +267,10 @@ def _execute_sweep(
                 bar.close()
             with interrupts.deferred():
                 result.results = store.consolidate()
-        finished = [row for identifier, row in store.rows.items() if identifier in store.wanted]
-        result.done = len(finished)
-        result.failed = sum(1 for row in finished if row.get("status") != "ok")
-        if not result.interrupted:  # pandas and matplotlib only when there is time for them
-            result.figures = write_heatmaps(read_results(result.results), sweep)
+        result.done = len(store.done)
+        result.failed = sum(1 for ok in store.done.values() if not ok)
+        if not result.interrupted:  # matplotlib only when there is time for it
+            result.figures = write_heatmaps(result.results, sweep)
         with interrupts.deferred():
             _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
     return result
@@ -272,6 +305,7 @@ def _write_manifest(
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             },
             "results": RESULTS_FILE,
+            "traces": TRACES_DIR if (sweep.output / TRACES_DIR).is_dir() else None,
             "heatmaps": [str(p.relative_to(sweep.output)) for p in result.figures],
         },
     )
@@ -287,15 +321,23 @@ def run_sweep(
     retry_failed: bool = False,
     progress: bool = True,
     case_timeout: float | None = None,
+    keep_traces: bool = False,
 ) -> int:
-    """`toggle-cosim sweep SWEEP.yaml [--scheduler ADDRESS] [--workers N] [--fmu PATH]`.
+    """`toggle-cosim sweep SWEEP.yaml [--scheduler ADDRESS] [--workers N] [--fmu PATH] [--keep-traces]`.
 
     Exit status: 0 every case ok, 1 some case failed, 2 bad input (one `error: ...` line on
     stderr, nothing run), 130 interrupted (finished cases are kept; run again to finish)."""
     try:
         sweep = load_sweep(Path(sweep_path), output)
         result = execute_sweep(
-            sweep, fmu, scheduler, workers, progress=progress, retry_failed=retry_failed, case_timeout=case_timeout
+            sweep,
+            fmu,
+            scheduler,
+            workers,
+            progress=progress,
+            retry_failed=retry_failed,
+            case_timeout=case_timeout,
+            keep_traces=keep_traces,
         )
     except SweepError as error:
         print(f"error: {' '.join(str(error).split())}", file=sys.stderr)
@@ -309,10 +351,16 @@ def run_sweep(
     print(f"wrote {result.results}")
     for figure in result.figures:
         print(f"wrote {figure}")
+    if result.lost and not result.interrupted:
+        print(
+            f"warning: the Dask cluster lost {result.lost} cases (a worker or the scheduler went away: "
+            f"{result.lost_reason}); they are not run: run the same command again to run them",
+            file=sys.stderr,
+        )
     if result.interrupted:
         print(
             f"interrupted: {result.done} of {result.total} cases done; run the same command again to finish",
             file=sys.stderr,
         )
         return EXIT_INTERRUPTED
-    return EXIT_FAILED if result.failed else EXIT_OK
+    return EXIT_FAILED if result.failed or result.lost else EXIT_OK
