@@ -127,7 +127,7 @@ def _sweep_file(folder: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("kind", ["segfault", "loop", "nan"])
+@pytest.mark.parametrize("kind", sorted(REASONS))
 def test_sweep_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
     scratch = fault(kind)
     path = _sweep_file(tmp_path)

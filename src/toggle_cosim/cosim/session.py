@@ -213,10 +213,12 @@ class PlantSession:
         else:
             self.fmu.setFMUstate(self._saved)
 
-    def release(self, reuse: bool = False) -> None:
+    def release(self, reuse: bool = False, unload: bool = False) -> None:
         """End the run on this instance: with `reuse`, terminate and reset it for the next run;
-        else (or if the FMU refuses either call) free it. The loaded binary stays."""
+        else (or if the FMU refuses either call) free it. The loaded binary stays, unless `unload`."""
         if not self._instantiated:
+            if unload:
+                self.fmu.freeLibrary()
             return
         if self._saved is not None:  # the checkpoint belongs to this run
             try:
@@ -241,13 +243,18 @@ class PlantSession:
             pass
         self._was_reset = False
         self._instantiated = False
-        self._component = None
-        self.fmu.freeInstance()
+        component, self._component = self._component, None
+        if unload:
+            self.fmu.freeInstance()  # fmpy's: fmi2FreeInstance, then the binary is unloaded
+        elif self.is_fmi3:
+            self.fmu.fmi3FreeInstance(component)
+        else:
+            self.fmu.fmi2FreeInstance(component)
 
     def close(self) -> None:
         """Terminate and free the instance, whatever state it is in, and delete the unzipped copy."""
         try:
-            self.release(reuse=False)
+            self.release(reuse=False, unload=True)
         finally:
             shutil.rmtree(self._unzipped, ignore_errors=True)
 

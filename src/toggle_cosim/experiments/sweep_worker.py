@@ -196,6 +196,7 @@ class CaseServer:
         buffer.fill(np.nan)  # how far this case gets is what the parent reads if the host dies
         try:
             with _captured_fmu_log() as log:
+                view = None
                 try:
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]))
                     rows = run.steps + 1
@@ -207,6 +208,10 @@ class CaseServer:
             messages = [line.strip() for line in "".join(log).splitlines() if line.startswith(("[ERROR]", "[FATAL]"))]
             if outcome is not None:
                 _fill_row(row, outcome)
+                if view is not None:  # the samples written, as a supervised run counts them
+                    from toggle_cosim.cosim.supervision import rows_recorded
+
+                    row["samples"] = rows_recorded(view)
             if row["status"] == "failed" and messages:
                 row["reason"] = f"{row['reason']} [FMU log: {' | '.join(messages[:3])}]"
         except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row
