@@ -351,3 +351,137 @@ def test_a_worker_without_the_fmu_file_uses_the_bytes_sent_along(tmp_path, plant
     with pytest.raises(ValueError, match="do not have the sweep's SHA-256"):
         sweep_worker.resolve_plant(str(stale), sha, b"other bytes")
     sweep_worker._plants.clear()
+
+
+def test_keep_traces_stores_every_case_readable_by_id(tmp_path, plant_fmu):
+    """--keep-traces: one compressed Parquet dataset of every case's whole trace; the trace of a
+    case read back by its id is the one a plain simulate() of that case records, bit for bit."""
+    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.experiments.scenario import runs_from_document
+    from toggle_cosim.experiments.sweep_store import read_trace
+    from toggle_cosim.plant.contract import check_plant
+
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0, 60]}, "plant.mu": {"values": [0.0, 0.2]}})
+    assert run_sweep(path, None, 2, plant_fmu, progress=False, keep_traces=True) == 0
+    sweep = load_sweep(path)
+    parts = list((sweep.output / "traces").glob("*.parquet"))
+    assert parts and all(pq.ParquetFile(p).metadata.row_group(0).column(1).compression == "ZSTD" for p in parts)
+    whole = pd.read_parquet(sweep.output / "traces")
+    assert set(whole["case_id"].astype(str)) == {c.case_id for c in sweep.cases}
+    plant = check_plant(plant_fmu)
+    for case in (sweep.cases[0], sweep.cases[-1]):
+        (run,) = runs_from_document(case.document)
+        expected = simulate(run, plant).trace
+        stored = read_trace(sweep.output, case.case_id)
+        assert list(stored.columns) == list(expected.names)
+        assert np.array_equal(stored.to_numpy(), expected.data)
+    assert json_of(sweep.output)["traces"] == "traces"
+
+
+def json_of(folder: Path) -> dict:
+    import json
+
+    return json.loads((folder / "sweep.json").read_text())
+
+
+def test_keep_traces_over_the_output_limit_is_refused_before_any_work(tmp_path, plant_fmu, capsys, monkeypatch):
+    path = write_sweep(tmp_path, {"plant.F_E": {"linspace": [0, 100, 50]}})
+    # 50 cases x 601 samples x 35 columns x 8 bytes = 8.4 MB; each case alone is 0.17 MB
+    monkeypatch.setenv("TOGGLE_COSIM_MAX_OUTPUT", "5e6")
+    assert run_sweep(path, None, 1, plant_fmu, progress=False, keep_traces=True) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "--keep-traces would store 50 traces" in err[0]
+    assert "over the 0.01 GB output limit" in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_part_with_another_schema_is_unreadable_and_its_cases_run_again(tmp_path, plant_fmu, capsys):
+    """A batch file with other columns (an earlier sweep file, a foreign writer) does not crash
+    the consolidation: it is reported, set aside, and its cases run again."""
+    import pyarrow as pa
+
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0, 50]}})
+    sweep = load_sweep(path)
+    parts = sweep.output / "parts"
+    parts.mkdir(parents=True)
+    foreign = pa.table({"case_id": [sweep.cases[0].case_id], "status": ["ok"], "final_error_m": ["oops"]})
+    pq.write_table(foreign, parts / "batch-00000000000000000001-1-000001.parquet")
+    assert run_sweep(path, None, 1, plant_fmu, progress=False) == 0
+    captured = capsys.readouterr()
+    assert "warning: unreadable result files, their cases run again: batch-" in captured.err
+    assert "(columns of another sweep)" in captured.err and "ran 2 cases" in captured.out
+    table = read_results(sweep.output)
+    assert len(table) == 2 and (table["status"] == "ok").all()
+
+
+def _http_server():
+    import http.server
+
+    server = http.server.HTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    return server, server.server_address[1]
+
+
+def test_a_scheduler_that_is_not_dask_is_one_line_within_the_timeout(tmp_path, plant_fmu, capsys):
+    """An HTTP server, or a server that accepts and never answers: one line, exit 2, nothing
+    written, within the connect timeout (plus a second)."""
+    import socket
+
+    dask = pytest.importorskip("dask")
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0]}})
+    server, http_port = _http_server()
+    silent = socket.socket()
+    silent.bind(("127.0.0.1", 0))
+    silent.listen(5)
+    try:
+        for port in (http_port, silent.getsockname()[1]):
+            started = time.monotonic()
+            with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):
+                assert run_sweep(path, f"tcp://127.0.0.1:{port}", None, plant_fmu, progress=False) == 2
+            assert time.monotonic() - started < 8
+            err = capsys.readouterr().err.strip().splitlines()
+            assert err[-1].startswith(f"error: cannot connect to the Dask scheduler at tcp://127.0.0.1:{port}")
+            assert not any("Traceback" in line for line in err)
+    finally:
+        server.shutdown()
+        silent.close()
+    assert not (tmp_path / "out").exists()
+
+
+def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them(tmp_path, plant_fmu, capsys):
+    """A worker killed mid-sweep with no retries allowed: its cases are not run (not failed),
+    one line says so, exit 1; the same command again runs exactly those."""
+    distributed = pytest.importorskip("distributed")
+    import dask
+
+    base = {**BASE, "t_end": 1.5}
+    path = write_sweep(tmp_path, {"plant.F_E": {"linspace": [0, 150, 16]}}, base)
+    config = {"distributed.scheduler.allowed-failures": 0, "distributed.comm.timeouts.connect": "10s"}
+    with (
+        dask.config.set(config),
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        victim = sorted(client.scheduler_info()["workers"])[0]
+        pid = client.run(os.getpid, workers=[victim])[victim]
+
+        def kill_when_busy() -> None:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and not client.processing(workers=[victim]).get(victim):
+                time.sleep(0.01)
+            time.sleep(0.3)
+            os.kill(pid, signal.SIGKILL)
+
+        killer = threading.Thread(target=kill_when_busy)
+        killer.start()
+        code = run_sweep(path, cluster.scheduler_address, None, plant_fmu, progress=False)
+        killer.join()
+        captured = capsys.readouterr()
+        table = read_results(tmp_path / "out")
+        assert code == 1 and 0 < len(table) < 16, (code, len(table), captured.err)
+        assert (table["status"] == "ok").all()  # lost cases are not failed rows
+        lost = 16 - len(table)
+        assert f"warning: the Dask cluster lost {lost} cases" in captured.err
+        assert f"{lost} not run, of 16 cases" in captured.out and "Traceback" not in captured.err
+        assert run_sweep(path, cluster.scheduler_address, None, plant_fmu, progress=False) == 0
+        assert f"ran {lost} cases" in capsys.readouterr().out

@@ -76,11 +76,21 @@ def _run_pool(
             runner.close()
 
 
-def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S) -> Any:
+def _connect_timeout() -> float:
+    """CONNECT_TIMEOUT_S, or dask's distributed.comm.timeouts.connect if that is shorter."""
+    with contextlib.suppress(Exception):
+        import dask
+        from dask.utils import parse_timedelta
+
+        return min(CONNECT_TIMEOUT_S, float(parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"))))
+    return CONNECT_TIMEOUT_S
+
+
+def connect(scheduler: str, timeout: float | None = None) -> Any:
     """A client of the Dask distributed cluster at `scheduler`; SweepError within about `timeout`
-    seconds if there is none (nothing listening, a service that is not Dask, one that never
-    answers). The connection is made on a helper thread and waited for here, so an interrupt
-    meanwhile ends the command at once."""
+    seconds (`_connect_timeout`) if there is none: nothing listening, a service that is not Dask
+    (an HTTP server), one that never answers. The connection is made on a helper thread and
+    waited for here, so an interrupt meanwhile ends the command at once."""
     try:
         from distributed import Client
     except ImportError as error:
@@ -88,6 +98,8 @@ def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S) -> Any:
             f"--scheduler needs the 'distributed' package ({' '.join(str(error).split())}); install toggle-cosim[sweep]"
         ) from error
     import threading
+
+    timeout = _connect_timeout() if timeout is None else timeout
 
     outcome: dict[str, Any] = {}
 
@@ -99,7 +111,7 @@ def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S) -> Any:
 
     worker = threading.Thread(target=attempt, name="toggle-cosim-dask-connect", daemon=True)
     worker.start()
-    deadline = time.monotonic() + timeout + 5
+    deadline = time.monotonic() + timeout + 1
     while worker.is_alive() and time.monotonic() < deadline:
         worker.join(0.05)
     if "client" in outcome:

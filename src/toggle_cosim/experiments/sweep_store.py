@@ -282,7 +282,9 @@ class ResultStore:
         mine = table.take(pa.array([newest[k] for k in order], type=pa.int64()))
         mine = mine.set_column(0, "case", pa.array([index[k] for k in order], type=pa.int64()))
         if foreign:
-            _atomic_parquet(table.take(pa.array(sorted(foreign.values()), type=pa.int64())), self.parts / _batch_name(0))
+            _atomic_parquet(
+                table.take(pa.array(sorted(foreign.values()), type=pa.int64())), self.parts / _batch_name(0)
+            )
         _atomic_parquet(mine, self.results)
         for source in self._sources:
             if source != self.results:

@@ -105,7 +105,9 @@ def _empty_row(payload: Mapping[str, Any], fmu_sha256: str | None, reason: str |
     }
 
 
-def crash_row(case: Case | Mapping[str, Any], fmu_sha256: str | None, reason: str, samples: int | None = None) -> dict[str, Any]:
+def crash_row(
+    case: Case | Mapping[str, Any], fmu_sha256: str | None, reason: str, samples: int | None = None
+) -> dict[str, Any]:
     """The row of a case whose worker could not report (a dead process, a time limit)."""
     row = _empty_row(case.payload() if isinstance(case, Case) else case, fmu_sha256, reason)
     row["samples"] = samples
@@ -131,7 +133,9 @@ def _verified_bytes(path: Path, sha256: str) -> bytes:
     data = Path(path).read_bytes()
     found = hashlib.sha256(data).hexdigest()
     if found != sha256:
-        raise ValueError(f"{path} has SHA-256 {found[:12]}, not the sweep's {sha256[:12]}: it changed after the sweep checked it")
+        raise ValueError(
+            f"{path} has SHA-256 {found[:12]}, not the sweep's {sha256[:12]}: it changed after the sweep checked it"
+        )
     return data
 
 
@@ -161,7 +165,9 @@ def resolve_plant(fmu: str, sha256: str, data: bytes | None = None) -> Any:
     except (OSError, ValueError) as error:
         if data is None:
             detail = f"no file {given}" if isinstance(error, FileNotFoundError) else str(error)
-            raise FileNotFoundError(f"the sweep's FMU (SHA-256 {sha256[:12]}) is not on this machine: {detail}") from None
+            raise FileNotFoundError(
+                f"the sweep's FMU (SHA-256 {sha256[:12]}) is not on this machine: {detail}"
+            ) from None
         if hashlib.sha256(data).hexdigest() != sha256:
             raise ValueError(f"the FMU bytes received do not have the sweep's SHA-256 {sha256[:12]}") from None
         path = _private_copy(data, _private_folder(), f"plant-{sha256[:32]}.fmu")
