@@ -417,7 +417,8 @@ def test_a_part_with_another_schema_is_unreadable_and_its_cases_run_again(tmp_pa
 def _http_server():
     import http.server
 
-    server = http.server.HTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    server.daemon_threads = True  # a handler waiting for a request line that never comes
     threading.Thread(target=server.serve_forever, daemon=True).start()
     return server, server.server_address[1]
 

@@ -28,6 +28,7 @@ from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore
+from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, peak_rss_mb
 
 MANIFEST_FILE = "sweep.json"
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -44,6 +45,7 @@ class SweepResult:
     lost: int = 0  # cases a Dask cluster lost (not run)
     lost_reason: str = ""
     wall_seconds: float = 0.0
+    worker_peak_rss_mb: float = 0.0  # the largest peak RSS a worker reported
     results: Path | None = None
     figures: list[Path] = field(default_factory=list)
 
@@ -241,6 +243,7 @@ def _execute_sweep(
 
         def on_row(row: dict[str, Any], trace: Any = None) -> None:
             nonlocal failed_now
+            result.worker_peak_rss_mb = max(result.worker_peak_rss_mb, row.pop(PEAK_RSS_KEY, 0.0) or 0.0)
             with interrupts.deferred():  # a batch file is whole or not there
                 store.add(row, trace)
             result.ran += 1
@@ -300,6 +303,7 @@ def _write_manifest(
                 "interrupted": result.interrupted,
                 "wall_s": result.wall_seconds,
                 "cases_per_s": result.rate,
+                "peak_rss_mb": {"sweep": peak_rss_mb(), "worker": result.worker_peak_rss_mb},
                 "backend": f"dask:{scheduler}" if scheduler else f"pool:{workers or os.cpu_count()}",
                 "host": platform.node(),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),

@@ -32,6 +32,7 @@ import numpy as np
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
 
+PEAK_RSS_KEY = "_peak_rss_mb"  # in a row from a worker: its peak RSS (not stored in the table)
 _capture = threading.local()
 _workers = threading.local()  # a Dask worker thread's CaseRunner, kept from task to task
 _plants: dict[str, Any] = {}  # SHA-256 -> the checked PlantInterface (this process)
@@ -224,7 +225,15 @@ class CaseServer:
             row["status"] = "failed"
             row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
         row["wall_s"] = time.perf_counter() - started
+        row[PEAK_RSS_KEY] = peak_rss_mb()
         return row
+
+
+def peak_rss_mb() -> float:
+    """This process's peak resident memory so far, in MB (not a table column: the manifest's)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def _fill_row(row: dict[str, Any], outcome: Any) -> None:
