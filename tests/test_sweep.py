@@ -486,3 +486,21 @@ def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them
         assert f"{lost} not run, of 16 cases" in captured.out and "Traceback" not in captured.err
         assert run_sweep(path, cluster.scheduler_address, None, plant_fmu, progress=False) == 0
         assert f"ran {lost} cases" in capsys.readouterr().out
+
+
+def test_a_small_address_space_limit_is_one_line(tmp_path, plant_fmu):
+    """Under `ulimit -v 400000` pandas, pyarrow and matplotlib cannot load (or pyarrow hangs):
+    the sweep says so in one line, exit 2, before it writes anything."""
+    import resource
+
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0]}})
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (400_000 * 1024, resource.RLIM_INFINITY))
+
+    command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--fmu", str(plant_fmu), "-q"]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=60, preexec_fn=limit, check=False)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: the address-space limit (ulimit -v) is 390 MiB")
+    assert not (tmp_path / "out").exists()

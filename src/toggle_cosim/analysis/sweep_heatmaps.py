@@ -44,7 +44,7 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
     if isinstance(table, (str, Path)):
         import pandas as pd
 
-        table = pd.read_parquet(table, columns=_columns_needed(sweep))
+        table = pd.read_parquet(table, columns=_columns_needed(sweep), use_threads=False)
     if table.empty:
         return []
     import matplotlib

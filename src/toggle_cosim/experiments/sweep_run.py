@@ -31,6 +31,7 @@ from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, Resul
 from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, peak_rss_mb
 
 MANIFEST_FILE = "sweep.json"
+MIN_ADDRESS_SPACE = 2 << 30  # bytes: pandas, pyarrow and matplotlib with their threads map about 1.6 GB
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
@@ -84,6 +85,22 @@ def _exclusive(folder: Path) -> Iterator[None]:
             yield
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+def check_address_space() -> None:
+    """Refuse, before any import that could fail half-way, an address-space limit (`ulimit -v`)
+    too small for a sweep: under it pyarrow and matplotlib fail to load or hang."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError):  # pragma: no cover - not POSIX
+        return
+    if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE:
+        raise SweepError(
+            f"the address-space limit (ulimit -v) is {soft >> 20} MiB; a sweep needs at least "
+            f"{MIN_ADDRESS_SPACE >> 20} MiB (pandas, pyarrow, matplotlib and their threads): raise it"
+        )
 
 
 def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) -> tuple[Path, Any]:
@@ -163,6 +180,7 @@ def execute_sweep(
     """Run the cases of `sweep` that are not done yet, write the table and the heat maps (and,
     with `keep_traces`, every case's trace into OUTPUT/traces/)."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
+    check_address_space()
     if workers is not None and workers < 1:
         raise SweepError(f"--workers {workers}: give at least 1")
     if scheduler and workers is not None:
@@ -246,7 +264,7 @@ def _execute_sweep(
             result.worker_peak_rss_mb = max(result.worker_peak_rss_mb, row.pop(PEAK_RSS_KEY, 0.0) or 0.0)
             with interrupts.deferred():  # a batch file is whole or not there
                 store.add(row, trace)
-            result.ran += 1
+                result.ran += 1
             if row["status"] != "ok":
                 failed_now += 1
             if bar is not None:
@@ -332,6 +350,7 @@ def run_sweep(
     Exit status: 0 every case ok, 1 some case failed, 2 bad input (one `error: ...` line on
     stderr, nothing run), 130 interrupted (finished cases are kept; run again to finish)."""
     try:
+        check_address_space()
         sweep = load_sweep(Path(sweep_path), output)
         result = execute_sweep(
             sweep,
@@ -345,6 +364,10 @@ def run_sweep(
         )
     except SweepError as error:
         print(f"error: {' '.join(str(error).split())}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except (MemoryError, ImportError) as error:  # a memory limit met while loading a library
+        detail = " ".join(f"{type(error).__name__}: {error}".split())
+        print(f"error: not enough memory for the sweep ({detail}); raise the memory limit", file=sys.stderr)
         return EXIT_BAD_INPUT
     ok = result.done - result.failed
     print(

@@ -150,7 +150,7 @@ class ResultStore:
         import pyarrow.parquet as pq
 
         try:
-            table = pq.read_table(source)
+            table = pq.read_table(source, use_threads=False)
         except Exception as error:  # noqa: BLE001 - a torn file from a foreign writer: redo its cases
             self.unreadable.append(f"{source.name} ({type(error).__name__})")
             return None
@@ -204,7 +204,7 @@ class ResultStore:
         values = _arrow().array(again, type=_arrow().string())
         for part in sorted(self.traces.glob("*.parquet")):
             try:
-                table = pq.read_table(part)
+                table = pq.read_table(part, use_threads=False)
                 keep = pc.invert(pc.is_in(table.column("case_id"), value_set=values))
             except Exception:  # noqa: BLE001 - an unreadable trace part helps no one
                 part.unlink(missing_ok=True)
@@ -298,7 +298,7 @@ class ResultStore:
 def _read(path: Path) -> Any:
     import pyarrow.parquet as pq
 
-    return pq.read_table(path)
+    return pq.read_table(path, use_threads=False)
 
 
 def read_results(path: Path, columns: Sequence[str] | None = None) -> Any:
