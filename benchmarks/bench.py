@@ -19,7 +19,7 @@ What is measured (benchmarks/README.md says more):
 * the throughput of a batch of runs on 1 and 2 worker processes;
 * sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the
   same number of workers, of a Dask cluster (a scheduler and two workers started here as
-  processes) against the local pool, and a many-case sweep as a command (100,000 cases; 2,000
+  processes) against the local pool, and a many-case sweep as a command (100,000 cases; 1,000
   with --quick): its time and the peak memory of its process and of a worker.
 
 Every figure is the best (minimum time) of several repetitions, measured interleaved so the
@@ -440,7 +440,7 @@ class DaskCluster:
 
 
 def sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures: dict) -> None:
-    cases = 96 if quick else 288
+    cases = 48 if quick else 288
     t_end = 0.5 if quick else 1.5
     path = write_sweep_file(folder / "sweep", cases, t_end)
     from toggle_cosim.experiments.sweep_spec import load_sweep
@@ -493,8 +493,8 @@ def sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures:
 
 def big_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures: dict) -> None:
     """The many-case sweep as a command (its own process, as users run it): time and peak memory."""
-    cases = 2_000 if quick else 100_000
-    side = (40, 50) if quick else (400, 250)
+    cases = 1_000 if quick else 100_000
+    side = (40, 25) if quick else (400, 250)
     axes = {"plant.F_E": {"linspace": [0, 150, side[0]]}, "plant.m_B": {"linspace": [4.43, 8.86, side[1]]}}
     path = write_sweep_file(folder / "big", cases, 0.01, axes)
     command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--fmu", str(fmu), "--quiet"]

@@ -281,11 +281,13 @@ class CaseRunner:
         return self.payload is not None
 
     def _new_host(self, rows: int) -> Any:
+        from toggle_cosim import interrupts
         from toggle_cosim.cosim.plant_host import PlantHost
 
         self.close()
-        self.host = PlantHost(CaseServer(self.plant, self.sha256), max(rows, self.rows), self.columns, self.scratch)
-        self.host.start()
+        with interrupts.deferred():  # the host and its folder are known here before an interrupt acts
+            self.host = PlantHost(CaseServer(self.plant, self.sha256), max(rows, self.rows), self.columns, self.scratch)
+            self.host.start()
         self.hosts_started += 1
         self.cases_run = 0
         return self.host
