@@ -32,7 +32,6 @@ import struct
 import sys
 import tempfile
 import time as clock
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,10 +44,10 @@ from toggle_cosim.cosim.supervision import (
     FOLDER_PREFIX,
     die_with_parent,
     exit_reason,
+    fork_child,
     limit_memory,
     rows_recorded,
     seconds_text,
-    warm_up,
 )
 
 _HEADER = struct.Struct("<Q")  # the length of the pickled message that follows
@@ -149,20 +148,16 @@ class PlantHost:
 
     def start(self) -> None:
         """Fork the child (inside `starting_children`: an interrupt waits until its pid is known)."""
-        warm_up()
         request_read, request_write = os.pipe()
         answer_read, answer_write = os.pipe()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        parent = os.getpid()
+
+        def child(parent: int) -> None:
+            os.close(request_write)
+            os.close(answer_read)
+            _host_child(self.serve, self.buffer, self._workdir, request_read, answer_write, parent)
+
         try:
-            with warnings.catch_warnings(), interrupts.starting_children():
-                warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
-                self.pid = os.fork()
-                if self.pid == 0:  # the child never leaves this block: _host_child ends in os._exit
-                    os.close(request_write)
-                    os.close(answer_read)
-                    _host_child(self.serve, self.buffer, self._workdir, request_read, answer_write, parent)
+            fork_child(child, lambda pid: setattr(self, "pid", pid))
         finally:
             os.close(request_read)
             os.close(answer_write)

@@ -156,6 +156,25 @@ def warm_up() -> None:
         kernel_library()
 
 
+def fork_child(child: Callable[[int], None], known: Callable[[int], None]) -> None:
+    """Fork a plant process: the parent's warm-up done and its streams flushed first, the fork
+    inside `starting_children`. `known(pid)` runs in the parent before an interrupt can act (so
+    whoever stops the child knows it); `child(parent_pid)` runs in the child and never returns."""
+    warm_up()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    parent = os.getpid()
+    with warnings.catch_warnings(), interrupts.starting_children():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
+        pid = os.fork()
+        if pid == 0:  # the child never leaves this block
+            try:
+                child(parent)
+            finally:
+                os._exit(4)
+        known(pid)
+
+
 def _child(
     run: Run,
     plant: PlantInterface,
@@ -287,29 +306,24 @@ class SupervisedRun:
         _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
-        warm_up()
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
-        sys.stdout.flush()
-        sys.stderr.flush()
-        parent = os.getpid()
+
+        def child(parent: int) -> None:
+            os.close(read_fd)
+            _child(
+                self.run,
+                self.plant,
+                self.buffer,
+                self.progress_slot,
+                self._workdir,
+                write_fd,
+                parent,
+                self._capture_log,
+            )
+
         try:
-            # an interrupt waits until the child's pid is known here (so that stop() can kill it)
-            with warnings.catch_warnings(), interrupts.starting_children():
-                warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
-                self.pid = os.fork()
-                if self.pid == 0:  # the child never leaves this block: _child ends in os._exit
-                    os.close(read_fd)
-                    _child(
-                        self.run,
-                        self.plant,
-                        self.buffer,
-                        self.progress_slot,
-                        self._workdir,
-                        write_fd,
-                        parent,
-                        self._capture_log,
-                    )
+            fork_child(child, lambda pid: setattr(self, "pid", pid))
         finally:
             os.close(write_fd)
         self.deadline = clock.monotonic() + self.limit
