@@ -150,8 +150,13 @@ def _run_dask(
     """An existing Dask cluster: the cases in chunks, each run by a worker thread's plant host,
     a bounded number in flight. The FMU travels with the tasks (once per worker): the workers
     need toggle-cosim installed, not the project's files."""
+    import logging
+
     loss = DaskLoss()
     threads = _threads(client)
+    quiet = logging.getLogger("distributed.client")  # its reconnection errors: DaskLoss says what happened
+    level = quiet.level
+    quiet.setLevel(logging.CRITICAL)
     with interrupts.deferred():
         fmu_data = client.scatter(Path(fmu).read_bytes(), broadcast=True, hash=False)
     chunks = _chunks(cases, threads)
@@ -176,13 +181,19 @@ def _run_dask(
                 )
             running[future] = chunk
 
+    reconnecting_since: float | None = None
     try:
         submit_more()
         while running:
-            finished = [f for f in running if f.status != "pending"]
+            finished = [f for f in running if f.status in ("finished", "error", "cancelled")]
             if not finished:
-                if client.status not in ("running", "connecting"):
-                    raise _Lost(f"the client lost the scheduler (status {client.status})")
+                status = client.status
+                if status != "running":  # the scheduler went away: Dask tries to reconnect for a while
+                    reconnecting_since = reconnecting_since or time.monotonic()
+                    if status != "connecting" or time.monotonic() - reconnecting_since > _connect_timeout():
+                        raise _Lost(f"the client lost the scheduler (status {status})")
+                else:
+                    reconnecting_since = None
                 time.sleep(0.02)  # our own wait: an interrupt lands here, never inside Dask
                 continue
             for future in finished:
@@ -192,7 +203,7 @@ def _run_dask(
                         results = future.result(timeout=RESULT_TIMEOUT_S)
                 except Exception as error:  # noqa: BLE001 - KilledWorker, CancelledError, a lost connection
                     loss.cases += len(chunk)
-                    loss.reasons.append(" ".join(f"{type(error).__name__}: {error}".split())[:200])
+                    loss.reasons.append(" ".join(f"{type(error).__name__}: {error}".split()).split(". ")[0][:200])
                     continue
                 for row, trace in results:
                     on_row(row, trace)
@@ -203,6 +214,7 @@ def _run_dask(
     finally:
         with contextlib.suppress(Exception), interrupts.deferred():
             client.cancel([*running, fmu_data])
+        quiet.setLevel(level)
     return loss
 
 
