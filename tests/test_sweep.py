@@ -165,12 +165,12 @@ def test_shipped_sweep_is_valid():
 def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
     """Rows are written in batches (every BATCH_SECONDS at the latest): a SIGKILL loses only the
     batch in flight, and the re-run runs only the cases not in a written batch."""
-    base = {**BASE, "t_end": 1.5}  # ~0.05 s a case, one worker: the kill lands midway
+    base = {**BASE, "t_end": 1.5}  # ~0.03 s a case, one worker: the kill lands midway
     axes = {
-        "plant.F_E": {"linspace": [0, 150, 16]},
+        "plant.F_E": {"linspace": [0, 150, 32]},
         "plant.m_B": {"values": [4.43, 8.86]},
         "plant.mu": {"values": [0.0, 0.2]},
-    }
+    }  # 128 cases: longer than a batch's 2 s on a fast machine
     path = write_sweep(tmp_path, axes, base)
     parts = tmp_path / "out" / "parts"
     command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(plant_fmu)]
@@ -181,15 +181,15 @@ def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
     os.killpg(process.pid, signal.SIGKILL)  # the sweep and its plant hosts, no clean-up
     process.communicate()
     existing = {row["case_id"]: row for p in parts.glob("batch-*.parquet") for row in pq.read_table(p).to_pylist()}
-    assert 1 <= len(existing) < 64, f"{len(existing)} rows when killed"
+    assert 1 <= len(existing) < 128, f"{len(existing)} rows when killed"
     assert not (tmp_path / "out" / "results.parquet").exists()
 
     sweep = load_sweep(path)
     result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
     assert result.skipped == len(existing)
-    assert result.ran == 64 - len(existing)
+    assert result.ran == 128 - len(existing)
     table = read_results(sweep.output)
-    assert len(table) == 64 and set(table["case_id"]) == {c.case_id for c in sweep.cases}
+    assert len(table) == 128 and set(table["case_id"]) == {c.case_id for c in sweep.cases}
     assert (table["status"] == "ok").all()
     for row in table.itertuples():  # the cases finished before the kill were not run again
         if row.case_id in existing:

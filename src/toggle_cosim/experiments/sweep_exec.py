@@ -72,8 +72,9 @@ def _run_pool(
                 row, trace = busy[host].service(answer)
                 on_row(row, trace)
     finally:
-        for runner in runners:  # an interrupt: the hosts and their cases in flight end now
-            runner.close()
+        with interrupts.deferred():  # an interrupt: the hosts and their cases in flight end now, all of them
+            for runner in runners:
+                runner.close()
 
 
 def _connect_timeout() -> float:

@@ -321,9 +321,14 @@ class CaseRunner:
         return crash_row(payload, self.sha256, f"{answer.failure}{at}", rows), None
 
     def close(self) -> None:
-        if self.host is not None:
-            self.host.close()
-            self.host = None
+        """Stop the host and remove its folder; an interrupt meanwhile (say, one sent again after
+        it was lost in a finalizer) waits until both are done."""
+        from toggle_cosim import interrupts
+
+        with interrupts.deferred():
+            if self.host is not None:
+                self.host.close()
+                self.host = None
 
 
 def run_cases(
