@@ -163,18 +163,21 @@ def test_shipped_sweep_is_valid():
 
 
 def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
-    """Rows are written in batches (every BATCH_SECONDS at the latest): a SIGKILL loses only the
-    batch in flight, and the re-run runs only the cases not in a written batch."""
+    """Rows are written in batches (here of 8 rows): a SIGKILL loses only the batch in flight, and
+    the re-run runs only the cases not in a written batch."""
     base = {**BASE, "t_end": 1.5}  # ~0.03 s a case, one worker: the kill lands midway
     axes = {
         "plant.F_E": {"linspace": [0, 150, 32]},
         "plant.m_B": {"values": [4.43, 8.86]},
         "plant.mu": {"values": [0.0, 0.2]},
-    }  # 128 cases: longer than a batch's 2 s on a fast machine
+    }
     path = write_sweep(tmp_path, axes, base)
     parts = tmp_path / "out" / "parts"
     command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(plant_fmu)]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    environment = {**os.environ, "TOGGLE_COSIM_SWEEP_BATCH_ROWS": "8"}
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, env=environment
+    )
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not list(parts.glob("batch-*.parquet")):
         time.sleep(0.005)

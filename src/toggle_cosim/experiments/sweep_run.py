@@ -27,7 +27,7 @@ from toggle_cosim.analysis.sweep_heatmaps import write_heatmaps
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
-from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore
+from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore, batch_rows
 from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, peak_rss_mb
 
 MANIFEST_FILE = "sweep.json"
@@ -189,6 +189,10 @@ def execute_sweep(
         )
     if case_timeout is not None and not (case_timeout > 0 and math.isfinite(case_timeout)):
         raise SweepError(f"--case-timeout {case_timeout}: give a positive number of seconds")
+    try:
+        rows_per_batch = batch_rows()
+    except ValueError as error:
+        raise SweepError(str(error)) from error
     fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces)
     from toggle_cosim.cosim.supervision import remove_stale_folders
 
@@ -196,7 +200,18 @@ def execute_sweep(
     client = connect(scheduler) if scheduler else None  # before anything is written
     try:
         return _execute_sweep(
-            sweep, fmu_path, plant, scheduler, client, workers, progress, retry_failed, say, case_timeout, keep_traces
+            sweep,
+            fmu_path,
+            plant,
+            scheduler,
+            client,
+            workers,
+            progress,
+            retry_failed,
+            say,
+            case_timeout,
+            keep_traces,
+            rows_per_batch,
         )
     finally:
         if client is not None:
@@ -216,12 +231,13 @@ def _execute_sweep(
     say: Callable[[str], None],
     case_timeout: float | None = None,
     keep_traces: bool = False,
+    rows_per_batch: int | None = None,
 ) -> SweepResult:
     from toggle_cosim.cosim.master import trace_names
 
     sha = plant.sha256
     with _exclusive(sweep.output):
-        store = ResultStore(sweep, keep_traces=keep_traces, trace_columns=trace_names(plant))
+        store = ResultStore(sweep, keep_traces=keep_traces, trace_columns=trace_names(plant), batch_rows=rows_per_batch)
         store.load(sha)
         if store.unreadable:
             say(f"warning: unreadable result files, their cases run again: {', '.join(store.unreadable[:5])}")

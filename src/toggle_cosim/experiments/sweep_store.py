@@ -1,7 +1,7 @@
 """The sweep's output folder as a store of finished cases, written in batches.
 
-Finished rows are gathered in memory and written together, every BATCH_ROWS rows or
-BATCH_SECONDS seconds, whichever comes first, as one Parquet file `OUTPUT/parts/batch-*.parquet`
+Finished rows are gathered in memory and written together, every BATCH_ROWS rows (or
+TOGGLE_COSIM_SWEEP_BATCH_ROWS) or BATCH_SECONDS seconds, whichever comes first, as one Parquet file `OUTPUT/parts/batch-*.parquet`
 (temporary name, then rename): a crash or a kill loses at most the batch in flight, and a re-run
 finds the cases already done (their ids, kept in memory; the rows themselves are not). At the
 end (and on Ctrl-C) the batches and the earlier table are consolidated into
@@ -34,6 +34,16 @@ PARTS_DIR = "parts"
 TRACES_DIR = "traces"
 BATCH_ROWS = 500
 BATCH_SECONDS = 2.0
+
+
+def batch_rows() -> int:
+    """Rows per batch: TOGGLE_COSIM_SWEEP_BATCH_ROWS (a positive whole number), else BATCH_ROWS."""
+    text = os.environ.get("TOGGLE_COSIM_SWEEP_BATCH_ROWS", "").strip()
+    if not text:
+        return BATCH_ROWS
+    if not text.isdigit() or int(text) < 1:
+        raise ValueError(f"TOGGLE_COSIM_SWEEP_BATCH_ROWS={text!r}: give a positive whole number of rows")
+    return int(text)
 
 
 def _arrow() -> Any:
@@ -122,7 +132,7 @@ class ResultStore:
         *,
         keep_traces: bool = False,
         trace_columns: Sequence[str] = (),
-        batch_rows: int = BATCH_ROWS,
+        batch_rows: int | None = None,
         batch_seconds: float = BATCH_SECONDS,
     ) -> None:
         self.sweep = sweep
@@ -137,7 +147,7 @@ class ResultStore:
         self.unreadable: list[str] = []
         self.keep_traces = keep_traces
         self.trace_columns = list(trace_columns)
-        self.batch_rows, self.batch_seconds = max(1, batch_rows), batch_seconds
+        self.batch_rows, self.batch_seconds = max(1, batch_rows or BATCH_ROWS), batch_seconds
         self._rows: list[dict[str, Any]] = []
         self._traces: list[tuple[str, np.ndarray]] = []
         self._last_flush = time.monotonic()
