@@ -16,7 +16,11 @@ What is measured (benchmarks/README.md says more):
   counted from process start to the last file written, with the Python start-up and import
   share;
 * the cost per step and per simulated second for T_s = 2 ms ... 0.05 ms;
-* the throughput of a batch of runs on 1 and 2 worker processes.
+* the throughput of a batch of runs on 1 and 2 worker processes;
+* sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the
+  same number of workers, of a Dask cluster (a scheduler and two workers started here as
+  processes) against the local pool, and a many-case sweep as a command (100,000 cases; 1,000
+  with --quick): its time and the peak memory of its process and of a worker.
 
 Every figure is the best (minimum time) of several repetitions, measured interleaved so the
 ratios compare like with like on a shared, noisy machine. The script checks the targets of
@@ -343,6 +347,179 @@ def batch_throughput(fmu: Path, workers: int, batch: int) -> tuple[float, float]
         cpu = list(pool.map(_worker_run, range(batch)))
         elapsed = time.perf_counter() - started
     return batch / elapsed, sum(cpu) / batch
+
+
+# ------------------------------------------------------------------------------------------
+# Sweeps: the sweep's workers against simulate() alone, a Dask cluster against the pool
+# ------------------------------------------------------------------------------------------
+def write_sweep_file(folder: Path, cases: int, t_end: float, axes: dict | None = None) -> Path:
+    """A sweep over fig4_nominal/friction (F_E from 0 to 150 N) with `cases` cases of `t_end` s."""
+    base = yaml.safe_load((SCENARIOS / "fig4_nominal.yaml").read_text())
+    document = {k: v for k, v in base.items() if k not in ("variants", "fmu")}
+    document = {**document, **(base.get("variants") or {}).get("friction", {}), "t_end": t_end}
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "base.yaml").write_text(yaml.safe_dump(document, sort_keys=False))
+    sweep = {"base": "base.yaml", "axes": axes or {"plant.F_E": {"linspace": [0, 150, cases]}}, "output": "out"}
+    path = folder / "sweep.yaml"
+    path.write_text(yaml.safe_dump(sweep, sort_keys=False))
+    return path
+
+
+def sweep_rate(path: Path, fmu: Path, output: Path, workers: int | None = None, scheduler: str | None = None):
+    """The sweep's own figures (cases per second of its execution, the SweepResult) into a fresh output."""
+    from toggle_cosim.experiments.sweep import execute_sweep, load_sweep
+
+    shutil.rmtree(output, ignore_errors=True)
+    sweep = load_sweep(path, output)
+    result = execute_sweep(sweep, fmu=fmu, workers=workers, scheduler=scheduler, progress=False, log=lambda _: None)
+    return result
+
+
+def _simulate_case(document: dict) -> float:
+    """One sweep case by simulate() alone in a pool worker (no supervision, no files); its CPU s."""
+    cpu = time.process_time()
+    (run,) = runs_from_document(document)
+    master.simulate(run, _WORKER["plant"])
+    return time.process_time() - cpu
+
+
+def _plant_init(fmu: str) -> None:
+    _WORKER["plant"] = check_plant(Path(fmu))
+
+
+def simulate_rate(fmu: Path, workers: int, documents: list) -> tuple[float, float]:
+    """(cases per wall second, CPU s per case) of the same cases by simulate() on `workers` processes."""
+    with ProcessPoolExecutor(max_workers=workers, initializer=_plant_init, initargs=(str(fmu),)) as pool:
+        list(pool.map(_simulate_case, documents[: 2 * workers]))
+        started = time.perf_counter()
+        cpu = list(pool.map(_simulate_case, documents))
+        elapsed = time.perf_counter() - started
+    return len(documents) / elapsed, sum(cpu) / len(documents)
+
+
+class DaskCluster:
+    """A Dask scheduler and `workers` one-thread workers, each its own process on this machine."""
+
+    def __init__(self, folder: Path, workers: int) -> None:
+        self.file = folder / "scheduler.json"
+        self.file.unlink(missing_ok=True)
+        base = [sys.executable, "-m"]
+        quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+        self.processes = [
+            subprocess.Popen(
+                [*base, "distributed.cli.dask_scheduler", "--scheduler-file", str(self.file), "--port", "0"]
+                + ["--no-dashboard", "--host", "127.0.0.1"],
+                **quiet,
+            )
+        ]
+        deadline = time.monotonic() + 60
+        while not self.file.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        self.address = json.loads(self.file.read_text())["address"]
+        for _ in range(workers):
+            self.processes.append(
+                subprocess.Popen(
+                    [*base, "distributed.cli.dask_worker", self.address, "--nthreads", "1", "--no-dashboard"]
+                    + ["--host", "127.0.0.1", "--no-nanny"],
+                    **quiet,
+                )
+            )
+        from distributed import Client
+
+        with Client(self.address, timeout="60s") as client:
+            client.wait_for_workers(workers, timeout=60)
+
+    def close(self) -> None:
+        for process in reversed(self.processes):
+            process.terminate()
+        for process in self.processes:
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                process.kill()
+
+
+def sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures: dict) -> None:
+    cases = 48 if quick else 288
+    t_end = 0.5 if quick else 1.5
+    path = write_sweep_file(folder / "sweep", cases, t_end)
+    from toggle_cosim.experiments.sweep_spec import load_sweep
+
+    documents = [case.document for case in load_sweep(path).cases]
+    table.section(f"Sweeps: {cases} cases of fig4_nominal/friction, t_end = {t_end:g} s, F_E from 0 to 150 N")
+    rates: dict[str, list[float]] = {"sweep1": [], "sweep2": [], "sim1": [], "sim2": [], "dask": [], "pool2": []}
+    cpu: dict[int, list[float]] = {1: [], 2: []}
+    for _ in range(1 if quick else 2):
+        for workers in (1, 2):
+            rate, per_case = simulate_rate(fmu, workers, documents)
+            rates[f"sim{workers}"].append(rate)
+            cpu[workers].append(per_case)
+            result = sweep_rate(path, fmu, folder / "sweep" / "out", workers=workers)
+            rates[f"sweep{workers}"].append(result.rate)
+    cluster = DaskCluster(folder, 2)
+    try:
+        sweep_rate(path, fmu, folder / "sweep" / "out", scheduler=cluster.address)  # the workers load the plant
+        for _ in range(1 if quick else 2):
+            rates["dask"].append(sweep_rate(path, fmu, folder / "sweep" / "out", scheduler=cluster.address).rate)
+            rates["pool2"].append(sweep_rate(path, fmu, folder / "sweep" / "out", workers=2).rate)
+    finally:
+        cluster.close()
+    best = {k: max(v) for k, v in rates.items()}
+    for workers in (1, 2):
+        table.add(
+            f"simulate() alone, {workers} worker(s)",
+            f"{best[f'sim{workers}']:.1f} cases/s",
+            f"CPU {min(cpu[workers]) * 1e3:.1f} ms per case (unzip, load, instantiate, run, free)",
+        )
+        table.add(
+            f"sweep, {workers} worker(s)",
+            f"{best[f'sweep{workers}']:.1f} cases/s",
+            f"{best[f'sweep{workers}'] / best[f'sim{workers}']:.2f} x simulate(): plant hosts, batches, the table",
+        )
+    table.add(
+        "sweep on a Dask cluster (2 workers)",
+        f"{best['dask']:.1f} cases/s",
+        f"{best['dask'] / best['pool2']:.2f} x the pool",
+    )
+    table.add("sweep on the pool (2 workers), same rounds", f"{best['pool2']:.1f} cases/s", "")
+    figures["sweeps"] = {"cases": cases, "t_end": t_end, **best}
+    worst = min(best["sweep1"] / best["sim1"], best["sweep2"] / best["sim2"])
+    table.check(
+        "sweep >= 0.8 x simulate() on the same workers", worst >= 0.8, f"{worst:.2f} (1 and 2 workers, the lower)"
+    )
+    ratio = best["dask"] / best["pool2"]
+    table.check("Dask cluster >= 0.8 x the pool", ratio >= 0.8, f"{ratio:.2f}")
+
+
+def big_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures: dict) -> None:
+    """The many-case sweep as a command (its own process, as users run it): time and peak memory."""
+    cases = 1_000 if quick else 100_000
+    side = (40, 25) if quick else (400, 250)
+    axes = {"plant.F_E": {"linspace": [0, 150, side[0]]}, "plant.m_B": {"linspace": [4.43, 8.86, side[1]]}}
+    path = write_sweep_file(folder / "big", cases, 0.01, axes)
+    command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--fmu", str(fmu), "--quiet"]
+    started = time.perf_counter()
+    done = subprocess.run([*command, "--workers", "2"], capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - started
+    manifest = json.loads((folder / "big" / "out" / "sweep.json").read_text())
+    last = manifest["last_run"]
+    table.section(f"A {cases}-case sweep (t_end = 0.01 s, 2 workers), as a command")
+    table.add(
+        "wall time, start to last file",
+        f"{wall:.0f} s",
+        f"exit {done.returncode}; {last['cases_per_s']:.0f} cases/s while running",
+    )
+    table.add("peak RSS of the sweep's process", f"{last['peak_rss_mb']['sweep']:.0f} MB", "")
+    table.add("peak RSS of a worker", f"{last['peak_rss_mb']['worker']:.0f} MB", "")
+    size = sum(p.stat().st_size for p in (folder / "big" / "out").rglob("*") if p.is_file())
+    table.add("output folder", f"{size / 1e6:.1f} MB", "results.parquet, sweep.json, heat maps")
+    figures["big_sweep"] = {"cases": cases, "wall_s": wall, "exit": done.returncode, **last}
+    ok = done.returncode == 0 and last["peak_rss_mb"]["sweep"] <= 500 and manifest["heatmaps"]
+    table.check(
+        f"{cases} cases: parent peak RSS <= 500 MB, table and heat maps written",
+        bool(ok),
+        f"{last['peak_rss_mb']['sweep']:.0f} MB, exit {done.returncode}, {len(manifest['heatmaps'])} heat map(s)",
+    )
 
 
 # ------------------------------------------------------------------------------------------
@@ -747,6 +924,9 @@ def main() -> int:
             t2 / t1 >= 1.7,
             f"{t2 / t1:.2f} (load average {max(load):.2f} on {os.cpu_count()} cores)",
         )
+        # ---------------------------------------------------------------- sweeps
+        sweep_figures(fmu, folder, quick, table, figures)
+        big_sweep_figures(fmu, folder, quick, table, figures)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 

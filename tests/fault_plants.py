@@ -58,11 +58,6 @@ _FUNCTIONS = [
     ("fmi2GetVersion", "const char*", ""),
     ("fmi2SetDebugLogging", "fmi2Status", "fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]"),
     ("fmi2FreeInstance", "void", "fmi2Component c"),
-    (
-        "fmi2SetupExperiment",
-        "fmi2Status",
-        "fmi2Component c, fmi2Boolean tolDef, fmi2Real tol, fmi2Real start, fmi2Boolean stopDef, fmi2Real stop",
-    ),
     ("fmi2EnterInitializationMode", "fmi2Status", "fmi2Component c"),
     ("fmi2ExitInitializationMode", "fmi2Status", "fmi2Component c"),
     ("fmi2Terminate", "fmi2Status", "fmi2Component c"),
@@ -168,6 +163,15 @@ static void *real(const char *name) {
 }
 
 static int faulting(void) { return kind && last_time >= fault_time - 1e-12 && F_E >= fault_min_FE; }
+
+/* Every run sets up its experiment (a new instance, or one reset after the last run): the
+   shim's time and force start again, as the instance's own state does. */
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDef, fmi2Real tol, fmi2Real start,
+                               fmi2Boolean stopDef, fmi2Real stop) {
+    last_time = start;
+    F_E = 0;
+    return ((fmi2SetupExperimentTYPE *)real("fmi2SetupExperiment"))(c, tolDef, tol, start, stopDef, stop);
+}
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]) {
     for (size_t i = 0; i < n; i++) if (vr[i] == F_E_vr) F_E = v[i];

@@ -1,6 +1,7 @@
 """The benchmark runs in the suite, so it cannot go stale: `benchmarks/bench.py --quick` must
 finish, measure the loop it says it measures (the compiled loop when there is a C compiler),
-time the compiled loop's C build, and report every target it checks."""
+time the compiled loop's C build, measure the sweeps (local workers, a Dask cluster of its own,
+a many-case sweep as a command), and report every target it checks."""
 
 from __future__ import annotations
 
@@ -42,5 +43,15 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
     for key in ("ratio_loop_over_ctypes", "paper_rtf", "six_runs"):
         assert key in figures, key
     assert len(figures["paper_rtf"]) == 6
-    for target in ("full loop <= 1.5 x FMU alone", "each paper run's loop", "six runs together"):
+    for target in (
+        "full loop <= 1.5 x FMU alone",
+        "each paper run's loop",
+        "six runs together",
+        "sweep >= 0.8 x simulate() on the same workers",
+        "Dask cluster >= 0.8 x the pool",
+        "1000 cases: parent peak RSS <= 500 MB",
+    ):
         assert target in result.stdout, target
+    sweeps = figures["sweeps"]
+    assert all(sweeps[key] > 0 for key in ("sweep1", "sweep2", "sim1", "sim2", "dask", "pool2"))
+    assert figures["big_sweep"]["exit"] == 0 and figures["big_sweep"]["done_in_table"] == 1000

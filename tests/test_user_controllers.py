@@ -342,3 +342,17 @@ def test_a_factory_parameter_is_a_sweep_axis(tmp_path: Path) -> None:
     assert all(Path(case.payload()["source"]) == base for case in cases)
     (run,) = runs_from_document(cases[1].document, base)
     assert run.controller.python == "my_controllers:make_pd" and run.controller.parameters["Kp"] == 16.0
+
+
+def test_keep_traces_refuses_a_controller_with_other_columns_in_one_line(tmp_path: Path, plant_fmu: Path) -> None:
+    """--keep-traces stores one trace table with the built-in law's columns: a sweep whose user
+    controller records other diagnostics is refused before any case runs, naming the case."""
+    base = _short_example(tmp_path)
+    sweep = {"base": base.name, "axes": {"plant.F_E": {"values": [30.0]}}, "output": "out"}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    result = CliRunner().invoke(
+        main, ["sweep", str(tmp_path / "sweep.yaml"), "--fmu", str(plant_fmu), "--keep-traces", "--quiet"]
+    )
+    assert result.exit_code == 2, result.output
+    assert "--keep-traces stores one trace table" in result.output and len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "out" / "traces").exists()

@@ -30,10 +30,24 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.=-]+", "_", text).strip("_") or "all"
 
 
+def _columns_needed(sweep: Any) -> list[str]:
+    axes = [*sweep.axes, "variant"]
+    return list(dict.fromkeys([*axes, "status", *(column for column, *_ in PANELS)]))
+
+
 def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.sweep_spec.Sweep
     """One PNG per combination of the other axes: heat maps of the figures of merit over the two
-    chosen axes. A failed case is a crossed cell; a run that never settles is a grey cell."""
-    if sweep.heatmap is None or table.empty:
+    chosen axes. A failed case is a crossed cell; a run that never settles is a grey cell.
+
+    `table` is the results DataFrame or the path of results.parquet: then only the columns the
+    maps show are read (not the reasons, hosts, timings and other metrics of every case)."""
+    if sweep.heatmap is None:
+        return []
+    if isinstance(table, (str, Path)):
+        import pandas as pd
+
+        table = pd.read_parquet(table, columns=_columns_needed(sweep), use_threads=False)
+    if table.empty:
         return []
     import matplotlib
     import numpy as np

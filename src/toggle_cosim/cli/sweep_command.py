@@ -34,6 +34,11 @@ from toggle_cosim.cli.execution import Seconds
     metavar="SECONDS",
     help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",
 )
+@click.option(
+    "--keep-traces",
+    is_flag=True,
+    help="Store every case's whole trace in OUTPUT/traces/ (compressed Parquet, by case_id).",
+)
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def sweep(
     sweep_file: Path,
@@ -43,6 +48,7 @@ def sweep(
     fmu: Path | None,
     retry_failed: bool,
     case_timeout: float | None,
+    keep_traces: bool,
     quiet: bool,
 ) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
@@ -58,6 +64,7 @@ def sweep(
         retry_failed=retry_failed,
         progress=not quiet,
         case_timeout=case_timeout,
+        keep_traces=keep_traces,
     )
     if code == interrupts.EXIT_INTERRUPTED:
         interrupts.exit_interrupted()

@@ -50,7 +50,7 @@ from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["RunOutcome", "plant_settings", "refused_outcome", "simulate", "trace_names"]
+__all__ = ["RunOutcome", "open_session", "plant_settings", "refused_outcome", "simulate", "trace_names"]
 INPUTS = COMMAND_COLUMNS
 
 
@@ -86,6 +86,12 @@ def _number(value: object) -> float | None:
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
+def open_session(plant: PlantInterface, instance_name: str) -> PlantSession:
+    """A session of `plant` with the master's outputs and inputs: the FMU unzipped and its binary
+    loaded, no instance yet. `simulate(..., session=)` runs on it, run after run."""
+    return PlantSession(plant, instance_name, list(plant.recorded_outputs), list(INPUTS))
+
+
 def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
     session.instantiate(0.0, run.t_end)
     for name, value in plant_settings(run, plant):
@@ -118,6 +124,7 @@ def simulate(
     progress: Callable[[float], None] | None = None,
     buffer: np.ndarray | None = None,
     controller: Controller | None = None,
+    session: PlantSession | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`. Never raises for a plant or controller fault:
     see RunOutcome.
@@ -128,7 +135,9 @@ def simulate(
     in Python at every sample, and run.json says which loop ran and why.
 
     `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
-    file-backed map shared with a supervising process (`supervision`); the trace is then a view of it."""
+    file-backed map shared with a supervising process (`supervision`); the trace is then a view of it.
+    `session`, if given (`open_session`), is a plant already loaded that the caller keeps: the run
+    gets an instance of it (reset after a complete run for the next, else freed), not a new copy."""
     started = clock.perf_counter()
     try:
         if controller is None:
@@ -138,7 +147,9 @@ def simulate(
         return refused_outcome(run, plant, str(error), started)
     n = run.steps
     recorder = Recorder(trace_names(plant, diagnostics), n, buffer)
-    session = PlantSession(plant, run.label, list(plant.recorded_outputs), list(INPUTS))
+    own_session = session is None
+    if session is None:
+        session = open_session(plant, run.label)
     timing, state = Timing(n, run.T_s, run.plant.F_E), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
     policy = CheckpointPolicy(saving=session.can_save_state)
@@ -178,7 +189,10 @@ def simulate(
         state.reason = f"plant FMU failed at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s: {error}"
     finally:
         solver_statistics = session.solver_statistics()
-        session.close()
+        if own_session:
+            session.close()
+        else:  # a kept plant: reset after a complete run for the next, else freed
+            session.release(reuse=state.reason is None and recorder.rows == n + 1 and not interrupted)
     if state.reason is not None and not interrupted:
         state.reason = _cut_at_first_failure(state.reason, recorder, policy.first_failure, run.T_s)
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason

@@ -12,6 +12,12 @@ not define) raises fmpy's `FMICallException` naming the function, in these calls
 other call fmpy makes for us; the FMU's log messages go through our logger (`fmi_calls`).
 
 `c_functions()` hands the same pointers and buffers to the compiled loop (`compiled_loop`).
+
+A session may serve run after run (a sweep worker keeps its plant loaded): `release(reuse=True)`
+after a complete run terminates the instance and brings it back with fmi2Reset / fmi3Reset to
+the state instantiation leaves, and the next `instantiate` only sets up the experiment; after a
+failed run, or when the FMU refuses the reset, the instance is freed and the next `instantiate`
+makes a new one from the binary already loaded. `close()` frees it and deletes the unzipped copy.
 `no_set_state_prior_to_current_point` is the flag passed to every doStep; it stays False
 (history kept) unless a checkpoint policy that never restores sets it True (`retry`).
 """
@@ -100,6 +106,7 @@ class PlantSession:
             shutil.rmtree(self._unzipped, ignore_errors=True)
             raise
         self._instantiated = False
+        self._was_reset = False  # an instance kept by release(reuse=True), in the state instantiation leaves
         ref = plant.references
         self._out_vr = (ctypes.c_uint32 * len(outputs))(*(ref[n] for n in outputs))
         self._out_val = (ctypes.c_double * len(outputs))()
@@ -145,6 +152,12 @@ class PlantSession:
         return self._instantiated
 
     def instantiate(self, start: float, stop: float) -> None:
+        if self._was_reset:  # the instance kept by release(reuse=True)
+            self._was_reset = False
+            if not self.is_fmi3:
+                self.fmu.setupExperiment(startTime=start, stopTime=stop)
+            self._start, self._stop = start, stop
+            return
         if self.is_fmi3:
             self.fmu.instantiate(visible=False, loggingOn=False)
         else:
@@ -199,17 +212,48 @@ class PlantSession:
         else:
             self.fmu.setFMUstate(self._saved)
 
+    def release(self, reuse: bool = False, unload: bool = False) -> None:
+        """End the run on this instance: with `reuse`, terminate and reset it for the next run;
+        else (or if the FMU refuses either call) free it. The loaded binary stays, unless `unload`."""
+        if not self._instantiated:
+            if unload:
+                self.fmu.freeLibrary()
+            return
+        if self._saved is not None:  # the checkpoint belongs to this run
+            try:
+                if self.is_fmi3:
+                    self.fmu.freeFMUState(self._saved)
+                else:
+                    self.fmu.freeFMUstate(self._saved)
+            except Exception:  # noqa: BLE001 - freeInstance releases it in any case
+                reuse = False
+            self._saved = None
+        if reuse and not self._was_reset:
+            try:
+                self.fmu.terminate()
+                self.fmu.reset()
+                self._was_reset = True
+                return
+            except Exception:  # noqa: BLE001 - an FMU that cannot reset gets a new instance
+                pass
+        try:
+            self.fmu.terminate()
+        except Exception:  # noqa: BLE001 - an FMU in error state may refuse terminate
+            pass
+        self._was_reset = False
+        self._instantiated = False
+        component, self._component = self._component, None
+        if unload:
+            self.fmu.freeInstance()  # fmpy's: fmi2FreeInstance, then the binary is unloaded
+        elif self.is_fmi3:
+            self.fmu.fmi3FreeInstance(component)
+        else:
+            self.fmu.fmi2FreeInstance(component)
+
     def close(self) -> None:
         """Terminate and free the instance, whatever state it is in, and delete the unzipped copy."""
         try:
-            if self._instantiated:
-                try:
-                    self.fmu.terminate()
-                except Exception:  # noqa: BLE001 - an FMU in error state may refuse terminate
-                    pass
-                self.fmu.freeInstance()
-                self._instantiated = False
-                self._component = None
+            self.release(reuse=False, unload=True)
         finally:
             shutil.rmtree(self._unzipped, ignore_errors=True)
 

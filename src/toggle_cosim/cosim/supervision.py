@@ -108,11 +108,16 @@ def time_limit_of(run: Run, override: float | None = None) -> float:
     return float(own) if own is not None else default_time_limit(run.t_end)
 
 
-def _seconds(value: float) -> str:
+def seconds_text(value: float) -> str:
     return f"{value:.0f} s" if value >= 10 else f"{value:.3g} s"
 
 
-def _limit_memory() -> None:
+def die_with_parent(parent: int) -> None:
+    """In a plant process: SIGKILL when `parent` ends (`process_tree.die_with`)."""
+    process_tree.die_with(parent)
+
+
+def limit_memory() -> None:
     """The child's address space may grow by `limits.plant_memory()` (checked by the command
     before any run, `limits.check_environment`): a plant that allocates without
     end gets NULL from malloc instead of taking the machine's memory. A bad value raises (the
@@ -130,7 +135,7 @@ def _limit_memory() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (wanted, hard))
 
 
-def _warm_up() -> None:
+def warm_up() -> None:
     """Work each child would repeat, done once in the parent before forking: the run record's
     versions, the compiled loop, and the modules a child would otherwise import each time
     (`resource` for its memory limit, `urllib.parse` for the FMU's resource URI that fmpy
@@ -145,6 +150,26 @@ def _warm_up() -> None:
         from toggle_cosim.cosim.compiled_loop import kernel_library
 
         kernel_library()
+
+
+def fork_child(child: Callable[[int], None], known: Callable[[int], None]) -> None:
+    """Fork a plant process: the parent's warm-up done and its streams flushed first, the fork
+    inside `starting_children`. `known(pid)` runs in the parent before an interrupt can act (so
+    whoever stops the child knows it); `child(parent_pid)` runs in the child and never returns."""
+    warm_up()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    parent = os.getpid()
+    with warnings.catch_warnings(), interrupts.starting_children():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
+        pid = os.fork()
+        if pid == 0:  # the child never leaves this block
+            try:
+                child(parent)
+            finally:
+                os._exit(4)
+        process_tree.adopt(pid)  # it leads its own group (the child does the same)
+        known(pid)
 
 
 def _child(parent: int, plant_process: Callable[[], None]) -> None:
@@ -175,7 +200,7 @@ def _plant_process(
     """The plant's process: run, send the outcome (no trace) back, exit without cleanup."""
     code = 0
     try:
-        _limit_memory()
+        limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
         log = None
         if capture_log:
@@ -217,7 +242,7 @@ def _plant_process(
     os._exit(code)  # the keeper (`_child`) then ends the helper processes the plant started
 
 
-def _rows_recorded(buffer: np.ndarray) -> int:
+def rows_recorded(buffer: np.ndarray) -> int:
     """Samples the child finished: the leading rows whose last column (written last) is set."""
     if buffer.shape[0] == 0:
         return 0
@@ -326,33 +351,26 @@ class SupervisedRun:
             raise
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
-        _warm_up()
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
-        sys.stdout.flush()
-        sys.stderr.flush()
-        parent = os.getpid()
+
+        def child(parent: int) -> None:
+            os.close(read_fd)
+            plant_process = functools.partial(
+                _plant_process,
+                self.run,
+                self.plant,
+                self.buffer,
+                self.progress_slot,
+                self._workdir,
+                write_fd,
+                self._capture_log,
+                self.controller,
+            )
+            _child(parent, plant_process)
+
         try:
-            # an interrupt waits until the child's pid is known here (so that stop() can kill it)
-            with warnings.catch_warnings(), interrupts.starting_children():
-                warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads (pytest, Dask)
-                self.pid = os.fork()
-                if self.pid > 0:
-                    process_tree.adopt(self.pid)
-                if self.pid == 0:  # the child never leaves this block: _child ends in os._exit
-                    os.close(read_fd)
-                    plant_process = functools.partial(
-                        _plant_process,
-                        self.run,
-                        self.plant,
-                        self.buffer,
-                        self.progress_slot,
-                        self._workdir,
-                        write_fd,
-                        self._capture_log,
-                        self.controller,
-                    )
-                    _child(parent, plant_process)
+            fork_child(child, lambda pid: setattr(self, "pid", pid))
         finally:
             os.close(write_fd)
         os.set_blocking(read_fd, False)  # a helper the plant forked may hold the pipe open: never wait on it
@@ -380,7 +398,7 @@ class SupervisedRun:
         if self.done:
             return True
         if clock.monotonic() >= self.deadline:
-            self.reason = f"time limit {_seconds(self.limit)} exceeded"
+            self.reason = f"time limit {seconds_text(self.limit)} exceeded"
             self._kill()
             return True
         if self._read_fd in ready and self._read_fd in self._watch:
@@ -430,7 +448,7 @@ class SupervisedRun:
         with the reason and the trace up to the last sample the child recorded."""
         run, plant = self.run, self.plant
         answer = _answer(self._chunks)
-        rows = _rows_recorded(self.buffer)
+        rows = rows_recorded(self.buffer)
         trace = Trace(self.names, self.buffer[:rows])
         wall = clock.perf_counter() - self.started
         reason = self.reason
@@ -456,16 +474,20 @@ class SupervisedRun:
         return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
 
     def _exit_reason(self, answer: tuple | None) -> str:
-        status = self.status
         if answer is not None and answer[0] == "error":
             return f"the plant could not be run: {answer[1]}"
-        if status is not None and os.WIFSIGNALED(status):
-            number = os.WTERMSIG(status)
-            name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
-            return f"the plant process was killed by {name}"
-        if status is not None:
-            return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
-        return "the plant process ended without an answer"
+        return exit_reason(self.status)
+
+
+def exit_reason(status: int | None) -> str:
+    """Why a plant process ended without answering, from its wait status."""
+    if status is not None and os.WIFSIGNALED(status):
+        number = os.WTERMSIG(status)
+        name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
+        return f"the plant process was killed by {name}"
+    if status is not None:
+        return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
+    return "the plant process ended without an answer"
 
 
 def wait_for(children: list[SupervisedRun], poll: float | None = None) -> None:

@@ -5,7 +5,7 @@ from toggle_cosim.analysis.sweep_heatmaps import write_heatmaps
 from toggle_cosim.experiments.sweep_exec import execute
 from toggle_cosim.experiments.sweep_run import SweepResult, execute_sweep, run_sweep
 from toggle_cosim.experiments.sweep_spec import METRICS, Case, Sweep, SweepError, load_sweep
-from toggle_cosim.experiments.sweep_store import ResultStore, read_results
+from toggle_cosim.experiments.sweep_store import ResultStore, read_results, read_trace
 from toggle_cosim.experiments.sweep_worker import run_case
 
 __all__ = [
@@ -19,6 +19,7 @@ __all__ = [
     "execute_sweep",
     "run_sweep",
     "read_results",
+    "read_trace",
     "write_heatmaps",
     "ResultStore",
     "METRICS",

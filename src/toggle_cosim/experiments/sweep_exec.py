@@ -1,126 +1,142 @@
-"""Running sweep cases: a local process pool (all cores by default) or an existing Dask
-distributed cluster (`scheduler="tcp://host:8786"`); no scheduling of our own. Each finished
-case's row is handed to `on_row` in this process as it arrives."""
+"""Running sweep cases: local workers (all cores by default) or an existing Dask distributed
+cluster (`scheduler="tcp://host:8786"`). Each worker keeps the plant loaded and runs case after
+case (`sweep_worker`); each finished case's row is handed to `on_row(row, trace)` in this
+process as it arrives (`trace`: the case's samples with keep_traces, else None).
+
+Local workers are plant hosts this process forks and supervises itself: a case that crashes,
+aborts or hangs its host (or whose host is killed from outside) is a failed row, the host is
+replaced, the other cases go on. On a Dask cluster the cases go in chunks, a few per worker
+thread at a time; a chunk whose worker or scheduler is lost is not recorded (its cases are "not
+run": a re-run does them), and `DaskLoss` says how many. Interrupts are noted and acted on here,
+between polls, never raised inside Dask's or the standard library's waiting code."""
 
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
+import math
 import os
-from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from toggle_cosim import interrupts
 from toggle_cosim.experiments.sweep_spec import Case, SweepError
-from toggle_cosim.experiments.sweep_worker import crash_row, file_sha256_cached, run_case
+from toggle_cosim.experiments.sweep_worker import CaseRunner, case_samples, run_cases
 
-_slot: int = -1
-
-
-def _pool_init(slots: Any, counter: Any) -> None:
-    """Pool worker start: Ctrl-C is the parent's to handle; take a slot to report the running case."""
-    global _slots, _slot
-    interrupts.as_child()
-    with counter.get_lock():
-        _slot = counter.value
-        counter.value += 1
-    _slots = slots
+OnRow = Callable[[dict[str, Any], "np.ndarray | None"], None]
+CONNECT_TIMEOUT_S = 20.0  # a scheduler that does not answer as Dask within this is not one
+CHUNK_MAX = 32  # cases a Dask task runs at most
+IN_FLIGHT_PER_THREAD = 3  # Dask tasks submitted ahead per worker thread
+RESULT_TIMEOUT_S = 30.0
 
 
-def _pool_task(
-    case: Mapping[str, Any], fmu: str, fmu_sha256: str | None, time_limit: float | None = None
-) -> dict[str, Any]:
-    if _slots is not None and 0 <= _slot < len(_slots):
-        _slots[_slot] = case["index"]
-    try:
-        return run_case(case, fmu, fmu_sha256, time_limit=time_limit)
-    finally:
-        if _slots is not None and 0 <= _slot < len(_slots):
-            _slots[_slot] = -1
+@dataclass
+class DaskLoss:
+    """Cases a Dask run could not finish because a worker or the scheduler went away."""
 
-
-def _kill_workers(pool: ProcessPoolExecutor) -> None:
-    """End the pool's workers now (an interrupt): their running cases' plants die with them."""
-    for process in list((getattr(pool, "_processes", None) or {}).values()):
-        with contextlib.suppress(Exception):
-            process.kill()
+    cases: int = 0
+    reasons: list[str] = field(default_factory=list)
 
 
 def _run_pool(
     cases: Sequence[Case],
-    fmu: str,
+    plant: Any,
     sha: str,
     workers: int,
-    on_row: Callable[[dict[str, Any]], None],
+    on_row: OnRow,
     time_limit: float | None = None,
+    keep_traces: bool = False,
 ) -> None:
-    """Local process pool. A worker process that dies (a crash inside the FMU) breaks the pool:
-    the cases that were running then are re-run one at a time to find the one that crashes, which
-    is recorded as failed; the others are resubmitted."""
-    context = multiprocessing.get_context("spawn")
-    pending = list(cases)
-    isolate: list[Case] = []
-    while pending or isolate:
-        if isolate:
-            batch, size = [isolate.pop(0)], 1
-        else:
-            batch, pending, size = pending, [], max(1, min(workers, len(pending)))
-        slots = context.Array("q", [-1] * size, lock=False)
-        counter = context.Value("i", 0)
-        pool = ProcessPoolExecutor(
-            max_workers=size, mp_context=context, initializer=_pool_init, initargs=(slots, counter)
-        )
-        broken: list[Case] = []
-        running_at_break: set[int] = set()
-        try:
-            # submit() starts the workers: an interrupt inside it would leave a child half launched
-            # (not yet known to the pool, so never killed) to fail on its own, with a traceback
-            with interrupts.starting_children():
-                futures = {pool.submit(_pool_task, case.payload(), fmu, sha, time_limit): case for case in batch}
-            remaining = set(futures)
-            while remaining:
-                done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
-                for future in done:
-                    try:
-                        row = future.result()
-                    except BrokenProcessPool:
-                        if not running_at_break:
-                            running_at_break = {int(i) for i in slots if i >= 0} or {-2}
-                        broken.append(futures[future])
-                        continue
-                    except Exception as error:  # noqa: BLE001 - pickling and the like
-                        row = crash_row(futures[future], sha, " ".join(f"{type(error).__name__}: {error}".split()))
-                    on_row(row)
-        except BaseException:
-            _kill_workers(pool)
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
-        pool.shutdown(wait=True)
-        if broken:
-            if size == 1 and len(batch) == 1:
-                on_row(crash_row(batch[0], sha, "the worker process died running this case (a crash in the FMU?)"))
-                continue
-            suspects = [c for c in broken if c.index in running_at_break] or broken
-            isolate.extend(suspects)
-            pending = [c for c in broken if c not in suspects] + pending
+    """Local plant hosts, `workers` of them, each fed the next case as soon as it is free."""
+    from toggle_cosim.cosim.plant_host import wait_for_hosts
+
+    rows = max((case_samples(c.payload()) for c in cases), default=1)
+    runners = [
+        CaseRunner(plant, sha, rows=rows, time_limit=time_limit, keep_traces=keep_traces)
+        for _ in range(max(1, min(workers, len(cases))))
+    ]
+    queue: Iterator[Case] = iter(cases)
+    try:
+        while True:
+            for runner in runners:
+                if not runner.busy and (case := next(queue, None)) is not None:
+                    runner.submit(case.payload())
+            busy = {runner.host: runner for runner in runners if runner.busy}
+            if not busy:
+                return
+            for host, answer in wait_for_hosts(list(busy)):
+                row, trace = busy[host].service(answer)
+                on_row(row, trace)
+    finally:
+        with interrupts.deferred():  # an interrupt: the hosts and their cases in flight end now, all of them
+            for runner in runners:
+                runner.close()
 
 
-def connect(scheduler: str) -> Any:
-    """A client of the Dask distributed cluster at `scheduler` (SweepError if it cannot be reached;
-    the time allowed is dask's distributed.comm.timeouts.connect)."""
+def _connect_timeout() -> float:
+    """CONNECT_TIMEOUT_S, or dask's distributed.comm.timeouts.connect if that is shorter."""
+    with contextlib.suppress(Exception):
+        import dask
+        from dask.utils import parse_timedelta
+
+        return min(CONNECT_TIMEOUT_S, float(parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"))))
+    return CONNECT_TIMEOUT_S
+
+
+def connect(scheduler: str, timeout: float | None = None) -> Any:
+    """A client of the Dask distributed cluster at `scheduler`; SweepError within about `timeout`
+    seconds (`_connect_timeout`) if there is none: nothing listening, a service that is not Dask
+    (an HTTP server), one that never answers. The connection is made on a helper thread and
+    waited for here, so an interrupt meanwhile ends the command at once."""
     try:
         from distributed import Client
-    except ImportError as error:  # pragma: no cover - a declared dependency
-        raise SweepError(f"--scheduler needs the 'distributed' package ({error})") from error
-    try:
-        return Client(scheduler, set_as_default=False)
-    except Exception as error:  # noqa: BLE001 - OSError, TimeoutError, ValueError for a bad address
+    except ImportError as error:
         raise SweepError(
-            f"cannot connect to the Dask scheduler at {scheduler} ({' '.join(str(error).split())})"
+            f"--scheduler needs the 'distributed' package ({' '.join(str(error).split())}); install toggle-cosim[sweep]"
         ) from error
+    import threading
+
+    timeout = _connect_timeout() if timeout is None else timeout
+
+    outcome: dict[str, Any] = {}
+
+    def attempt() -> None:
+        try:
+            outcome["client"] = Client(scheduler, set_as_default=False, timeout=f"{timeout}s")
+        except BaseException as error:  # noqa: BLE001 - reported below
+            outcome["error"] = error
+
+    worker = threading.Thread(target=attempt, name="toggle-cosim-dask-connect", daemon=True)
+    worker.start()
+    deadline = time.monotonic() + timeout + 1
+    while worker.is_alive() and time.monotonic() < deadline:
+        worker.join(0.05)
+    if "client" in outcome:
+        return outcome["client"]
+    error = outcome.get("error")
+    if error is None:
+        detail = f"no answer as a Dask scheduler within {timeout:.0f} s: is it one?"
+    else:
+        detail = " ".join(f"{type(error).__name__}: {error}".split())
+        if isinstance(error, (TimeoutError, OSError)) and "timed out" in detail.lower():
+            detail = f"no answer as a Dask scheduler within {timeout:.0f} s: is it one? ({detail})"
+    raise SweepError(f"cannot connect to the Dask scheduler at {scheduler} ({detail})")
+
+
+def _chunks(cases: Sequence[Case], threads: int) -> Iterator[list[Case]]:
+    size = max(1, min(CHUNK_MAX, math.ceil(len(cases) / max(1, threads * 4))))
+    for start in range(0, len(cases), size):
+        yield list(cases[start : start + size])
+
+
+def _threads(client: Any) -> int:
+    with contextlib.suppress(Exception):
+        return max(1, sum(client.nthreads().values()))
+    return 1
 
 
 def _run_dask(
@@ -128,44 +144,83 @@ def _run_dask(
     fmu: str,
     sha: str,
     client: Any,
-    on_row: Callable[[dict[str, Any]], None],
+    on_row: OnRow,
     time_limit: float | None = None,
-) -> None:
-    """An existing Dask distributed cluster: submit every case, collect as they complete. The FMU
-    travels with the tasks: the workers need toggle-cosim installed, not the project's files."""
-    from distributed import as_completed
+    keep_traces: bool = False,
+) -> DaskLoss:
+    """An existing Dask cluster: the cases in chunks, each run by a worker thread's plant host,
+    a bounded number in flight. The FMU travels with the tasks (once per worker): the workers
+    need toggle-cosim installed, not the project's files."""
+    import logging
 
-    # the FMU's bytes go along (once per worker), for workers that do not share this file system
-    fmu_data = client.scatter(Path(fmu).read_bytes(), broadcast=True, hash=False)
-    futures = {}
-    for case in cases:
-        future = client.submit(
-            run_case,
-            case.payload(),
-            fmu,
-            sha,
-            fmu_data,
-            time_limit,
-            key=f"toggle-cosim-case-{case.case_id}",
-            pure=False,
-        )
-        futures[future] = case
+    loss = DaskLoss()
+    threads = _threads(client)
+    quiet = logging.getLogger("distributed.client")  # its reconnection errors: DaskLoss says what happened
+    level = quiet.level
+    quiet.setLevel(logging.CRITICAL)
+    with interrupts.deferred():
+        fmu_data = client.scatter(Path(fmu).read_bytes(), broadcast=True, hash=False)
+    chunks = _chunks(cases, threads)
+    running: dict[Any, list[Case]] = {}
+    serial = 0
+
+    def submit_more() -> None:
+        nonlocal serial
+        while len(running) < threads * IN_FLIGHT_PER_THREAD and (chunk := next(chunks, None)) is not None:
+            serial += 1
+            with interrupts.deferred():
+                future = client.submit(
+                    run_cases,
+                    [case.payload() for case in chunk],
+                    fmu,
+                    sha,
+                    fmu_data,
+                    time_limit,
+                    keep_traces,
+                    key=f"toggle-cosim-cases-{chunk[0].case_id}-{serial}",
+                    pure=False,
+                )
+            running[future] = chunk
+
+    reconnecting_since: float | None = None
     try:
-        for future in as_completed(futures, loop=client.loop):
-            case = futures[future]
-            try:
-                row = future.result()
-            except Exception as error:  # noqa: BLE001 - KilledWorker, a lost connection, ...
-                reason = " ".join(f"{type(error).__name__}: {error}".split())
-                row = crash_row(case, sha, f"the Dask task failed: {reason}")
-            on_row(row)
-    except BaseException:
-        with contextlib.suppress(Exception):
-            client.cancel(list(futures))
-        raise
+        submit_more()
+        while running:
+            finished = [f for f in running if f.status in ("finished", "error", "cancelled")]
+            if not finished:
+                status = client.status
+                if status != "running":  # the scheduler went away: Dask tries to reconnect for a while
+                    reconnecting_since = reconnecting_since or time.monotonic()
+                    if status != "connecting" or time.monotonic() - reconnecting_since > _connect_timeout():
+                        raise _Lost(f"the client lost the scheduler (status {status})")
+                else:
+                    reconnecting_since = None
+                time.sleep(0.02)  # our own wait: an interrupt lands here, never inside Dask
+                continue
+            for future in finished:
+                chunk = running.pop(future)
+                try:
+                    with interrupts.deferred():
+                        results = future.result(timeout=RESULT_TIMEOUT_S)
+                except Exception as error:  # noqa: BLE001 - KilledWorker, CancelledError, a lost connection
+                    loss.cases += len(chunk)
+                    loss.reasons.append(" ".join(f"{type(error).__name__}: {error}".split()).split(". ")[0][:200])
+                    continue
+                for row, trace in results:
+                    on_row(row, trace)
+            submit_more()
+    except _Lost as lost:
+        loss.reasons.append(str(lost))
+        loss.cases += sum(len(chunk) for chunk in running.values()) + sum(len(chunk) for chunk in chunks)
     finally:
-        with contextlib.suppress(Exception):
-            client.cancel([fmu_data])
+        with contextlib.suppress(Exception), interrupts.deferred():
+            client.cancel([*running, fmu_data])
+        quiet.setLevel(level)
+    return loss
+
+
+class _Lost(Exception):
+    pass
 
 
 def execute(
@@ -173,27 +228,32 @@ def execute(
     fmu: Path,
     scheduler: str | None,
     workers: int | None,
-    on_row: Callable[[dict[str, Any]], None],
+    on_row: OnRow,
     fmu_sha256: str | None = None,
     client: Any = None,
     time_limit: float | None = None,
-) -> None:
-    """Run `cases` on the chosen backend and call `on_row(row)` in this process as each finishes:
-    the Dask cluster at `scheduler` (or an open `client` of one), else a local process pool of
-    `workers` processes (default: all cores)."""
+    keep_traces: bool = False,
+    plant: Any = None,
+) -> DaskLoss:
+    """Run `cases` on the chosen backend and call `on_row(row, trace)` in this process as each
+    finishes: the Dask cluster at `scheduler` (or an open `client` of one), else `workers` local
+    plant hosts (default: all cores). The cases a Dask cluster lost (not run) come back."""
     if not cases:
-        return
+        return DaskLoss()
     fmu = Path(fmu).resolve()
-    if fmu_sha256 is None:
-        fmu_sha256 = file_sha256_cached(fmu)
+    if plant is None:
+        from toggle_cosim.plant.contract import check_plant
+
+        plant = check_plant(fmu)
+    sha = fmu_sha256 or plant.sha256
     if client is not None:
-        _run_dask(cases, str(fmu), fmu_sha256, client, on_row, time_limit)
-    elif scheduler:
+        return _run_dask(cases, str(fmu), sha, client, on_row, time_limit, keep_traces)
+    if scheduler:
         own = connect(scheduler)
         try:
-            _run_dask(cases, str(fmu), fmu_sha256, own, on_row, time_limit)
+            return _run_dask(cases, str(fmu), sha, own, on_row, time_limit, keep_traces)
         finally:
             with contextlib.suppress(Exception):
                 own.close()
-    else:
-        _run_pool(cases, str(fmu), fmu_sha256, workers or os.cpu_count() or 1, on_row, time_limit)
+    _run_pool(cases, plant, sha, workers or os.cpu_count() or 1, on_row, time_limit, keep_traces)
+    return DaskLoss()

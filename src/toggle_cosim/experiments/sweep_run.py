@@ -4,8 +4,9 @@ backend, record each as it finishes, then write the table, the heat maps and `sw
     from toggle_cosim.experiments.sweep_run import run_sweep
     run_sweep(Path("scenarios/sweep_FE_mB.yaml"), output=Path("out/sweeps/sweep_FE_mB"))
 
-Exit status of `run_sweep`: 0 every case ok, 1 some case failed, 2 bad input (one `error: ...`
-line on stderr, nothing run), 130 interrupted (finished cases are kept; run again to finish)."""
+Exit status of `run_sweep`: 0 every case ok, 1 some case failed (or a Dask cluster lost some: they
+are "not run", and a re-run does them), 2 bad input (one `error: ...` line on stderr, nothing
+run), 130 interrupted (finished cases are kept; run again to finish)."""
 
 from __future__ import annotations
 
@@ -25,10 +26,12 @@ from toggle_cosim.analysis.sweep_heatmaps import write_heatmaps
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
-from toggle_cosim.experiments.sweep_store import RESULTS_FILE, ResultStore, read_results
+from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore, batch_rows
+from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, peak_rss_mb
 from toggle_cosim.files.outputs import folder_lock
 
 MANIFEST_FILE = "sweep.json"
+MIN_ADDRESS_SPACE = 2 << 30  # bytes: pandas, pyarrow and matplotlib with their threads map about 1.6 GB
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
@@ -40,7 +43,10 @@ class SweepResult:
     done: int = 0  # cases in the final table
     failed: int = 0  # failed cases in the final table
     interrupted: bool = False
+    lost: int = 0  # cases a Dask cluster lost (not run)
+    lost_reason: str = ""
     wall_seconds: float = 0.0
+    worker_peak_rss_mb: float = 0.0  # the largest peak RSS a worker reported
     results: Path | None = None
     figures: list[Path] = field(default_factory=list)
 
@@ -60,7 +66,23 @@ def _exclusive(folder: Path) -> Iterator[None]:
         yield
 
 
-def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
+def check_address_space() -> None:
+    """Refuse, before any import that could fail half-way, an address-space limit (`ulimit -v`)
+    too small for a sweep: under it pyarrow and matplotlib fail to load or hang."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError):  # pragma: no cover - not POSIX
+        return
+    if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE:
+        raise SweepError(
+            f"the address-space limit (ulimit -v) is {soft >> 20} MiB; a sweep needs at least "
+            f"{MIN_ADDRESS_SPACE >> 20} MiB (pandas, pyarrow, matplotlib and their threads): raise it"
+        )
+
+
+def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) -> tuple[Path, Any]:
     from toggle_cosim.plant.contract import ContractError, check_plant
 
     chosen = fmu if fmu is not None else sweep.fmu
@@ -98,7 +120,17 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
                 f" columns, about {size / 1e9:.2f} GB while it runs, over the {max_output() / 1e9:.2f} GB"
                 " output limit; raise T_s or shorten t_end (or raise TOGGLE_COSIM_MAX_OUTPUT)"
             )
-    from toggle_cosim.control.protocol import ControllerError
+    if keep_traces and sweep.cases:  # every case's trace, stored
+        columns = len(trace_names(plant))
+        samples = sum(int(round(c.parameters["t_end"] / c.parameters["T_s"])) + 1 for c in sweep.cases)
+        size = samples * columns * 8
+        if size > max_output():
+            raise SweepError(
+                f"{sweep.path}: --keep-traces would store {len(sweep.cases)} traces, {samples} samples x {columns}"
+                f" columns, about {size / 1e9:.2f} GB before compression, over the {max_output() / 1e9:.2f} GB"
+                " output limit; sweep fewer cases, raise T_s, shorten t_end or raise TOGGLE_COSIM_MAX_OUTPUT"
+            )
+    from toggle_cosim.control.protocol import ControllerError, check_controller
     from toggle_cosim.cosim.controllers import controller_for
 
     seen = set()
@@ -117,10 +149,18 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None) -> tuple[Path, str]:
         (run,) = runs_from_document(copy.deepcopy(case.document), sweep.base)  # validated by load_sweep already
         try:
             check_settings(run, plant)
-            controller_for(run, plant.recorded_outputs)  # the user's controller imports, builds and meets the protocol
+            controller = controller_for(run, plant.recorded_outputs)  # imports, builds and meets the protocol
+            if keep_traces and trace_names(plant, check_controller(controller, plant.recorded_outputs)) != trace_names(
+                plant
+            ):
+                raise SweepError(
+                    f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
+                    "law's columns, and this case's controller records other diagnostics; sweep it without "
+                    "--keep-traces (its table row is kept) or give the controller the diagnostics S, phase, e"
+                )
         except (SettingError, ControllerError) as error:
             raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
-    return chosen, plant.sha256
+    return chosen, plant
 
 
 def execute_sweep(
@@ -132,9 +172,12 @@ def execute_sweep(
     retry_failed: bool = False,
     log: Callable[[str], None] | None = None,
     case_timeout: float | None = None,
+    keep_traces: bool = False,
 ) -> SweepResult:
-    """Run the cases of `sweep` that are not done yet, write the table and the heat maps."""
+    """Run the cases of `sweep` that are not done yet, write the table and the heat maps (and,
+    with `keep_traces`, every case's trace into OUTPUT/traces/)."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
+    check_address_space()
     if workers is not None and workers < 1:
         raise SweepError(f"--workers {workers}: give at least 1")
     if scheduler and workers is not None:
@@ -149,14 +192,29 @@ def execute_sweep(
         limits.check_environment()  # before any case: a bad number must not surface in a worker
     except limits.LimitError as error:
         raise SweepError(str(error)) from None
-    fmu_path, sha = _resolve_plant(sweep, fmu)
+    try:
+        rows_per_batch = batch_rows()
+    except ValueError as error:
+        raise SweepError(str(error)) from error
+    fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces)
     from toggle_cosim.cosim.supervision import remove_stale_folders
 
     remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
     client = connect(scheduler) if scheduler else None  # before anything is written
     try:
         return _execute_sweep(
-            sweep, fmu_path, sha, scheduler, client, workers, progress, retry_failed, say, case_timeout
+            sweep,
+            fmu_path,
+            plant,
+            scheduler,
+            client,
+            workers,
+            progress,
+            retry_failed,
+            say,
+            case_timeout,
+            keep_traces,
+            rows_per_batch,
         )
     finally:
         if client is not None:
@@ -167,7 +225,7 @@ def execute_sweep(
 def _execute_sweep(
     sweep: Sweep,
     fmu_path: Path,
-    sha: str,
+    plant: Any,
     scheduler: str | None,
     client: Any,
     workers: int | None,
@@ -175,17 +233,24 @@ def _execute_sweep(
     retry_failed: bool,
     say: Callable[[str], None],
     case_timeout: float | None = None,
+    keep_traces: bool = False,
+    rows_per_batch: int | None = None,
 ) -> SweepResult:
+    from toggle_cosim.cosim.master import trace_names
+
+    sha = plant.sha256
     with _exclusive(sweep.output):
-        store = ResultStore(sweep)
-        store.load()
+        store = ResultStore(sweep, keep_traces=keep_traces, trace_columns=trace_names(plant), batch_rows=rows_per_batch)
+        store.load(sha)
         if store.unreadable:
             say(f"warning: unreadable result files, their cases run again: {', '.join(store.unreadable[:5])}")
         if retry_failed:
-            store.rows = {k: r for k, r in store.rows.items() if r.get("status") == "ok"}
-        todo = [c for c in sweep.cases if c.case_id not in store.rows]
+            store.forget_failed()
+        todo = [c for c in sweep.cases if c.case_id not in store.done]
+        if keep_traces:
+            store.drop_traces(c.case_id for c in todo)
         result = SweepResult(total=len(sweep.cases), skipped=len(sweep.cases) - len(todo))
-        other_fmu = sum(1 for r in store.rows.values() if r.get("fmu_sha256") not in (None, sha))
+        other_fmu = len(store.other_fmu & store.done.keys())
         backend = (
             f"Dask scheduler {scheduler}" if scheduler else f"local process pool, {workers or os.cpu_count()} workers"
         )
@@ -213,11 +278,12 @@ def _execute_sweep(
             )
         run_started = time.perf_counter()
 
-        def on_row(row: dict[str, Any]) -> None:
+        def on_row(row: dict[str, Any], trace: Any = None) -> None:
             nonlocal failed_now
-            with interrupts.deferred():  # a part file is whole or not there
-                store.add(row)
-            result.ran += 1
+            result.worker_peak_rss_mb = max(result.worker_peak_rss_mb, row.pop(PEAK_RSS_KEY, 0.0) or 0.0)
+            with interrupts.deferred():  # a batch file is whole or not there
+                store.add(row, trace)
+                result.ran += 1
             if row["status"] != "ok":
                 failed_now += 1
             if bar is not None:
@@ -226,7 +292,10 @@ def _execute_sweep(
                 bar.update(1)
 
         try:
-            execute(todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout)
+            loss = execute(todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout, keep_traces, plant)
+            result.lost = loss.cases
+            if loss.cases:
+                result.lost_reason = loss.reasons[0] if loss.reasons else "unknown"
         except BaseException as error:
             if not interrupts.is_interrupt(error):
                 raise
@@ -238,11 +307,10 @@ def _execute_sweep(
                 bar.close()
             with interrupts.deferred():
                 result.results = store.consolidate()
-        finished = [row for identifier, row in store.rows.items() if identifier in store.wanted]
-        result.done = len(finished)
-        result.failed = sum(1 for row in finished if row.get("status") != "ok")
-        if not result.interrupted:  # pandas and matplotlib only when there is time for them
-            result.figures = write_heatmaps(read_results(result.results), sweep)
+        result.done = len(store.done)
+        result.failed = sum(1 for ok in store.done.values() if not ok)
+        if not result.interrupted:  # matplotlib only when there is time for it
+            result.figures = write_heatmaps(result.results, sweep)
         with interrupts.deferred():
             _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
     return result
@@ -272,11 +340,13 @@ def _write_manifest(
                 "interrupted": result.interrupted,
                 "wall_s": result.wall_seconds,
                 "cases_per_s": result.rate,
+                "peak_rss_mb": {"sweep": peak_rss_mb(), "worker": result.worker_peak_rss_mb},
                 "backend": f"dask:{scheduler}" if scheduler else f"pool:{workers or os.cpu_count()}",
                 "host": platform.node(),
                 "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             },
             "results": RESULTS_FILE,
+            "traces": TRACES_DIR if (sweep.output / TRACES_DIR).is_dir() else None,
             "heatmaps": [str(p.relative_to(sweep.output)) for p in result.figures],
         },
     )
@@ -292,18 +362,31 @@ def run_sweep(
     retry_failed: bool = False,
     progress: bool = True,
     case_timeout: float | None = None,
+    keep_traces: bool = False,
 ) -> int:
-    """`toggle-cosim sweep SWEEP.yaml [--scheduler ADDRESS] [--workers N] [--fmu PATH]`.
+    """`toggle-cosim sweep SWEEP.yaml [--scheduler ADDRESS] [--workers N] [--fmu PATH] [--keep-traces]`.
 
     Exit status: 0 every case ok, 1 some case failed, 2 bad input (one `error: ...` line on
     stderr, nothing run), 130 interrupted (finished cases are kept; run again to finish)."""
     try:
+        check_address_space()
         sweep = load_sweep(Path(sweep_path), output)
         result = execute_sweep(
-            sweep, fmu, scheduler, workers, progress=progress, retry_failed=retry_failed, case_timeout=case_timeout
+            sweep,
+            fmu,
+            scheduler,
+            workers,
+            progress=progress,
+            retry_failed=retry_failed,
+            case_timeout=case_timeout,
+            keep_traces=keep_traces,
         )
     except SweepError as error:
         print(f"error: {' '.join(str(error).split())}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except (MemoryError, ImportError) as error:  # a memory limit met while loading a library
+        detail = " ".join(f"{type(error).__name__}: {error}".split())
+        print(f"error: not enough memory for the sweep ({detail}); raise the memory limit", file=sys.stderr)
         return EXIT_BAD_INPUT
     ok = result.done - result.failed
     print(
@@ -314,10 +397,16 @@ def run_sweep(
     print(f"wrote {result.results}")
     for figure in result.figures:
         print(f"wrote {figure}")
+    if result.lost and not result.interrupted:
+        print(
+            f"warning: the Dask cluster lost {result.lost} cases (a worker or the scheduler went away: "
+            f"{result.lost_reason}); they are not run: run the same command again to run them",
+            file=sys.stderr,
+        )
     if result.interrupted:
         print(
             f"interrupted: {result.done} of {result.total} cases done; run the same command again to finish",
             file=sys.stderr,
         )
         return EXIT_INTERRUPTED
-    return EXIT_FAILED if result.failed else EXIT_OK
+    return EXIT_FAILED if result.failed or result.lost else EXIT_OK

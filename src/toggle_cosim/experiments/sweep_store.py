@@ -1,28 +1,60 @@
-"""The sweep's output folder as a store of finished cases: each finished row is written at once
-to `OUTPUT/parts/<case_id>.parquet` (temporary name, then rename), so a crash or a kill loses no
-finished case and a re-run finds the cases already done; at the end (and on Ctrl-C) the rows are
-consolidated into `OUTPUT/results.parquet` (atomically), one row per case, and the consolidated
-part files are removed."""
+"""The sweep's output folder as a store of finished cases, written in batches.
+
+Finished rows are gathered in memory and written together, every BATCH_ROWS rows (or
+TOGGLE_COSIM_SWEEP_BATCH_ROWS) or BATCH_SECONDS seconds, whichever comes first, as one Parquet file `OUTPUT/parts/batch-*.parquet`
+(temporary name, then rename): a crash or a kill loses at most the batch in flight, and a re-run
+finds the cases already done (their ids, kept in memory; the rows themselves are not). At the
+end (and on Ctrl-C) the batches and the earlier table are consolidated into
+`OUTPUT/results.parquet` (atomically), one row per case in case order, by Arrow tables, and the
+consolidated batches are removed. A part whose columns are not the sweep's (another version of
+the sweep file, a foreign writer) or that cannot be read is reported and its cases run again.
+
+With keep_traces each case's whole trace goes, batch by batch, into the Parquet dataset
+`OUTPUT/traces/` (zstd-compressed, a `case_id` column then the trace's columns), read back with
+`read_trace(OUTPUT, case_id)` or `pandas.read_parquet(OUTPUT / "traces", filters=[("case_id",
+"==", ID)])`.
+"""
 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Mapping, Sequence
+import os
+import time
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from toggle_cosim.experiments.sweep_spec import METRICS, Sweep
 from toggle_cosim.files.outputs import replacing
 
 RESULTS_FILE = "results.parquet"
 PARTS_DIR = "parts"
+TRACES_DIR = "traces"
+BATCH_ROWS = 500
+BATCH_SECONDS = 2.0
 
 
-def _arrow_schema(sweep: Sweep) -> Any:
+def batch_rows() -> int:
+    """Rows per batch: TOGGLE_COSIM_SWEEP_BATCH_ROWS (a positive whole number), else BATCH_ROWS."""
+    text = os.environ.get("TOGGLE_COSIM_SWEEP_BATCH_ROWS", "").strip()
+    if not text:
+        return BATCH_ROWS
+    if not text.isdigit() or int(text) < 1:
+        raise ValueError(f"TOGGLE_COSIM_SWEEP_BATCH_ROWS={text!r}: give a positive whole number of rows")
+    return int(text)
+
+
+def _arrow() -> Any:
     import pyarrow as pa
 
     pa.enable_signal_handlers(False)  # its own SIGINT handler would bypass ours (exit -2, not 130)
+    return pa
 
+
+def _arrow_schema(sweep: Sweep) -> Any:
+    pa = _arrow()
     types = {"float": pa.float64(), "bool": pa.bool_(), "string": pa.string()}
     fields = [pa.field("case", pa.int64()), pa.field("case_id", pa.string()), pa.field("variant", pa.string())]
     fields += [pa.field(c, types[sweep.parameter_types[c]]) for c in sweep.parameter_columns]
@@ -52,8 +84,7 @@ def _coerce(value: Any, kind: str) -> Any:
 
 
 def _table(rows: Sequence[Mapping[str, Any]], schema: Any) -> Any:
-    import pyarrow as pa
-
+    pa = _arrow()
     columns = {}
     for f in schema:
         kind = str(f.type)
@@ -61,95 +92,230 @@ def _table(rows: Sequence[Mapping[str, Any]], schema: Any) -> Any:
     return pa.table(columns, schema=schema)
 
 
-def _atomic_parquet(table: Any, path: Path) -> None:
+def _atomic_parquet(table: Any, path: Path, compression: str = "snappy") -> None:
     from toggle_cosim.files.naming import naming
 
     with naming(path):  # a full disk names the table it could not write
-        _write_parquet(table, path)
+        _write_parquet(table, path, compression)
 
 
-def _write_parquet(table: Any, path: Path) -> None:
+def _write_parquet(table: Any, path: Path, compression: str) -> None:
     import pyarrow.parquet as pq
 
+    path.parent.mkdir(parents=True, exist_ok=True)
     with replacing(path) as temporary:  # a unique temporary name, synced and renamed into place
-        pq.write_table(table, str(temporary))
+        pq.write_table(table, str(temporary), compression=compression)
 
 
-def _read_rows(path: Path) -> list[dict[str, Any]]:
-    import pyarrow.parquet as pq
-
-    return pq.read_table(path).to_pylist()
+def _batch_name(sequence: int) -> str:
+    """Names that sort in the order they were written (newer rows win over older ones)."""
+    return f"batch-{time.time_ns():020d}-{os.getpid()}-{sequence:06d}.parquet"
 
 
 class ResultStore:
-    """The sweep's output folder: one part file per finished case, consolidated into results.parquet."""
+    """The sweep's output folder: finished cases in batch files, consolidated into results.parquet."""
 
-    def __init__(self, sweep: Sweep) -> None:
+    def __init__(
+        self,
+        sweep: Sweep,
+        *,
+        keep_traces: bool = False,
+        trace_columns: Sequence[str] = (),
+        batch_rows: int | None = None,
+        batch_seconds: float = BATCH_SECONDS,
+    ) -> None:
         self.sweep = sweep
         self.folder = sweep.output
         self.parts = self.folder / PARTS_DIR
+        self.traces = self.folder / TRACES_DIR
         self.results = self.folder / RESULTS_FILE
         self.schema = _arrow_schema(sweep)
         self.wanted = {c.case_id for c in sweep.cases}
-        self.rows: dict[str, dict[str, Any]] = {}  # finished cases of this sweep, by id
+        self.done: dict[str, bool] = {}  # finished cases of this sweep: id -> ok
+        self.other_fmu: set[str] = set()  # finished cases computed with another FMU
         self.unreadable: list[str] = []
+        self.keep_traces = keep_traces
+        self.trace_columns = list(trace_columns)
+        self.batch_rows, self.batch_seconds = max(1, batch_rows or BATCH_ROWS), batch_seconds
+        self._rows: list[dict[str, Any]] = []
+        self._traces: list[tuple[str, np.ndarray]] = []
+        self._last_flush = time.monotonic()
+        self._sequence = 0
+        self._sources: list[Path] = []  # files whose rows are in `done`
 
-    def load(self) -> None:
-        """Read what earlier runs finished (results.parquet, then part files, newer wins)."""
-        self.parts.mkdir(parents=True, exist_ok=True)
-        for stale in self.parts.glob(".*.partial"):
-            stale.unlink(missing_ok=True)
-        for stale in self.folder.glob(".*.partial"):
-            stale.unlink(missing_ok=True)
-        sources = ([self.results] if self.results.is_file() else []) + sorted(self.parts.glob("*.parquet"))
-        for source in sources:
-            try:
-                rows = _read_rows(source)
-            except Exception as error:  # noqa: BLE001 - a torn file from a foreign writer: redo its cases
-                self.unreadable.append(f"{source.name} ({type(error).__name__})")
-                continue
-            for row in rows:
-                if row.get("case_id") in self.wanted:
-                    self.rows[row["case_id"]] = row
-
-    def add(self, row: dict[str, Any]) -> None:
-        """Record a finished case at once: its own part file, written atomically."""
-        self.rows[row["case_id"]] = row
-        _atomic_parquet(_table([row], self.schema), self.parts / f"{row['case_id']}.parquet")
-
-    def consolidate(self) -> Path:
-        """results.parquet = this sweep's finished cases, in case order; then drop the part files it
-        holds. Rows of cases that are not in this sweep (an earlier version of the file) stay as parts."""
+    # -- reading what earlier runs finished ------------------------------------------------------
+    def _readable(self, source: Path) -> Any:
+        """The table in `source` if it is one of this sweep's (its columns and types), else None."""
         import pyarrow.parquet as pq
 
-        order = {c.case_id: c for c in self.sweep.cases}
-        rows = []
-        for identifier, case in order.items():
-            if identifier in self.rows:
-                row = dict(self.rows[identifier])
-                row["case"] = case.index  # the index in this version of the sweep file
-                rows.append(row)
-        if self.results.is_file():  # keep foreign rows of an earlier results table as part files
+        try:
+            table = pq.read_table(source, use_threads=False)
+        except Exception as error:  # noqa: BLE001 - a torn file from a foreign writer: redo its cases
+            self.unreadable.append(f"{source.name} ({type(error).__name__})")
+            return None
+        if not table.schema.equals(self.schema, check_metadata=False):
+            self.unreadable.append(f"{source.name} (columns of another sweep)")
+            return None
+        return table
+
+    def _set_aside(self, source: Path) -> None:
+        """An unreadable batch is renamed, not read again (its cases run again); the table is replaced."""
+        if source != self.results:
+            with contextlib.suppress(OSError):
+                source.rename(source.with_name(source.name + ".unreadable"))
+
+    def load(self, fmu_sha256: str | None = None) -> None:
+        """Note what earlier runs finished (results.parquet, then the batches, newer wins)."""
+        self.parts.mkdir(parents=True, exist_ok=True)
+        for folder in (self.parts, self.folder, self.traces):
+            for stale in folder.glob(".*.partial"):
+                stale.unlink(missing_ok=True)
+        sources = ([self.results] if self.results.is_file() else []) + sorted(self.parts.glob("*.parquet"))
+        for source in sources:
+            table = self._readable(source)
+            if table is None:
+                self._set_aside(source)
+                continue
+            self._sources.append(source)
+            ids = table.column("case_id").to_pylist()
+            statuses = table.column("status").to_pylist()
+            shas = table.column("fmu_sha256").to_pylist()
+            for identifier, status, sha in zip(ids, statuses, shas, strict=True):
+                if identifier in self.wanted:
+                    self.done[identifier] = status == "ok"
+                    if fmu_sha256 is not None and sha not in (None, fmu_sha256):
+                        self.other_fmu.add(identifier)
+                    else:
+                        self.other_fmu.discard(identifier)
+
+    def forget_failed(self) -> None:
+        """Failed cases count as not done (--retry-failed): they run again and their new rows win."""
+        self.done = {k: ok for k, ok in self.done.items() if ok}
+
+    def drop_traces(self, identifiers: Iterable[str]) -> None:
+        """Remove the stored traces of cases about to run again (a case has one trace)."""
+        import pyarrow.compute as pc
+        import pyarrow.parquet as pq
+
+        again = list(identifiers)
+        if not again or not self.traces.is_dir():
+            return
+        values = _arrow().array(again, type=_arrow().string())
+        for part in sorted(self.traces.glob("*.parquet")):
+            try:
+                table = pq.read_table(part, use_threads=False)
+                keep = pc.invert(pc.is_in(table.column("case_id"), value_set=values))
+            except Exception:  # noqa: BLE001 - an unreadable trace part helps no one
+                part.unlink(missing_ok=True)
+                continue
+            if pc.all(keep).as_py():
+                continue
+            kept = table.filter(keep)
+            if kept.num_rows:
+                _atomic_parquet(kept, part, "zstd")
+            else:
+                part.unlink(missing_ok=True)
+
+    # -- recording -----------------------------------------------------------------------------
+    def add(self, row: dict[str, Any], trace: np.ndarray | None = None) -> None:
+        """Record a finished case; its batch is written once it is full or old enough."""
+        self.done[row["case_id"]] = row.get("status") == "ok"
+        self._rows.append(row)
+        if self.keep_traces and trace is not None and len(trace):
+            self._traces.append((row["case_id"], trace))
+        if len(self._rows) >= self.batch_rows or time.monotonic() - self._last_flush >= self.batch_seconds:
+            self.flush()
+
+    @property
+    def pending(self) -> int:
+        """Rows recorded and not yet written."""
+        return len(self._rows)
+
+    def flush(self) -> None:
+        """Write the rows (and traces) gathered since the last batch, each as one file."""
+        self._last_flush = time.monotonic()
+        if not self._rows:
+            return
+        self._sequence += 1
+        name = _batch_name(self._sequence)
+        if self._traces:
+            _atomic_parquet(self._trace_table(self._traces), self.traces / name, "zstd")
+        path = self.parts / name
+        _atomic_parquet(_table(self._rows, self.schema), path)
+        self._sources.append(path)
+        self._rows, self._traces = [], []
+
+    def _trace_table(self, traces: Sequence[tuple[str, np.ndarray]]) -> Any:
+        pa = _arrow()
+        data = np.concatenate([trace for _, trace in traces])
+        ids = pa.DictionaryArray.from_arrays(
+            pa.array(np.repeat(np.arange(len(traces), dtype=np.int32), [len(t) for _, t in traces])),
+            pa.array([identifier for identifier, _ in traces], type=pa.string()),
+        )
+        columns = {"case_id": ids, **{name: data[:, k] for k, name in enumerate(self.trace_columns)}}
+        return pa.table(columns)
+
+    # -- the table -------------------------------------------------------------------------------
+    def consolidate(self) -> Path:
+        """results.parquet = this sweep's finished cases, in case order (the newest row of each);
+        then drop the batches it holds. Rows of cases that are not in this sweep (an earlier version
+        of the file) stay, in one part file."""
+        self.flush()
+        pa = _arrow()
+        tables = []
+        for source in self._sources:
             with contextlib.suppress(Exception):
-                old = pq.read_table(self.results)
-                ids = old.column("case_id").to_pylist()
-                for k, identifier in enumerate(ids):
-                    target = self.parts / f"{identifier}.parquet"
-                    if identifier not in self.wanted and not target.exists():
-                        _atomic_parquet(old.slice(k, 1), target)
-        _atomic_parquet(_table(rows, self.schema), self.results)
-        for identifier in self.rows:
-            (self.parts / f"{identifier}.parquet").unlink(missing_ok=True)
+                tables.append(_read(source))
+        if tables:
+            table = pa.concat_tables(tables)
+        else:
+            table = _table([], self.schema)
+        ids = table.column("case_id").to_pylist()
+        index = {c.case_id: c.index for c in self.sweep.cases}
+        newest: dict[str, int] = {}
+        foreign: dict[str, int] = {}
+        for position, identifier in enumerate(ids):
+            (newest if identifier in index else foreign)[identifier] = position
+        del ids
+        order = sorted(newest, key=index.__getitem__)
+        mine = table.take(pa.array([newest[k] for k in order], type=pa.int64()))
+        mine = mine.set_column(0, "case", pa.array([index[k] for k in order], type=pa.int64()))
+        if foreign:
+            _atomic_parquet(
+                table.take(pa.array(sorted(foreign.values()), type=pa.int64())), self.parts / _batch_name(0)
+            )
+        _atomic_parquet(mine, self.results)
+        for source in self._sources:
+            if source != self.results:
+                source.unlink(missing_ok=True)
+        self._sources = [self.results]
         with contextlib.suppress(OSError):
             self.parts.rmdir()  # only when empty: no empty folder is left behind
         return self.results
 
 
-def read_results(path: Path) -> Any:
-    """A sweep's results table as a pandas DataFrame (give results.parquet or its folder)."""
-    import pandas as pd
-    import pyarrow as pa
+def _read(path: Path) -> Any:
+    import pyarrow.parquet as pq
 
-    pa.enable_signal_handlers(False)
+    return pq.read_table(path, use_threads=False)
+
+
+def read_results(path: Path, columns: Sequence[str] | None = None) -> Any:
+    """A sweep's results table as a pandas DataFrame (give results.parquet or its folder);
+    `columns` reads only those."""
+    import pandas as pd
+
+    _arrow()
     path = Path(path)
-    return pd.read_parquet(path / RESULTS_FILE if path.is_dir() else path)
+    return pd.read_parquet(path / RESULTS_FILE if path.is_dir() else path, columns=list(columns) if columns else None)
+
+
+def read_trace(folder: Path, case_id: str) -> Any:
+    """One case's whole trace from a sweep run with keep_traces, as a pandas DataFrame (time,
+    the plant's outputs, the controller's columns); empty if the case has none."""
+    import pyarrow.dataset as ds
+
+    _arrow()
+    dataset = ds.dataset(Path(folder) / TRACES_DIR, format="parquet")
+    table = dataset.to_table(filter=ds.field("case_id") == case_id)
+    return table.drop_columns(["case_id"]).to_pandas()

@@ -1,27 +1,43 @@
-"""One sweep case in a worker process: run it supervised, capture the FMU's log, return a plain
-table row. The worker takes plain data (the case payload and the FMU path) and never raises: an
-FMU error, a diverging run or any exception is a row with status "failed" and the reason."""
+"""Sweep cases in a worker that keeps the plant loaded: a `CaseRunner` (in the sweep's process, or
+in a Dask worker) drives a plant host (`cosim.plant_host`), a child process that unzips the FMU
+and loads its binary once, then runs case after case on one instance, reset between cases
+(`master.simulate(..., session=)`); after a failed case the instance is freed and the next one
+gets a new one. A case that crashes, aborts or hangs the host is a failed row with the reason
+(and how far it got); the runner starts a new host for the next case. A case never sees what
+another left: the same case gives the same numbers alone, first in a host, after a failed case
+or after a complete one.
+
+The host loads the FMU from a private copy (in its own folder, created 0700) of bytes whose
+SHA-256 it has checked against the sweep's: a file changed, or swapped, after the sweep checked
+it is never loaded. Every answer is a plain table row; nothing the case does raises here."""
 
 from __future__ import annotations
 
 import contextlib
 import copy
+import dataclasses
+import hashlib
 import os
 import socket
 import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
 
+PEAK_RSS_KEY = "_peak_rss_mb"  # in a row from a worker: its peak RSS (not stored in the table)
 _capture = threading.local()
-_plant_cache: dict[tuple[str, int, int], Any] = {}
-_sha_cache: dict[tuple[str, int, int], str] = {}
+_workers = threading.local()  # a Dask worker thread's CaseRunner, kept from task to task
+_plants: dict[str, Any] = {}  # SHA-256 -> the checked PlantInterface (this process)
+_private: list[Path] = []  # this process's own folder for FMU copies (Dask workers)
+_open_runners: list[Any] = []  # every CaseRunner of run_cases, closed when the process exits
 
 
 class _ThreadLogTee:
@@ -58,125 +74,60 @@ def _captured_fmu_log() -> Iterator[list[str]]:
         _capture.buffer = None
 
 
-def _file_key(path: Path) -> tuple[str, int, int]:
-    stat = path.stat()
-    return (str(path), stat.st_mtime_ns, stat.st_size)
+def case_samples(payload: Mapping[str, Any]) -> int:
+    """The samples of a case's trace: t = 0 .. t_end every T_s."""
+    parameters = payload["parameters"]
+    return int(round(parameters["t_end"] / parameters["T_s"])) + 1
 
 
-def file_sha256_cached(path: Path) -> str:
-    key = _file_key(path)
-    if key not in _sha_cache:
-        from toggle_cosim.files.checksums import file_sha256
+def case_time_limit(payload: Mapping[str, Any], override: float | None = None) -> float:
+    """--case-timeout, else the case's time_limit key, else the default from t_end (`supervision`)."""
+    from toggle_cosim.cosim.supervision import default_time_limit
 
-        _sha_cache[key] = file_sha256(path)
-    return _sha_cache[key]
-
-
-def _plant(path: Path) -> Any:
-    from toggle_cosim.plant.contract import check_plant
-
-    key = _file_key(path)
-    if key not in _plant_cache:
-        _plant_cache[key] = check_plant(path)
-    return _plant_cache[key]
+    if override is not None:
+        return float(override)
+    own = payload["document"].get("time_limit")
+    return float(own) if own is not None else default_time_limit(payload["parameters"]["t_end"])
 
 
-def resolve_fmu(fmu: str, sha256: str | None, data: bytes | None = None) -> Path:
-    """The FMU file this worker uses: `fmu` if it is there with the sweep's SHA-256, else a copy of
-    `data` (the FMU's bytes, sent along by the Dask backend) in this machine's temporary folder.
-    A different FMU at the same path (a stale build on another machine) is never used."""
-    if sha256 is None:
-        return Path(fmu)
-    given = Path(fmu)
-    found = None
-    if given.is_file():
-        found = file_sha256_cached(given)
-        if found == sha256:
-            return given
-    if data is not None:
-        cache = Path(tempfile.gettempdir()) / "toggle-cosim-fmus" / f"plant-{sha256[:32]}.fmu"
-        if not (cache.is_file() and file_sha256_cached(cache) == sha256):
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            handle, temporary = tempfile.mkstemp(prefix=".plant-", suffix=".partial", dir=cache.parent)
-            with os.fdopen(handle, "wb") as stream:
-                stream.write(data)
-            os.replace(temporary, cache)
-            if file_sha256_cached(cache) != sha256:
-                raise ValueError(f"the FMU bytes received do not have the sweep's SHA-256 {sha256[:12]}")
-        return cache
-    detail = f"{given} has SHA-256 {found[:12]}" if found else f"no file {given}"
-    raise FileNotFoundError(f"the sweep's FMU (SHA-256 {sha256[:12]}) is not on this machine: {detail}")
+_columns: dict[tuple[str, str | None, str], tuple[str, ...]] = {}
 
 
-def run_case(
-    case: Mapping[str, Any],
-    fmu: str,
-    fmu_sha256: str | None = None,
-    fmu_data: bytes | None = None,
-    time_limit: float | None = None,
-) -> dict[str, Any]:
-    """Run one case (a payload of plain data) on the plant FMU at `fmu` (checked against
-    `fmu_sha256` if given; `fmu_data`, the FMU's bytes, stand in where that file is missing);
-    return its table row.
+def case_columns(payload: Mapping[str, Any], plant: Any) -> tuple[str, ...]:
+    """The trace columns of a case: time, the plant's outputs, the inputs and its controller's
+    diagnostics (the built-in law's, or those a controller.python factory's controller declares;
+    built once per controller setting in this process)."""
+    from toggle_cosim.cosim.master import trace_names
 
-    Never raises for a failure of the case: the row has status "failed" and the reason. The case
-    runs supervised (`supervision`): a crash or hang of the plant, or `time_limit` (default: the
-    case's time_limit key, else max(30 s, 20 x t_end)) exceeded, is a failed row."""
-    from toggle_cosim.cosim.supervision import simulate_supervised
+    controller_doc = payload["document"].get("controller") or {}
+    if "python" not in controller_doc:
+        return trace_names(plant)
+    source = payload.get("source")
+    key = (repr(controller_doc), source, plant.sha256)
+    if key not in _columns:
+        from toggle_cosim.control.protocol import check_controller
+        from toggle_cosim.cosim.controllers import controller_for
 
-    started = time.perf_counter()
-    row: dict[str, Any] = {
-        "case": case["index"],
-        "case_id": case["case_id"],
-        "variant": case["variant"],
-        **case["parameters"],
-        "status": "failed",
-        "reason": None,
-        "warnings": None,
-        **dict.fromkeys(METRICS),
-        "samples": None,
-        "wall_s": None,
-        "host": socket.gethostname(),
-        "fmu_sha256": fmu_sha256,
-    }
-    try:
-        with _captured_fmu_log() as log:
-            try:
-                source = case.get("source")  # the base scenario: controller.python is imported from its folder
-                (run,) = runs_from_document(copy.deepcopy(case["document"]), Path(source) if source else None)
-                plant = _plant(resolve_fmu(fmu, fmu_sha256, fmu_data))
-                outcome = simulate_supervised(run, plant, time_limit=time_limit, capture_log=True)
-            except Exception as error:  # noqa: BLE001 - any failure is the case's result
-                outcome = None
-                row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
-        messages = [line.strip() for line in "".join(log).splitlines() if line.startswith(("[ERROR]", "[FATAL]"))]
-        if outcome is not None:
-            row["samples"] = outcome.trace.data.shape[0]
-            if outcome.complete and outcome.summary is not None:
-                row["status"] = "ok"
-                summary = outcome.summary.as_dict()
-                row.update({k: (None if v is None else float(v)) for k, v in summary.items()})
-                E_in, E_fric = summary["E_in_J"], summary["E_fric_J"]
-                row["fric_share_end"] = float(E_fric / E_in) if E_in and E_fric is not None else None
-                row["warnings"] = "; ".join(outcome.warnings) or None
-            else:
-                row["reason"] = outcome.reason or "the run ended without a summary"
-        if row["status"] == "failed" and messages:
-            row["reason"] = f"{row['reason']} [FMU log: {' | '.join(messages[:3])}]"
-    except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row
-        row["status"] = "failed"
-        row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
-    row["wall_s"] = time.perf_counter() - started
-    return row
+        (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
+        controller = controller_for(run, plant.recorded_outputs)
+        _columns[key] = trace_names(plant, check_controller(controller, plant.recorded_outputs))
+    return _columns[key]
 
 
-def crash_row(case: Case, fmu_sha256: str | None, reason: str) -> dict[str, Any]:
-    """The row of a case whose worker could not report (a dead process, a lost Dask task)."""
+def case_view(buffer: np.ndarray, rows: int, columns: int) -> np.ndarray | None:
+    """The case's trace (rows x columns, C order) at the start of a host's buffer, or None when
+    the buffer is too small for it."""
+    if rows * columns > buffer.size:
+        return None
+    return buffer.reshape(-1)[: rows * columns].reshape(rows, columns)
+
+
+def _empty_row(payload: Mapping[str, Any], fmu_sha256: str | None, reason: str | None = None) -> dict[str, Any]:
     return {
-        "case": case.index,
-        "case_id": case.case_id,
-        "variant": case.variant,
-        **case.parameters,
+        "case": payload["index"],
+        "case_id": payload["case_id"],
+        "variant": payload["variant"],
+        **payload["parameters"],
         "status": "failed",
         "reason": reason,
         "warnings": None,
@@ -186,3 +137,293 @@ def crash_row(case: Case, fmu_sha256: str | None, reason: str) -> dict[str, Any]
         "host": socket.gethostname(),
         "fmu_sha256": fmu_sha256,
     }
+
+
+def crash_row(
+    case: Case | Mapping[str, Any], fmu_sha256: str | None, reason: str, samples: int | None = None
+) -> dict[str, Any]:
+    """The row of a case whose worker could not report (a dead process, a time limit)."""
+    row = _empty_row(case.payload() if isinstance(case, Case) else case, fmu_sha256, reason)
+    row["samples"] = samples
+    return row
+
+
+def _private_folder() -> Path:
+    """This process's own folder for FMU copies (mkdtemp: 0700, a fresh name no one else holds),
+    named like a run folder so that `remove_stale_folders` removes it once the process is gone."""
+    if not _private:
+        import atexit
+        import shutil
+
+        from toggle_cosim.cosim.supervision import FOLDER_PREFIX
+
+        folder = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-"))
+        atexit.register(shutil.rmtree, folder, True)
+        _private.append(folder)
+    return _private[0]
+
+
+def _verified_bytes(path: Path, sha256: str) -> bytes:
+    data = Path(path).read_bytes()
+    found = hashlib.sha256(data).hexdigest()
+    if found != sha256:
+        raise ValueError(
+            f"{path} has SHA-256 {found[:12]}, not the sweep's {sha256[:12]}: it changed after the sweep checked it"
+        )
+    return data
+
+
+def _private_copy(data: bytes, folder: Path, name: str = "plant.fmu") -> Path:
+    """`data` written to `folder`/`name`, readable by this user only (O_EXCL: never through a link)."""
+    path = folder / name
+    path.unlink(missing_ok=True)
+    handle = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600)
+    with os.fdopen(handle, "wb") as stream:
+        stream.write(data)
+    return path
+
+
+def resolve_plant(fmu: str, sha256: str, data: bytes | None = None) -> Any:
+    """The checked plant (a PlantInterface) of the sweep's FMU in this process: `fmu` if that file
+    has the sweep's SHA-256, else `data` (the FMU's bytes the Dask backend sends along) checked
+    against it and copied into this process's private folder. A different FMU at the same path
+    (a stale build on another machine) is never used."""
+    if sha256 in _plants:
+        return _plants[sha256]
+    from toggle_cosim.plant.contract import check_plant
+
+    given = Path(fmu)
+    try:
+        _verified_bytes(given, sha256)
+        path = given
+    except (OSError, ValueError) as error:
+        if data is None:
+            detail = f"no file {given}" if isinstance(error, FileNotFoundError) else str(error)
+            raise FileNotFoundError(
+                f"the sweep's FMU (SHA-256 {sha256[:12]}) is not on this machine: {detail}"
+            ) from None
+        if hashlib.sha256(data).hexdigest() != sha256:
+            raise ValueError(f"the FMU bytes received do not have the sweep's SHA-256 {sha256[:12]}") from None
+        path = _private_copy(data, _private_folder(), f"plant-{sha256[:32]}.fmu")
+    _plants[sha256] = dataclasses.replace(check_plant(path), sha256=sha256)
+    return _plants[sha256]
+
+
+class CaseServer:
+    """The plant host's side (in the child): the plant loaded once, a case per request -> its row."""
+
+    def __init__(self, plant: Any, fmu_sha256: str) -> None:
+        self.plant = plant
+        self.sha256 = fmu_sha256
+        self.session: Any = None
+
+    def _session(self) -> Any:
+        """The plant's session, opened at the first case: the FMU's bytes checked against the
+        sweep's SHA-256, copied into this host's own folder and loaded from there."""
+        if self.session is None:
+            from toggle_cosim.cosim.master import open_session
+
+            copy_path = _private_copy(_verified_bytes(self.plant.path, self.sha256), Path(tempfile.gettempdir()))
+            plant = dataclasses.replace(self.plant, path=copy_path)
+            self.session = open_session(plant, plant.model_identifier)
+        return self.session
+
+    def __call__(self, payload: Mapping[str, Any], buffer: np.ndarray) -> dict[str, Any]:
+        from toggle_cosim.cosim.master import simulate
+
+        started = time.perf_counter()
+        row = _empty_row(payload, self.sha256)
+        buffer.fill(np.nan)  # how far this case gets is what the parent reads if the host dies
+        try:
+            with _captured_fmu_log() as log:
+                view = None
+                try:
+                    source = payload.get("source")  # the base scenario: controller.python is imported from its folder
+                    (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
+                    view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
+                    outcome = simulate(run, self.plant, buffer=view, session=self._session())
+                except Exception as error:  # noqa: BLE001 - any failure is the case's result
+                    outcome = None
+                    row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
+            messages = [line.strip() for line in "".join(log).splitlines() if line.startswith(("[ERROR]", "[FATAL]"))]
+            if outcome is not None:
+                _fill_row(row, outcome)
+                if view is not None:  # the samples written, as a supervised run counts them
+                    from toggle_cosim.cosim.supervision import rows_recorded
+
+                    row["samples"] = rows_recorded(view)
+            if row["status"] == "failed" and messages:
+                row["reason"] = f"{row['reason']} [FMU log: {' | '.join(messages[:3])}]"
+        except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row
+            row["status"] = "failed"
+            row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
+        row["wall_s"] = time.perf_counter() - started
+        row[PEAK_RSS_KEY] = peak_rss_mb()
+        return row
+
+
+def peak_rss_mb() -> float:
+    """This process's peak resident memory so far, in MB (not a table column: the manifest's)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _fill_row(row: dict[str, Any], outcome: Any) -> None:
+    row["samples"] = outcome.trace.data.shape[0]
+    if outcome.complete and outcome.summary is not None:
+        row["status"] = "ok"
+        summary = outcome.summary.as_dict()
+        row.update({k: (None if v is None else float(v)) for k, v in summary.items()})
+        E_in, E_fric = summary["E_in_J"], summary["E_fric_J"]
+        row["fric_share_end"] = float(E_fric / E_in) if E_in and E_fric is not None else None
+        row["warnings"] = "; ".join(outcome.warnings) or None  # plausibility flags (`cosim.plausibility`)
+    else:
+        row["reason"] = outcome.reason or "the run ended without a summary"
+
+
+class CaseRunner:
+    """A worker slot (the sweep's side): a plant host started when needed and replaced after a case
+    that ends it, the case it runs, and that case's row once it is over (`service`)."""
+
+    def __init__(
+        self,
+        plant: Any,
+        fmu_sha256: str,
+        *,
+        rows: int = 1,
+        time_limit: float | None = None,
+        keep_traces: bool = False,
+        scratch: Path | None = None,
+    ) -> None:
+        from toggle_cosim.cosim.master import trace_names
+
+        self.plant = plant
+        self.sha256 = fmu_sha256
+        self.rows = rows
+        self.columns = len(trace_names(plant))  # the built-in law's; a case with more gets a bigger host
+        self.time_limit = time_limit
+        self.keep_traces = keep_traces
+        self.scratch = scratch
+        self.host: Any = None
+        self.payload: Mapping[str, Any] | None = None
+        self.cases_run = 0  # by the current host
+        self.hosts_started = 0
+
+    @property
+    def busy(self) -> bool:
+        return self.payload is not None
+
+    def _new_host(self, rows: int) -> Any:
+        from toggle_cosim import interrupts
+        from toggle_cosim.cosim.plant_host import PlantHost
+
+        self.close()
+        with interrupts.deferred():  # the host and its folder are known here before an interrupt acts
+            self.host = PlantHost(CaseServer(self.plant, self.sha256), max(rows, self.rows), self.columns, self.scratch)
+            self.host.start()
+        self.hosts_started += 1
+        self.cases_run = 0
+        return self.host
+
+    def submit(self, payload: Mapping[str, Any]) -> None:
+        """Start the case on this slot's host (a new one if there is none, it died idle, or its
+        trace buffer is too small for this case)."""
+        rows = case_samples(payload)
+        columns = len(case_columns(payload, self.plant))
+        limit = case_time_limit(payload, self.time_limit)
+        host = self.host
+        small = host is not None and host.buffer.size < rows * columns
+        if host is None or not host.alive or small or not host.submit(payload, limit):
+            self.columns = max(self.columns, columns)
+            host = self._new_host(rows)
+            if not host.submit(payload, limit):
+                raise RuntimeError("a new plant host died before its first case")
+        self.payload = payload
+        self.cases_run += 1
+
+    def service(self, answer: Any) -> tuple[dict[str, Any], np.ndarray | None]:
+        """The row (and, with keep_traces, the trace) of the case this slot ran, from the host's answer."""
+        from toggle_cosim.cosim.supervision import rows_recorded
+
+        payload, self.payload = self.payload, None
+        view = case_view(self.host.buffer, case_samples(payload), len(case_columns(payload, self.plant)))
+        if answer.failure is None:
+            row = answer.value
+            trace = None
+            if self.keep_traces and row.get("samples") and view is not None:
+                trace = np.array(view[: row["samples"]])
+            return row, trace
+        rows = rows_recorded(view) if view is not None else answer.rows  # the samples the case recorded
+        self.close()  # a host that failed a case is gone (or dying): the next case gets a new one
+        T_s = payload["parameters"]["T_s"]
+        at = f" at t = {max(rows - 1, 0) * T_s:.6g} s" if rows else " before the first sample"
+        return crash_row(payload, self.sha256, f"{answer.failure}{at}", rows), None
+
+    def close(self) -> None:
+        """Stop the host and remove its folder; an interrupt meanwhile (say, one sent again after
+        it was lost in a finalizer) waits until both are done."""
+        from toggle_cosim import interrupts
+
+        with interrupts.deferred():
+            if self.host is not None:
+                self.host.close()
+                self.host = None
+
+
+def run_cases(
+    payloads: Sequence[Mapping[str, Any]],
+    fmu: str,
+    fmu_sha256: str,
+    fmu_data: bytes | None = None,
+    time_limit: float | None = None,
+    keep_traces: bool = False,
+) -> list[tuple[dict[str, Any], np.ndarray | None]]:
+    """Run cases one after the other on this thread's plant host (kept from call to call: a Dask
+    worker thread loads the plant once), each under its time limit; their rows (and traces)."""
+    from toggle_cosim.cosim.plant_host import wait_for_hosts
+
+    try:
+        plant = resolve_plant(fmu, fmu_sha256, fmu_data)
+    except Exception as error:  # noqa: BLE001 - the cases' result, not the worker's crash
+        reason = " ".join(f"{type(error).__name__}: {error}".split())
+        return [(crash_row(payload, fmu_sha256, reason), None) for payload in payloads]
+    runner = getattr(_workers, "runner", None)
+    key = (fmu_sha256, time_limit, keep_traces)
+    if runner is None or getattr(_workers, "key", None) != key:
+        if runner is not None:
+            runner.close()
+        runner = CaseRunner(plant, fmu_sha256, time_limit=time_limit, keep_traces=keep_traces)
+        _workers.runner, _workers.key = runner, key
+        if not _open_runners:
+            import atexit
+
+            atexit.register(_close_runners)
+        _open_runners.append(runner)
+    results = []
+    for payload in payloads:
+        runner.submit(payload)
+        while runner.busy:
+            for _, answer in wait_for_hosts([runner.host]):
+                results.append(runner.service(answer))
+    return results
+
+
+def _close_runners() -> None:
+    for runner in _open_runners:
+        with contextlib.suppress(Exception):
+            runner.close()
+
+
+def run_case(
+    case: Mapping[str, Any],
+    fmu: str,
+    fmu_sha256: str,
+    fmu_data: bytes | None = None,
+    time_limit: float | None = None,
+) -> dict[str, Any]:
+    """Run one case (a payload of plain data) on the plant FMU at `fmu` (checked against
+    `fmu_sha256`; `fmu_data`, the FMU's bytes, stand in where that file is missing or differs);
+    return its table row. Never raises for a failure of the case: the row has status "failed"
+    and the reason (a crash or hang of the plant, `time_limit` exceeded, ...)."""
+    return run_cases([case], fmu, fmu_sha256, fmu_data, time_limit)[0][0]
