@@ -224,12 +224,12 @@ def test_the_documentation_site_builds_strictly(tmp_path: Path) -> None:
 
 @pytest.fixture
 def working_copy(tmp_path: Path) -> Path:
-    """The repository's top folder as a reader has it: the scenarios copied (examples write
+    """The repository's top folder as a reader has it: the scenarios and examples copied (examples write
     references), everything else linked; fmus/, out/ and reports/ start empty."""
     copy = tmp_path / "toggle-cosim"
     copy.mkdir()
     for entry in ROOT.iterdir():
-        if entry.name in ("scenarios",):
+        if entry.name in ("scenarios", "examples"):
             shutil.copytree(entry, copy / entry.name)
         elif entry.name not in ("out", "fmus", "reports", "site", "build", ".git", ".pytest_cache", ".hypothesis"):
             (copy / entry.name).symlink_to(entry)

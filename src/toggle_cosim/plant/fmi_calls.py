@@ -57,15 +57,23 @@ def _log3(_environment: Any, status: int, _category: Any, message: Any) -> None:
 
 
 @functools.cache
+def _logger2() -> Any:
+    """Our FMI 2.0 logger as a C function pointer, made once per process and kept: the C proxy
+    that formats a message keeps a pointer to it, so it must outlive every FMU that may log."""
+    return fmi2CallbackLoggerTYPE(_log2)
+
+
 def fmi2_callbacks() -> fmi2CallbackFunctions:
-    """fmpy's default FMI 2.0 callbacks (its allocator, its formatting proxy) with our logger:
-    made once per process and kept (the C proxy that formats the message keeps a pointer to
-    the logger, so it must outlive every FMU that may log)."""
+    """fmpy's default FMI 2.0 callbacks (its allocator, its formatting proxy) with our logger, for
+    one instance (which keeps them). fmpy's formatting proxy keeps one process-wide pointer to
+    the logger behind it, which any FMU instantiated with fmpy's own callbacks re-points: making
+    the callbacks anew at each instantiation points it at ours again, so an FMU's messages are
+    never lost to a logger set up by other code in the process."""
     from fmpy.fmi2 import defaultCallbacks
     from fmpy.logging import addLoggerProxy
 
     callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(_log2)
+    callbacks.logger = _logger2()
     callbacks.allocateMemory = defaultCallbacks.allocateMemory
     callbacks.freeMemory = defaultCallbacks.freeMemory
     addLoggerProxy(ctypes.byref(callbacks))  # formats the variadic message in C, then calls _log2
