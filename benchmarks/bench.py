@@ -774,10 +774,10 @@ def main() -> int:
         table.check("six runs together, process start to last file, RTF >= 5", rtf_six >= 5, f"{rtf_six:.1f}")
         suite_ratio = fastest["to_last_file"] / sims
         figures["six_runs"]["ratio_to_simulate"] = suite_ratio
-        table.check(
-            "six runs, process start to last file <= 4 x their six simulate() calls (issue 12)",
-            suite_ratio <= 4,
-            f"{fastest['to_last_file']:.2f} s / {sims:.2f} s = {suite_ratio:.1f}",
+        table.add(  # reported, no target: the start-up target that once asked for hand-written code is withdrawn
+            "process start to last file / six simulate() calls",
+            f"{suite_ratio:.1f}",
+            f"{fastest['to_last_file']:.2f} s / {sims:.2f} s (no target)",
         )
 
         # ---------------------------------------------------------------- supervision
