@@ -313,7 +313,7 @@ def test_sweep_returns_the_rows_the_runs_give(plant_fmu: Path, tmp_path: Path) -
 class _Proportional:
     """A user's controller meeting the protocol: i_q* = K (x* − x_B), its error recorded."""
 
-    diagnostics = ("err",)
+    diagnostics = ("e",)  # the built-in law's name for its error: no unit may be guessed for it
 
     def __init__(self, gain: float, target: float) -> None:
         self.gain, self.target = gain, target
@@ -333,10 +333,11 @@ def test_a_user_s_controller_object_gives_its_command_at_every_sample(plant_fmu:
     run = tc.load_scenario(FIG4).updated({"t_end": 0.05})["friction"]
     result = tc.simulate(run, plant_fmu, supervised=supervised, controller=_Proportional(20.0, run.x_target))
     frame = result.to_dataframe()
-    assert result.status == "complete" and "err" in frame.columns and "S" not in frame.columns
-    np.testing.assert_array_equal(frame["err"].to_numpy(), run.x_target - frame["x_B"].to_numpy())
-    np.testing.assert_array_equal(frame["iq_ref"].to_numpy(), 20.0 * frame["err"].to_numpy())
+    assert result.status == "complete" and "e" in frame.columns and "S" not in frame.columns
+    np.testing.assert_array_equal(frame["e"].to_numpy(), run.x_target - frame["x_B"].to_numpy())
+    np.testing.assert_array_equal(frame["iq_ref"].to_numpy(), 20.0 * frame["e"].to_numpy())
     assert result.record["loop"]["kind"] == "python"
+    assert "e" not in frame.attrs["units"] and frame.attrs["units"]["x_B"] == "m"  # the user's e has no unit
 
 
 def test_an_object_that_is_not_a_controller_is_refused_in_one_line(plant_fmu: Path) -> None:

@@ -19,6 +19,7 @@ from pathlib import Path
 from toggle_cosim.api.result import Result, RunInterrupted
 from toggle_cosim.api.scenarios import Scenario
 from toggle_cosim.api.units import trace_units
+from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim.outcome import RunOutcome
@@ -145,7 +146,10 @@ def simulate(
         except ControllerError as error:
             raise ScenarioError(f"controller: {error}") from None
     outcome = _outcome(run, plant, supervised, time_limit, progress, controller)
-    result = Result.from_outcome(outcome, trace_units(outcome.trace.names, plant, run.controller.objective))
+    units = trace_units(outcome.trace.names, plant, run.controller.objective)
+    if controller is not None or run.controller.python is not None:  # e, S, phase: only the built-in law's units
+        units = {name: unit for name, unit in units.items() if name not in VSCController.diagnostics}
+    result = Result.from_outcome(outcome, units)
     if outcome.interrupted:
         raise RunInterrupted(result)
     return result
