@@ -1,4 +1,4 @@
-"""The results table of a set of runs, as Markdown (the README quotes it)."""
+"""The results table of a set of runs, as Markdown (docs/paper.md quotes it)."""
 
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ law reads in a `LawParameters`. Its diagnostics, recorded in the trace, are S, p
 (0 reaching, 1 sliding) and e.
 
 Law "integral" (``law="integral"``): the integral-compensated variant, S = C e + ė + K_I ∫e dt,
-with the current clipped to ±i_max and conditional integration as anti-windup (README).
+with the current clipped to ±i_max and conditional integration as anti-windup (docs/controllers.md).
 
 Objectives: "x_B" (default; the paper's section 4: "regulate the position of slider B"), which
 reads the plant's x_B and v_B, and "theta1" (the lever angle, as eq. (26) hints), which reads
@@ -155,7 +155,7 @@ class VSCController:
             with the paper's motor parameters).
         target: slider-B target position x_B* [m] (also for the θ1 objective, via eq. (26)).
         objective: "x_B" (default) or "theta1".
-        law: "paper" (default; eqs. (19)-(25)) or "integral" (README, "An integral-compensated VSC").
+        law: "paper" (default; eqs. (19)-(25)) or "integral" (docs/controllers.md, "An integral-compensated VSC").
         C_I: slope of the integral law's surface S = C_I e + ė + K_I ∫e dt [1/s].
         K_I: integral gain of the integral law [1/s²]; C_I = 2λ, K_I = λ² put a double pole at −λ.
         i_max: current limit of the integral law [A].
@@ -247,7 +247,7 @@ class VSCController:
         if self.law == "integral":
             # the integral surface S = C_I e + ė + K_I z starts at S(t0) = 0 when K_I > 0, with
             # z(t0) = −(C_I e0 + ė0)/K_I: eq. (21) gives T_h = 0, and the error follows
-            # ë + C_I ė + K_I e = 0 from t0 (README, "An integral-compensated VSC")
+            # ë + C_I ė + K_I e = 0 from t0 (docs/controllers.md, "An integral-compensated VSC")
             e0, edot0, _, _ = error_terms(q, qd, self.law_parameters())
             S0 = self.C_I * e0 + edot0
             if self.K_I > 0:

@@ -1,5 +1,5 @@
 """The control laws, defined once: one sample of the paper's two-phase VSC, eqs. (19)-(25),
-and of its integral-compensated variant (README, "An integral-compensated VSC").
+and of its integral-compensated variant (docs/controllers.md, "An integral-compensated VSC").
 
 `law_step` is the single definition both loops run: `controller.VSCController.step` calls it
 in Python, and the compiled loop runs its C translation (`control.translate`), which evaluates

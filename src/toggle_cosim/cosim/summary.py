@@ -9,7 +9,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class RunSummary:
-    """What the README's results table reports for a run."""
+    """What the results table (`summary.md`, docs/paper.md) reports for a run."""
 
     final_error_m: float  # x_B* - x_B at t_end
     settling_time_s: float | None  # last entry into the 2 % band of the stroke, None if never settled

@@ -95,7 +95,7 @@ _CONTROLLER = {
         "objective": {"enum": ["x_B", "theta1"]},
         "gains": _GAINS,
         "nominal_m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
-        "law": {"enum": ["paper", "integral"]},  # the integral law: control/laws.py, README
+        "law": {"enum": ["paper", "integral"]},  # the integral law: control/laws.py, docs/controllers.md
         "C_I": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # 1/s, integral law only
         "K_I": {"type": "number", "minimum": 0, "maximum": 1e6},  # 1/s², integral law only
         "i_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e4},  # A, integral law only

@@ -10,7 +10,7 @@ causality, type, unit, tier and meaning. Two tiers:
   an optional variable (theta1 and omega1 for the theta1 objective): `objective_requirements`.
 
 Units: a different unit is refused; a missing unit attribute (PythonFMU writes none) is a
-warning (`PlantInterface.warnings`). The docs' and the README's tables are generated from the
+warning (`PlantInterface.warnings`). The docs' table is generated from the
 same file (`contract_table`).
 """
 

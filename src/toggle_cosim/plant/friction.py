@@ -2,7 +2,7 @@
 
 The models live in the Modelica source (`ToggleMechanism`, parameter `frictionModel`); this
 module is the one table from the scenario key `plant.friction_model` to that parameter, and
-the settings the master writes for it. See the README's "Friction models" section:
+the settings the master writes for it. See docs/friction-models.md:
 
 * ``paper``        eq. (17) as the paper writes it, tau_i = mu sgn(omega_i) R_i (the default)
 * ``dissipative``  tau_i = mu sgn(omega_i) |R_i|: friction power is never negative
