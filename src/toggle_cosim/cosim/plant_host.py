@@ -41,7 +41,6 @@ import numpy as np
 from toggle_cosim import interrupts, process_tree
 from toggle_cosim.cosim.supervision import (
     FOLDER_PREFIX,
-    die_with_parent,
     exit_reason,
     fork_child,
     limit_memory,
@@ -101,7 +100,7 @@ def _host_child(serve: Serve, buffer: np.ndarray, workdir: Path, requests: int, 
         faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
         interrupts.as_child()  # the parent decides about interrupts
         process_tree.become_leader()  # its own group, and the adoptive parent of its plant's orphans
-        die_with_parent(parent)
+        process_tree.die_with(parent)
         limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the host's folder
         gc.freeze()  # a collection never touches (and so copies) the heap inherited from the parent

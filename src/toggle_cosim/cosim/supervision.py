@@ -112,11 +112,6 @@ def seconds_text(value: float) -> str:
     return f"{value:.0f} s" if value >= 10 else f"{value:.3g} s"
 
 
-def die_with_parent(parent: int) -> None:
-    """In a plant process: SIGKILL when `parent` ends (`process_tree.die_with`)."""
-    process_tree.die_with(parent)
-
-
 def limit_memory() -> None:
     """The child's address space may grow by `limits.plant_memory()` (checked by the command
     before any run, `limits.check_environment`): a plant that allocates without
