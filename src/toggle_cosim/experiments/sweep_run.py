@@ -27,7 +27,7 @@ from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore, batch_rows
-from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, peak_rss_mb
+from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, case_columns, peak_rss_mb
 from toggle_cosim.files.outputs import folder_lock
 
 MANIFEST_FILE = "sweep.json"
@@ -130,7 +130,7 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
                 f" columns, about {size / 1e9:.2f} GB before compression, over the {max_output() / 1e9:.2f} GB"
                 " output limit; sweep fewer cases, raise T_s, shorten t_end or raise TOGGLE_COSIM_MAX_OUTPUT"
             )
-    from toggle_cosim.control.protocol import ControllerError, check_controller
+    from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.controllers import controller_for
 
     seen = set()
@@ -149,10 +149,11 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
         (run,) = runs_from_document(copy.deepcopy(case.document), sweep.base)  # validated by load_sweep already
         try:
             check_settings(run, plant)
-            controller = controller_for(run, plant.recorded_outputs)  # imports, builds and meets the protocol
-            if keep_traces and trace_names(plant, check_controller(controller, plant.recorded_outputs)) != trace_names(
-                plant
-            ):
+            if run.controller.python is None:
+                controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
+            # a controller.python's: imported, built and checked once here, its columns kept for the cases
+            columns = case_columns(case.payload(), plant)
+            if keep_traces and columns != trace_names(plant):
                 raise SweepError(
                     f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
                     "law's columns, and this case's controller records other diagnostics; sweep it without "
