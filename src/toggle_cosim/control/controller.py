@@ -34,7 +34,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import ClassVar, Literal
 
-from toggle_cosim.control.laws import error_terms, law_step
+from toggle_cosim.control.laws import error_terms, law_start, law_step
 from toggle_cosim.control.parameters import (
     INTEGRAL,
     OBJECTIVE_THETA1,
@@ -228,7 +228,8 @@ class VSCController:
         return self.gains.C * e + edot
 
     def start(self, t0: float, measurement: Mapping[str, float]) -> ControllerState:
-        """Initialise at the first sample: S(t0) and the hitting time T_h of eq. (21).
+        """Initialise at the first sample: S(t0), the hitting time T_h of eq. (21) and the
+        integral law's z(t0) (`control.laws.law_start`).
 
         Args:
             t0: time of the first sample [s].
@@ -242,18 +243,7 @@ class VSCController:
                 f" the measurement has no {missing[0]}"
             )
         q, qd = (float(measurement[name]) for name in self.measured)
-        S0 = self.switching_function(q, qd)
-        z0 = 0.0
-        if self.law == "integral":
-            # the integral surface S = C_I e + ė + K_I z starts at S(t0) = 0 when K_I > 0, with
-            # z(t0) = −(C_I e0 + ė0)/K_I: eq. (21) gives T_h = 0, and the error follows
-            # ë + C_I ė + K_I e = 0 from t0 (docs/controllers.md, "An integral-compensated VSC")
-            e0, edot0, _, _ = error_terms(q, qd, self.law_parameters())
-            S0 = self.C_I * e0 + edot0
-            if self.K_I > 0:
-                z0 = -S0 / self.K_I
-                S0 = 0.0  # on the surface by construction (up to rounding in the last bit)
-        T_h = hitting_time(S0, self.gains)
+        S0, T_h, z0 = law_start(q, qd, self.law_parameters())
         return ControllerState(t0=float(t0), S0=S0, T_h=T_h, law=self.law_parameters(float(t0), T_h), z=z0)
 
     def phase(self, state: ControllerState, t: float) -> Phase:

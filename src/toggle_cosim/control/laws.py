@@ -1,19 +1,22 @@
 """The control laws, defined once: one sample of the paper's two-phase VSC, eqs. (19)-(25),
 and of its integral-compensated variant (docs/controllers.md, "An integral-compensated VSC").
 
-`law_step` is the single definition both loops run: `controller.VSCController.step` calls it
-in Python, and the compiled loop runs its C translation (`control.translate`), which evaluates
-the same operations in the same order, so both give the same bits. Written in the translator's
+`law_step` (and `law_start`, the first sample's start) is the single definition every loop runs:
+`controller.VSCController` calls them in Python; the compiled loop and the controller FMU
+(`controller_fmu`) run their C translation (`control.translate`), which evaluates the same
+operations in the same order, so all give the same bits. Written in the translator's
 subset: floats and `LawParameters`, local assignments, if/else, tuple returns, math.* calls,
 abs, raise ValueError.
 """
 
 from __future__ import annotations
 
+import math
+
 from toggle_cosim.control.nominal import nominal_reduced, theta1_omega1
 from toggle_cosim.control.parameters import LawParameters
 
-__all__ = ["error_terms", "law_step"]
+__all__ = ["error_terms", "law_start", "law_step"]
 
 
 def error_terms(q: float, qd: float, p: LawParameters) -> tuple[float, float, float, float]:
@@ -31,6 +34,29 @@ def error_terms(q: float, qd: float, p: LawParameters) -> tuple[float, float, fl
         return p.target - q, -qd, dxB * acc0 + bB, p.K_f * dxB * dacc
     acc0, dacc, dxB, bB = nominal_reduced(q, qd, p)
     return p.target - q, -qd, acc0, p.K_f * dacc
+
+
+def law_start(q: float, qd: float, p: LawParameters) -> tuple[float, float, float]:
+    """The first sample's start of the law from the objective's measured coordinate and rate:
+    (S(t0), T_h, z0).
+
+    Paper (p.law = 0): S0 = C e + ė, z0 = 0.
+    Integral (p.law = 1): S = C_I e + ė + K_I z starts on the surface when K_I > 0, with
+    z0 = −(C_I e0 + ė0)/K_I and S0 = 0 (eq. (21) then gives T_h = 0 and the error follows
+    ë + C_I ė + K_I e = 0 from t0; docs/controllers.md, "An integral-compensated VSC").
+    Hitting time, eq. (21): T_h = (1/P) ln(P |S0|/Q + 1).
+    """
+    e, edot, f, G = error_terms(q, qd, p)
+    z0 = 0.0
+    if p.law == 0.0:
+        S0 = p.C * e + edot
+    else:
+        S0 = p.C_I * e + edot
+        if p.K_I > 0.0:
+            z0 = -S0 / p.K_I
+            S0 = 0.0  # on the surface by construction (up to rounding in the last bit)
+    T_h = math.log(p.P * abs(S0) / p.Q + 1.0) / p.P
+    return S0, T_h, z0
 
 
 def law_step(t: float, q: float, qd: float, z: float, p: LawParameters) -> tuple[float, float, float, float, float]:

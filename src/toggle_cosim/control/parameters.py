@@ -4,17 +4,29 @@ its ctypes mirror, both generated from this class (`control.translate`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
-__all__ = ["LawParameters", "PAPER", "INTEGRAL", "OBJECTIVE_XB", "OBJECTIVE_THETA1"]
+__all__ = ["LawParameters", "PAPER", "INTEGRAL", "OBJECTIVE_XB", "OBJECTIVE_THETA1", "described"]
 
 PAPER, INTEGRAL = 0.0, 1.0  # law codes
 OBJECTIVE_XB, OBJECTIVE_THETA1 = 0.0, 1.0  # objective codes
 
 
+def described(
+    unit: str, description: str, minimum: float | None = None, maximum: float | None = None
+) -> dict[str, Any]:
+    """A field's metadata: its unit (Modelica syntax; "" where it depends on the objective, m for
+    x_B and rad for θ1, or where there is none), a one-line description and the bounds of its
+    valid values. The one place these are written: the controller FMU's parameter list and its
+    documentation are generated from them."""
+    return {"unit": unit, "description": description, "min": minimum, "max": maximum}
+
+
 @dataclass(frozen=True)
 class LawParameters:
-    """Everything a law step reads, as floats.
+    """Everything a law step reads, as floats. Each field's unit, description and bounds are
+    its metadata (`described`).
 
     Attributes:
         law: 0 the paper's two-phase VSC, eqs. (19)-(25); 1 its integral-compensated variant.
@@ -31,36 +43,50 @@ class LawParameters:
             evaluates them.
     """
 
-    law: float
-    objective: float
-    target: float
-    C: float
-    Q: float
-    P: float
-    delta: float
-    beta: float
-    C_I: float
-    K_I: float
-    i_max: float
-    T_s: float
-    K_f: float
-    t0: float
-    T_h: float
-    r1: float
-    r3: float
-    r4: float
-    r5: float
-    f: float
-    h: float
-    phi: float
-    m3: float
-    m5: float
-    mB: float
-    mC: float
-    J2: float
-    J3: float
-    J5: float
-    g: float
+    law: float = field(
+        metadata=described(
+            "", "0 the paper's two-phase VSC, eqs. (19)-(25); 1 its integral-compensated variant", 0.0, 1.0
+        )
+    )
+    objective: float = field(
+        metadata=described(
+            "", "0 the slider position x_B (reads x_B, v_B); 1 the lever angle theta1 (reads theta1, omega1)", 0.0, 1.0
+        )
+    )
+    target: float = field(
+        metadata=described("", "target of the objective: x_B* [m], or theta1* [rad] for the theta1 objective")
+    )
+    C: float = field(metadata=described("1/s", "slope of the sliding surface S = C e + de/dt, eq. (19)"))
+    Q: float = field(
+        metadata=described("", "reaching gain Q of eq. (19) [m/s2, or rad/s2 for the theta1 objective]", 0.0)
+    )
+    P: float = field(metadata=described("1/s", "proportional reaching gain P of eq. (19)", 0.0))
+    delta: float = field(
+        metadata=described("", "boundary layer delta of the sliding law, eq. (24) [m/s, or rad/s]", 0.0)
+    )
+    beta: float = field(metadata=described("", "gain beta of the sliding law, eq. (24) [m/s2, or rad/s2]"))
+    C_I: float = field(metadata=described("1/s", "slope of the integral law's surface S = C_I e + de/dt + K_I z", 0.0))
+    K_I: float = field(metadata=described("1/s2", "integral gain of the integral law", 0.0))
+    i_max: float = field(metadata=described("A", "current limit of the integral law (its anti-windup acts there)", 0.0))
+    T_s: float = field(metadata=described("s", "sample time (the integral law's integrator; a controller's step)", 0.0))
+    K_f: float = field(metadata=described("N/A", "the controller's thrust constant, F_C = K_f iq_ref, eq. (16)", 0.0))
+    t0: float = field(metadata=described("s", "time of the first sample"))
+    T_h: float = field(metadata=described("s", "hitting time of eq. (21), from t0"))
+    r1: float = field(metadata=described("m", "nominal lever arm O-A"))
+    r3: float = field(metadata=described("m", "nominal length of link A-B"))
+    r4: float = field(metadata=described("m", "nominal lever arm O-D"))
+    r5: float = field(metadata=described("m", "nominal length of link D-C"))
+    f: float = field(metadata=described("m", "nominal height of the guide of slider B"))
+    h: float = field(metadata=described("m", "nominal height of the guide of slider C"))
+    phi: float = field(metadata=described("rad", "nominal angle between the lever arms O-A and O-D"))
+    m3: float = field(metadata=described("kg", "nominal mass of link A-B"))
+    m5: float = field(metadata=described("kg", "nominal mass of link D-C"))
+    mB: float = field(metadata=described("kg", "nominal mass of slider B"))
+    mC: float = field(metadata=described("kg", "nominal mass of slider C"))
+    J2: float = field(metadata=described("kg.m2", "nominal lever moment of inertia about O"))
+    J3: float = field(metadata=described("kg.m2", "nominal centroidal inertia of link A-B, m3 r3^2/12"))
+    J5: float = field(metadata=described("kg.m2", "nominal centroidal inertia of link D-C, m5 r5^2/12"))
+    g: float = field(metadata=described("m/s2", "gravitational acceleration"))
 
 
 MECHANISM_FIELDS = ("r1", "r3", "r4", "r5", "f", "h", "phi", "m3", "m5", "mB", "mC", "J2", "g")
