@@ -154,6 +154,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("files",),
     ("physics", "fmu_export"),
     ("control",),
+    ("controller_fmu",),
     ("runs",),
     ("plant",),
     ("cosim",),

@@ -1,4 +1,5 @@
-"""`toggle-cosim build`: Modelica source to FMU (`fmu_export`), from any folder into any folder."""
+"""`toggle-cosim build`: Modelica source to FMU (`fmu_export`), from any folder into any folder;
+and the controller FMU ToggleVSC (`controller_fmu`), which needs only a C compiler."""
 
 from __future__ import annotations
 
@@ -18,6 +19,9 @@ from toggle_cosim.cli.app import (
     require,
 )
 
+CONTROLLER = "ToggleVSC"  # --model of the controller FMU (no Modelica source)
+DEFAULT_CONTROLLER = Path("fmus") / f"{CONTROLLER}.fmu"
+
 # The default file name's tag for an FMU that offers one interface only: the default FMU offers both.
 INTERFACE_TAGS = {"both": "", "cs": "_CS", "me": "_ME"}
 
@@ -33,6 +37,14 @@ def _is_fmu(path: Path) -> bool:
         return False
 
 
+def _check_fmu_output(output: Path) -> None:
+    check_output(output, "FMU (--out)")  # a link there is refused, not followed
+    if output.suffix != ".fmu":
+        raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
+    if output.is_dir() or (output.exists() and not _is_fmu(output)):
+        raise InputError(f"{output}: exists and is not an FMU; the build replaces only an FMU (give another --out)")
+
+
 def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0", interfaces: str = "both") -> None:
     from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
 
@@ -40,10 +52,7 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     check_output(output, "FMU (--out)")  # a link there is refused, not followed
     if not source.exists():
         raise InputError(f"{source}: no such Modelica package folder or .mo file (fix --source)")
-    if output.suffix != ".fmu":
-        raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
-    if output.is_dir() or (output.exists() and not _is_fmu(output)):
-        raise InputError(f"{output}: exists and is not an FMU; the build replaces only an FMU (give another --out)")
+    _check_fmu_output(output)
     try:
         report = build_fmu(source, model, output, fmi_version=fmi_version, interfaces=interfaces)
     except (ModelCompileError, FMUBuildError) as error:
@@ -56,6 +65,26 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     )
 
 
+def build_controller(output: Path, fmi_version: str = "2.0") -> None:
+    """The controller FMU ToggleVSC (FMI `fmi_version`, Co-Simulation) at `output`."""
+    import time
+
+    from toggle_cosim.controller_fmu import build_controller_fmu
+    from toggle_cosim.fmu_export.packaging import FMUBuildError
+
+    _check_fmu_output(output)
+    started = time.perf_counter()
+    try:
+        built = build_controller_fmu(output, fmi_version)
+    except FMUBuildError as error:
+        raise InputError(str(error).splitlines()[0]) from error
+    click.echo(
+        f"built {built.path} (FMI {built.fmi_version} CoSimulation, {built.size_bytes / 1024:.0f} KiB, "
+        f"GUID {built.token}): the VSC sampled every T_s, generated from control/laws.py; "
+        f"C build and zip {time.perf_counter() - started:.1f} s"
+    )
+
+
 @main.command()
 @click.option(
     "--source",
@@ -64,7 +93,12 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     show_default="the shipped ToggleLSM package",
     help="Modelica package folder (or a .mo file), anywhere.",
 )
-@click.option("--model", default=None, help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first).")
+@click.option(
+    "--model",
+    default=None,
+    help=f"Class to compile (default: every shipped plant, {DEFAULT_MODEL} first, then the controller FMU "
+    f"in FMI 2.0 and 3.0); {CONTROLLER} builds only the controller FMU (no Modelica needed).",
+)
 @out_file_option(f"FMU file to write (default: {DEFAULT_FMU} for {DEFAULT_MODEL}).")
 @click.option(
     "--fmi-version",
@@ -83,13 +117,22 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
 )
 def build(source: Path, model: str | None, output: Path | None, fmi_version: str, interfaces: str) -> None:
     """Compile the Modelica source into FMI 2.0 or 3.0 FMUs (Co-Simulation and/or Model Exchange);
-    by default every shipped plant into ./fmus of the current folder."""
+    by default every shipped plant into ./fmus of the current folder, then the controller FMU
+    (fmus/ToggleVSC.fmu, FMI 2.0, and fmus/ToggleVSC3.fmu, FMI 3.0)."""
     suffix = ("3" if fmi_version == "3.0" else "") + INTERFACE_TAGS[interfaces]
     if model is None and output is not None:
         model = DEFAULT_MODEL
     if model is None:
         for name, path in DEFAULT_BUILDS:
             build_plant(source, name, path.with_name(f"{path.stem}{suffix}.fmu"), fmi_version, interfaces)
+        build_controller(DEFAULT_CONTROLLER, "2.0")
+        build_controller(DEFAULT_CONTROLLER.with_name(f"{CONTROLLER}3.fmu"), "3.0")
+        return
+    if model == CONTROLLER:
+        if interfaces == "me":
+            raise InputError(f"{CONTROLLER} is a Co-Simulation FMU only (fix --interfaces: cs or both)")
+        tag = "3" if fmi_version == "3.0" else ""
+        build_controller(output or DEFAULT_CONTROLLER.with_name(f"{CONTROLLER}{tag}.fmu"), fmi_version)
         return
     default = dict(DEFAULT_BUILDS).get(model, Path("fmus") / f"{model.split('.')[-1]}.fmu")
     build_plant(source, model, output or default.with_name(f"{default.stem}{suffix}.fmu"), fmi_version, interfaces)
