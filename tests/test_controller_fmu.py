@@ -273,3 +273,12 @@ def test_the_fmu_rebuilds_from_its_sources(fmus: dict[str, Path], tmp_path: Path
     with zipfile.ZipFile(fmus["3.0"]) as archive:
         names = archive.namelist()
     assert "sources/buildDescription.xml" in names and "sources/vsc_fmi3.c" in names
+
+
+def test_the_docs_variables_table_is_the_generated_one() -> None:
+    """docs/controller-fmu.md holds the table `variables.markdown_table()` generates from
+    LawParameters' metadata (rewrite it from there after a change)."""
+    from toggle_cosim.controller_fmu.variables import TABLE_BEGIN, TABLE_END, markdown_table
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "controller-fmu.md").read_text(encoding="utf-8")
+    assert page[page.index(TABLE_BEGIN) : page.index(TABLE_END) + len(TABLE_END)] == markdown_table()
