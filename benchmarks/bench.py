@@ -9,6 +9,8 @@ What is measured (benchmarks/README.md says more):
 * the cost per communication step of the FMU alone: fmi2DoStep with fixed inputs in a tight
   loop, called three ways: through fmpy's wrapper, through the raw ctypes function (what a
   Python loop calls), and from a tiny C driver (the C cost with no Python at all);
+* the cost per sample of the controller FMU (ToggleVSC, FMI 2.0) from a C driver
+  (benchmarks/controller_driver.c: set its inputs, get its outputs, doStep), and its build;
 * the cost per step of the full co-simulation loop (read outputs, controller, set inputs,
   doStep, record), and its ratio to the FMU alone: the master's overhead;
 * the real-time factor of each paper run (loop only, instantiate to terminate, the whole
@@ -130,6 +132,40 @@ def compile_driver(folder: Path) -> ctypes.CDLL | None:
     ]
     lib.replay.restype = ctypes.c_long
     return lib
+
+
+def controller_fmu_cost(folder: Path, samples: int, repetitions: int) -> dict | None:
+    """The controller FMU (FMI 2.0 ToggleVSC) from C: build it, compile controller_driver.c
+    (beside this script) and run it: per sample set x_B and v_B, get the five outputs, doStep.
+    Returns its build time and the best ns per sample, or None without a C compiler."""
+    import zipfile
+
+    from toggle_cosim.controller_fmu import build_controller_fmu
+    from toggle_cosim.fmu_export.packaging import fmi_headers, platform_folder, shared_library_suffix
+    from toggle_cosim.native import c_compiler
+
+    try:
+        compiler = c_compiler()
+    except RuntimeError:
+        return None
+    t0 = time.perf_counter()
+    built = build_controller_fmu(folder / "ToggleVSC.fmu", "2.0")
+    build_s = time.perf_counter() - t0
+    unzipped = folder / "ToggleVSC"
+    with zipfile.ZipFile(built.path) as archive:
+        archive.extractall(unzipped)
+    binary = unzipped / "binaries" / platform_folder() / f"ToggleVSC{shared_library_suffix()}"
+    driver = folder / "controller_driver"
+    source = Path(__file__).resolve().parent / "controller_driver.c"
+    subprocess.run([compiler, "-O2", f"-I{fmi_headers()}", str(source), "-o", str(driver), "-ldl"], check=True)
+    result = subprocess.run(
+        [str(driver), str(binary), built.token, str(samples), str(repetitions)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    ns, last_command = (float(x) for x in result.stdout.split())
+    return {"build_s": build_s, "ns_per_step": ns, "samples": samples, "last_command_A": last_command}
 
 
 # ------------------------------------------------------------------------------------------
@@ -708,6 +744,22 @@ def main() -> int:
                 f"{us(b['replay'] - b['C'])} is FMU work the loop causes (output evaluation, restart after "
                 f"each input change) and {us(b['loop'] - b['replay'])} the master's own",
             )
+
+        # ---------------------------------------------------------------- the controller as an FMU
+        table.section("The controller FMU ToggleVSC (FMI 2.0), from a C driver")
+        controller = controller_fmu_cost(folder, 3000 if quick else 30000, reps)
+        if controller is None:
+            table.text("no C compiler: not measured")
+        else:
+            figures["controller_fmu"] = controller
+            per_step = controller["ns_per_step"] * 1e-9
+            table.add("controller FMU build (generate, C compile, zip)", f"{controller['build_s']:.2f} s")
+            table.add(
+                "controller FMU per sample: set 2 inputs, get 5 outputs, doStep",
+                us(per_step),
+                f"best of {reps} x {controller['samples']} samples; compare the full loop above",
+            )
+            table.check("controller FMU <= 0.5 us per step (C driver)", per_step <= 0.5e-6, us(per_step))
 
         # ---------------------------------------------------------------- paper runs
         table.section("Real-time factor of each paper run (simulated s / wall s, best of repetitions)")

@@ -42,6 +42,9 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
         assert figures["loop"] == "python" and figures["loop_reason"]
     for key in ("ratio_loop_over_ctypes", "paper_rtf", "six_runs"):
         assert key in figures, key
+    if "controller_fmu" in figures:  # measured wherever there is a C compiler
+        assert 0 < figures["controller_fmu"]["ns_per_step"] < 1e6
+        assert "controller FMU <= 0.5 us per step" in result.stdout
     assert len(figures["paper_rtf"]) == 6
     for target in (
         "full loop <= 1.5 x FMU alone",
