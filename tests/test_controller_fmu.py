@@ -282,3 +282,31 @@ def test_the_docs_variables_table_is_the_generated_one() -> None:
 
     page = (Path(__file__).resolve().parents[1] / "docs" / "controller-fmu.md").read_text(encoding="utf-8")
     assert page[page.index(TABLE_BEGIN) : page.index(TABLE_END) + len(TABLE_END)] == markdown_table()
+
+
+def test_the_cli_builds_the_controller_fmu_without_modelica(tmp_path: Path) -> None:
+    """`toggle-cosim build --model ToggleVSC` needs a C compiler only: it works in a process where
+    importing the Modelica compiler fails, writes fmus/ToggleVSC.fmu (fmus/ToggleVSC3.fmu for
+    FMI 3.0) and refuses a file name that is not an FMU's in one line, exit 2."""
+    import sys
+
+    program = "import sys; sys.modules['modelica'] = None\nfrom toggle_cosim.cli import main\nmain(sys.argv[1:])\n"
+
+    def cli(*arguments: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-c", program, *arguments], cwd=tmp_path, capture_output=True, text=True, check=False
+        )
+
+    for arguments, name, version in (
+        (["--model", "ToggleVSC"], "ToggleVSC.fmu", "2.0"),
+        (["--model", "ToggleVSC", "--fmi-version", "3.0"], "ToggleVSC3.fmu", "3.0"),
+    ):
+        result = cli("build", *arguments)
+        assert result.returncode == 0, result.stderr
+        assert result.stdout.startswith(f"built fmus/{name} (FMI {version} CoSimulation")
+        assert read_model_description(str(tmp_path / "fmus" / name)).fmiVersion == version
+    refused = cli("build", "--model", "ToggleVSC", "--out", "notes.txt")
+    assert refused.returncode == 2 and refused.stderr.strip().splitlines() == [
+        "error: notes.txt: an FMU file name must end in .fmu (fix --out)"
+    ]
+    assert not (tmp_path / "notes.txt").exists()
