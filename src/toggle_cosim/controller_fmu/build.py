@@ -11,8 +11,6 @@ FMI headers on the include path rebuilds the binary.
 from __future__ import annotations
 
 import hashlib
-import os
-import subprocess
 import tempfile
 from dataclasses import dataclass
 from importlib import resources
@@ -23,10 +21,8 @@ from toggle_cosim.controller_fmu.model_description import fmi2_model_description
 from toggle_cosim.controller_fmu.source import MODEL_IDENTIFIER, law_source, model_header
 from toggle_cosim.fmu_export.packaging import (
     FMUBuildError,
-    find_c_compiler,
-    first_compiler_error,
+    compile_binary,
     fmi3_build_description,
-    fmi_headers,
     platform_folder,
     platform_tuple,
     shared_library_suffix,
@@ -107,23 +103,7 @@ def build_controller_fmu(output: Path, fmi_version: str = "2.0") -> ControllerFM
         binary_dir = work / "binaries" / binaries
         binary_dir.mkdir(parents=True)
         binary = binary_dir / f"{MODEL_IDENTIFIER}{shared_library_suffix()}"
-        command = [
-            find_c_compiler(),
-            *LAW_FLAGS,
-            f"-I{sources}",
-            f"-I{fmi_headers()}",
-            *(str(sources / name) for name in compiled),
-            "-o",
-            str(binary),
-            "-lm",
-        ]
-        result = subprocess.run(command, capture_output=True, text=True, check=False)
-        if result.returncode != 0 or not binary.is_file():
-            messages = result.stderr.replace(f"{sources}{os.sep}", "").strip()
-            raise FMUBuildError(
-                f"C compiler failed for {MODEL_IDENTIFIER}: {first_compiler_error(messages, result.returncode)}\n"
-                f"{messages[:4000]}"
-            )
+        compile_binary(MODEL_IDENTIFIER, sources, compiled, LAW_FLAGS, binary)
         (work / "modelDescription.xml").write_text(description, encoding="utf-8")
         zip_folder(work, output)
     return ControllerFMU(output, fmi_version, token, output.stat().st_size)

@@ -15,8 +15,6 @@ lists); `instance.c` travels in `sources/` beside the headers.
 
 from __future__ import annotations
 
-import os
-import subprocess
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,10 +26,8 @@ from toggle_cosim.fmu_export.compile import GeneratedModel
 from toggle_cosim.fmu_export.model_description import fmi2_model_description, fmi3_model_description
 from toggle_cosim.fmu_export.packaging import (
     FMUBuildError,
-    find_c_compiler,
-    first_compiler_error,
+    compile_binary,
     fmi3_build_description,
-    fmi_headers,
     model_identifier_for,
     platform_folder,
     platform_tuple,
@@ -115,28 +111,7 @@ def write_fmu(
         binary_dir = work / "binaries" / version.binaries_folder()
         binary_dir.mkdir(parents=True)
         binary = binary_dir / f"{identifier}{shared_library_suffix()}"
-        command = [
-            find_c_compiler(),
-            *CFLAGS,
-            f"-I{sources}",
-            f"-I{fmi_headers()}",
-            *(str(sources / n) for n in compiled),
-            "-o",
-            str(binary),
-            "-lm",
-        ]
-        result = subprocess.run(command, capture_output=True, text=True, check=False)
-        if result.returncode != 0:
-            messages = result.stderr.replace(f"{sources}{os.sep}", "").strip()
-            raise FMUBuildError(
-                f"C compiler failed for {model.name}: {first_compiler_error(messages, result.returncode)}\n"
-                f"{messages[:4000]}"
-            )
-        if not binary.is_file() or binary.stat().st_size == 0:
-            raise FMUBuildError(
-                f"C compiler exited 0 but wrote no library {binary.name} for {model.name} "
-                f"(check the compiler {command[0]})"
-            )
+        compile_binary(model.name, sources, compiled, CFLAGS, binary)
         (work / "modelDescription.xml").write_text(
             version.model_description(model, identifier, tool, offered, compiled), encoding="utf-8"
         )

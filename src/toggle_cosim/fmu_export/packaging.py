@@ -5,8 +5,10 @@ FMU (`controller_fmu`) is built with these alone."""
 
 from __future__ import annotations
 
+import os
 import platform
 import re
+import subprocess
 import sys
 import xml.etree.ElementTree as ET
 import zipfile
@@ -101,6 +103,32 @@ def first_compiler_error(messages: str, returncode: int) -> str:
         if "error" in line.lower() and not line.lower().startswith("compilation terminated"):
             return line
     return lines[0] if lines else f"it exited with status {returncode} and printed nothing"
+
+
+def compile_binary(name: str, sources: Path, units: tuple[str, ...], flags: tuple[str, ...], binary: Path) -> None:
+    """Compile the C files `units` of the folder `sources` (with the FMI headers and `sources`
+    on the include path, linked with libm) into the shared library `binary`; FMUBuildError with
+    the compiler's first error line, naming the FMU `name`."""
+    command = [
+        find_c_compiler(),
+        *flags,
+        f"-I{sources}",
+        f"-I{fmi_headers()}",
+        *(str(sources / n) for n in units),
+        "-o",
+        str(binary),
+        "-lm",
+    ]
+    result = subprocess.run(command, capture_output=True, text=True, check=False)
+    if result.returncode != 0:
+        messages = result.stderr.replace(f"{sources}{os.sep}", "").strip()
+        raise FMUBuildError(
+            f"C compiler failed for {name}: {first_compiler_error(messages, result.returncode)}\n{messages[:4000]}"
+        )
+    if not binary.is_file() or binary.stat().st_size == 0:
+        raise FMUBuildError(
+            f"C compiler exited 0 but wrote no library {binary.name} for {name} (check the compiler {command[0]})"
+        )
 
 
 def zip_folder(folder: Path, output: Path) -> None:
