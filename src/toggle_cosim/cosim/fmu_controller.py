@@ -15,7 +15,10 @@ the same name; the diagnostics are its outputs other than iq_ref, in model-descr
 
 The hot calls go straight to the FMU's C functions with value-reference and value arrays built
 once (as `session` does for the plant). A status other than OK or Warning ends the run as a
-controller failure (`ControllerFmuError`) whose reason holds the FMU's last log line. The master
+controller failure (`ControllerFmuError`) whose reason holds the FMU's last log line (the FMU
+is instantiated with logging on: some, PythonFMU's among them, log a failure's cause only then).
+After a fatal status the FMU is not called again, not even to free it (FMI 2.0, 2.1.3); its
+unzipped copy is removed all the same. The master
 calls `close` on every exit path; `start` after `close` loads the FMU again.
 """
 
@@ -117,7 +120,6 @@ class FmuController:
         else:
             slave.instantiate(visible=False, loggingOn=True)
         self._component = slave.component
-        self._log_failures_only()
         prefix = "fmi3" if is_fmi3 else "fmi2"
         self._names = (
             (f"{prefix}SetFloat64", f"{prefix}GetFloat64", f"{prefix}DoStep")
@@ -139,17 +141,6 @@ class FmuController:
             self._step_outputs = tuple(ctypes.byref(ctypes.c_bool()) for _ in range(3)) + (
                 ctypes.byref(ctypes.c_double()),
             )
-
-    def _log_failures_only(self) -> None:
-        """Logging is on (some FMUs log a failure's cause only then); where the FMU declares
-        categories for warnings and errors, only those are logged."""
-        declared = [getattr(c, "name", str(c)) for c in getattr(self.fmu.model_description, "logCategories", [])]
-        wanted = [name for name in declared if any(word in name.lower() for word in ("error", "fatal", "warning"))]
-        if wanted:
-            try:
-                self._slave.setDebugLogging(True, wanted)
-            except Exception:  # noqa: BLE001, S110 - an FMU that refuses keeps logging everything
-                pass
 
     def _call(self, function: str, call: Any) -> None:
         try:
