@@ -53,10 +53,11 @@ class PDLaw(Fmi2Slave):
             self.register_variable(Real(name, causality=Fmi2Causality.input))
         for name in ("K_p", "K_d", "target", "fail_at"):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
-        self.register_variable(
-            Real("iq_ref", causality=Fmi2Causality.output, getter=lambda: self.K_p * (self.target - self.x_B) - self.K_d * self.v_B)
-        )
+        self.register_variable(Real("iq_ref", causality=Fmi2Causality.output, getter=self.command))
         self.register_variable(Real("e", causality=Fmi2Causality.output, getter=lambda: self.target - self.x_B))
+
+    def command(self) -> float:
+        return self.K_p * (self.target - self.x_B) - self.K_d * self.v_B
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         if current_time >= self.fail_at:

@@ -34,7 +34,6 @@ from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings, simulate
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, runs_from_document
-from toggle_cosim.files.traces import read_csv
 from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
