@@ -16,7 +16,8 @@ the same name; the diagnostics are its outputs other than iq_ref, in model-descr
 The hot calls go straight to the FMU's C functions with value-reference and value arrays built
 once (as `session` does for the plant). A status other than OK or Warning ends the run as a
 controller failure (`ControllerFmuError`) whose reason holds the FMU's last log line (the FMU
-is instantiated with logging on: some, PythonFMU's among them, log a failure's cause only then).
+is instantiated with logging on: some, PythonFMU's among them, log a failure's cause only then;
+its messages of status OK are dropped).
 After a fatal status the FMU is not called again, not even to free it (FMI 2.0, 2.1.3); its
 unzipped copy is removed all the same. The master
 calls `close` on every exit path; `start` after `close` loads the FMU again.
@@ -35,7 +36,7 @@ from fmpy import extract
 from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim.session import bound_function
 from toggle_cosim.plant.controller_contract import COMMAND, ControllerFmu
-from toggle_cosim.plant.fmi_calls import FMU2SlaveChecked, FMU3SlaveChecked, failed, last_log_line, logger3
+from toggle_cosim.plant.fmi_calls import FMU2SlaveChecked, FMU3SlaveChecked, failed, last_log_line, logger3, quiet
 
 __all__ = ["ControllerFmuError", "FmuController"]
 
@@ -115,6 +116,7 @@ class FmuController:
         slave = (FMU3SlaveChecked if is_fmi3 else FMU2SlaveChecked)(**kwargs)
         self._slave = slave
         last_log_line(self.instance_name, forget=True)
+        quiet(self.instance_name)
         if is_fmi3:
             slave.instantiate(visible=False, loggingOn=True, logMessage=logger3(self.instance_name))
         else:
@@ -209,6 +211,7 @@ class FmuController:
             if folder is not None:
                 shutil.rmtree(folder, ignore_errors=True)
             last_log_line(self.instance_name, forget=True)
+            quiet(self.instance_name, on=False)
 
     # -- the protocol -------------------------------------------------------------------------
     def start(self, t0: float, measurement: Mapping[str, float]) -> float | None:

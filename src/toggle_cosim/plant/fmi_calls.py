@@ -43,13 +43,27 @@ def log_line(status: int, message: bytes | str | None) -> str:
 
 
 _LAST: dict[str, str] = {}  # instance name -> the last line it logged
+_QUIET: set[str] = set()  # instance names whose OK-status messages are dropped
+
+
+def quiet(instance: str, on: bool = True) -> None:
+    """Drop (on) or keep (off) the OK-status messages of the instance named `instance`: an FMU
+    instantiated with logging on to learn a failure's cause may report every step."""
+    if on:
+        _QUIET.add(instance)
+    else:
+        _QUIET.discard(instance)
 
 
 def _print(status: int, message: bytes | str | None, instance: Any = None) -> None:
     try:
-        line = log_line(status, message)
+        name = None
         if instance is not None:
             name = instance.decode("utf-8", errors="replace") if isinstance(instance, bytes) else str(instance)
+            if status == 0 and name in _QUIET:
+                return
+        line = log_line(status, message)
+        if name is not None:
             if len(_LAST) > 64 and name not in _LAST:
                 _LAST.clear()  # names of instances long gone
             _LAST[name] = line
@@ -144,4 +158,4 @@ FMU2SlaveChecked = type("FMU2SlaveChecked", (FMU2Slave,), {**_checked(FMU2Slave)
 FMU3SlaveChecked = type("FMU3SlaveChecked", (FMU3Slave,), {**_checked(FMU3Slave), "instantiate": _instantiate3})
 
 
-__all__ = ["FMU2SlaveChecked", "FMU3SlaveChecked", "failed", "last_log_line", "log_line", "logger3"]
+__all__ = ["FMU2SlaveChecked", "FMU3SlaveChecked", "failed", "last_log_line", "log_line", "logger3", "quiet"]
