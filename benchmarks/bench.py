@@ -17,6 +17,9 @@ What is measured (benchmarks/README.md says more):
   simulate() call) and of the six runs together as a fresh process (`toggle-cosim run`),
   counted from process start to the last file written, with the Python start-up and import
   share;
+* the cost per step of simulate() with the controller as an FMU (`controller: {fmu: ...}`),
+  beside the compiled and the Python loop of the built-in law: ToggleVSC (generated from the
+  law) when `toggle_cosim.controller_fmu` is there, else a PD law built here with PythonFMU;
 * the cost per step and per simulated second for T_s = 2 ms ... 0.05 ms;
 * the throughput of a batch of runs on 1 and 2 worker processes;
 * sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the
@@ -314,6 +317,66 @@ def full_loop(plant, run, python_loop: bool = False) -> dict:
 
 def best(values) -> float:
     return min(values)
+
+
+# ------------------------------------------------------------------------------------------
+# The controller as an FMU: ToggleVSC when it can be built, else a PythonFMU PD law
+# ------------------------------------------------------------------------------------------
+PD_LAW_FMU = """
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+
+
+class BenchPD(Fmi2Slave):
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.x_B, self.v_B, self.K_p, self.K_d, self.target = 0.2329, 0.0, 12.0, 2.5, 0.3199
+        for name in ("x_B", "v_B"):
+            self.register_variable(Real(name, causality=Fmi2Causality.input))
+        for name in ("K_p", "K_d", "target"):
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
+        self.register_variable(Real("iq_ref", causality=Fmi2Causality.output, getter=self.command))
+
+    def command(self):
+        return self.K_p * (self.target - self.x_B) - self.K_d * self.v_B
+
+    def do_step(self, current_time, step_size):
+        return True
+"""
+
+
+def controller_fmu(folder: Path) -> tuple[Path, str] | None:
+    """(a controller FMU, what it is): ToggleVSC built by `toggle_cosim.controller_fmu` when that
+    module is there, else a PD law built with PythonFMU (None without either)."""
+    try:
+        from toggle_cosim.controller_fmu import build_controller_fmu
+    except ImportError:
+        pass
+    else:
+        return Path(build_controller_fmu(folder / "ToggleVSC.fmu", "2.0")), "ToggleVSC (the built-in law, generated C)"
+    script = folder / "bench_pd.py"
+    script.write_text(PD_LAW_FMU, encoding="utf-8")
+    command = [str(Path(sys.executable).parent / "pythonfmu"), "build", "-f", str(script), "-d", str(folder)]
+    try:
+        built = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
+    except OSError:
+        return None
+    if built.returncode != 0:
+        return None
+    return (
+        folder / "BenchPD.fmu",
+        "a PD law built with PythonFMU (ToggleVSC absent: toggle_cosim.controller_fmu not importable)",
+    )
+
+
+def fmu_controller_loop(plant, run, fmu: Path, coupling: str = "gauss-seidel") -> float:
+    """Seconds per step of simulate()'s loop for `run` with the controller FMU `fmu`."""
+    import dataclasses
+
+    settings = dataclasses.replace(run.controller, fmu=fmu, python=None)
+    outcome = master.simulate(dataclasses.replace(run, controller=settings), plant, coupling=coupling)
+    if not outcome.complete:
+        raise RuntimeError(f"{run.label} with the controller FMU {fmu.name}: {outcome.reason}")
+    return outcome.loop_seconds / (outcome.trace.data.shape[0] - 1)
 
 
 # ------------------------------------------------------------------------------------------
@@ -760,6 +823,27 @@ def main() -> int:
                 f"best of {reps} x {controller['samples']} samples; compare the full loop above",
             )
             table.check("controller FMU <= 0.5 us per step (C driver)", per_step <= 0.5e-6, us(per_step))
+
+        table.section("The controller as an FMU: simulate()'s cost per step, fig4_nominal/friction (3000 steps)")
+        made = controller_fmu(folder)
+        if made is None:
+            table.add("controller FMU", "not measured", "neither toggle_cosim.controller_fmu nor pythonfmu available")
+        else:
+            fmu_path, what = made
+            per_step = {
+                coupling: best(fmu_controller_loop(plant, run, fmu_path, coupling) for _ in range(min(reps, 3)))
+                for coupling in ("gauss-seidel", "jacobi")
+            }
+            figures["master_with_controller_fmu"] = {"fmu": what, "per_step_s": per_step}
+            table.add("built-in law, compiled loop", us(b["loop"]), "as above")
+            table.add("built-in law, Python loop", us(b["python"]), "as above")
+            table.add("controller FMU, gauss-seidel", us(per_step["gauss-seidel"]), what)
+            table.add("controller FMU, jacobi", us(per_step["jacobi"]), "the command held one sample")
+            table.add(
+                "ratio controller FMU / built-in law in the Python loop",
+                f"{per_step['gauss-seidel'] / b['python']:.2f}",
+                "the FMU's set, get and doStep per sample in place of the Python law",
+            )
 
         # ---------------------------------------------------------------- paper runs
         table.section("Real-time factor of each paper run (simulated s / wall s, best of repetitions)")

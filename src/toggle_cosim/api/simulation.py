@@ -12,6 +12,7 @@ and no crash guard. Both give the same trace, bit for bit.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -25,7 +26,7 @@ from toggle_cosim.cosim import master
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.experiments.scenario import ScenarioError
 from toggle_cosim.plant.contract import ContractError, PlantInterface, check_plant
-from toggle_cosim.runs.definition import Run
+from toggle_cosim.runs.definition import COUPLINGS, Run
 
 __all__ = ["checked_plant", "simulate"]
 
@@ -106,6 +107,7 @@ def simulate(
     time_limit: float | None = None,
     progress: Callable[[float], None] | None = None,
     controller: Controller | None = None,
+    coupling: str | None = None,
 ) -> Result:
     """Simulate one run (one variant of a scenario: `scenario["friction"]`; a scenario with one
     run may be given itself) against the plant FMU `fmu` (default: the scenario's `fmu:` key).
@@ -122,6 +124,9 @@ def simulate(
         controller: any object that meets the controller protocol (`toggle_cosim.control.protocol`:
             start, step, diagnostics) instead of the scenario's controller; it runs in the Python
             loop at every sample (docs/controllers.md).
+        coupling: "gauss-seidel" (the plant gets the command computed from its outputs at the
+            same sample) or "jacobi" (the previous sample's command); default: the scenario's
+            coupling key, else gauss-seidel (docs/controllers.md, "Coupling").
 
     Returns:
         The `Result`, complete or failed (a plant failure is a result, not an exception).
@@ -133,6 +138,10 @@ def simulate(
             partial result is its `.result`.
     """
     run = _one_run(run)
+    if coupling is not None:
+        if coupling not in COUPLINGS:
+            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
+        run = dataclasses.replace(run, coupling=coupling)
     chosen = fmu if fmu is not None else run.fmu
     if chosen is None:
         raise ScenarioError(f"{run.source or run.label}: no fmu: key and no fmu argument (name the plant FMU)")
@@ -147,7 +156,9 @@ def simulate(
             raise ScenarioError(f"controller: {error}") from None
     outcome = _outcome(run, plant, supervised, time_limit, progress, controller)
     units = trace_units(outcome.trace.names, plant, run.controller.objective)
-    if controller is not None or run.controller.python is not None:  # e, S, phase: only the built-in law's units
+    if (
+        controller is not None or run.controller.python is not None or run.controller.fmu is not None
+    ):  # e, S, phase: only the built-in law's units
         units = {name: unit for name, unit in units.items() if name not in VSCController.diagnostics}
     result = Result.from_outcome(outcome, units)
     if outcome.interrupted:

@@ -56,12 +56,18 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
     from toggle_cosim.cosim.controllers import controller_for
     from toggle_cosim.plant.settings import SettingError, check_settings
 
+    noted: set[str] = set()
     for run, plant in pairs:  # every name and value the run sets, and its controller, before any run starts
         try:
             check_settings(run, plant)
-            controller_for(run, plant.recorded_outputs)
+            controller = controller_for(run, plant.recorded_outputs)
         except (SettingError, ControllerError) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
+        fmu = getattr(controller, "fmu", None) if run.controller.fmu is not None else None
+        for warning in getattr(fmu, "warnings", ()):  # a controller FMU's missing units, once per file
+            if f"{fmu.path}: {warning}" not in noted:
+                noted.add(f"{fmu.path}: {warning}")
+                click.echo(f"{fmu.path}: warning: {warning}", err=True)
     return pairs
 
 

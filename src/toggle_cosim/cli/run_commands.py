@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from toggle_cosim.cli.app import (
 )
 from toggle_cosim.cli.build_command import build_plant
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_runs, load_runs, raise_if_failed
+from toggle_cosim.runs.definition import COUPLINGS
 
 
 @main.command()
@@ -32,13 +34,28 @@ from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_r
 )
 @click.option("--out", type=click.Path(path_type=Path), default=DEFAULT_OUT, show_default=True, help="Output folder.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars.")
+@click.option(
+    "--coupling",
+    type=click.Choice(COUPLINGS),
+    default=None,
+    help="gauss-seidel: the plant gets the command computed from its outputs at the same sample; jacobi: the "
+    "previous sample's command (overrides the scenarios' coupling: key; default gauss-seidel).",
+)
 @TIME_LIMIT_OPTION
 @JOBS_OPTION
 def run(
-    scenarios: tuple[Path, ...], fmu: Path | None, out: Path, quiet: bool, time_limit: float | None, jobs: int | None
+    scenarios: tuple[Path, ...],
+    fmu: Path | None,
+    out: Path,
+    quiet: bool,
+    coupling: str | None,
+    time_limit: float | None,
+    jobs: int | None,
 ) -> None:
     """Run scenario files; write trace.csv and run.json per run under OUT/<scenario>/<variant>/."""
     pairs = load_runs(scenarios, fmu)
+    if coupling is not None:
+        pairs = [(dataclasses.replace(one, coupling=coupling), plant) for one, plant in pairs]
     raise_if_failed(execute_runs(pairs, out, quiet, time_limit, jobs=jobs))
 
 

@@ -16,6 +16,10 @@ A controller is any object with these three members (structural typing: no base 
 * ``start(t0, measurement)``: the controller's state at the first sample;
 * ``step(state, t, measurement)``: a `ControlStep`.
 
+Optionally ``close()``: what the controller holds outside Python (a controller FMU's instance,
+library and unzipped copy, `cosim.fmu_controller`) is released; the master calls it, if the
+controller has it, on every exit path of a run (complete, failed, interrupted, refused).
+
 The measurement is the plant's outputs at the sample, by name (`Measurement`, a read-only
 mapping: ``measurement["x_B"]``, ``measurement["theta1"]``). The built-in two-phase VSC
 (`control.controller.VSCController`) is one such controller; `control.lti` adapts a

@@ -12,7 +12,15 @@ A scenario names a user's controller by a factory::
 The factory is called as ``factory(context, **parameters)`` with a `ControllerContext` (T_s, the
 stroke, the scenario's built-in controller, ...) and returns an object that meets the protocol,
 or a python-control discrete-time system (`control.StateSpace`/`TransferFunction` with dt = T_s),
-which `control.lti` adapts. Every failure is a `ControllerError` whose message names the key and
+which `control.lti` adapts. Or it names a controller FMU::
+
+    controller:
+      fmu: controllers/MyLaw.fmu            # relative to the scenario file
+      parameters: {K_p: 40.0}               # FMU parameters, set by name before initialisation
+
+checked by `plant.controller_contract` and run by `fmu_controller.FmuController`; an FMU with the
+built-in law's parameters (`controller_contract.LAW_PARAMETERS`) first gets the scenario's own
+controller settings. Every failure is a `ControllerError` whose message names the key and
 the fix; the run commands prefix the scenario file.
 """
 
@@ -29,9 +37,11 @@ from toggle_cosim.control.protocol import Controller, ControllerContext, Control
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
+from toggle_cosim.plant.contract import ContractError
+from toggle_cosim.plant.controller_contract import LAW_PARAMETERS, ControllerFmu, check_controller_fmu
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["builtin_controller", "controller_for", "controller_record", "load_factory"]
+__all__ = ["builtin_controller", "controller_for", "controller_record", "fmu_settings", "load_factory"]
 
 
 def builtin_controller(run: Run) -> VSCController:
@@ -122,14 +132,47 @@ def _is_python_control_system(candidate: object) -> bool:
     return control is not None and isinstance(candidate, control.LTI)
 
 
+def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
+    """The parameters set on a controller FMU before initialisation, in order: for an FMU of the
+    built-in law, the scenario's controller settings (`builtin_controller(run).law_parameters()`,
+    by name, t0 and T_h excepted), then controller.parameters by name. Raises ControllerError
+    for a parameter the FMU does not have."""
+    settings: dict[str, Any] = {}
+    if fmu.law_parameters:
+        law = builtin_controller(run).law_parameters()
+        settings.update((name, getattr(law, name)) for name in LAW_PARAMETERS)
+    for name, value in run.controller.parameters.items():
+        if name not in fmu.parameters:
+            known = ", ".join(fmu.parameters) or "none"
+            raise ControllerError(
+                f"key controller.parameters.{name}: the controller FMU {fmu.path.name} has no parameter {name!r}"
+                f" (its parameters: {known})"
+            )
+        settings[name] = value
+    return list(settings.items())
+
+
+def _fmu_controller(run: Run, outputs: Sequence[str]) -> Any:
+    """The controller FMU of controller.fmu, checked against the plant's outputs and T_s."""
+    from toggle_cosim.cosim.fmu_controller import FmuController
+
+    try:
+        fmu = check_controller_fmu(run.controller.fmu, outputs, run.T_s)
+    except ContractError as error:
+        raise ControllerError(f"key controller.fmu: {error}") from None
+    return FmuController(fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}")
+
+
 def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
     """The controller of `run`: the built-in VSC, or what controller.python's factory returns
     (a python-control system adapted), checked against the protocol; `outputs` are the plant's
     recorded outputs (the measurement's names, which diagnostics may not reuse). Raises
     ControllerError with the one-line reason."""
     settings = run.controller
-    if settings.python is None:
-        controller: Any = builtin_controller(run)
+    if settings.fmu is not None:
+        controller: Any = _fmu_controller(run, outputs)
+    elif settings.python is None:
+        controller = builtin_controller(run)
     else:
         factory = load_factory(settings.python, run.source.parent if run.source is not None else None)
         try:
@@ -168,6 +211,7 @@ def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
         check_controller(controller, outputs)
     except ControllerError as error:
         key = "key controller.python: " if settings.python is not None else ""
+        key = "key controller.fmu: " if settings.fmu is not None else key
         raise ControllerError(f"{key}{error}") from None
     return controller
 
@@ -175,9 +219,21 @@ def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
 def controller_record(run: Run, controller: object) -> dict[str, Any]:
     """What run.json says about the controller: the scenario's spec and the object's class."""
     kind = type(controller)
-    return {
+    record = {
         "python": run.controller.python,
-        "parameters": dict(run.controller.parameters) if run.controller.python else {},
+        "parameters": dict(run.controller.parameters) if run.controller.python or run.controller.fmu else {},
         "class": f"{kind.__module__}.{kind.__qualname__}",
         "diagnostics": list(getattr(controller, "diagnostics", ())),
     }
+    fmu = getattr(controller, "fmu", None)
+    if run.controller.fmu is not None and isinstance(fmu, ControllerFmu):
+        record["fmu"] = {
+            "path": str(fmu.path),
+            "sha256": fmu.sha256,
+            "fmi_version": fmu.fmi_version,
+            "model_name": fmu.model_description.modelName,
+            "inputs": list(fmu.inputs),
+            "law_parameters": fmu.law_parameters,
+            "warnings": list(fmu.warnings),
+        }
+    return record

@@ -12,7 +12,15 @@ all in Python without a C compiler; any other controller in Python at every samp
 `CheckpointPolicy` (retry.py). run.json says which loop ran and why. The FMU is freed on
 every exit path. A plant fault (an error status, non-finite outputs) or a controller failure
 ends the run early: the trace up to the fault is kept and the run is marked failed with the
-reason. A run that fails after retried steps is reported failed at its first failed step, and
+reason. A controller with a `close()` (a controller FMU) is closed on every exit path too.
+
+Coupling (`Run.coupling`, or simulate's `coupling`): "gauss-seidel" (the default) drives the
+plant over [t_k, t_k+1] with the command the controller computed from the plant's outputs at t_k;
+"jacobi" drives it with the command of sample k - 1 (sample 0's at k = 0), as a master that steps
+every FMU and only then exchanges values does, and row k of the trace holds the plant's outputs
+at t_k with the controller's outputs (command and diagnostics) of sample k - 1: the values every
+variable has at t_k in such a master. The compiled loop runs gauss-seidel only; jacobi runs the
+Python loop, and run.json says so. A run that fails after retried steps is reported failed at its first failed step, and
 its trace ends at the sample that step started from: no sample of a failed (even if retried)
 step is kept. A finished run is checked for plausibility (`plausibility`): its warnings go
 into run.json.
@@ -20,6 +28,7 @@ into run.json.
 
 from __future__ import annotations
 
+import dataclasses
 import time as clock
 from collections.abc import Callable
 
@@ -48,9 +57,19 @@ from toggle_cosim.physics.mechanism import working_range
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
-from toggle_cosim.runs.definition import Run
+from toggle_cosim.runs.definition import COUPLINGS, Run
 
-__all__ = ["RunOutcome", "open_session", "plant_settings", "refused_outcome", "simulate", "trace_names"]
+__all__ = [
+    "JACOBI_REASON",
+    "RunOutcome",
+    "close_controller",
+    "open_session",
+    "plant_settings",
+    "refused_outcome",
+    "simulate",
+    "trace_names",
+]
+JACOBI_REASON = "coupling jacobi: the compiled loop runs gauss-seidel only, so the Python loop delays the command"
 INPUTS = COMMAND_COLUMNS
 
 
@@ -125,6 +144,7 @@ def simulate(
     buffer: np.ndarray | None = None,
     controller: Controller | None = None,
     session: PlantSession | None = None,
+    coupling: str | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`. Never raises for a plant or controller fault:
     see RunOutcome.
@@ -137,13 +157,20 @@ def simulate(
     `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
     file-backed map shared with a supervising process (`supervision`); the trace is then a view of it.
     `session`, if given (`open_session`), is a plant already loaded that the caller keeps: the run
-    gets an instance of it (reset after a complete run for the next, else freed), not a new copy."""
+    gets an instance of it (reset after a complete run for the next, else freed), not a new copy.
+    `coupling`: "gauss-seidel" or "jacobi" (module docstring); None: the run's own (`Run.coupling`)."""
     started = clock.perf_counter()
+    if coupling is not None and coupling != run.coupling:
+        if coupling not in COUPLINGS:
+            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
+        run = dataclasses.replace(run, coupling=coupling)
+    jacobi = run.coupling == "jacobi"
     try:
         if controller is None:
             controller = controller_for(run, plant.recorded_outputs)
         diagnostics = check_controller(controller, plant.recorded_outputs)
     except ControllerError as error:
+        close_controller(controller)
         return refused_outcome(run, plant, str(error), started)
     n = run.steps
     recorder = Recorder(trace_names(plant, diagnostics), n, buffer)
@@ -159,11 +186,11 @@ def simulate(
     try:
         _initialise(session, run, plant)
         policy.configure(session)
-        python = PythonStepper(session, controller, recorder, timing, state, hooks)
+        python = PythonStepper(session, controller, recorder, timing, state, hooks, jacobi=jacobi)
         loop_started = clock.perf_counter()
         k = python.advance(0, 1)  # the first sample starts the controller (S0, T_h)
         if k == 1 and n > 0:
-            law = compiled_law(controller, state.controller)
+            law = JACOBI_REASON if jacobi else compiled_law(controller, state.controller)
             compiled = (
                 law
                 if isinstance(law, str)
@@ -188,6 +215,7 @@ def simulate(
         loop_finished = clock.perf_counter()
         state.reason = f"plant FMU failed at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s: {error}"
     finally:
+        close_controller(controller)
         solver_statistics = session.solver_statistics()
         if own_session:
             session.close()
@@ -232,6 +260,17 @@ def simulate(
         controller=controller_record(run, controller),
     )
     return RunOutcome(run, trace, complete, reason, wall, loop_seconds, summary, record, interrupted)
+
+
+def close_controller(controller: object) -> None:
+    """Call the controller's close(), if it has one (a controller FMU frees its instance, its
+    library and its unzipped copy); whatever it raises is ignored (the run's outcome stands)."""
+    close = getattr(controller, "close", None)
+    if callable(close):
+        try:
+            close()
+        except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
+            pass
 
 
 def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:

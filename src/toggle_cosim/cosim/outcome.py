@@ -111,6 +111,7 @@ def run_record(
         "samples": rows,
         "retries": retries or [],
         "controller": controller,
+        "coupling": run.coupling,
         "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},
         "wall_time_s": wall,
         "loop_time_s": loop_seconds,

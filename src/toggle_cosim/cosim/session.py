@@ -60,6 +60,15 @@ _PROTOTYPES = {
 }
 
 
+def bound_function(dll: Any, name: str):  # noqa: ANN201 - a ctypes function pointer, or None
+    """The FMU library's exported C function `name` (fmi2GetReal, fmi3DoStep, ...) with its FMI
+    prototype, called directly (no fmpy wrapper), or None if the library does not export it."""
+    try:
+        return _PROTOTYPES[name]((name, dll))
+    except (AttributeError, TypeError):
+        return None
+
+
 @dataclass(frozen=True)
 class FunctionNames:
     """The FMI names of the hot functions, for error messages (fmi2GetReal / fmi3GetFloat64, ...)."""
@@ -141,10 +150,7 @@ class PlantSession:
 
     def _c_function(self, name: str):  # noqa: ANN202 - a ctypes function pointer, or None
         """The FMU's exported C function `name` with its FMI prototype, or None if not exported."""
-        try:
-            return _PROTOTYPES[name]((name, self.fmu.dll))
-        except (AttributeError, TypeError):
-            return None
+        return bound_function(self.fmu.dll, name)
 
     # -- life cycle ---------------------------------------------------------------------------
     @property

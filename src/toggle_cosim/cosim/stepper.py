@@ -46,10 +46,12 @@ class ControllerFailed(Exception):
 @dataclass
 class LoopState:
     """What the steppers share: the controller's state at the next sample (None before the
-    first), and why the run ended early (non-finite outputs), if it did."""
+    first), why the run ended early (non-finite outputs), if it did, and under jacobi coupling
+    the command and diagnostics of the last sample, held for the next."""
 
     controller: Any = None
     reason: str | None = None
+    held: tuple[float, tuple[float, ...]] | None = None
 
 
 def _name(function: object) -> str:
@@ -94,7 +96,9 @@ class Timing:
 
 
 class PythonStepper:
-    """The loop in Python over any controller that meets the protocol (`control.protocol`)."""
+    """The loop in Python over any controller that meets the protocol (`control.protocol`).
+    With `jacobi`, the plant gets, and row k records, the command and diagnostics of sample
+    k - 1 (sample 0's at k = 0): jacobi coupling (`master`)."""
 
     def __init__(
         self,
@@ -104,9 +108,11 @@ class PythonStepper:
         timing: Timing,
         state: LoopState,
         hooks: Sequence[StepHook] = (),
+        jacobi: bool = False,
     ) -> None:
         self.session, self.controller, self.recorder = session, controller, recorder
         self.timing, self.state, self.hooks = timing, state, tuple(hooks)
+        self.jacobi = jacobi
         self.index = {name: j for j, name in enumerate(recorder.names[1 : 1 + recorder.n_out], start=1)}
 
     def _start(self, t: float, measurement: Measurement) -> Any:
@@ -123,6 +129,7 @@ class PythonStepper:
         T_s, n, F_E = self.timing.T_s, self.timing.n, self.timing.F_E
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
         control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
+        jacobi = self.jacobi
         n_diagnostics = len(rec.names) - col_u - 2
         state = st.controller
         try:
@@ -146,6 +153,10 @@ class PythonStepper:
                     u, diagnostics, state = checked_command(result, n_diagnostics, t)
                 except ControllerError as error:
                     raise ControllerFailed(str(error)) from None
+                if jacobi:  # the previous sample's outputs now, this sample's at the next
+                    held = st.held if st.held is not None else (u, diagnostics)
+                    st.held = (u, diagnostics)
+                    u, diagnostics = held
                 row[col_u] = u
                 row[col_u + 1] = F_E
                 row[col_u + 2 :] = diagnostics

@@ -15,6 +15,8 @@ say (a target beyond the toggle position) are checked after it.
             friction_model: paper, mu_s: 0.2}     # friction_model: paper | dissipative | stick_slip
     controller: {objective: x_B, gains: {C: 5, Q: 4, P: 50, delta: 0.25, beta: 65}}
     # or a user's controller: {python: "module:factory", parameters: {...}} (docs/controllers.md)
+    # or a controller FMU: {fmu: controllers/MyLaw.fmu, parameters: {...}}
+    coupling: gauss-seidel              # or jacobi: the plant gets the previous sample's command
     variants:
       friction: {plant: {mu: 0.2}}
       no_friction: {plant: {mu: 0.0}}
@@ -33,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 from toggle_cosim.limits import MAX_SECONDS
 from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
-from toggle_cosim.runs.definition import ControllerSettings, ErrorSignal, PlantSettings, Run
+from toggle_cosim.runs.definition import COUPLINGS, ControllerSettings, ErrorSignal, PlantSettings, Run
 
 if TYPE_CHECKING:
     import jsonschema
@@ -106,11 +108,17 @@ _CONTROLLER = {
             "pattern": r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z",
             "description": "package.module:callable, imported from the scenario's folder or sys.path",
         },
+        "fmu": {
+            "type": "string",
+            "minLength": 1,
+            "pattern": r"^[^\x00]*\Z",
+            "description": "a controller FMU (Co-Simulation, FMI 2.0 or 3.0), relative to this file",
+        },
         "parameters": {
             "type": "object",
             "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\Z"},
             "additionalProperties": {"description": "any value the factory takes (a sweep axis may set one)"},
-            "description": "keyword arguments of the controller.python factory",
+            "description": "keyword arguments of the controller.python factory, or the controller FMU's parameters",
         },
         "error": {
             "type": "object",
@@ -152,6 +160,11 @@ _OVERRIDE = {
             "maximum": 1_000_000,
             "description": "write every n-th sample (and the last) to trace.csv",
         },
+        "coupling": {
+            "enum": list(COUPLINGS),
+            "description": "gauss-seidel (default): sample k's command drives the plant over [t_k, t_k+1]; "
+            "jacobi: sample k-1's does (docs/controllers.md); --coupling overrides it",
+        },
     },
 }
 SCHEMA: dict[str, Any] = {
@@ -170,6 +183,7 @@ SCHEMA: dict[str, Any] = {
         "controller": _CONTROLLER,
         "time_limit": _OVERRIDE["properties"]["time_limit"],
         "record_every": _OVERRIDE["properties"]["record_every"],
+        "coupling": _OVERRIDE["properties"]["coupling"],
         "variants": {
             "type": "object",
             "minProperties": 1,
@@ -313,15 +327,31 @@ def _working_range(given: Any, geometry: MechanismParameters, suffix: str) -> tu
     return low, high
 
 
-def _user_controller(controller_doc: Mapping[str, Any], suffix: str) -> dict[str, Any]:
-    """The ControllerSettings fields of a user's controller (controller.python and the keys that
-    go with it); the factory itself is imported and called by `cosim.controllers`."""
+def _user_controller(controller_doc: Mapping[str, Any], suffix: str, source: Path | None) -> dict[str, Any]:
+    """The ControllerSettings fields of a user's controller (controller.python or controller.fmu
+    and the keys that go with them); the factory itself is imported and called, the FMU checked,
+    by `cosim.controllers`."""
+    if "python" in controller_doc and "fmu" in controller_doc:
+        raise ScenarioError(
+            f"key controller.fmu{suffix}: controller.python and controller.fmu name two controllers (keep one)"
+        )
+    if "fmu" in controller_doc:
+        extra = [key for key in ("error", "command") if key in controller_doc]
+        if extra:
+            raise ScenarioError(
+                f"key controller.{extra[0]}{suffix}: only with controller.python (a controller FMU reads the plant"
+                " outputs named by its inputs and gives iq_ref; remove the key)"
+            )
+        fmu = Path(controller_doc["fmu"])
+        if source is not None and not fmu.is_absolute():
+            fmu = source.parent / fmu
+        return {"fmu": fmu, "parameters": copy.deepcopy(dict(controller_doc.get("parameters", {})))}
     if "python" not in controller_doc:
         extra = [key for key in ("parameters", "error", "command") if key in controller_doc]
         if extra:
             raise ScenarioError(
-                f"key controller.{extra[0]}{suffix}: only with controller.python (name the controller's factory as"
-                " python: module:callable)"
+                f"key controller.{extra[0]}{suffix}: only with controller.python or controller.fmu (name the"
+                " controller's factory as python: module:callable, or its FMU as fmu: PATH)"
             )
         return {}
     error = controller_doc.get("error")
@@ -384,7 +414,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         C_I=float(controller_doc.get("C_I", ControllerSettings.C_I)),
         K_I=float(controller_doc.get("K_I", ControllerSettings.K_I)),
         i_max=float(controller_doc.get("i_max", ControllerSettings.i_max)),
-        **_user_controller(controller_doc, suffix),
+        **_user_controller(controller_doc, suffix, source),
     )
     fmu = document.get("fmu")
     fmu_path = None
@@ -403,6 +433,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         plant=plant,
         controller=controller,
         resolved={k: v for k, v in document.items() if k != "variants"},
+        coupling=document.get("coupling", "gauss-seidel"),
     )
 
 

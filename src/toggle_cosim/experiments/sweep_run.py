@@ -149,9 +149,9 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
         (run,) = runs_from_document(copy.deepcopy(case.document), sweep.base)  # validated by load_sweep already
         try:
             check_settings(run, plant)
-            if run.controller.python is None:
+            if run.controller.python is None and run.controller.fmu is None:
                 controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
-            # a controller.python's: imported, built and checked once here, its columns kept for the cases
+            # a controller.python's or controller.fmu's: built and checked once here, its columns kept for the cases
             columns = case_columns(case.payload(), plant)
             if keep_traces and columns != trace_names(plant):
                 raise SweepError(

@@ -95,12 +95,12 @@ _columns: dict[tuple[str, str | None, str], tuple[str, ...]] = {}
 
 def case_columns(payload: Mapping[str, Any], plant: Any) -> tuple[str, ...]:
     """The trace columns of a case: time, the plant's outputs, the inputs and its controller's
-    diagnostics (the built-in law's, or those a controller.python factory's controller declares;
-    built once per controller setting in this process)."""
+    diagnostics (the built-in law's, or those a controller.python factory's controller or a
+    controller FMU declares; built once per controller setting in this process)."""
     from toggle_cosim.cosim.master import trace_names
 
     controller_doc = payload["document"].get("controller") or {}
-    if "python" not in controller_doc:
+    if "python" not in controller_doc and "fmu" not in controller_doc:
         return trace_names(plant)
     source = payload.get("source")
     key = (repr(controller_doc), source, plant.sha256)

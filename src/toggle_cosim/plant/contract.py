@@ -144,11 +144,23 @@ def platform_binary_folders() -> tuple[str, ...]:
     return fmi2, fmi3
 
 
-def check_plant(path: Path) -> PlantInterface:
-    """Check `path` against the contract; raise ContractError naming the first problem."""
+@dataclass(frozen=True)
+class FmuArchive:
+    """An FMU file whose archive passed the safety checks (`archive`) and whose model description
+    fmpy read: the Co-Simulation FMI 2.0 or 3.0 FMU with a binary for this platform."""
+
+    path: Path
+    model_description: ModelDescription
+    sha256: str
+
+
+def read_fmu(path: Path, missing: str = "build it with 'toggle-cosim build' or fix the fmu: key") -> FmuArchive:
+    """The checked archive and model description of the Co-Simulation FMU at `path` (FMI 2.0 or
+    3.0, with a binary for this platform); raise ContractError naming the first problem. `missing`
+    is the fix the message gives for a file that does not exist."""
     path = Path(path)
     if not path.is_file():
-        raise ContractError(f"{path}: no such FMU file (build it with 'toggle-cosim build' or fix the fmu: key)")
+        raise ContractError(f"{path}: no such FMU file ({missing})")
     if not stat.S_ISREG(path.stat().st_mode):
         raise ContractError(f"{path}: not a regular file (give the .fmu file itself)")
     if not zipfile.is_zipfile(path):
@@ -186,6 +198,20 @@ def check_plant(path: Path) -> PlantInterface:
         raise ContractError(
             f"{path}: no binary for this platform (expected binaries/{folder}/{identifier}{suffix}; rebuild the FMU here)"
         )
+    return FmuArchive(path, md, sha256)
+
+
+def declared_unit(variable) -> str | None:  # noqa: ANN001 - fmpy's ScalarVariable
+    """The unit a model variable declares, itself or through its type; None if none."""
+    if variable.unit is not None:
+        return variable.unit
+    return variable.declaredType.unit if variable.declaredType else None
+
+
+def check_plant(path: Path) -> PlantInterface:
+    """Check `path` against the contract; raise ContractError naming the first problem."""
+    archive = read_fmu(path)
+    path, md, sha256 = archive.path, archive.model_description, archive.sha256
     variables = {v.name: v for v in md.modelVariables}
     references: dict[str, int] = {}
     types: dict[str, str] = {}
@@ -235,9 +261,7 @@ def _check_variable(path: Path, entry: ContractVariable, variable) -> bool:  # n
         raise ContractError(
             f"{path}: variable {name!r} has causality {variable.causality}, the contract needs {causality}"
         )
-    declared = (
-        variable.unit if variable.unit is not None else (variable.declaredType.unit if variable.declaredType else None)
-    )
+    declared = declared_unit(variable)
     unitless = False
     if entry.unit == DIMENSIONLESS:
         if declared not in (None, "", DIMENSIONLESS):

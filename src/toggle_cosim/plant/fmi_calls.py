@@ -8,6 +8,7 @@
 * An FMU's log message is printed `[LABEL] message` as fmpy prints it, but decoded with
   replacement (a message that is not UTF-8 is still shown) and with a label for any status
   (`[STATUS 7]`): fmpy's own logger raises inside the callback for both, and the message is lost.
+  The last line each instance logged is kept (`last_log_line`), for a failure's reason.
 """
 
 from __future__ import annotations
@@ -41,19 +42,58 @@ def log_line(status: int, message: bytes | str | None) -> str:
     return f"[{label}] {text}"
 
 
-def _print(status: int, message: bytes | str | None) -> None:
+_LAST: dict[str, str] = {}  # instance name -> the last line it logged
+_QUIET: set[str] = set()  # instance names whose OK-status messages are dropped
+
+
+def quiet(instance: str, on: bool = True) -> None:
+    """Drop (on) or keep (off) the OK-status messages of the instance named `instance`: an FMU
+    instantiated with logging on to learn a failure's cause may report every step."""
+    if on:
+        _QUIET.add(instance)
+    else:
+        _QUIET.discard(instance)
+
+
+def _print(status: int, message: bytes | str | None, instance: Any = None) -> None:
     try:
-        sys.stdout.write(log_line(status, message) + "\n")
+        name = None
+        if instance is not None:
+            name = instance.decode("utf-8", errors="replace") if isinstance(instance, bytes) else str(instance)
+            if status == 0 and name in _QUIET:
+                return
+        line = log_line(status, message)
+        if name is not None:
+            if len(_LAST) > 64 and name not in _LAST:
+                _LAST.clear()  # names of instances long gone
+            _LAST[name] = line
+        sys.stdout.write(line + "\n")
     except Exception:  # noqa: BLE001, S110 - a log line never fails the FMU's call
         pass
 
 
-def _log2(_environment: Any, _instance: Any, status: int, _category: Any, message: Any) -> None:
-    _print(status, message)
+def last_log_line(instance: str, forget: bool = False) -> str | None:
+    """The last line the FMU instance named `instance` logged (FMI 2.0, or FMI 3.0 instantiated
+    with `logger3(instance)`), or None; `forget` drops it."""
+    return _LAST.pop(instance, None) if forget else _LAST.get(instance)
+
+
+def _log2(_environment: Any, instance: Any, status: int, _category: Any, message: Any) -> None:
+    _print(status, message, instance)
 
 
 def _log3(_environment: Any, status: int, _category: Any, message: Any) -> None:
     _print(status, message)
+
+
+def logger3(instance: str) -> Any:
+    """An FMI 3.0 log-message callback (for fmpy's instantiate) that prints as `_log3` does and
+    keeps the last line under `instance` (FMI 3.0 callbacks do not get the instance's name)."""
+
+    def log(_environment: Any, status: int, _category: Any, message: Any) -> None:
+        _print(status, message, instance)
+
+    return log
 
 
 @functools.cache
@@ -118,4 +158,4 @@ FMU2SlaveChecked = type("FMU2SlaveChecked", (FMU2Slave,), {**_checked(FMU2Slave)
 FMU3SlaveChecked = type("FMU3SlaveChecked", (FMU3Slave,), {**_checked(FMU3Slave), "instantiate": _instantiate3})
 
 
-__all__ = ["FMU2SlaveChecked", "FMU3SlaveChecked", "failed", "log_line"]
+__all__ = ["FMU2SlaveChecked", "FMU3SlaveChecked", "failed", "last_log_line", "log_line", "logger3", "quiet"]

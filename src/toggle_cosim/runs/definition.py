@@ -14,6 +14,8 @@ from typing import Any, Literal
 
 from toggle_cosim.physics.parameters import ControllerGains
 
+COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples plant and controller
+
 
 @dataclass(frozen=True)
 class PlantSettings:
@@ -45,7 +47,8 @@ class ErrorSignal:
 @dataclass(frozen=True)
 class ControllerSettings:
     """The built-in controller's settings, or (python) the user's controller factory
-    "module:callable" with its keyword parameters (`cosim.controllers`)."""
+    "module:callable" with its keyword parameters, or (fmu) a controller FMU with its
+    parameters (`cosim.controllers`)."""
 
     objective: Literal["x_B", "theta1"] = "x_B"
     gains: ControllerGains = field(default_factory=ControllerGains)
@@ -58,6 +61,7 @@ class ControllerSettings:
     parameters: Mapping[str, Any] = field(default_factory=dict)  # the factory's keyword arguments
     error: ErrorSignal | None = None  # python-control systems: the error they act on
     command: Literal["iq_ref"] = "iq_ref"  # python-control systems: the plant input they drive
+    fmu: Path | None = None  # a controller FMU (resolved from the scenario's folder); None: not an FMU
 
 
 @dataclass(frozen=True)
@@ -76,6 +80,9 @@ class Run:
     plant: PlantSettings
     controller: ControllerSettings
     resolved: Mapping[str, Any]
+    # how the master couples plant and controller (`cosim.master`): gauss-seidel, the command of
+    # sample k drives the plant over [t_k, t_k+1]; jacobi, the command of sample k - 1 does
+    coupling: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
 
     @property
     def label(self) -> str:
