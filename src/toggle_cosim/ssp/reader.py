@@ -176,10 +176,20 @@ def _run(experiment: Element, parameter_set: str, path: Path, where: str) -> Run
 
 def read_ssp(path: Path, parameter_set: str | None = None, folder: Path | None = None) -> SspStudy:
     """Read and check the SSP at `path` for one parameter set (None: the default, `layout`); the
-    FMUs are extracted into `folder` (None: a temporary folder the caller removes; `open_ssp`
-    does). Raises SspError with the one-line reason."""
-    path = Path(path)
+    FMUs are extracted into `folder` (None: a new temporary folder, which the caller removes once
+    done with the FMUs; `open_ssp` does). Raises SspError with the one-line reason (and then
+    leaves no temporary folder)."""
+    made = folder is None
     folder = Path(tempfile.mkdtemp(prefix="toggle-cosim-ssp-")) if folder is None else Path(folder)
+    try:
+        return _read(Path(path), parameter_set, folder)
+    except BaseException:
+        if made:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
+
+
+def _read(path: Path, parameter_set: str | None, folder: Path) -> SspStudy:
     with open_archive(path) as archive:
         if layout.SSD_MEMBER not in archive.namelist():
             raise SspError(f"{path}: no {layout.SSD_MEMBER} in the archive (an SSP needs one at its top level)")
