@@ -332,6 +332,22 @@ def test_ssp_refuses_a_python_controller_and_a_sweep_in_one_line(controller_fmu:
         assert not out.exists()
 
 
+def test_ssp_refuses_variants_that_differ_in_t_end(plant_fmu: Path, controller_fmu: Path, tmp_path: Path) -> None:
+    scenario = tmp_path / "longer.yaml"
+    text = (ROOT / "scenarios" / "fig4_nominal.yaml").read_text()
+    scenario.write_text(text.replace("  no_friction:\n", "  no_friction:\n    t_end: 2.0\n", 1))
+    out = tmp_path / "s.ssp"
+    result = CliRunner().invoke(
+        main,
+        ["ssp", str(scenario), "--out", str(out), "--plant", str(plant_fmu), "--controller", str(controller_fmu)],
+    )
+    assert _one_line(result, tmp_path / "none") == (
+        f"error: {scenario}: key t_end: the variants use 1.5, 2.0 s, and an SSP has one experiment for all its "
+        "parameter sets (give every variant the same value, or split the scenario)"
+    )
+    assert not out.exists()
+
+
 def test_ssp_gives_a_scenarios_errors_as_run_does(plant_fmu: Path, controller_fmu: Path, tmp_path: Path) -> None:
     scenario = tmp_path / "broken.yaml"
     scenario.write_text((ROOT / "scenarios" / "fig4_nominal.yaml").read_text().replace("t_end: 1.5", "t_end: -1"))
@@ -408,13 +424,21 @@ def test_run_options_that_do_not_fit_an_ssp_are_refused(fig5_ssp: Path, plant_fm
 # -- end to end: the controller FMU in our master (needs ToggleVSC and FmuController) ----------------
 
 
-@pytest.mark.parametrize("name", ["fig4_nominal", "fig5_external_force", "fig6_mass_variation"])
-def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(name: str, plant_fmu: Path, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The real controller FMU, built once (skipped where this toggle-cosim cannot build or run it)."""
     controller_fmu_module = pytest.importorskip("toggle_cosim.controller_fmu")
     pytest.importorskip("toggle_cosim.cosim.controller_fmu")
-    from toggle_cosim.analysis.csv_traces import read_trace_csv
+    return controller_fmu_module.build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu")
 
-    controller = controller_fmu_module.build_controller_fmu(tmp_path / "ToggleVSC.fmu")
+
+@pytest.mark.parametrize("name", ["fig4_nominal", "fig5_external_force", "fig6_mass_variation"])
+def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
+    name: str, plant_fmu: Path, toggle_vsc: Path, tmp_path: Path
+) -> None:
+    from toggle_cosim.files.traces import read_csv as read_trace_csv
+
+    controller = toggle_vsc
     scenario = ROOT / "scenarios" / f"{name}.yaml"
     study = write_ssp(scenario, tmp_path / f"{name}.ssp", plant_fmu, controller)
     yaml_out, ssp_out = tmp_path / "yaml", tmp_path / "ssp"

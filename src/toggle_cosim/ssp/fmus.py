@@ -14,7 +14,14 @@ from toggle_cosim.ssp.checks import SspError
 
 __all__ = ["FmuVariables", "describe"]
 
-_TYPES = {"Real": "Real", "Float64": "Real", "Float32": "Real", "Boolean": "Boolean", "Integer": "Integer"}
+_TYPES = {
+    "Real": "Real",
+    "Float64": "Real",
+    "Float32": "Real",
+    "Boolean": "Boolean",
+    "Integer": "Integer",
+    "Int32": "Integer",
+}
 
 
 @dataclass(frozen=True)

@@ -229,6 +229,13 @@ def refuse_unwritable(path: Path, document: Any, runs: Sequence[Run]) -> None:
             f"{path}: a sweep file cannot be written as an SSP (an SSP holds one scenario and its variants); "
             "give the scenario file its base: names"
         )
+    for key in ("t_end", "T_s"):
+        values = {getattr(run, key) for run in runs}
+        if len(values) > 1:
+            raise SspError(
+                f"{path}: key {key}: the variants use {', '.join(repr(v) for v in sorted(values))} s, and an SSP has one "
+                "experiment for all its parameter sets (give every variant the same value, or split the scenario)"
+            )
     for run in runs:
         if run.controller.python is not None:
             raise SspError(
