@@ -221,6 +221,52 @@ def test_the_plant_values_come_from_the_ssv(fig5_ssp: Path, plant_fmu: Path, tmp
     assert np.array_equal(_trace(outcome), _trace(expected))
 
 
+# -- what other SSP masters make of the parameter sets ------------------------------------------------
+
+
+def _ecospy():  # noqa: ANN202
+    try:
+        import ecospy
+    except OSError as error:  # its native library needs Debian's libtbb12 (scripts/install-system-deps)
+        pytest.skip(f"ecospy's native library cannot be loaded: {error}")
+    return ecospy
+
+
+def test_ecos_applies_each_named_parameter_set_to_both_components(fig5_ssp: Path) -> None:
+    """Ecos reads the archive as it is and applies a set named at init to the plant and the
+    controller alike (each component's own .ssv of that name); unnamed, it applies none."""
+    ecospy = _ecospy()
+    for name, mu in (("friction", 0.2), ("no_friction", 0.0)):
+        with ecospy.EcosSimulation(ssp_path=str(fig5_ssp), step_size=0.0005) as sim:
+            sim.init(parameter_set=name)
+            assert (sim.get_real("plant::mu"), sim.get_real("plant::F_E")) == (mu, 100.0)
+            assert (sim.get_real("controller::C"), sim.get_real("controller::target")) == (5.0, 0.3199)
+
+
+def test_libcosim_takes_the_default_set_and_t_s_from_the_ssp(fig5_ssp: Path, tmp_path: Path) -> None:
+    """libcosim (an unpacked SSP, no step size given) steps at T_s from the DefaultExperiment's
+    annotation and applies the default set, the first binding: friction (mu = 0.2, F_E = 100 N)."""
+    pytest.importorskip("libcosimpy")
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+
+    folder = tmp_path / "unpacked"
+    with zipfile.ZipFile(fig5_ssp) as archive:
+        archive.extractall(folder)
+    execution = CosimExecution.from_ssp_file(str(folder))
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    slaves = {info.name.decode(): info.index for info in execution.slave_infos()}
+
+    def value(slave: str, name: str) -> float:
+        reference = next(v.reference for v in execution.slave_variables(slaves[slave]) if v.name.decode() == name)
+        return observer.last_real_values(slaves[slave], [reference])[0]
+
+    execution.step(2)
+    assert execution.status().current_time == 2 * 500_000  # ns: two steps of T_s = 0.5 ms
+    assert (value("plant", "mu"), value("plant", "F_E"), value("controller", "C")) == (0.2, 100.0, 5.0)
+
+
 # -- bad input: one line, exit 2, nothing written ---------------------------------------------------
 
 

@@ -32,6 +32,11 @@ SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 NAMESPACES = {"ssd": SSD_NS, "ssc": SSC_NS, "ssv": SSV_NS}
 
+# The step size for libcosim (its fixed-step algorithm, read from the DefaultExperiment's annotation
+# of this type; libcosim reads the element names with the prefix osp:)
+OSP_ANNOTATION_TYPE = "com.opensimulationplatform"
+OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
+
 # Our annotation on the SSD: T_s and, per parameter set, the scenario document it was written from
 ANNOTATION_TYPE = "org.toggle-cosim.experiment"
 TOGGLE_NS = "https://github.com/toggle-cosim/toggle-cosim/ssp/experiment"

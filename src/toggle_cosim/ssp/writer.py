@@ -1,6 +1,7 @@
 """A scenario file -> an SSP 1.0 archive (`toggle-cosim ssp`): SystemStructure.ssd with the plant
 and the controller FMU as components, the connections, one parameter set per variant (`layout`),
-DefaultExperiment (0, t_end) and our annotation (T_s, each set's scenario document).
+DefaultExperiment (0, t_end, with T_s as libcosim's fixed step) and our annotation (T_s, each set's
+scenario document).
 
 Each set holds, for the plant, exactly what our master sets on it (`cosim.master.plant_settings`)
 and F_E, its input; for the controller, every field of the built-in law's `LawParameters` but t0
@@ -147,7 +148,8 @@ def system_structure(
     first = sets[0].run
     root = etree.Element(
         _q(layout.SSD_NS, "SystemStructureDescription"),
-        nsmap={"ssd": layout.SSD_NS, "ssc": layout.SSC_NS, "ssv": layout.SSV_NS},
+        # osp declared here: libcosim reads an attribute of osp:Algorithm (xmlns:osp too) as an algorithm
+        nsmap={"ssd": layout.SSD_NS, "ssc": layout.SSC_NS, "ssv": layout.SSV_NS, "osp": layout.OSP_NS},
         version="1.0",
         name=name,
         generationTool="toggle-cosim",
@@ -198,7 +200,16 @@ def system_structure(
             _unit_element(unit_list, unit, (plant, controller))
         if len(unit_list) == 0:
             root.remove(unit_list)
-    etree.SubElement(root, _q(layout.SSD_NS, "DefaultExperiment"), startTime="0.0", stopTime=repr(first.t_end))
+    default = etree.SubElement(
+        root, _q(layout.SSD_NS, "DefaultExperiment"), startTime="0.0", stopTime=repr(first.t_end)
+    )
+    osp = etree.SubElement(  # T_s as libcosim's fixed step
+        etree.SubElement(default, _q(layout.SSD_NS, "Annotations")),
+        _q(layout.SSC_NS, "Annotation"),
+        type=layout.OSP_ANNOTATION_TYPE,
+    )
+    algorithm = etree.SubElement(osp, _q(layout.OSP_NS, "Algorithm"))
+    etree.SubElement(algorithm, _q(layout.OSP_NS, "FixedStepAlgorithm"), baseStepSize=repr(first.T_s))
     annotations = etree.SubElement(root, _q(layout.SSD_NS, "Annotations"))
     annotation = etree.SubElement(annotations, _q(layout.SSC_NS, "Annotation"), type=layout.ANNOTATION_TYPE)
     experiment = etree.SubElement(
