@@ -292,6 +292,16 @@ def _ssd_edit(old: str, new: str):  # noqa: ANN202
     return change
 
 
+def _ssv_edit(stem: str, old: str, new: str):  # noqa: ANN202
+    def change(members: dict[str, bytes]) -> None:
+        member = f"resources/{stem}.ssv"
+        text = members[member].decode()
+        assert old in text
+        members[member] = text.replace(old, new, 1).encode()
+
+    return change
+
+
 BAD_SSPS = {
     "not a zip": (lambda path, tmp: (tmp / "bad.ssp").write_text("hello") and tmp / "bad.ssp", "not an SSP archive"),
     "no SSD": (
@@ -332,6 +342,34 @@ BAD_SSPS = {
             ),
         ),
         "the connection plant.x_B -> controller.x_B joins m to m/s",
+    ),
+    "a third component": (
+        lambda path, tmp: _rewrite(
+            path,
+            tmp / "bad.ssp",
+            _ssd_edit(
+                "</ssd:Elements>", '<ssd:Component name="logger" source="resources/ToggleVSC.fmu"/></ssd:Elements>'
+            ),
+        ),
+        "the component 'logger' besides plant and controller (our master runs those two only; remove it)",
+    ),
+    "an .ssv not valid": (
+        lambda path, tmp: _rewrite(path, tmp / "bad.ssp", _ssv_edit("friction.plant", 'value="0.2"', 'value="low"')),
+        "resources/friction.plant.ssv: not valid SSP 1.0 (line",
+    ),
+    "an .ssv setting a variable the FMU lacks": (
+        lambda path, tmp: _rewrite(path, tmp / "bad.ssp", _ssv_edit("friction.plant", 'name="mu"', 'name="muu"')),
+        "resources/ToggleLSM.fmu: the plant FMU has no variable 'muu', which resources/friction.plant.ssv sets",
+    ),
+    "a controller T_s that is not the experiment's": (
+        lambda path, tmp: _rewrite(
+            path,
+            tmp / "bad.ssp",
+            _ssv_edit(
+                "friction.controller", '"T_s">\n      <ssv:Real value="0.0005"', '"T_s">\n      <ssv:Real value="0.001"'
+            ),
+        ),
+        "parameter set 'friction' sets the controller's T_s = 0.001 s, the experiment's T_s is 0.0005 s",
     ),
     "unsafe archive": (
         lambda path, tmp: _rewrite(path, tmp / "bad.ssp", lambda m: m.update({"../escape.txt": b"x"})),

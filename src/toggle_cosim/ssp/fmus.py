@@ -26,20 +26,21 @@ _TYPES = {
 
 @dataclass(frozen=True)
 class FmuVariables:
-    """An FMU's variables by name (FMPy's ScalarVariable objects) and its model description."""
+    """An FMU's variables by name (FMPy's ScalarVariable objects) and its model description;
+    `label` names the FMU in messages (its path, or the SSP and the member it came from)."""
 
-    path: Path
+    label: str
     model_description: Any
     variables: dict[str, Any]
 
     @classmethod
-    def of(cls, path: Path, model_description: Any) -> FmuVariables:
-        return cls(Path(path), model_description, {v.name: v for v in model_description.modelVariables})
+    def of(cls, label: str | Path, model_description: Any) -> FmuVariables:
+        return cls(str(label), model_description, {v.name: v for v in model_description.modelVariables})
 
     def variable(self, name: str) -> Any:
         found = self.variables.get(name)
         if found is None:
-            raise SspError(f"{self.path}: the FMU has no variable {name!r} (give an FMU that has it)")
+            raise SspError(f"{self.label}: the FMU has no variable {name!r} (give an FMU that has it)")
         return found
 
     def unit(self, name: str) -> str | None:
@@ -66,23 +67,23 @@ class FmuVariables:
         kind = _TYPES.get(variable.type)
         if kind is None:
             raise SspError(
-                f"{self.path}: variable {name!r} is of type {variable.type}; an SSP here sets Real, Integer, Boolean"
+                f"{self.label}: variable {name!r} is of type {variable.type}; an SSP here sets Real, Integer, Boolean"
             )
         if kind == "Boolean" and not isinstance(value, bool):
-            raise SspError(f"{self.path}: variable {name!r} is a Boolean, but its value is {value!r}")
+            raise SspError(f"{self.label}: variable {name!r} is a Boolean, but its value is {value!r}")
         if kind == "Integer" and (isinstance(value, bool) or float(value) != int(value)):
-            raise SspError(f"{self.path}: variable {name!r} is an Integer, but its value is {value!r}")
+            raise SspError(f"{self.label}: variable {name!r} is an Integer, but its value is {value!r}")
         return kind
 
-    def check_parameters(self, values: Sequence[tuple[str, object]], component: str) -> None:
-        """Every name of `values` is a parameter or an input of the FMU."""
+    def check_parameters(self, values: Sequence[tuple[str, object]], component: str, source: str) -> None:
+        """Every name of `values` (given by `source`) is a parameter or an input of the FMU."""
         for name, value in values:
             variable = self.variables.get(name)
             if variable is None or variable.causality not in ("parameter", "input"):
                 what = "no variable" if variable is None else f"a {variable.causality}, not a parameter or input,"
                 raise SspError(
-                    f"{self.path}: the {component} FMU has {what} {name!r}, which the {component}'s parameter set "
-                    f"sets (give the {component} FMU that has it)"
+                    f"{self.label}: the {component} FMU has {what} {name!r}, which {source} sets "
+                    f"(give the {component} FMU that has it, or fix the name)"
                 )
             self.value_type(name, value)
 
@@ -90,41 +91,43 @@ class FmuVariables:
         """The controller FMU fits the plant: Co-Simulation, an output iq_ref, and every input
         a plant output of the same name and unit."""
         if getattr(self.model_description, "coSimulation", None) is None:
-            raise SspError(f"{self.path}: the controller FMU has no Co-Simulation interface (give a CS FMU)")
+            raise SspError(f"{self.label}: the controller FMU has no Co-Simulation interface (give a CS FMU)")
         command = self.variables.get(layout.COMMAND)
         if command is None or command.causality != "output":
-            raise SspError(f"{self.path}: the controller FMU has no output {layout.COMMAND!r} (give ToggleVSC.fmu)")
+            raise SspError(f"{self.label}: the controller FMU has no output {layout.COMMAND!r} (give ToggleVSC.fmu)")
         for name in self.inputs():
             source = plant.variables.get(name)
             if source is None or source.causality != "output":
                 raise SspError(
-                    f"{self.path}: the controller's input {name!r} is not an output of the plant {plant.path} "
+                    f"{self.label}: the controller's input {name!r} is not an output of the plant {plant.label} "
                     "(give a plant with that output, or a controller that does not read it)"
                 )
             if self.unit(name) and plant.unit(name) and self.unit(name) != plant.unit(name):
                 raise SspError(
-                    f"{self.path}: the controller's input {name!r} is in {self.unit(name)}, the plant's output in "
+                    f"{self.label}: the controller's input {name!r} is in {self.unit(name)}, the plant's output in "
                     f"{plant.unit(name)} (give FMUs that agree on the unit)"
                 )
 
 
-def describe(path: Path, what: str = "controller") -> FmuVariables:
-    """An FMU's variables, its archive checked first (`plant.archive`); SspError otherwise."""
+def describe(path: Path, what: str = "controller", label: str | None = None) -> FmuVariables:
+    """An FMU's variables, its archive checked first (`plant.archive`); SspError otherwise.
+    `label` names it in messages (default: its path)."""
     import fmpy
 
     from toggle_cosim.plant.archive import ArchiveError, read_model_description
 
     path = Path(path)
+    shown = label or str(path)
     if not path.is_file():
-        raise SspError(f"{path}: no {what} FMU there (build it with toggle-cosim build, or name it with --{what})")
+        raise SspError(f"{shown}: no {what} FMU there (build it with toggle-cosim build, or name it with --{what})")
     try:
         names, description = read_model_description(path)
     except (ArchiveError, OSError, ValueError) as error:
-        raise SspError(f"{path}: not a usable FMU ({error}); give the {what} FMU") from None
+        raise SspError(f"{shown}: not a usable FMU ({error}); give the {what} FMU") from None
     if description is None:
-        raise SspError(f"{path}: not an FMU (no modelDescription.xml); give the {what} FMU")
+        raise SspError(f"{shown}: not an FMU (no modelDescription.xml); give the {what} FMU")
     try:
         model_description = fmpy.read_model_description(str(path), validate=False)
     except Exception as error:  # noqa: BLE001 - a foreign file: any failure is the message
-        raise SspError(f"{path}: its modelDescription.xml cannot be read ({' '.join(str(error).split())})") from None
-    return FmuVariables.of(path, model_description)
+        raise SspError(f"{shown}: its modelDescription.xml cannot be read ({' '.join(str(error).split())})") from None
+    return FmuVariables.of(shown, model_description)

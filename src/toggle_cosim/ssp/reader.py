@@ -81,6 +81,10 @@ def _components(ssd: Element, where: str) -> dict[str, Element]:
             raise SspError(
                 f"{where}: no component {name!r} (an SSP for our master has the components plant and controller)"
             )
+    others = [name for name in components if name not in (layout.PLANT, layout.CONTROLLER)]
+    if others or system.find("ssd:Elements/ssd:System", NS) is not None:
+        what = f"the component {others[0]!r}" if others else "a subsystem"
+        raise SspError(f"{where}: {what} besides plant and controller (our master runs those two only; remove it)")
     return components
 
 
@@ -201,12 +205,8 @@ def _read(path: Path, parameter_set: str | None, folder: Path) -> SspStudy:
         for name in (layout.PLANT, layout.CONTROLLER):
             member = _member_of(components[name].get("source"), archive, where, f"component {name!r}'s FMU")
             paths[name] = _extract(archive, member, folder, name)
-            fmus[name] = describe(paths[name], name)
-        units = {
-            name: _connector_units(element, fmus[name], where) for name, element in components.items() if name in fmus
-        }
-        for name, element in components.items():
-            units.setdefault(name, {c.get("name"): None for c in element.iterfind("ssd:Connectors/ssd:Connector", NS)})
+            fmus[name] = describe(paths[name], name, label=f"{path}: {member}")
+        units = {name: _connector_units(element, fmus[name], where) for name, element in components.items()}
         _check_connections(ssd, units, where)
         sets: dict[str, dict[str, tuple[tuple[str, Value], ...]]] = {}
         for name in (layout.PLANT, layout.CONTROLLER):
@@ -214,7 +214,7 @@ def _read(path: Path, parameter_set: str | None, folder: Path) -> SspStudy:
                 member = _member_of(source, archive, where, f"component {name!r}'s parameter binding")
                 root = parse_member(archive, member, "ssv", f"{path}: {member}")
                 values = _values(root)
-                fmus[name].check_parameters(values, name)
+                fmus[name].check_parameters(values, name, member)
                 sets.setdefault(root.get("name"), {})[name] = values
         names = tuple(sets)
         if not names:

@@ -24,7 +24,7 @@ from lxml import etree
 
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings
-from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 from toggle_cosim.files.outputs import replacing
 from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.runs.definition import Run
@@ -233,25 +233,36 @@ def _checked(root: Element, kind: str, member: str) -> bytes:
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
-def refuse_unwritable(path: Path, document: Any, runs: Sequence[Run]) -> None:
-    """SspError for a scenario an SSP cannot hold: a sweep file, a controller in Python."""
+def _refuse_sweep(path: Path) -> None:
+    """SspError if `path` is a sweep file (which the scenario schema refuses as an unknown file)."""
+    from toggle_cosim.files.yaml_loader import YamlError, load_yaml
+
+    try:
+        document = load_yaml(path, "scenario file")
+    except YamlError:
+        return
     if isinstance(document, Mapping) and ("axes" in document or "base" in document):
         raise SspError(
             f"{path}: a sweep file cannot be written as an SSP (an SSP holds one scenario and its variants); "
             "give the scenario file its base: names"
         )
+
+
+def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
+    """SspError for a scenario an SSP cannot hold: a controller in Python, variants that differ
+    in t_end or T_s (an SSP has one experiment)."""
+    for run in runs:
+        if run.controller.python is not None:
+            raise SspError(
+                f"{path}: key controller.python: an SSP's controller is an FMU, so a Python controller cannot be "
+                "written into it (use the built-in law, or run the scenario with toggle-cosim run)"
+            )
     for key in ("t_end", "T_s"):
         values = {getattr(run, key) for run in runs}
         if len(values) > 1:
             raise SspError(
                 f"{path}: key {key}: the variants use {', '.join(repr(v) for v in sorted(values))} s, and an SSP has one "
                 "experiment for all its parameter sets (give every variant the same value, or split the scenario)"
-            )
-    for run in runs:
-        if run.controller.python is not None:
-            raise SspError(
-                f"{path}: key controller.python: an SSP's controller is an FMU, so a Python controller cannot be "
-                "written into it (use the built-in law, or run the scenario with toggle-cosim run)"
             )
 
 
@@ -260,24 +271,16 @@ def write_ssp(scenario: Path, output: Path, plant_fmu: Path | None, controller_f
 
     `plant_fmu`: the plant (None: the scenario's fmu: key). Raises ScenarioError for a scenario
     that `run` refuses, SspError (one line) for anything else an SSP cannot be made from."""
-    from toggle_cosim.files.yaml_loader import YamlError, load_yaml
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     scenario = Path(scenario)
     try:
-        document = load_yaml(scenario, "scenario file")
-    except YamlError as error:
-        raise ScenarioError(str(error)) from error
-    if isinstance(document, Mapping) and ("axes" in document or "base" in document):
-        refuse_unwritable(scenario, document, [])
-    if document is None:
-        raise ScenarioError(f"{scenario}: the file is empty (a scenario needs name, t_end, T_s and stroke)")
-    try:
-        runs = runs_from_document(document, scenario)
-    except ScenarioError as error:
-        raise ScenarioError(f"{scenario}: {error}") from error
-    refuse_unwritable(scenario, document, runs)
+        runs = load_scenario(scenario)
+    except ScenarioError:
+        _refuse_sweep(scenario)  # a sweep file is no scenario: say what it is
+        raise
+    refuse_unwritable(scenario, runs)
     chosen = plant_fmu if plant_fmu is not None else runs[0].fmu
     if chosen is None:
         raise SspError(f"{scenario}: no fmu: key and no --plant option (name the plant FMU)")
@@ -295,8 +298,11 @@ def write_ssp(scenario: Path, output: Path, plant_fmu: Path | None, controller_f
     controller_variables.check_controller(plant_variables)
     sets = parameter_sets(runs, plant)
     for parameter_set in sets:
-        plant_variables.check_parameters(parameter_set.plant, "plant")
-        controller_variables.check_parameters(parameter_set.controller, "controller")
+        for component, values, variables in (
+            (layout.PLANT, parameter_set.plant, plant_variables),
+            (layout.CONTROLLER, parameter_set.controller, controller_variables),
+        ):
+            variables.check_parameters(values, component, f"the {component}'s parameter set {parameter_set.name!r}")
     fmus = {layout.PLANT: plant.path, layout.CONTROLLER: Path(controller_fmu)}
     members = {component: layout.fmu_member(path.name) for component, path in fmus.items()}
     if members[layout.PLANT] == members[layout.CONTROLLER]:
