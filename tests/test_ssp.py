@@ -15,6 +15,7 @@ import dataclasses
 import re
 import subprocess
 import sys
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -30,7 +31,7 @@ from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import SspError, schema_problem
-from toggle_cosim.ssp.reader import open_ssp, read_ssp
+from toggle_cosim.ssp.reader import open_ssp, read_ssp, read_ssp_sets
 from toggle_cosim.ssp.writer import controller_values, write_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -170,6 +171,9 @@ def test_a_parameter_set_reads_back_as_the_run_it_was_written_from(fig5_ssp: Pat
     runs = load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")
     default = read_ssp(fig5_ssp, folder=fig5_ssp.parent / "default")
     assert default.parameter_set == "friction" and default.parameter_sets == ("friction", "no_friction")
+    every = read_ssp_sets(fig5_ssp, folder=fig5_ssp.parent / "every")
+    assert [study.parameter_set for study in every] == ["friction", "no_friction"]
+    assert len({study.plant_fmu for study in every}) == 1  # one copy of the FMUs for all sets
     for run in runs:
         with open_ssp(fig5_ssp, run.variant) as study:
             assert study.plant_values == tuple(plant_settings(run, plant))
@@ -371,6 +375,10 @@ BAD_SSPS = {
         ),
         "parameter set 'friction' sets the controller's T_s = 0.001 s, the experiment's T_s is 0.0005 s",
     ),
+    "a value that is not finite": (
+        lambda path, tmp: _rewrite(path, tmp / "bad.ssp", _ssv_edit("friction.plant", 'value="0.2"', 'value="NaN"')),
+        "resources/friction.plant.ssv: mu = nan is not a finite number (give a finite value)",
+    ),
     "unsafe archive": (
         lambda path, tmp: _rewrite(path, tmp / "bad.ssp", lambda m: m.update({"../escape.txt": b"x"})),
         "unsafe or corrupt archive: member '../escape.txt' has a '..'",
@@ -393,6 +401,10 @@ def test_a_parameter_set_that_does_not_exist_is_refused_naming_those_that_do(fig
     assert line == (
         f"error: {fig5_ssp}: no parameter set 'heavy' (choose one of friction, no_friction with --parameter-set)"
     )
+    before = set(Path(tempfile.gettempdir()).glob("toggle-cosim-ssp-*"))
+    with pytest.raises(SspError, match="no parameter set 'heavy'"):
+        read_ssp(fig5_ssp, "heavy")
+    assert set(Path(tempfile.gettempdir()).glob("toggle-cosim-ssp-*")) <= before  # its temporary copy is gone
 
 
 def test_ssp_refuses_a_python_controller_and_a_sweep_in_one_line(controller_fmu: Path, tmp_path: Path) -> None:

@@ -49,17 +49,17 @@ def ssp_runs(paths: Sequence[Path], parameter_set: str | None, stack: contextlib
     """The runs of each SSP: the parameter set named, else every set in order; the FMUs extracted
     into folders that `stack` removes."""
     from toggle_cosim.ssp.checks import SspError
-    from toggle_cosim.ssp.reader import open_ssp
+    from toggle_cosim.ssp.reader import open_ssp, open_ssp_sets
     from toggle_cosim.ssp.run import run_from_ssp
 
     runs = []
     try:
         for path in paths:
-            study = stack.enter_context(open_ssp(path, parameter_set))
-            names = (study.parameter_set,) if parameter_set is not None else study.parameter_sets
-            for name in names:
-                chosen = study if name == study.parameter_set else stack.enter_context(open_ssp(path, name))
-                runs.append(run_from_ssp(chosen))
+            if parameter_set is None:
+                studies = stack.enter_context(open_ssp_sets(path))
+            else:
+                studies = (stack.enter_context(open_ssp(path, parameter_set)),)
+            runs.extend(run_from_ssp(study) for study in studies)
     except SspError as error:
         raise InputError(str(error)) from error
     return runs

@@ -13,12 +13,14 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import math
 import shutil
 import tempfile
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
+from typing import TypeVar
 
 from lxml import etree
 
@@ -27,9 +29,10 @@ from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError, open_archive, parse_member
 from toggle_cosim.ssp.fmus import FmuVariables, describe
 
-__all__ = ["SspStudy", "open_ssp", "read_ssp"]
+__all__ = ["SspStudy", "open_ssp", "open_ssp_sets", "read_ssp", "read_ssp_sets"]
 
 Value = float | bool | int
+T = TypeVar("T")
 NS = layout.NAMESPACES
 
 
@@ -178,22 +181,58 @@ def _run(experiment: Element, parameter_set: str, path: Path, where: str) -> Run
     return dataclasses.replace(run, variant=entry.get("variant"))
 
 
+def _float(element: Element, name: str, where: str) -> float:
+    """A finite number in an attribute that the schema does not type (our annotation's)."""
+    try:
+        value = float(element.get(name))
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value):
+        raise SspError(f"{where}: {name} = {element.get(name)!r} is not a finite number (write the SSP again)")
+    return value
+
+
+def _check_finite(values: tuple[tuple[str, Value], ...], where: str) -> None:
+    for name, value in values:
+        if not math.isfinite(value):
+            raise SspError(f"{where}: {name} = {value!r} is not a finite number (give a finite value)")
+
+
 def read_ssp(path: Path, parameter_set: str | None = None, folder: Path | None = None) -> SspStudy:
     """Read and check the SSP at `path` for one parameter set (None: the default, `layout`); the
     FMUs are extracted into `folder` (None: a new temporary folder, which the caller removes once
     done with the FMUs; `open_ssp` does). Raises SspError with the one-line reason (and then
     leaves no temporary folder)."""
+
+    def choose(studies: tuple[SspStudy, ...]) -> SspStudy:
+        names = studies[0].parameter_sets
+        chosen = names[0] if parameter_set is None else parameter_set
+        if chosen not in names:
+            raise SspError(
+                f"{path}: no parameter set {chosen!r} (choose one of {', '.join(names)} with --parameter-set)"
+            )
+        return studies[names.index(chosen)]
+
+    return _reading(Path(path), folder, choose)
+
+
+def read_ssp_sets(path: Path, folder: Path | None = None) -> tuple[SspStudy, ...]:
+    """`read_ssp` for every parameter set, the default first, sharing one copy of the FMUs."""
+    return _reading(Path(path), folder, lambda studies: studies)
+
+
+def _reading(path: Path, folder: Path | None, pick: Callable[[tuple[SspStudy, ...]], T]) -> T:
     made = folder is None
     folder = Path(tempfile.mkdtemp(prefix="toggle-cosim-ssp-")) if folder is None else Path(folder)
     try:
-        return _read(Path(path), parameter_set, folder)
+        return pick(_read(path, folder))
     except BaseException:
         if made:
             shutil.rmtree(folder, ignore_errors=True)
         raise
 
 
-def _read(path: Path, parameter_set: str | None, folder: Path) -> SspStudy:
+def _read(path: Path, folder: Path) -> tuple[SspStudy, ...]:
     with open_archive(path) as archive:
         if layout.SSD_MEMBER not in archive.namelist():
             raise SspError(f"{path}: no {layout.SSD_MEMBER} in the archive (an SSP needs one at its top level)")
@@ -215,36 +254,48 @@ def _read(path: Path, parameter_set: str | None, folder: Path) -> SspStudy:
                 root = parse_member(archive, member, "ssv", f"{path}: {member}")
                 values = _values(root)
                 fmus[name].check_parameters(values, name, member)
+                _check_finite(values, f"{path}: {member}")
                 sets.setdefault(root.get("name"), {})[name] = values
-        names = tuple(sets)
-        if not names:
+        if not sets:
             raise SspError(f"{where}: no parameter set is bound (write the SSP with toggle-cosim ssp)")
-        chosen = names[0] if parameter_set is None else parameter_set
-        if chosen not in sets:
-            raise SspError(
-                f"{path}: no parameter set {chosen!r} (choose one of {', '.join(names)} with --parameter-set)"
-            )
         experiment = _experiment(ssd, where)
-        T_s = float(experiment.get("T_s"))
+        T_s = _float(experiment, "T_s", where)
         default = ssd.find("ssd:DefaultExperiment", NS)
         stop = default.get("stopTime") if default is not None else None
         if stop is None:
             raise SspError(f"{where}: no DefaultExperiment stopTime (give the run's end time t_end there)")
         t_end = float(stop)
-        run = _run(experiment, chosen, path, where)
-    plant_values = sets[chosen].get(layout.PLANT, ())
-    controller_values = sets[chosen].get(layout.CONTROLLER, ())
+        if not 0 < T_s <= t_end or abs(round(t_end / T_s) * T_s - t_end) > 1e-9 * t_end:
+            raise SspError(
+                f"{where}: stopTime {t_end!r} s is not a whole number of samples T_s = {T_s!r} s (fix either)"
+            )
+        runs = {name: _run(experiment, name, path, where) for name in sets}
+    names = tuple(sets)
+    return tuple(_study(path, name, names, sets[name], runs[name], paths, t_end, T_s) for name in names)
+
+
+def _study(
+    path: Path,
+    name: str,
+    names: tuple[str, ...],
+    values: dict[str, tuple[tuple[str, Value], ...]],
+    run: Run,
+    paths: dict[str, Path],
+    t_end: float,
+    T_s: float,
+) -> SspStudy:
+    """One parameter set's study: its values, and the run with the SSP's t_end, T_s, F_E and
+    plant values (run.json names the SSP and the set)."""
+    plant_values = values.get(layout.PLANT, ())
+    controller_values = values.get(layout.CONTROLLER, ())
     given_T_s = dict(controller_values).get("T_s")
     if given_T_s is not None and given_T_s != T_s:
         raise SspError(
-            f"{path}: parameter set {chosen!r} sets the controller's T_s = {given_T_s!r} s, the experiment's T_s is "
+            f"{path}: parameter set {name!r} sets the controller's T_s = {given_T_s!r} s, the experiment's T_s is "
             f"{T_s!r} s (make them equal)"
         )
-    if not 0 < T_s <= t_end or abs(round(t_end / T_s) * T_s - t_end) > 1e-9 * t_end:
-        raise SspError(f"{where}: stopTime {t_end!r} s is not a whole number of samples T_s = {T_s!r} s (fix either)")
     F_E = next((float(v) for n, v in plant_values if n == layout.EXTERNAL_FORCE), run.plant.F_E)
     settings = tuple((n, v) for n, v in plant_values if n != layout.EXTERNAL_FORCE)
-    resolved = {**run.resolved, "ssp": {"file": str(path), "parameter_set": chosen}}
     run = dataclasses.replace(
         run,
         source=path,
@@ -252,11 +303,11 @@ def _read(path: Path, parameter_set: str | None, folder: Path) -> SspStudy:
         t_end=t_end,
         T_s=T_s,
         plant=dataclasses.replace(run.plant, F_E=F_E, fmu_values=settings),
-        resolved=resolved,
+        resolved={**run.resolved, "ssp": {"file": str(path), "parameter_set": name}},
     )
     return SspStudy(
         path,
-        chosen,
+        name,
         names,
         paths[layout.PLANT],
         paths[layout.CONTROLLER],
@@ -274,3 +325,10 @@ def open_ssp(path: Path, parameter_set: str | None = None) -> Iterator[SspStudy]
     """`read_ssp` with the FMUs in a temporary folder that lives as long as the block."""
     with tempfile.TemporaryDirectory(prefix="toggle-cosim-ssp-") as folder:
         yield read_ssp(path, parameter_set, Path(folder))
+
+
+@contextlib.contextmanager
+def open_ssp_sets(path: Path) -> Iterator[tuple[SspStudy, ...]]:
+    """`read_ssp_sets` with the FMUs in a temporary folder that lives as long as the block."""
+    with tempfile.TemporaryDirectory(prefix="toggle-cosim-ssp-") as folder:
+        yield read_ssp_sets(path, Path(folder))
