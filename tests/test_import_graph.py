@@ -160,6 +160,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("cosim",),
     ("analysis",),
     ("experiments",),
+    ("ssp",),
     ("cli", "api"),
     ("__main__",),  # `python -m toggle_cosim`: the command line as a program
 )

@@ -1,4 +1,4 @@
-"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep`.
+"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep | ssp`.
 
 The only package that knows about files, exit codes and progress display. Exit status:
 0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
@@ -10,6 +10,7 @@ The only package that knows about files, exit codes and progress display. Exit s
     run_commands.py    run, plot, paper
     check_commands.py  compare, references
     sweep_command.py   sweep
+    ssp_command.py     ssp, and the SSPs that run reads
 
 Each command imports what it needs when it runs: `toggle-cosim --help` imports click only.
 """
@@ -28,7 +29,14 @@ _program = Path(sys.argv[0])
 if _program.name == "toggle-cosim" or sys.argv[0] == "-m" or _program.parts[-2:] == ("toggle_cosim", "__main__.py"):
     interrupts.install_for_start_up()  # before the heavy imports
 
-from toggle_cosim.cli import build_command, check_commands, init_command, run_commands, sweep_command  # noqa: E402, F401 - they add the commands
+from toggle_cosim.cli import (  # noqa: E402, F401 - they add the commands
+    build_command,
+    check_commands,
+    init_command,
+    run_commands,
+    ssp_command,
+    sweep_command,
+)
 from toggle_cosim.cli.app import main  # noqa: E402
 
 __all__ = ["main"]

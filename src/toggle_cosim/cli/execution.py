@@ -16,16 +16,23 @@ from toggle_cosim import interrupts
 from toggle_cosim.cli.app import InputError, RunFailed
 
 
-def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
+def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ()):  # noqa: ANN001, ANN202
+    """The (run, plant) pairs of the scenario files and of the runs `built` already (an SSP's,
+    with their own plant), each checked before any run starts."""
     from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.probe import ProbeError, probe_binary
 
     runs = []
     named: dict[str, Path] = {}  # scenario name -> the file that gave it: its runs' folder OUT/<name>/
-    for path in scenarios:
+    own = {id(run) for run in built}  # runs whose plant is their own: --fmu does not apply
+    grouped: dict[Path, list] = {}
+    for run in built:
+        grouped.setdefault(run.source, []).append(run)
+    sources = [(path, None) for path in scenarios] + list(grouped.items())
+    for path, given in sources:
         try:
-            loaded = load_scenario(path)
+            loaded = load_scenario(path) if given is None else given
         except ScenarioError as error:
             raise InputError(str(error)) from error
         for name in dict.fromkeys(run.scenario for run in loaded):
@@ -39,7 +46,7 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
         runs.extend(loaded)
     plants = {}
     for run in runs:
-        chosen = fmu if fmu is not None else run.fmu
+        chosen = fmu if fmu is not None and id(run) not in own else run.fmu
         if chosen is None:
             raise InputError(f"{run.source}: no fmu: key and no --fmu option (name the plant FMU)")
         chosen = chosen.resolve()
@@ -51,7 +58,7 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None):  # noqa: ANN202
                 raise InputError(str(error)) from error
             for note in plants[chosen].contract_notes():  # absent optional outputs, missing units
                 click.echo(note, err=True)
-    pairs = [(run, plants[(fmu if fmu is not None else run.fmu).resolve()]) for run in runs]
+    pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.controllers import controller_for
     from toggle_cosim.plant.settings import SettingError, check_settings

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 from pathlib import Path
@@ -41,6 +42,12 @@ from toggle_cosim.runs.definition import COUPLINGS
     help="gauss-seidel: the plant gets the command computed from its outputs at the same sample; jacobi: the "
     "previous sample's command (overrides the scenarios' coupling: key; default gauss-seidel).",
 )
+@click.option(
+    "--parameter-set",
+    default=None,
+    metavar="NAME",
+    help="For an .ssp: run this parameter set only (default: every parameter set, as a scenario's variants).",
+)
 @TIME_LIMIT_OPTION
 @JOBS_OPTION
 def run(
@@ -49,14 +56,25 @@ def run(
     out: Path,
     quiet: bool,
     coupling: str | None,
+    parameter_set: str | None,
     time_limit: float | None,
     jobs: int | None,
 ) -> None:
-    """Run scenario files; write trace.csv and run.json per run under OUT/<scenario>/<variant>/."""
-    pairs = load_runs(scenarios, fmu)
-    if coupling is not None:
-        pairs = [(dataclasses.replace(one, coupling=coupling), plant) for one, plant in pairs]
-    raise_if_failed(execute_runs(pairs, out, quiet, time_limit, jobs=jobs))
+    """Run scenario files (or SSP archives, .ssp); write trace.csv and run.json per run under
+    OUT/<scenario>/<variant>/."""
+    from toggle_cosim.cli.ssp_command import is_ssp, ssp_runs
+
+    ssps = [path for path in scenarios if is_ssp(path)]
+    if parameter_set is not None and not ssps:
+        raise InputError("--parameter-set chooses an SSP's parameter set: give an .ssp file with it")
+    if fmu is not None and ssps:
+        raise InputError(f"{ssps[0]}: --fmu does not apply to an SSP (its plant is inside it); run it without --fmu")
+    with contextlib.ExitStack() as stack:  # an SSP's FMUs live in a folder removed after the runs
+        built = ssp_runs(ssps, parameter_set, stack)
+        pairs = load_runs([path for path in scenarios if not is_ssp(path)], fmu, built)
+        if coupling is not None:
+            pairs = [(dataclasses.replace(one, coupling=coupling), plant) for one, plant in pairs]
+        raise_if_failed(execute_runs(pairs, out, quiet, time_limit, jobs=jobs))
 
 
 def _plot_scenario(folder: Path, output: Path | None) -> Path:

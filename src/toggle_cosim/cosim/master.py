@@ -74,7 +74,10 @@ INPUTS = COMMAND_COLUMNS
 
 
 def plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | bool]]:
-    """The plant parameters a run sets before initialisation, in order."""
+    """The plant parameters a run sets before initialisation, in order: run.plant.fmu_values if
+    given (an SSP's parameter set), else those the scenario's settings give."""
+    if run.plant.fmu_values is not None:
+        return list(run.plant.fmu_values)
     settings: list[tuple[str, float | bool]] = [("m_B", run.plant.m_B), ("mu", run.plant.mu)]
     available = plant.references
     if "x_B0" in available:

@@ -33,6 +33,9 @@ class PlantSettings:
     rated_current: float = 10.0  # A
     working_range: tuple[float, float] | None = None  # m, slider B; None: the linkage's (scenario)
     parameters: Mapping[str, float | bool] = field(default_factory=dict)
+    # Explicit (name, value) settings in order, e.g. an SSP's parameter set (`ssp.reader`): the
+    # master sets exactly these instead of the ones it derives from the fields above
+    fmu_values: tuple[tuple[str, float | bool | int], ...] | None = None
 
 
 @dataclass(frozen=True)

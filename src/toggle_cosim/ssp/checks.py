@@ -1,0 +1,80 @@
+"""What the SSP writer and reader both check: XML against the vendored SSP 1.0 schemas
+(`schemas/`, validated with lxml, which FMPy's own SSP reader uses too) and the archive's safety
+(the FMU archive checks of `plant.archive`: member names, sizes, members, corrupt data)."""
+
+from __future__ import annotations
+
+import functools
+import zipfile
+from importlib import resources
+from pathlib import Path
+from typing import Any, TypeAlias
+
+from lxml import etree
+
+from toggle_cosim.plant.archive import ArchiveError, check_archive
+
+SCHEMAS = {
+    "ssd": "SystemStructureDescription.xsd",
+    "ssv": "SystemStructureParameterValues.xsd",
+    "ssm": "SystemStructureParameterMapping.xsd",
+    "ssb": "SystemStructureSignalDictionary.xsd",
+}
+
+
+Element: TypeAlias = Any  # an lxml element (lxml names its class privately)
+
+
+class SspError(Exception):
+    """An SSP (or a scenario for one) that cannot be used; str() is the one-line reason, naming
+    the file and the fix."""
+
+
+@functools.cache
+def schema(kind: str) -> etree.XMLSchema:
+    """The SSP 1.0 schema of a file kind ("ssd", "ssv", "ssm", "ssb"), from the vendored copies."""
+    folder = resources.files("toggle_cosim.ssp") / "schemas"
+    with resources.as_file(folder / SCHEMAS[kind]) as path:
+        return etree.XMLSchema(etree.parse(str(path)))
+
+
+def schema_problem(root: Element, kind: str) -> str | None:
+    """None if `root` is valid SSP 1.0 of `kind`, else the first problem in one line."""
+    checker = schema(kind)
+    if checker.validate(root):
+        return None
+    entry = checker.error_log[0]
+    return f"line {entry.line}: {' '.join(entry.message.split())}"
+
+
+def parse_member(archive: zipfile.ZipFile, member: str, kind: str, where: str) -> Element:
+    """The root of an XML member, checked against its SSP 1.0 schema; SspError naming `where`
+    (the SSP file and the member) otherwise. Entities are not resolved and nothing is fetched."""
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False)
+    try:
+        root = etree.fromstring(archive.read(member), parser)
+    except etree.XMLSyntaxError as error:
+        raise SspError(f"{where}: not well-formed XML ({' '.join(str(error).split())}); fix or rewrite it") from None
+    problem = schema_problem(root, kind)
+    if problem is not None:
+        raise SspError(f"{where}: not valid SSP 1.0 ({problem}); fix it or write the SSP again")
+    return root
+
+
+def open_archive(path: Path) -> zipfile.ZipFile:
+    """The SSP at `path` as a checked zip archive (`plant.archive.check_archive`); SspError if it
+    is not a zip file or is unsafe."""
+    try:
+        archive = zipfile.ZipFile(path)
+    except FileNotFoundError:
+        raise SspError(f"{path}: no such file (give the path of an .ssp archive)") from None
+    except (zipfile.BadZipFile, OSError) as error:
+        raise SspError(
+            f"{path}: not an SSP archive ({error}); give a zip archive as toggle-cosim ssp writes it"
+        ) from None
+    try:
+        check_archive(archive)
+    except ArchiveError as error:
+        archive.close()
+        raise SspError(f"{path}: unsafe or corrupt archive: {error}; write the SSP again") from None
+    return archive

@@ -1,0 +1,330 @@
+"""A scenario file -> an SSP 1.0 archive (`toggle-cosim ssp`): SystemStructure.ssd with the plant
+and the controller FMU as components, the connections, one parameter set per variant (`layout`),
+DefaultExperiment (0, t_end, with T_s as libcosim's fixed step) and our annotation (T_s, each set's
+scenario document).
+
+Each set holds, for the plant, exactly what our master sets on it (`cosim.master.plant_settings`)
+and F_E, its input; for the controller, every field of the built-in law's `LawParameters` but t0
+and T_h (the controller FMU starts the law itself). Numbers are written with `repr`, so they read
+back with the same bits. The archive is checked against the SSP 1.0 schemas before it is written,
+and written whole or not at all (`files.outputs`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import zipfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from lxml import etree
+
+from toggle_cosim.cosim.controllers import builtin_controller
+from toggle_cosim.cosim.master import plant_settings
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
+from toggle_cosim.files.outputs import replacing
+from toggle_cosim.fmu_export.units import UnitError, base_exponents
+from toggle_cosim.runs.definition import Run
+from toggle_cosim.ssp import layout
+from toggle_cosim.ssp.checks import Element, SspError, schema_problem
+from toggle_cosim.ssp.fmus import FmuVariables, describe
+
+__all__ = ["CONTROLLER_EXCLUDED", "ParameterSet", "controller_values", "parameter_sets", "write_ssp"]
+
+# LawParameters fields the controller FMU computes itself at its first sample
+CONTROLLER_EXCLUDED = ("t0", "T_h")
+BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+Value = float | bool | int
+
+
+@dataclass(frozen=True)
+class ParameterSet:
+    """One variant's values: for the plant (in the order the master sets them, then F_E) and for
+    the controller, and the scenario document the run was built from."""
+
+    name: str
+    plant: tuple[tuple[str, Value], ...]
+    controller: tuple[tuple[str, Value], ...]
+    run: Run
+
+
+def controller_values(run: Run) -> tuple[tuple[str, float], ...]:
+    """The controller FMU's parameters for `run`: its built-in law's `law_parameters()` by field
+    name, without CONTROLLER_EXCLUDED."""
+    law = builtin_controller(run).law_parameters()
+    return tuple(
+        (field.name, getattr(law, field.name))
+        for field in dataclasses.fields(law)
+        if field.name not in CONTROLLER_EXCLUDED
+    )
+
+
+def parameter_sets(runs: Sequence[Run], plant) -> list[ParameterSet]:  # noqa: ANN001 - a PlantInterface
+    """One ParameterSet per run (variant), in order."""
+    sets = []
+    for run in runs:
+        try:
+            values = plant_settings(run, plant)
+        except ValueError as error:
+            raise SspError(f"{run.source}: {error}") from None
+        sets.append(
+            ParameterSet(
+                layout.set_name(run.variant),
+                (*values, (layout.EXTERNAL_FORCE, run.plant.F_E)),
+                controller_values(run),
+                run,
+            )
+        )
+    return sets
+
+
+def _q(namespace: str, tag: str) -> str:
+    return f"{{{namespace}}}{tag}"
+
+
+def _number(value: Value, kind: str) -> str:
+    """The text of a value of SSV type `kind`: true/false, an integer, or repr of a float (read
+    back with the same bits)."""
+    if kind == "Boolean":
+        return "true" if value else "false"
+    if kind == "Integer":
+        return str(int(value))
+    return repr(float(value))
+
+
+def _ssv(parameter_set: str, values: Sequence[tuple[str, Value]], variables: FmuVariables) -> Element:
+    root = etree.Element(_q(layout.SSV_NS, "ParameterSet"), nsmap={"ssv": layout.SSV_NS}, version="1.0")
+    root.set("name", parameter_set)
+    parameters = etree.SubElement(root, _q(layout.SSV_NS, "Parameters"))
+    for name, value in values:
+        kind = variables.value_type(name, value)
+        parameter = etree.SubElement(parameters, _q(layout.SSV_NS, "Parameter"), name=name)
+        etree.SubElement(parameter, _q(layout.SSV_NS, kind), value=_number(value, kind))
+    return root
+
+
+def _unit_element(units: Element, name: str, variables: Sequence[FmuVariables]) -> None:
+    exponents = next((found for v in variables if (found := v.base_unit(name)) is not None), None)
+    if exponents is None:
+        try:
+            exponents = {**base_exponents(name), "factor": 1.0, "offset": 0.0}
+        except UnitError:
+            return
+    unit = etree.SubElement(units, _q(layout.SSC_NS, "Unit"), name=name)
+    attributes = {key: str(int(exponents[key])) for key in BASE_UNITS if exponents.get(key, 0)}
+    for key, default in (("factor", 1.0), ("offset", 0.0)):
+        if float(exponents.get(key, default)) != default:
+            attributes[key] = repr(float(exponents[key]))
+    etree.SubElement(unit, _q(layout.SSC_NS, "BaseUnit"), attributes)
+
+
+def _connectors(component: Element, names: Sequence[str], variables: FmuVariables) -> set[str]:
+    connectors = etree.SubElement(component, _q(layout.SSD_NS, "Connectors"))
+    units = set()
+    for name in names:
+        variable = variables.variable(name)
+        connector = etree.SubElement(connectors, _q(layout.SSD_NS, "Connector"), name=name, kind=variable.causality)
+        unit = variables.unit(name)
+        real = etree.SubElement(connector, _q(layout.SSC_NS, "Real"))
+        if unit:
+            real.set("unit", unit)
+            units.add(unit)
+    return units
+
+
+def _document(run: Run) -> dict[str, Any]:
+    """The scenario document of one run: its resolved keys (the variant applied), without the
+    scenario's own fmu (the SSP holds the plant)."""
+    return {key: value for key, value in run.resolved.items() if key != "fmu"}
+
+
+def system_structure(
+    name: str, sets: Sequence[ParameterSet], plant: FmuVariables, controller: FmuVariables, fmus: Mapping[str, str]
+) -> Element:
+    """The SSD of the study: `fmus` maps each component to its FMU's member name."""
+    first = sets[0].run
+    root = etree.Element(
+        _q(layout.SSD_NS, "SystemStructureDescription"),
+        # osp declared here: libcosim reads an attribute of osp:Algorithm (xmlns:osp too) as an algorithm
+        nsmap={"ssd": layout.SSD_NS, "ssc": layout.SSC_NS, "ssv": layout.SSV_NS, "osp": layout.OSP_NS},
+        version="1.0",
+        name=name,
+        generationTool="toggle-cosim",
+    )
+    system = etree.SubElement(root, _q(layout.SSD_NS, "System"), name=name)
+    if first.description:
+        system.set("description", first.description)
+    elements = etree.SubElement(system, _q(layout.SSD_NS, "Elements"))
+    inputs = controller.inputs()
+    connections = [(layout.PLANT, signal, layout.CONTROLLER, signal) for signal in inputs]
+    connections.append((layout.CONTROLLER, layout.COMMAND, layout.PLANT, layout.COMMAND))
+    plant_connectors = [*inputs, layout.COMMAND, layout.EXTERNAL_FORCE]
+    controller_connectors = [*inputs, layout.COMMAND]
+    units: set[str] = set()
+    for component, variables, connectors in (
+        (layout.PLANT, plant, plant_connectors),
+        (layout.CONTROLLER, controller, controller_connectors),
+    ):
+        element = etree.SubElement(
+            elements,
+            _q(layout.SSD_NS, "Component"),
+            name=component,
+            type=layout.FMU_TYPE,
+            source=fmus[component],
+        )
+        units |= _connectors(element, connectors, variables)
+        bindings = etree.SubElement(element, _q(layout.SSD_NS, "ParameterBindings"))
+        for parameter_set in sets:
+            etree.SubElement(
+                bindings,
+                _q(layout.SSD_NS, "ParameterBinding"),
+                type="application/x-ssp-parameter-set",
+                source=layout.ssv_member(parameter_set.name, component),
+            )
+    wires = etree.SubElement(system, _q(layout.SSD_NS, "Connections"))
+    for start, start_connector, end, end_connector in connections:
+        etree.SubElement(
+            wires,
+            _q(layout.SSD_NS, "Connection"),
+            startElement=start,
+            startConnector=start_connector,
+            endElement=end,
+            endConnector=end_connector,
+        )
+    if units:
+        unit_list = etree.SubElement(root, _q(layout.SSD_NS, "Units"))
+        for unit in sorted(units):
+            _unit_element(unit_list, unit, (plant, controller))
+        if len(unit_list) == 0:
+            root.remove(unit_list)
+    default = etree.SubElement(
+        root, _q(layout.SSD_NS, "DefaultExperiment"), startTime="0.0", stopTime=repr(first.t_end)
+    )
+    osp = etree.SubElement(  # T_s as libcosim's fixed step
+        etree.SubElement(default, _q(layout.SSD_NS, "Annotations")),
+        _q(layout.SSC_NS, "Annotation"),
+        type=layout.OSP_ANNOTATION_TYPE,
+    )
+    algorithm = etree.SubElement(osp, _q(layout.OSP_NS, "Algorithm"))
+    etree.SubElement(algorithm, _q(layout.OSP_NS, "FixedStepAlgorithm"), baseStepSize=repr(first.T_s))
+    annotations = etree.SubElement(root, _q(layout.SSD_NS, "Annotations"))
+    annotation = etree.SubElement(annotations, _q(layout.SSC_NS, "Annotation"), type=layout.ANNOTATION_TYPE)
+    experiment = etree.SubElement(
+        annotation, _q(layout.TOGGLE_NS, "Experiment"), nsmap={"tc": layout.TOGGLE_NS}, T_s=repr(first.T_s)
+    )
+    experiment.set("scenario", first.scenario)
+    for parameter_set in sets:
+        run = parameter_set.run
+        entry = etree.SubElement(experiment, _q(layout.TOGGLE_NS, "Run"), parameterSet=parameter_set.name)
+        entry.set("label", run.label)
+        if run.variant is not None:
+            entry.set("variant", run.variant)
+        entry.text = json.dumps(_document(run), sort_keys=True)
+    return root
+
+
+def _checked(root: Element, kind: str, member: str) -> bytes:
+    problem = schema_problem(root, kind)
+    if problem is not None:  # what we write is valid by construction: a failure here is our bug
+        raise AssertionError(f"{member} written invalid ({problem})")
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+
+
+def _refuse_sweep(path: Path) -> None:
+    """SspError if `path` is a sweep file (which the scenario schema refuses as an unknown file)."""
+    from toggle_cosim.files.yaml_loader import YamlError, load_yaml
+
+    try:
+        document = load_yaml(path, "scenario file")
+    except YamlError:
+        return
+    if isinstance(document, Mapping) and ("axes" in document or "base" in document):
+        raise SspError(
+            f"{path}: a sweep file cannot be written as an SSP (an SSP holds one scenario and its variants); "
+            "give the scenario file its base: names"
+        )
+
+
+def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
+    """SspError for a scenario an SSP cannot hold: a controller in Python, variants that differ
+    in t_end or T_s (an SSP has one experiment)."""
+    for run in runs:
+        if getattr(run.controller, "fmu", None) is not None:  # controller: {fmu: ...}, where the master has it
+            raise SspError(
+                f"{path}: key controller.fmu: the SSP's controller is the one given with --controller, with the built-in "
+                "law's parameters; remove controller.fmu from the scenario and name that FMU with --controller"
+            )
+        if run.controller.python is not None:
+            raise SspError(
+                f"{path}: key controller.python: an SSP's controller is an FMU, so a Python controller cannot be "
+                "written into it (use the built-in law, or run the scenario with toggle-cosim run)"
+            )
+    for key in ("t_end", "T_s"):
+        values = {getattr(run, key) for run in runs}
+        if len(values) > 1:
+            raise SspError(
+                f"{path}: key {key}: the variants use {', '.join(repr(v) for v in sorted(values))} s, and an SSP has one "
+                "experiment for all its parameter sets (give every variant the same value, or split the scenario)"
+            )
+
+
+def write_ssp(scenario: Path, output: Path, plant_fmu: Path | None, controller_fmu: Path) -> Path:
+    """Write the SSP of `scenario` to `output` (whole or not at all) and return `output`.
+
+    `plant_fmu`: the plant (None: the scenario's fmu: key). Raises ScenarioError for a scenario
+    that `run` refuses, SspError (one line) for anything else an SSP cannot be made from."""
+    from toggle_cosim.plant.contract import ContractError, check_plant
+    from toggle_cosim.plant.settings import SettingError, check_settings
+
+    scenario = Path(scenario)
+    try:
+        runs = load_scenario(scenario)
+    except ScenarioError:
+        _refuse_sweep(scenario)  # a sweep file is no scenario: say what it is
+        raise
+    refuse_unwritable(scenario, runs)
+    chosen = plant_fmu if plant_fmu is not None else runs[0].fmu
+    if chosen is None:
+        raise SspError(f"{scenario}: no fmu: key and no --plant option (name the plant FMU)")
+    try:
+        plant = check_plant(Path(chosen))
+    except ContractError as error:
+        raise SspError(str(error)) from None
+    for run in runs:
+        try:
+            check_settings(run, plant)
+        except SettingError as error:
+            raise SspError(f"{scenario}: {error}") from None
+    plant_variables = FmuVariables.of(plant.path, plant.model_description)
+    controller_variables = describe(Path(controller_fmu))
+    controller_variables.check_controller(plant_variables)
+    sets = parameter_sets(runs, plant)
+    for parameter_set in sets:
+        for component, values, variables in (
+            (layout.PLANT, parameter_set.plant, plant_variables),
+            (layout.CONTROLLER, parameter_set.controller, controller_variables),
+        ):
+            variables.check_parameters(values, component, f"the {component}'s parameter set {parameter_set.name!r}")
+    fmus = {layout.PLANT: plant.path, layout.CONTROLLER: Path(controller_fmu)}
+    members = {component: layout.fmu_member(path.name) for component, path in fmus.items()}
+    if members[layout.PLANT] == members[layout.CONTROLLER]:
+        members[layout.CONTROLLER] = layout.fmu_member(f"{layout.CONTROLLER}_{fmus[layout.CONTROLLER].name}")
+    ssd = system_structure(runs[0].scenario, sets, plant_variables, controller_variables, members)
+    texts = {layout.SSD_MEMBER: _checked(ssd, "ssd", layout.SSD_MEMBER)}
+    for parameter_set in sets:
+        for component, values, variables in (
+            (layout.PLANT, parameter_set.plant, plant_variables),
+            (layout.CONTROLLER, parameter_set.controller, controller_variables),
+        ):
+            member = layout.ssv_member(parameter_set.name, component)
+            texts[member] = _checked(_ssv(parameter_set.name, values, variables), "ssv", member)
+    with replacing(output, "SSP (--out)") as temporary:
+        with zipfile.ZipFile(temporary, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+            for member, text in texts.items():
+                archive.writestr(member, text)
+            for component, path in fmus.items():  # an FMU is a zip already: stored as it is
+                archive.write(path, members[component], compress_type=zipfile.ZIP_STORED)
+    return Path(output)
