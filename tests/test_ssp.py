@@ -5,8 +5,8 @@ SSP 1.0 schemas (lxml, the library the writer and reader use; it is a dependency
 read by FMPy's own SSP reader, which validates them against FMPy's copies of the schemas. The
 .ssv values are the master's plant settings and the built-in law's parameters bit for bit; a
 parameter set read back runs the plant as the scenario does, bit for bit. Each bad input is one
-line, exit 2, nothing written. The end-to-end run through the controller FMU needs ToggleVSC and
-our master's FmuController (skipped where they are missing).
+line, exit 2, nothing written. Run in our master through the controller FMU ToggleVSC, each
+parameter set gives the scenario variant's trace bit for bit.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from click.testing import CliRunner
 from lxml import etree
 
 from toggle_cosim.cli import main
+from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings, simulate
 from toggle_cosim.experiments.scenario import load_scenario
@@ -517,18 +518,13 @@ def test_run_options_that_do_not_fit_an_ssp_are_refused(fig5_ssp: Path, plant_fm
     assert "--parameter-set chooses an SSP's parameter set" in _one_line(result, out)
 
 
-# -- end to end: the controller FMU in our master (needs ToggleVSC and FmuController) ----------------
+# -- end to end: the controller FMU in our master --------------------------------------------------
 
 
 @pytest.fixture(scope="module")
 def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The real controller FMU, built once (skipped where this toggle-cosim cannot build or run it)."""
-    controller_fmu_module = pytest.importorskip("toggle_cosim.controller_fmu")
-    from toggle_cosim.runs.definition import ControllerSettings
-
-    if "fmu" not in {field.name for field in dataclasses.fields(ControllerSettings)}:
-        pytest.skip("this toggle-cosim cannot run a controller FMU (no controller: {fmu: ...})")
-    return controller_fmu_module.build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu")
+    """The real controller FMU (FMI 2.0), built once."""
+    return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu").path
 
 
 @pytest.mark.parametrize("name", ["fig4_nominal", "fig5_external_force", "fig6_mass_variation"])
@@ -549,7 +545,7 @@ def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
         assert ran.exit_code == 0, ran.output
         folder = Path(run.scenario) / (run.variant or "run")
         expected, got = read_trace_csv(yaml_out / folder / "trace.csv"), read_trace_csv(ssp_out / folder / "trace.csv")
-        assert got.names == expected.names
+        assert got.names == (*expected.names, "z")  # the FMU also reports the integral law's state
         for column in expected.names:
             assert np.array_equal(got.column(column), expected.column(column)), column
         record = (ssp_out / folder / "run.json").read_text()

@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 
 from toggle_cosim.runs.definition import ControllerSettings, Run
-from toggle_cosim.ssp.checks import SspError
 from toggle_cosim.ssp.reader import SspStudy
 
 __all__ = ["controller_from_ssp", "run_from_ssp"]
@@ -16,17 +15,8 @@ __all__ = ["controller_from_ssp", "run_from_ssp"]
 
 def controller_from_ssp(study: SspStudy) -> ControllerSettings:
     """The run's controller: the SSP's controller FMU, its parameters set from the parameter set
-    (the scenario key controller: {fmu: PATH, parameters: {...}} as our master reads it).
-    SspError if this master cannot run a controller FMU."""
-    names = {field.name for field in dataclasses.fields(ControllerSettings)}
-    if "fmu" not in names:
-        raise SspError(
-            f"{study.path}: this toggle-cosim cannot run a controller FMU (controller: {{fmu: ...}}), and an SSP's "
-            "controller is one; run the scenario file instead"
-        )
-    return dataclasses.replace(  # type: ignore[call-arg] - the field exists (checked above)
-        study.run.controller, fmu=study.controller_fmu, parameters=dict(study.controller_values)
-    )
+    (the scenario key controller: {fmu: PATH, parameters: {...}} as our master reads it)."""
+    return dataclasses.replace(study.run.controller, fmu=study.controller_fmu, parameters=dict(study.controller_values))
 
 
 def run_from_ssp(study: SspStudy) -> Run:
