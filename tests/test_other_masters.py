@@ -554,8 +554,9 @@ def test_the_paper_runs_in_another_master_equal_ours_under_jacobi(paper: dict, n
 @pytest.mark.parametrize("name", PAPER)
 def test_fmpy_simulate_ssp_cannot_run_the_study(paper: dict, name: str) -> None:
     """simulate_ssp starts every connection at 0.0 and propagates nothing before the first
-    step, so ToggleVSC's first sample reads x_B = 0 m, out of the mechanism's reach: the
-    controller's first doStep returns an error and simulate_ssp raises."""
+    step, so ToggleVSC's first sample reads x_B = 0 m, where the law divides by zero (the
+    built-in law raises ZeroDivisionError there): the controller's first doStep returns an
+    error and simulate_ssp raises."""
     from fmpy.fmi1 import FMICallException
     from fmpy.ssp.simulation import simulate_ssp
 
