@@ -267,6 +267,18 @@ def test_the_standin_ssp_has_component_bindings(standin: Path) -> None:
     assert unconnected_inputs(standin) == []
 
 
+def assert_jacobi_with_propagation(master: str, trace: pd.DataFrame, recomputed: dict, parameter_set: str) -> None:
+    """x_B is Jacobi's to rounding and visibly not Gauss-Seidel's; the set was applied; the
+    controller's first sample saw the plant's initial x_B0 (the master propagated it)."""
+    jacobi = gap(trace, recomputed[parameter_set, "jacobi"])
+    seidel = gap(trace, recomputed[parameter_set, "gauss-seidel"])
+    print(f"\n{master} {parameter_set}: max |dx_B| vs Jacobi {jacobi:.1e} m, vs Gauss-Seidel {seidel:.1e} m")
+    assert jacobi <= SAME
+    assert seidel > APART
+    assert_applied(trace, parameter_set)
+    assert trace["controller.x_first"].iloc[0] == pytest.approx(0.2329)
+
+
 @pytest.mark.parametrize("parameter_set", list(SETS))
 def test_libcosim_is_a_jacobi_master(standin: Path, recomputed: dict, parameter_set: str) -> None:
     trace = run_in_libcosim(standin, parameter_set, T_S, T_END)
@@ -274,13 +286,7 @@ def test_libcosim_is_a_jacobi_master(standin: Path, recomputed: dict, parameter_
     assert len(trace) == n + 1
     # libcosim's time is integer nanoseconds: t_k = k T_s exactly, converted as ns / 1e9.
     assert list(trace["time"]) == [k * 500_000 / 1e9 for k in range(n + 1)]
-    jacobi = gap(trace, recomputed[parameter_set, "jacobi"])
-    seidel = gap(trace, recomputed[parameter_set, "gauss-seidel"])
-    print(f"\nlibcosim {parameter_set}: max |dx_B| vs Jacobi {jacobi:.1e} m, vs Gauss-Seidel {seidel:.1e} m")
-    assert jacobi <= SAME
-    assert seidel > APART
-    assert_applied(trace, parameter_set)
-    assert trace["controller.x_first"].iloc[0] == pytest.approx(0.2329)  # initial propagation of x_B0
+    assert_jacobi_with_propagation("libcosim", trace, recomputed, parameter_set)
     # Row k holds the controller's sample k-1 (sample 0 at k = 0): t_s and x_seen of that sample.
     times = trace["time"].to_numpy()
     np.testing.assert_allclose(trace["controller.t_s"].to_numpy()[1:], times[:-1], rtol=0, atol=1e-15)
@@ -311,13 +317,7 @@ def test_ecos_is_a_jacobi_master(standin: Path, recomputed: dict, parameter_set:
     accumulated = np.cumsum([0.0] + [T_S] * n)
     np.testing.assert_array_equal(trace["time"].to_numpy(), accumulated)
     assert np.max(np.abs(trace["time"].to_numpy() - np.arange(n + 1) * T_S)) < 1e-15
-    jacobi = gap(trace, recomputed[parameter_set, "jacobi"])
-    seidel = gap(trace, recomputed[parameter_set, "gauss-seidel"])
-    print(f"\necos {parameter_set}: max |dx_B| vs Jacobi {jacobi:.1e} m, vs Gauss-Seidel {seidel:.1e} m")
-    assert jacobi <= SAME
-    assert seidel > APART
-    assert_applied(trace, parameter_set)
-    assert trace["controller.x_first"].iloc[0] == pytest.approx(0.2329)  # initial propagation of x_B0
+    assert_jacobi_with_propagation("ecos", trace, recomputed, parameter_set)
     # After each step ecos transfers the plant's outputs and reads the controller again, so row k
     # holds the controller's sample k (taken at t_k from y_k), while the plant's iq_ref in row k
     # is the command of sample k-1, which drives the plant over [t_k, t_k+1].
