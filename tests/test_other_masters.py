@@ -490,19 +490,19 @@ def paper(study: Path) -> dict[str, dict]:
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.files.traces import read_csv
 
+    scenarios = [study / "scenarios" / f"{name}.yaml" for name in PAPER]
+    for scenario in scenarios:
+        _cli(["ssp", str(scenario), "--out", str(study / f"{scenario.stem}.ssp")], study)
+    for coupling in ("gauss-seidel", "jacobi"):
+        _cli(["run", *map(str, scenarios), "--coupling", coupling, "--out", coupling, "-q"], study)
     found = {}
-    for name in PAPER:
-        scenario = study / "scenarios" / f"{name}.yaml"
-        ssp = study / f"{name}.ssp"
-        _cli(["ssp", str(scenario), "--out", str(ssp)], study)
-        traces = {}
-        for coupling in ("gauss-seidel", "jacobi"):
-            _cli(["run", str(scenario), "--coupling", coupling, "--out", coupling, "-q"], study)
-            traces[coupling] = {
-                run.variant: read_csv(study / coupling / name / (run.variant or "") / "trace.csv")
-                for run in load_scenario(scenario)
-            }
-        found[name] = {"ssp": ssp, "runs": load_scenario(scenario), "traces": traces}
+    for name, scenario in zip(PAPER, scenarios, strict=True):
+        runs = load_scenario(scenario)
+        traces = {
+            coupling: {run.variant: read_csv(study / coupling / name / run.variant / "trace.csv") for run in runs}
+            for coupling in ("gauss-seidel", "jacobi")
+        }
+        found[name] = {"ssp": study / f"{name}.ssp", "runs": runs, "traces": traces}
     return found
 
 
