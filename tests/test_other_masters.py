@@ -45,6 +45,8 @@ from masters import (
     unconnected_inputs,
 )
 
+from toggle_cosim.controller_fmu import build_controller_fmu
+
 ROOT = Path(__file__).resolve().parent.parent
 PROBE = Path(__file__).resolve().parent / "models" / "probe_controller.py"
 T_S = 5e-4  # s
@@ -472,13 +474,11 @@ def _cli(args: list[str], cwd: Path) -> None:
 def study(plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A folder like the project's: fmus/ToggleLSM.fmu (built for the tests), fmus/ToggleVSC.fmu
     and scenarios/ with the paper's three scenarios."""
-    pytest.importorskip("toggle_cosim.ssp")
-    controller_fmu = pytest.importorskip("toggle_cosim.controller_fmu")
     folder = tmp_path_factory.mktemp("study")
     (folder / "fmus").mkdir()
     (folder / "scenarios").mkdir()
     shutil.copy(plant_fmu, folder / "fmus" / "ToggleLSM.fmu")
-    controller_fmu.build_controller_fmu(folder / "fmus" / "ToggleVSC.fmu")
+    build_controller_fmu(folder / "fmus" / "ToggleVSC.fmu")
     for name in PAPER:
         shutil.copy(ROOT / "scenarios" / f"{name}.yaml", folder / "scenarios")
     return folder
