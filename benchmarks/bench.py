@@ -352,7 +352,8 @@ def controller_fmu(folder: Path) -> tuple[Path, str] | None:
     except ImportError:
         pass
     else:
-        return Path(build_controller_fmu(folder / "ToggleVSC.fmu", "2.0")), "ToggleVSC (the built-in law, generated C)"
+        built = build_controller_fmu(folder / "ToggleVSC.fmu", "2.0")
+        return Path(getattr(built, "path", built)), "ToggleVSC (the built-in law, generated C)"
     script = folder / "bench_pd.py"
     script.write_text(PD_LAW_FMU, encoding="utf-8")
     command = [str(Path(sys.executable).parent / "pythonfmu"), "build", "-f", str(script), "-d", str(folder)]
