@@ -34,6 +34,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import ClassVar, Literal
 
+from toggle_cosim.control import laws
 from toggle_cosim.control.laws import error_terms, law_start, law_step
 from toggle_cosim.control.parameters import (
     INTEGRAL,
@@ -58,8 +59,8 @@ MEASURED = {"x_B": ("x_B", "v_B"), "theta1": ("theta1", "omega1")}  # the plant 
 
 def hitting_time(S0: float, gains: ControllerGains) -> float:
     """Hitting time of the reaching law Ṡ = −Q sgn(S) − P S, eq. (21):
-    T_h = (1/P) ln(P |S(t0)|/Q + 1)."""
-    return math.log(gains.P * abs(S0) / gains.Q + 1.0) / gains.P
+    T_h = (1/P) ln(P |S(t0)|/Q + 1) (`control.laws.hitting_time`)."""
+    return laws.hitting_time(S0, gains.P, gains.Q)
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ import math
 from toggle_cosim.control.nominal import nominal_reduced, theta1_omega1
 from toggle_cosim.control.parameters import LawParameters
 
-__all__ = ["error_terms", "law_start", "law_step"]
+__all__ = ["error_terms", "hitting_time", "law_start", "law_step"]
 
 
 def error_terms(q: float, qd: float, p: LawParameters) -> tuple[float, float, float, float]:
@@ -34,6 +34,12 @@ def error_terms(q: float, qd: float, p: LawParameters) -> tuple[float, float, fl
         return p.target - q, -qd, dxB * acc0 + bB, p.K_f * dxB * dacc
     acc0, dacc, dxB, bB = nominal_reduced(q, qd, p)
     return p.target - q, -qd, acc0, p.K_f * dacc
+
+
+def hitting_time(S0: float, P: float, Q: float) -> float:
+    """Hitting time of the reaching law Ṡ = −Q sgn(S) − P S from S(t0) = S0, eq. (21):
+    T_h = (1/P) ln(P |S0|/Q + 1) [s]."""
+    return math.log(P * abs(S0) / Q + 1.0) / P
 
 
 def law_start(q: float, qd: float, p: LawParameters) -> tuple[float, float, float]:
@@ -55,8 +61,7 @@ def law_start(q: float, qd: float, p: LawParameters) -> tuple[float, float, floa
         if p.K_I > 0.0:
             z0 = -S0 / p.K_I
             S0 = 0.0  # on the surface by construction (up to rounding in the last bit)
-    T_h = math.log(p.P * abs(S0) / p.Q + 1.0) / p.P
-    return S0, T_h, z0
+    return S0, hitting_time(S0, p.P, p.Q), z0
 
 
 def law_step(t: float, q: float, qd: float, z: float, p: LawParameters) -> tuple[float, float, float, float, float]:

@@ -28,6 +28,7 @@ LAW_FUNCTIONS = (
     nominal.theta1_omega1,
     nominal.nominal_reduced,
     laws.error_terms,
+    laws.hitting_time,
     laws.law_start,
     laws.law_step,
 )
