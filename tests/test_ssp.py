@@ -527,26 +527,37 @@ def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu").path
 
 
-@pytest.mark.parametrize("name", ["fig4_nominal", "fig5_external_force", "fig6_mass_variation"])
+@pytest.mark.parametrize("scenario", SCENARIOS, ids=lambda p: p.stem)
 def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
-    name: str, plant_fmu: Path, toggle_vsc: Path, tmp_path: Path
+    scenario: Path, request: pytest.FixtureRequest, toggle_vsc: Path, tmp_path: Path
 ) -> None:
+    """Every shipped scenario file but the sweeps, written as an SSP and run in our master with the
+    controller FMU: each parameter set gives its variant's trace bit for bit (the FMU's command,
+    S, phase and e are the built-in law's C operations on the same measured values), plus the
+    FMU's z column; run.json names the SSP and the set."""
     from toggle_cosim.files.traces import read_csv as read_trace_csv
 
-    controller = toggle_vsc
-    scenario = ROOT / "scenarios" / f"{name}.yaml"
-    study = write_ssp(scenario, tmp_path / f"{name}.ssp", plant_fmu, controller)
+    plant = request.getfixturevalue("no_gravity_fmu" if scenario.stem == "swap_no_gravity" else "plant_fmu")
+    study = write_ssp(scenario, tmp_path / f"{scenario.stem}.ssp", plant, toggle_vsc)
     yaml_out, ssp_out = tmp_path / "yaml", tmp_path / "ssp"
-    ran = CliRunner().invoke(main, ["run", str(scenario), "--fmu", str(plant_fmu), "--out", str(yaml_out), "-q"])
-    assert ran.exit_code == 0, ran.output
-    for run in load_scenario(scenario):
-        chosen = layout.set_name(run.variant)
-        ran = CliRunner().invoke(main, ["run", str(study), "--parameter-set", chosen, "--out", str(ssp_out), "-q"])
+    for args, out in (([str(scenario), "--fmu", str(plant)], yaml_out), ([str(study)], ssp_out)):
+        ran = CliRunner().invoke(main, ["run", *args, "--out", str(out), "-q"])
         assert ran.exit_code == 0, ran.output
+    for run in load_scenario(scenario):
         folder = Path(run.scenario) / (run.variant or "run")
         expected, got = read_trace_csv(yaml_out / folder / "trace.csv"), read_trace_csv(ssp_out / folder / "trace.csv")
         assert got.names == (*expected.names, "z")  # the FMU also reports the integral law's state
         for column in expected.names:
-            assert np.array_equal(got.column(column), expected.column(column)), column
+            assert np.array_equal(got.column(column), expected.column(column)), (run.label, column)
         record = (ssp_out / folder / "run.json").read_text()
-        assert str(study) in record and f'"parameter_set": "{chosen}"' in record
+        assert str(study) in record and f'"parameter_set": "{layout.set_name(run.variant)}"' in record
+
+
+def test_a_named_parameter_set_runs_that_set_only(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+    """--parameter-set NAME runs that set alone, with that set's values (no_friction: mu = 0)."""
+    study = write_ssp(ROOT / "scenarios" / "fig4_nominal.yaml", tmp_path / "fig4.ssp", plant_fmu, toggle_vsc)
+    ran = CliRunner().invoke(main, ["run", str(study), "--parameter-set", "no_friction", "--out", str(tmp_path), "-q"])
+    assert ran.exit_code == 0, ran.output
+    assert [p.name for p in (tmp_path / "fig4_nominal").iterdir()] == ["no_friction"]
+    record = (tmp_path / "fig4_nominal" / "no_friction" / "run.json").read_text()
+    assert '"parameter_set": "no_friction"' in record and '"mu": 0.0' in record
