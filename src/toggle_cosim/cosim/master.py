@@ -49,7 +49,7 @@ from toggle_cosim.cosim.stepper import (
     LoopState,
     PythonStepper,
     Timing,
-    compiled_law,
+    compiled_controller,
 )
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.files.traces import Trace
@@ -193,7 +193,7 @@ def simulate(
         loop_started = clock.perf_counter()
         k = python.advance(0, 1)  # the first sample starts the controller (S0, T_h)
         if k == 1 and n > 0:
-            law = JACOBI_REASON if jacobi else compiled_law(controller, state.controller)
+            law = JACOBI_REASON if jacobi else compiled_controller(controller, state.controller)
             compiled = (
                 law
                 if isinstance(law, str)
