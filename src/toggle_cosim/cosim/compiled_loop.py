@@ -3,7 +3,11 @@
 A step in Python (read outputs, controller, set inputs, doStep, record) costs several times
 the FMU's own doStep, most of it the controller's nominal model. `CompiledLoop` runs whole
 stretches of the loop in C: it calls the FMU's functions through their pointers, evaluates the
-control law and writes each sample into the master's preallocated trace.
+control law and writes each sample into the master's preallocated trace. The controller is one
+of two kinds: the generated law, or a controller FMU (`ControllerCalls`), whose functions the
+loop calls through their pointers in the order `fmu_controller.FmuController.step` calls them
+(its doStep from the previous sample, deferred to this one; its inputs set from the row; its
+command and diagnostics read), so the trace has the Python loop's bits.
 
 Nothing of the law is written twice. The C source is assembled here from
 * the struct `law_t`, generated from the fields of `control.parameters.LawParameters`;
@@ -16,7 +20,9 @@ The ctypes mirror of the loop's struct is built from the same field lists.
 A sample where the Python raises or might raise (a domain error, a division by zero), or
 where an output is not finite, is handed back to the Python loop before anything of it is
 sent to the FMU. An FMI error status is reported with the function's name and status, and
-the master raises the same exception the Python path raises.
+the master raises the same exception the Python path raises: for the controller FMU, at the
+sample and call where the Python loop raises it (the sample not recorded), as for a command
+that is not finite.
 
 The library is compiled once per machine with the C compiler the FMU build uses and kept in
 the user's private cache by a hash of the generated source (``$XDG_CACHE_HOME/toggle-cosim`` or

@@ -5,8 +5,10 @@ one can take over from another at any sample.
 * `PythonStepper`: the loop in Python over the `PlantSession` and any controller that meets
   the protocol (`control.protocol`).
 * `CompiledStepper`: the same loop in C (`compiled_loop`, generated from `control.laws`),
-  stopping at every sample a step hook wants to see. It runs the built-in law only
-  (`compiled_law` says whether the controller is that law, and why not).
+  stopping at every sample a step hook wants to see. It runs the built-in law, or calls a
+  controller FMU's C functions in the order `FmuController.step` calls them
+  (`compiled_controller` says which, or why neither). A controller FMU's failure in C raises
+  the `ControllerFailed` the Python loop raises for it, at the same sample.
 * `HandOver`: the compiled stepper while it can, then, from a sample the C hands back (non-
   finite outputs, a law that raises there), the Python stepper. It says which loop ran, and why.
 
@@ -75,18 +77,19 @@ def compiled_law(controller: object, state: object) -> LawParameters | str:
     whose start and step *are* those functions (a subclass that overrides either, or an object
     of another class with the same methods, runs in Python at every sample), with the built-in
     diagnostics and a state `VSCController.start` made."""
+    only = "the compiled loop runs only the built-in law and controller FMUs"
     kind = type(controller)
     for method in ("step", "start"):
         own = getattr(kind, method, None)
         if own is not getattr(VSCController, method) or method in getattr(controller, "__dict__", {}):
             return (
                 f"the controller's {method} is {_name(own)}, not the built-in law's {_name(getattr(VSCController, method))}: "
-                "the compiled loop runs only the built-in law"
+                + only
             )
     if getattr(controller, "diagnostics", None) != VSCController.diagnostics:
-        return "the controller's diagnostics are not the built-in law's: the compiled loop runs only the built-in law"
+        return f"the controller's diagnostics are not the built-in law's: {only}"
     if not isinstance(state, ControllerState) or state.law is None:
-        return "the controller's state is not the built-in law's: the compiled loop runs only the built-in law"
+        return f"the controller's state is not the built-in law's: {only}"
     return state.law
 
 
