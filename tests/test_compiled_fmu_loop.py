@@ -15,12 +15,11 @@ and reason; progress hooks see the same fractions and an interrupt stops at the 
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from python_fmus import build_python_fmu
 
 from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.cosim.compiled_loop import kernel_library, kernel_reason
@@ -91,13 +90,7 @@ def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 @pytest.fixture(scope="module")
 def flaky_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("flaky-fmu")
-    script = folder / "flaky_law.py"
-    script.write_text(FLAKY_LAW, encoding="utf-8")
-    command = [str(Path(sys.executable).parent / "pythonfmu"), "build", "-f", str(script), "-d", str(folder)]
-    built = subprocess.run(command, capture_output=True, text=True, timeout=120)
-    assert built.returncode == 0, built.stderr
-    return folder / "FlakyLaw.fmu"
+    return build_python_fmu(FLAKY_LAW, tmp_path_factory.mktemp("flaky-fmu"), "FlakyLaw")
 
 
 def _with_fmu(run, fmu: Path, **parameters: float):  # noqa: ANN001, ANN202 - a Run

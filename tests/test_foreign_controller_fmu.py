@@ -15,8 +15,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import subprocess
-import sys
 import tempfile
 import zipfile
 from pathlib import Path
@@ -25,6 +23,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
+from python_fmus import build_python_fmu
 
 from toggle_cosim.cli import main
 from toggle_cosim.cosim.controllers import controller_for
@@ -69,13 +68,7 @@ K_P, K_D, TARGET = 55.0, 2.5, 0.3199
 
 @pytest.fixture(scope="module")
 def pd_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("pd-fmu")
-    script = folder / "pd_law.py"
-    script.write_text(PD_LAW, encoding="utf-8")
-    command = [str(Path(sys.executable).parent / "pythonfmu"), "build", "-f", str(script), "-d", str(folder)]
-    built = subprocess.run(command, capture_output=True, text=True, timeout=120)
-    assert built.returncode == 0, built.stderr
-    return folder / "PDLaw.fmu"
+    return build_python_fmu(PD_LAW, tmp_path_factory.mktemp("pd-fmu"), "PDLaw")
 
 
 def _scenario(folder: Path, plant: Path, fmu: Path | str, t_end: float = 0.2, **controller) -> Path:

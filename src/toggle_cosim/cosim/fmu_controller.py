@@ -224,17 +224,9 @@ class FmuController:
         (iq_ref, *diagnostics) order), or None when not loaded."""
         if self._component is None:
             return None
-        set_, get, step = (ctypes.cast(f, ctypes.c_void_p).value for f in (self._set, self._get, self._step))
-        return CFunctions(
-            get=get,
-            set=set_,
-            step=step,
-            component=self._component,
-            out_vr=ctypes.addressof(self._out_vr),
-            in_vr=ctypes.addressof(self._in_vr),
-            fmi3=self._is_fmi3,
-            names=FunctionNames(set=self._names[0], get=self._names[1], step=self._names[2]),
-            owner=self,
+        names = FunctionNames(set=self._names[0], get=self._names[1], step=self._names[2])
+        return CFunctions.of(
+            (self._get, self._set, self._step), self._component, self._out_vr, self._in_vr, self._is_fmi3, names, self
         )
 
     # -- the protocol -------------------------------------------------------------------------
