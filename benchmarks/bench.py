@@ -35,6 +35,7 @@ the performance issue and prints PASS/FAIL for each; it exits 0 whatever they sa
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ctypes
 import json
 import math
@@ -46,6 +47,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -281,26 +283,35 @@ class Timed(session.PlantSession):
             Timed.spans.append(time.perf_counter() - self._bench_started)
 
 
-def full_loop(plant, run, python_loop: bool = False) -> dict:
-    """One simulate(): per-step loop cost and three real-time factors. python_loop: with the
-    compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
-    Timed.spans.clear()
-    original, master.PlantSession = master.PlantSession, Timed
+@contextlib.contextmanager
+def loop_switch(python_loop: bool) -> Iterator[str]:
+    """With python_loop, the compiled loop switched off (TOGGLE_COSIM_KERNEL=0) inside; yields
+    the loop kind run.json must then report."""
     saved = os.environ.get("TOGGLE_COSIM_KERNEL")
     if python_loop:
         os.environ["TOGGLE_COSIM_KERNEL"] = "0"
     try:
-        outcome = master.simulate(run, plant)
+        yield "python" if python_loop or not compiled_loop.kernel_available() else "compiled"
     finally:
-        master.PlantSession = original
         if python_loop:
             if saved is None:
                 os.environ.pop("TOGGLE_COSIM_KERNEL", None)
             else:
                 os.environ["TOGGLE_COSIM_KERNEL"] = saved
+
+
+def full_loop(plant, run, python_loop: bool = False) -> dict:
+    """One simulate(): per-step loop cost and three real-time factors. python_loop: with the
+    compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
+    Timed.spans.clear()
+    original, master.PlantSession = master.PlantSession, Timed
+    try:
+        with loop_switch(python_loop) as expected:
+            outcome = master.simulate(run, plant)
+    finally:
+        master.PlantSession = original
     if not outcome.complete:
         raise RuntimeError(f"{run.label}: {outcome.reason}")
-    expected = "python" if python_loop or not compiled_loop.kernel_available() else "compiled"
     if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop
         raise RuntimeError(f"{run.label}: expected the {expected} loop, ran {outcome.record['loop']}")
     steps = outcome.trace.data.shape[0] - 1
@@ -369,14 +380,18 @@ def controller_fmu(folder: Path) -> tuple[Path, str] | None:
     )
 
 
-def fmu_controller_loop(plant, run, fmu: Path, coupling: str = "gauss-seidel") -> float:
-    """Seconds per step of simulate()'s loop for `run` with the controller FMU `fmu`."""
+def fmu_controller_loop(plant, run, fmu: Path, coupling: str = "gauss-seidel", python_loop: bool = False) -> float:
+    """Seconds per step of simulate()'s loop for `run` with the controller FMU `fmu`; python_loop:
+    with the compiled loop switched off (TOGGLE_COSIM_KERNEL=0; jacobi runs in Python anyway)."""
     import dataclasses
 
     settings = dataclasses.replace(run.controller, fmu=fmu, python=None)
-    outcome = master.simulate(dataclasses.replace(run, controller=settings), plant, coupling=coupling)
+    with loop_switch(python_loop or coupling == "jacobi") as expected:
+        outcome = master.simulate(dataclasses.replace(run, controller=settings), plant, coupling=coupling)
     if not outcome.complete:
         raise RuntimeError(f"{run.label} with the controller FMU {fmu.name}: {outcome.reason}")
+    if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop
+        raise RuntimeError(f"{run.label}: expected the {expected} loop, ran {outcome.record['loop']}")
     return outcome.loop_seconds / (outcome.trace.data.shape[0] - 1)
 
 
@@ -831,18 +846,31 @@ def main() -> int:
             table.add("controller FMU", "not measured", "neither toggle_cosim.controller_fmu nor pythonfmu available")
         else:
             fmu_path, what = made
+            loops = {"gauss-seidel": ("gauss-seidel", False), "gauss-seidel-python": ("gauss-seidel", True)}
+            loops["jacobi"] = ("jacobi", True)
             per_step = {
-                coupling: best(fmu_controller_loop(plant, run, fmu_path, coupling) for _ in range(min(reps, 3)))
-                for coupling in ("gauss-seidel", "jacobi")
+                key: best(fmu_controller_loop(plant, run, fmu_path, coupling, python) for _ in range(min(reps, 3)))
+                for key, (coupling, python) in loops.items()
             }
             figures["master_with_controller_fmu"] = {"fmu": what, "per_step_s": per_step}
+            compiled_name = "compiled" if compiled_loop.kernel_available() else "Python (no compiled loop)"
             table.add("built-in law, compiled loop", us(b["loop"]), "as above")
             table.add("built-in law, Python loop", us(b["python"]), "as above")
-            table.add("controller FMU, gauss-seidel", us(per_step["gauss-seidel"]), what)
-            table.add("controller FMU, jacobi", us(per_step["jacobi"]), "the command held one sample")
+            table.add(f"controller FMU, gauss-seidel, {compiled_name} loop", us(per_step["gauss-seidel"]), what)
             table.add(
-                "ratio controller FMU / built-in law in the Python loop",
-                f"{per_step['gauss-seidel'] / b['python']:.2f}",
+                "controller FMU, gauss-seidel, Python loop",
+                us(per_step["gauss-seidel-python"]),
+                "TOGGLE_COSIM_KERNEL=0",
+            )
+            table.add("controller FMU, jacobi (Python loop)", us(per_step["jacobi"]), "the command held one sample")
+            table.add(
+                "ratio controller FMU / built-in law, compiled loop",
+                f"{per_step['gauss-seidel'] / b['loop']:.2f}",
+                "the FMU's set, get and doStep per sample in place of the generated law",
+            )
+            table.add(
+                "ratio controller FMU / built-in law, Python loop",
+                f"{per_step['gauss-seidel-python'] / b['python']:.2f}",
                 "the FMU's set, get and doStep per sample in place of the Python law",
             )
 

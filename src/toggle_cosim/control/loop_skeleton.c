@@ -1,8 +1,11 @@
 /* toggle-cosim: the co-simulation loop in C, a skeleton with no physics and no control law.
    cosim/compiled_loop.py puts the law in front of it: the struct law_t and the function law_step,
    both generated from their Python definition (control/laws.py, control/translate.py).
-   Per sample: read the FMU's outputs into the trace row, call law_step, record, set the
-   inputs, doStep. */
+   Per sample: read the plant FMU's outputs into the trace row, control, record, set the
+   plant's inputs, doStep. The controller is one of two kinds: the generated law (CTRL_LAW), or
+   a controller FMU called through its function pointers (CTRL_FMU) in the order
+   cosim/fmu_controller.py's FmuController.step calls it: the previous sample's doStep (deferred
+   to this sample), set its inputs from the row, get iq_ref and its diagnostics. */
 #include <stdbool.h>
 #include <stddef.h>
 
@@ -13,22 +16,52 @@ typedef int (*get3_t)(void *, const unsigned int *, size_t, double *, size_t);
 typedef int (*set3_t)(void *, const unsigned int *, size_t, const double *, size_t);
 typedef int (*step3_t)(void *, double, double, bool, bool *, bool *, bool *, double *);
 
-/* Its ctypes mirror is built in cosim/compiled_loop.py from the same field lists. */
+/* One FMU's hot functions and instance (the plant, or a controller FMU). */
 typedef struct {
     void *get, *set, *step, *component;
     const unsigned int *out_vr, *in_vr;
+    long fmi3;
+} fmu_t;
+
+/* Its ctypes mirror is built in cosim/compiled_loop.py from the same field lists. */
+typedef struct {
+    fmu_t plant, ctrl;      /* ctrl: the controller FMU (CTRL_FMU only) */
     double *data;
-    long fmi3, n_out, ncols, i_q, i_qd, col_u, n;  /* i_q, i_qd: the columns the law reads (x_B, v_B or theta1, omega1) */
-    long k, fault, status;  /* next sample; the failed FMI function (1 get, 2 set, 3 step), its status */
+    const long *ctrl_cols;  /* CTRL_FMU: the row's columns of the controller's inputs */
+    double *ctrl_in, *ctrl_out; /* CTRL_FMU: its input values, its outputs (iq_ref, diagnostics) */
+    long n_out, ncols, i_q, i_qd, col_u, n;  /* i_q, i_qd: the columns the law reads (x_B, v_B or theta1, omega1) */
+    long k, fault, status;  /* next sample; the failed FMI function (1 get, 2 set, 3 step; + 3 for the controller FMU), its status */
     long no_prior;          /* doStep's noSetFMUStatePriorToCurrentPoint: 1 only if no checkpoint is restored */
+    long kind;              /* CTRL_LAW or CTRL_FMU */
+    long ctrl_n_in, ctrl_n_out, ctrl_due; /* CTRL_FMU: counts; 1 when the doStep from ctrl_t is due */
     double T_s, F_E, z;     /* z: the law's state (an integrator) at sample k */
+    double ctrl_t;          /* CTRL_FMU: the time of the sample its last outputs were read at */
     law_t law;
 } kernel_t;
 
-enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2 };
+enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2, CONTROLLER_FAILED = 3, COMMAND_REJECTED = 4 };
+enum { CTRL_LAW = 0, CTRL_FMU = 1 };
 
 /* Only OK (0) and Warning (1) let the loop go on: Discard, Error, Fatal, Pending and any value
    the standard does not define (a negative one, 5, ...) fail the run. */
+#define FAILED(status) ((status) != 0 && (status) != 1)
+
+static int fmu_get(const fmu_t *f, size_t n, double *values) {
+    return f->fmi3 ? ((get3_t)f->get)(f->component, f->out_vr, n, values, n)
+                   : ((get2_t)f->get)(f->component, f->out_vr, n, values);
+}
+
+static int fmu_set(const fmu_t *f, size_t n, const double *values) {
+    return f->fmi3 ? ((set3_t)f->set)(f->component, f->in_vr, n, values, n)
+                   : ((set2_t)f->set)(f->component, f->in_vr, n, values);
+}
+
+static int fmu_step(const fmu_t *f, double t, double h, bool no_prior) {
+    bool event, terminate, early;
+    double last;
+    return f->fmi3 ? ((step3_t)f->step)(f->component, t, h, no_prior, &event, &terminate, &early, &last)
+                   : ((step2_t)f->step)(f->component, t, h, no_prior ? 1 : 0);
+}
 
 /* One law sample from the measured coordinate and rate (q, qd): out = (u, S, phase, e, z_next).
    Returns 0, or 1 where the Python must evaluate the sample itself (it raises there, or a
@@ -43,42 +76,74 @@ int kernel_control(const kernel_t *s, double t, double q, double qd, double z, d
     return 0;
 }
 
+/* The controller FMU's sample at t from the row: its deferred doStep, its inputs set, its
+   outputs read into s->ctrl_out. Returns DONE, HAND_BACK (non-finite plant outputs: nothing
+   sent to the controller), CONTROLLER_FAILED (s->fault, s->status say which call) or
+   COMMAND_REJECTED (a command that is not finite). */
+static int fmu_control(kernel_t *s, double t, const double *row) {
+    long j;
+    int status;
+    if (!(isfinite(row[s->i_q]) && isfinite(row[s->i_qd]))) { return HAND_BACK; }
+    if (s->ctrl_due) {
+        status = fmu_step(&s->ctrl, s->ctrl_t, s->T_s, false);
+        if (FAILED(status)) { s->fault = 6; s->status = status; return CONTROLLER_FAILED; }
+        s->ctrl_due = 0;
+    }
+    for (j = 0; j < s->ctrl_n_in; j++) { s->ctrl_in[j] = row[s->ctrl_cols[j]]; }
+    if (s->ctrl_n_in) {
+        status = fmu_set(&s->ctrl, (size_t)s->ctrl_n_in, s->ctrl_in);
+        if (FAILED(status)) { s->fault = 5; s->status = status; return CONTROLLER_FAILED; }
+    }
+    status = fmu_get(&s->ctrl, (size_t)s->ctrl_n_out, s->ctrl_out);
+    if (FAILED(status)) { s->fault = 4; s->status = status; return CONTROLLER_FAILED; }
+    s->ctrl_t = t;
+    s->ctrl_due = 1;
+    if (!isfinite(s->ctrl_out[0])) { return COMMAND_REJECTED; }
+    return DONE;
+}
+
 /* Samples s->k .. k_end - 1: read outputs into the trace row, control, record, then (except
    after the last sample n) set the inputs and doStep. Stops early with HAND_BACK at a sample
-   the Python must take (nothing of it sent to the FMU) or FMI_FAILED. s->k is the next
-   sample on return (the failed one for FMI_FAILED), s->z the law's state there. */
+   the Python must take (nothing of it sent to the plant FMU), FMI_FAILED (the plant FMU),
+   CONTROLLER_FAILED or COMMAND_REJECTED (the controller FMU; the sample not recorded). s->k
+   is the next sample on return (the failed one for the failures), s->z the law's state there. */
 int kernel_run(kernel_t *s, long k_end) {
     double in[2], c[5], t, *row;
-    long k;
+    long k, j;
     int status;
-    bool event, terminate, early;
-    double last;
     for (k = s->k; k < k_end; k++) {
         t = (double)k * s->T_s;
         row = s->data + k * s->ncols;
-        status = s->fmi3 ? ((get3_t)s->get)(s->component, s->out_vr, (size_t)s->n_out, row + 1, (size_t)s->n_out)
-                         : ((get2_t)s->get)(s->component, s->out_vr, (size_t)s->n_out, row + 1);
-        if (status != 0 && status != 1) { s->k = k; s->fault = 1; s->status = status; return FMI_FAILED; }
-        if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, c)) {
-            s->k = k;
-            return HAND_BACK;
+        status = fmu_get(&s->plant, (size_t)s->n_out, row + 1);
+        if (FAILED(status)) { s->k = k; s->fault = 1; s->status = status; return FMI_FAILED; }
+        if (s->kind == CTRL_FMU) {
+            status = fmu_control(s, t, row);
+            if (status != DONE) { s->k = k; return status; }
+            row[0] = t;
+            row[s->col_u] = s->ctrl_out[0];
+            row[s->col_u + 1] = s->F_E;
+            for (j = 1; j < s->ctrl_n_out; j++) { row[s->col_u + 1 + j] = s->ctrl_out[j]; }
+            in[0] = s->ctrl_out[0];
+        } else {
+            if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, c)) {
+                s->k = k;
+                return HAND_BACK;
+            }
+            row[0] = t;
+            row[s->col_u] = c[0];
+            row[s->col_u + 1] = s->F_E;
+            row[s->col_u + 2] = c[1];
+            row[s->col_u + 3] = c[2];
+            row[s->col_u + 4] = c[3];
+            s->z = c[4];
+            in[0] = c[0];
         }
-        row[0] = t;
-        row[s->col_u] = c[0];
-        row[s->col_u + 1] = s->F_E;
-        row[s->col_u + 2] = c[1];
-        row[s->col_u + 3] = c[2];
-        row[s->col_u + 4] = c[3];
-        s->z = c[4];
         if (k == s->n) { s->k = k + 1; return DONE; }
-        in[0] = c[0];
         in[1] = s->F_E;
-        status = s->fmi3 ? ((set3_t)s->set)(s->component, s->in_vr, 2, in, 2)
-                         : ((set2_t)s->set)(s->component, s->in_vr, 2, in);
-        if (status != 0 && status != 1) { s->k = k; s->fault = 2; s->status = status; return FMI_FAILED; }
-        status = s->fmi3 ? ((step3_t)s->step)(s->component, t, s->T_s, s->no_prior != 0, &event, &terminate, &early, &last)
-                         : ((step2_t)s->step)(s->component, t, s->T_s, s->no_prior != 0);
-        if (status != 0 && status != 1) { s->k = k; s->fault = 3; s->status = status; return FMI_FAILED; }
+        status = fmu_set(&s->plant, 2, in);
+        if (FAILED(status)) { s->k = k; s->fault = 2; s->status = status; return FMI_FAILED; }
+        status = fmu_step(&s->plant, t, s->T_s, s->no_prior != 0);
+        if (FAILED(status)) { s->k = k; s->fault = 3; s->status = status; return FMI_FAILED; }
     }
     s->k = k_end;
     return DONE;

@@ -3,7 +3,11 @@
 A step in Python (read outputs, controller, set inputs, doStep, record) costs several times
 the FMU's own doStep, most of it the controller's nominal model. `CompiledLoop` runs whole
 stretches of the loop in C: it calls the FMU's functions through their pointers, evaluates the
-control law and writes each sample into the master's preallocated trace.
+control law and writes each sample into the master's preallocated trace. The controller is one
+of two kinds: the generated law, or a controller FMU (`ControllerCalls`), whose functions the
+loop calls through their pointers in the order `fmu_controller.FmuController.step` calls them
+(its doStep from the previous sample, deferred to this one; its inputs set from the row; its
+command and diagnostics read), so the trace has the Python loop's bits.
 
 Nothing of the law is written twice. The C source is assembled here from
 * the struct `law_t`, generated from the fields of `control.parameters.LawParameters`;
@@ -16,7 +20,9 @@ The ctypes mirror of the loop's struct is built from the same field lists.
 A sample where the Python raises or might raise (a domain error, a division by zero), or
 where an output is not finite, is handed back to the Python loop before anything of it is
 sent to the FMU. An FMI error status is reported with the function's name and status, and
-the master raises the same exception the Python path raises.
+the master raises the same exception the Python path raises: for the controller FMU, at the
+sample and call where the Python loop raises it (the sample not recorded), as for a command
+that is not finite.
 
 The library is compiled once per machine with the C compiler the FMU build uses and kept in
 the user's private cache by a hash of the generated source (``$XDG_CACHE_HOME/toggle-cosim`` or
@@ -30,6 +36,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -44,9 +51,27 @@ if TYPE_CHECKING:
 
 KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
-_POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr", "data")
-_LONGS = ("fmi3", "n_out", "ncols", "i_q", "i_qd", "col_u", "n", "k", "fault", "status", "no_prior")
-_DOUBLES = ("T_s", "F_E", "z")
+_FMU_POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr")
+_POINTERS = ("data", "ctrl_cols", "ctrl_in", "ctrl_out")
+_LONGS = (
+    *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "k", "fault", "status", "no_prior"),
+    *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due"),
+)
+_DOUBLES = ("T_s", "F_E", "z", "ctrl_t")
+CTRL_LAW, CTRL_FMU = 0, 1  # the controller kinds of the skeleton
+
+
+@dataclass(frozen=True)
+class ControllerCalls:
+    """A controller FMU as the compiled loop calls it (`fmu_controller.FmuController`): its
+    functions, the trace columns of its inputs (in its input order), the number of its outputs
+    (iq_ref, then the diagnostics), and the time of its last sample (None before the first),
+    whose deferred doStep the loop makes at its next sample."""
+
+    functions: CFunctions
+    columns: tuple[int, ...]
+    n_out: int
+    t: float | None
 
 
 @functools.cache
@@ -82,12 +107,23 @@ def _law_struct() -> type[ctypes.Structure]:
 
 
 @functools.cache
+def _fmu_struct() -> type[ctypes.Structure]:
+    return type(
+        "_Fmu",
+        (ctypes.Structure,),
+        {"_fields_": [*((name, ctypes.c_void_p) for name in _FMU_POINTERS), ("fmi3", ctypes.c_long)]},
+    )
+
+
+@functools.cache
 def _kernel_struct() -> type[ctypes.Structure]:
     return type(
         "_Kernel",
         (ctypes.Structure,),
         {
             "_fields_": [
+                ("plant", _fmu_struct()),
+                ("ctrl", _fmu_struct()),
                 *((name, ctypes.c_void_p) for name in _POINTERS),
                 *((name, ctypes.c_long) for name in _LONGS),
                 *((name, ctypes.c_double) for name in _DOUBLES),
@@ -97,7 +133,7 @@ def _kernel_struct() -> type[ctypes.Structure]:
     )
 
 
-DONE, HAND_BACK, FMI_FAILED = 0, 1, 2
+DONE, HAND_BACK, FMI_FAILED, CONTROLLER_FAILED, COMMAND_REJECTED = 0, 1, 2, 3, 4
 
 _library: ctypes.CDLL | None = None
 _library_reason: str | None = None
@@ -164,10 +200,13 @@ class CompiledLoop:
     """Samples k .. k_end - 1 of the master loop in one C call (see the module docstring).
 
     `data` is the master's preallocated (n + 1, ncols) float64 trace: column 0 time, columns
-    1 .. n_out the FMU outputs, col_u .. col_u + 4 (iq_ref, F_E, S, phase, e); the law reads
-    the columns i_q and i_qd (x_B and v_B, or theta1 and omega1 for the θ1 objective). `law` is
+    1 .. n_out the FMU outputs, col_u .. col_u + 1 (iq_ref, F_E), then the diagnostics. With
+    `controller` None the controller is the generated law: it reads the columns i_q and i_qd
+    (x_B and v_B, or theta1 and omega1 for the θ1 objective) and writes (S, phase, e); `law` is
     the controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
-    at the first sample the loop runs.
+    at the first sample the loop runs. With `controller` (a controller FMU's calls) the loop
+    calls it instead, in the order `FmuController.step` does, and hands a sample whose columns
+    i_q, i_qd (x_B, v_B) are not finite back before calling it; `law` and `z` are unused.
     """
 
     def __init__(
@@ -182,29 +221,43 @@ class CompiledLoop:
         n: int,
         T_s: float,
         F_E: float,
-        law: LawParameters,
+        law: LawParameters | None,
         z: float = 0.0,
+        controller: ControllerCalls | None = None,
     ) -> None:
         if data.dtype != np.float64 or not data.flags.c_contiguous or data.shape[0] < n + 1:
             raise ValueError("the trace must be a C-contiguous float64 array of n + 1 rows")
         self._library = library
-        self._keep = (fmu, data)  # everything the C side points into stays alive
         k = _kernel_struct()()
-        k.get, k.set, k.step = fmu.get, fmu.set, fmu.step
-        k.component, k.out_vr, k.in_vr = fmu.component, fmu.out_vr, fmu.in_vr
+        _point_at(k.plant, fmu)
         k.data = data.ctypes.data
-        k.fmi3 = 1 if fmu.fmi3 else 0
         k.n_out, k.ncols, k.i_q, k.i_qd, k.col_u, k.n = n_out, data.shape[1], i_q, i_qd, col_u, n
         k.T_s, k.F_E, k.z = float(T_s), float(F_E), float(z)
         k.no_prior = 0  # the FMU keeps its history unless a policy that never restores says so
-        for name in LawParameters.__dataclass_fields__:
-            setattr(k.law, name, float(getattr(law, name)))
+        if law is not None:
+            for name in LawParameters.__dataclass_fields__:
+                setattr(k.law, name, float(getattr(law, name)))
+        buffers: tuple[object, ...] = ()
+        k.kind = CTRL_LAW
+        if controller is not None:
+            n_in = len(controller.columns)
+            if data.shape[1] < col_u + 1 + controller.n_out:
+                raise ValueError("the trace has fewer columns than the controller FMU's outputs")
+            columns = (ctypes.c_long * max(n_in, 1))(*controller.columns)
+            values, outputs = (ctypes.c_double * max(n_in, 1))(), (ctypes.c_double * controller.n_out)()
+            buffers = (controller.functions, columns, values, outputs)
+            _point_at(k.ctrl, controller.functions)
+            k.kind, k.ctrl_n_in, k.ctrl_n_out = CTRL_FMU, n_in, controller.n_out
+            k.ctrl_cols, k.ctrl_in, k.ctrl_out = (ctypes.addressof(b) for b in (columns, values, outputs))
+            k.ctrl_due, k.ctrl_t = (0, 0.0) if controller.t is None else (1, float(controller.t))
+            self._outputs = outputs
+        self._keep = (fmu, data, buffers)  # everything the C side points into stays alive
         self._state = k
         self._pointer = ctypes.pointer(k)
         self._out = (ctypes.c_double * 5)()
         self.fault_function = None
         self.fault_status = 0
-        self._names = (None, fmu.names.get, fmu.names.set, fmu.names.step)
+        self._names = (None, fmu.names.get, fmu.names.set, fmu.names.step, "get", "set", "step")
 
     @property
     def no_set_state_prior_to_current_point(self) -> bool:
@@ -220,6 +273,15 @@ class CompiledLoop:
         """The law's state at the next sample."""
         return float(self._state.z)
 
+    @property
+    def controller_time(self) -> float:
+        """The controller FMU's state: the time of its last sample, whose doStep is deferred."""
+        return float(self._state.ctrl_t)
+
+    def controller_outputs(self) -> tuple[float, ...]:
+        """The controller FMU's outputs read at its last sample (iq_ref, then the diagnostics)."""
+        return tuple(self._outputs)
+
     def control(self, t: float, q: float, qd: float, z: float = 0.0) -> tuple[float, float, float, float, float] | None:
         """(u, S, phase, e, z_next) of the compiled law at the measured (q, qd), or None where it
         defers to Python."""
@@ -228,12 +290,21 @@ class CompiledLoop:
         return tuple(self._out)
 
     def run(self, k: int, k_end: int) -> tuple[int, int]:
-        """Run samples k .. k_end - 1; returns (DONE | HAND_BACK | FMI_FAILED, next sample).
-        On FMI_FAILED the sample is the failed one and fault_function/fault_status say what failed."""
+        """Run samples k .. k_end - 1; returns (DONE | HAND_BACK | FMI_FAILED | CONTROLLER_FAILED
+        | COMMAND_REJECTED, next sample). On a failure the sample is the failed one and
+        fault_function/fault_status say what failed: the plant's FMI function name, or for
+        CONTROLLER_FAILED the controller FMU's call ("get", "set" or "step")."""
         state = self._state
         state.k = k
         code = self._library.kernel_run(self._pointer, k_end)
-        if code == FMI_FAILED:
+        if code in (FMI_FAILED, CONTROLLER_FAILED):
             self.fault_function = self._names[state.fault]
             self.fault_status = int(state.status)
         return code, int(state.k)
+
+
+def _point_at(target: ctypes.Structure, functions: CFunctions) -> None:
+    """Fill the skeleton's fmu_t from an FMU's C functions."""
+    target.get, target.set, target.step = functions.get, functions.set, functions.step
+    target.component, target.out_vr, target.in_vr = functions.component, functions.out_vr, functions.in_vr
+    target.fmi3 = 1 if functions.fmi3 else 0

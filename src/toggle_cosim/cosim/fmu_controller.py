@@ -34,7 +34,7 @@ from typing import Any
 from fmpy import extract
 
 from toggle_cosim.control.protocol import ControlStep
-from toggle_cosim.cosim.session import bound_function
+from toggle_cosim.cosim.session import CFunctions, FunctionNames, bound_function
 from toggle_cosim.plant.controller_contract import COMMAND, ControllerFmu
 from toggle_cosim.plant.fmi_calls import FMU2SlaveChecked, FMU3SlaveChecked, failed, last_log_line, logger3, quiet
 
@@ -213,6 +213,22 @@ class FmuController:
             last_log_line(self.instance_name, forget=True)
             quiet(self.instance_name, on=False)
 
+    def failure(self, call: str, t: float, status: int) -> ControllerFmuError:
+        """The error `step` raises when its call ("step", "set" or "get") returns `status` at
+        the sample t (for "step": the sample the doStep starts from); the compiled loop raises it too."""
+        function = self._names[("set", "get", "step").index(call)]
+        return self._fail(f"{function} at t = {t:.6g} s", status)
+
+    def c_functions(self) -> CFunctions | None:
+        """What the compiled loop calls from C (its inputs and outputs in `measured` and
+        (iq_ref, *diagnostics) order), or None when not loaded."""
+        if self._component is None:
+            return None
+        names = FunctionNames(set=self._names[0], get=self._names[1], step=self._names[2])
+        return CFunctions.of(
+            (self._get, self._set, self._step), self._component, self._out_vr, self._in_vr, self._is_fmi3, names, self
+        )
+
     # -- the protocol -------------------------------------------------------------------------
     def start(self, t0: float, measurement: Mapping[str, float]) -> float | None:
         """Load, instantiate and initialise the FMU (afresh if it was loaded); the state is the
@@ -237,7 +253,7 @@ class FmuController:
             else:
                 status = self._step(component, state, self.T_s, 0)
             if failed(status):
-                raise self._fail(f"{self._names[2]} at t = {state:.6g} s", status)
+                raise self.failure("step", state, status)
         values = self._in_val
         for j, name in enumerate(self.measured):
             values[j] = measurement[name]
@@ -249,12 +265,12 @@ class FmuController:
                 else self._set(component, self._in_vr, n_in, values)
             )
             if failed(status):
-                raise self._fail(f"{self._names[0]} at t = {t:.6g} s", status)
+                raise self.failure("set", t, status)
         status = (
             self._get(component, self._out_vr, n_out, out, n_out)
             if is_fmi3
             else self._get(component, self._out_vr, n_out, out)
         )
         if failed(status):
-            raise self._fail(f"{self._names[1]} at t = {t:.6g} s", status)
+            raise self.failure("get", t, status)
         return ControlStep(out[0], tuple(out[1:n_out]), t)

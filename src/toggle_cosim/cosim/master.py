@@ -6,9 +6,10 @@
 `simulate` assembles the parts (after FMPy's simulateCS, with its Recorder and step hook):
 a `PlantSession` (session.py), a `Recorder` and step hooks (recorder.py), the controller
 (the one given, else the scenario's: `controllers`), the steppers (stepper.py: the first
-sample in Python, which starts the controller; for the built-in law the rest in the compiled
-loop generated from `control.laws`, handed over to Python at a sample the C hands back, or
-all in Python without a C compiler; any other controller in Python at every sample) and the
+sample in Python, which starts the controller; for the built-in law and a controller FMU the
+rest in the compiled loop generated from `control.laws` (which calls the FMU's C functions),
+handed over to Python at a sample the C hands back, or all in Python without a C compiler;
+any other controller in Python at every sample) and the
 `CheckpointPolicy` (retry.py). run.json says which loop ran and why. The FMU is freed on
 every exit path. A plant fault (an error status, non-finite outputs) or a controller failure
 ends the run early: the trace up to the fault is kept and the run is marked failed with the
@@ -49,7 +50,7 @@ from toggle_cosim.cosim.stepper import (
     LoopState,
     PythonStepper,
     Timing,
-    compiled_law,
+    compiled_controller,
 )
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.files.traces import Trace
@@ -154,8 +155,9 @@ def simulate(
 
     `controller`: any object that meets the controller protocol (`control.protocol`); None: the
     run's own (`controllers.controller_for`: the scenario's built-in law, or its
-    controller.python). The compiled loop runs the built-in law only; any other controller runs
-    in Python at every sample, and run.json says which loop ran and why.
+    controller.python). The compiled loop runs the built-in law and a controller FMU (under
+    gauss-seidel coupling); any other controller runs in Python at every sample, and run.json
+    says which loop ran and why.
 
     `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
     file-backed map shared with a supervising process (`supervision`); the trace is then a view of it.
@@ -193,7 +195,7 @@ def simulate(
         loop_started = clock.perf_counter()
         k = python.advance(0, 1)  # the first sample starts the controller (S0, T_h)
         if k == 1 and n > 0:
-            law = JACOBI_REASON if jacobi else compiled_law(controller, state.controller)
+            law = JACOBI_REASON if jacobi else compiled_controller(controller, state.controller)
             compiled = (
                 law
                 if isinstance(law, str)

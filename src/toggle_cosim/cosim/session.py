@@ -93,6 +93,33 @@ class CFunctions:
     names: FunctionNames
     owner: Any
 
+    @classmethod
+    def of(
+        cls,
+        functions: tuple[Any, Any, Any],
+        component: int,
+        out_vr: Any,
+        in_vr: Any,
+        fmi3: bool,
+        names: FunctionNames,
+        holder: object = None,
+    ) -> CFunctions:
+        """From the bound (get, set, step) functions (`bound_function`), the instance and the
+        value-reference arrays (ctypes arrays), all kept alive by the result (and `holder`, the
+        object that owns them)."""
+        get, set_, step = (ctypes.cast(f, ctypes.c_void_p).value for f in functions)
+        return cls(
+            get=get,
+            set=set_,
+            step=step,
+            component=component,
+            out_vr=ctypes.addressof(out_vr),
+            in_vr=ctypes.addressof(in_vr),
+            fmi3=fmi3,
+            names=names,
+            owner=(holder, functions, out_vr, in_vr),
+        )
+
 
 class PlantSession:
     """One instance of a plant FMU: set parameters, initialise, then read/write/step."""
@@ -301,17 +328,8 @@ class PlantSession:
         functions = (self._get, self._set, self._step)
         if self._component is None or any(f is None for f in functions):
             return None
-        get, set_, step = (ctypes.cast(f, ctypes.c_void_p).value for f in functions)
-        return CFunctions(
-            get=get,
-            set=set_,
-            step=step,
-            component=self._component,
-            out_vr=ctypes.addressof(self._out_vr),
-            in_vr=ctypes.addressof(self._in_vr),
-            fmi3=self.is_fmi3,
-            names=self.function_names,
-            owner=(self, functions),
+        return CFunctions.of(
+            functions, self._component, self._out_vr, self._in_vr, self.is_fmi3, self.function_names, self
         )
 
     def solver_statistics(self) -> dict[str, int] | str:

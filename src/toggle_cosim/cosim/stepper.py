@@ -5,8 +5,10 @@ one can take over from another at any sample.
 * `PythonStepper`: the loop in Python over the `PlantSession` and any controller that meets
   the protocol (`control.protocol`).
 * `CompiledStepper`: the same loop in C (`compiled_loop`, generated from `control.laws`),
-  stopping at every sample a step hook wants to see. It runs the built-in law only
-  (`compiled_law` says whether the controller is that law, and why not).
+  stopping at every sample a step hook wants to see. It runs the built-in law, or calls a
+  controller FMU's C functions in the order `FmuController.step` calls them
+  (`compiled_controller` says which, or why neither). A controller FMU's failure in C raises
+  the `ControllerFailed` the Python loop raises for it, at the same sample.
 * `HandOver`: the compiled stepper while it can, then, from a sample the C hands back (non-
   finite outputs, a law that raises there), the Python stepper. It says which loop ran, and why.
 
@@ -25,8 +27,18 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
-from toggle_cosim.cosim.compiled_loop import FMI_FAILED, HAND_BACK, CompiledLoop, kernel_library, kernel_reason
+from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
+from toggle_cosim.cosim.compiled_loop import (
+    COMMAND_REJECTED,
+    CONTROLLER_FAILED,
+    FMI_FAILED,
+    HAND_BACK,
+    CompiledLoop,
+    ControllerCalls,
+    kernel_library,
+    kernel_reason,
+)
+from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.recorder import Recorder, StepHook
 from toggle_cosim.cosim.session import PlantSession
 
@@ -65,19 +77,37 @@ def compiled_law(controller: object, state: object) -> LawParameters | str:
     whose start and step *are* those functions (a subclass that overrides either, or an object
     of another class with the same methods, runs in Python at every sample), with the built-in
     diagnostics and a state `VSCController.start` made."""
+    only = "the compiled loop runs only the built-in law and controller FMUs"
     kind = type(controller)
     for method in ("step", "start"):
         own = getattr(kind, method, None)
         if own is not getattr(VSCController, method) or method in getattr(controller, "__dict__", {}):
             return (
                 f"the controller's {method} is {_name(own)}, not the built-in law's {_name(getattr(VSCController, method))}: "
-                "the compiled loop runs only the built-in law"
+                + only
             )
     if getattr(controller, "diagnostics", None) != VSCController.diagnostics:
-        return "the controller's diagnostics are not the built-in law's: the compiled loop runs only the built-in law"
+        return f"the controller's diagnostics are not the built-in law's: {only}"
     if not isinstance(state, ControllerState) or state.law is None:
-        return "the controller's state is not the built-in law's: the compiled loop runs only the built-in law"
+        return f"the controller's state is not the built-in law's: {only}"
     return state.law
+
+
+def compiled_controller(controller: object, state: object) -> LawParameters | FmuController | str:
+    """What the compiled loop may run in place of `controller`: the built-in law (`compiled_law`),
+    a controller FMU whose C functions it can call (an `FmuController` whose step is
+    `FmuController.step`, loaded), or why neither."""
+    if not isinstance(controller, FmuController):
+        return compiled_law(controller, state)
+    own = getattr(type(controller), "step", None)
+    if own is not FmuController.step or "step" in getattr(controller, "__dict__", {}):
+        return (
+            f"the controller's step is {_name(own)}, not {_name(FmuController.step)}: "
+            "the compiled loop makes only the latter's calls"
+        )
+    if controller.c_functions() is None:
+        return "the controller FMU's C functions are not reachable"
+    return controller
 
 
 class Stepper(Protocol):
@@ -148,7 +178,7 @@ class PythonStepper:
                 try:
                     result = control_step(state, t, measurement)
                 except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run
-                    raise ControllerFailed(f"the controller's step raised at t = {t:.6g} s: {_error(error)}") from None
+                    raise step_raised(t, error) from None
                 try:
                     u, diagnostics, state = checked_command(result, n_diagnostics, t)
                 except ControllerError as error:
@@ -176,12 +206,18 @@ class PythonStepper:
             st.controller = state
 
 
+def step_raised(t: float, error: BaseException) -> ControllerFailed:
+    """The failure of a controller whose step raised `error` at the sample t."""
+    return ControllerFailed(f"the controller's step raised at t = {t:.6g} s: {_error(error)}")
+
+
 def _error(error: BaseException) -> str:
     return " ".join(f"{type(error).__name__}: {error}".split())
 
 
 class CompiledStepper:
-    """The loop in C over a `CompiledLoop`; `handed_back` is set when the C hands a sample back."""
+    """The loop in C over a `CompiledLoop`; `handed_back` is set when the C hands a sample back.
+    `controller`: the controller FMU the loop calls (None: the generated law)."""
 
     def __init__(
         self,
@@ -191,12 +227,20 @@ class CompiledStepper:
         timing: Timing,
         state: LoopState,
         hooks: Sequence[StepHook] = (),
+        controller: FmuController | None = None,
     ) -> None:
         self.loop, self.recorder, self.timing, self.state = loop, recorder, timing, state
         self.names = session.function_names
         self.hooks = tuple(hooks)
         self.every = min((hook.every for hook in self.hooks), default=0)
         self.handed_back = False
+        self.controller = controller
+        self.reason = (
+            "the built-in law, generated from control.laws; C compiler available"
+            if controller is None
+            else f"the controller FMU {controller.fmu.path.name}, called from C through its function pointers; "
+            "C compiler available"
+        )
 
     @classmethod
     def build(
@@ -205,31 +249,69 @@ class CompiledStepper:
         recorder: Recorder,
         timing: Timing,
         state: LoopState,
-        law: LawParameters,
-        measured: tuple[str, str],
+        law: LawParameters | FmuController,
+        measured: tuple[str, ...],
         hooks: Sequence[StepHook] = (),
     ) -> CompiledStepper | str:
         """The compiled stepper from the current sample on, or why there is none. `law` is the
-        built-in law to run (`compiled_law`), `measured` the plant outputs it reads."""
+        built-in law to run, or the controller FMU to call (`compiled_controller`), `measured`
+        the plant outputs it reads."""
         library = kernel_library()
         functions = session.c_functions()
         if library is None or functions is None:
             return kernel_reason() or "the FMU's C functions are not reachable"
+        names = recorder.names
+        if isinstance(law, FmuController):
+            calls = law.c_functions()
+            if calls is None:
+                return "the controller FMU's C functions are not reachable"
+            controller = ControllerCalls(
+                calls, tuple(names.index(name) for name in measured), 1 + len(law.diagnostics), state.controller
+            )
+            i_q, i_qd, parameters, z = recorder.i_x, recorder.i_v, None, 0.0
+        else:
+            controller = None
+            i_q, i_qd, parameters, z = names.index(measured[0]), names.index(measured[1]), law, state.controller.z
         loop = CompiledLoop(
             library,
             functions,
             recorder.data,
             recorder.n_out,
-            recorder.names.index(measured[0]),
-            recorder.names.index(measured[1]),
+            i_q,
+            i_qd,
             recorder.col_u,
             timing.n,
             timing.T_s,
             timing.F_E,
-            law,
-            state.controller.z,
+            parameters,
+            z,
+            controller,
         )
-        return cls(loop, session, recorder, timing, state, hooks)
+        return cls(loop, session, recorder, timing, state, hooks, law if controller is not None else None)
+
+    def _sync(self) -> None:
+        """The shared controller state from the C's: the law's integrator, or the controller
+        FMU's last sample."""
+        if self.controller is not None:
+            self.state.controller = self.loop.controller_time
+            return
+        controller = self.state.controller
+        if self.loop.z != controller.z:
+            self.state.controller = replace(controller, z=self.loop.z)
+
+    def _controller_failed(self, code: int, k: int) -> ControllerFailed:
+        """The failure the Python loop raises for the controller FMU at sample k (not recorded)."""
+        t = k * self.timing.T_s
+        if code == COMMAND_REJECTED:
+            u, *diagnostics = self.loop.controller_outputs()
+            try:
+                checked_command(ControlStep(u, tuple(diagnostics), t), len(diagnostics), t)
+            except ControllerError as error:
+                return ControllerFailed(str(error))
+            return ControllerFailed(f"the controller's command at t = {t:.6g} s was rejected by the compiled loop")
+        call, status = self.loop.fault_function, self.loop.fault_status
+        at = self.loop.controller_time if call == "step" else t
+        return step_raised(t, self.controller.failure(call, at, status))
 
     def advance(self, k: int, stop: int) -> int:
         loop, rec, n, every = self.loop, self.recorder, self.timing.n, self.every
@@ -239,14 +321,16 @@ class CompiledStepper:
             code, k = loop.run(k, end)
             if code == FMI_FAILED:  # reading sample k failed, or setting/stepping after recording it
                 rec.rows = k if loop.fault_function == self.names.get else k + 1
+                if self.controller is not None:  # sample k's controller call made: a retry goes on from it
+                    self._sync()
                 error = FMICallException(function=loop.fault_function, status=loop.fault_status)
                 if loop.fault_function == self.names.step:
                     raise StepFailed(k, error)
                 raise error
             rec.rows = k
-            controller = self.state.controller
-            if loop.z != controller.z:
-                self.state.controller = replace(controller, z=loop.z)
+            self._sync()
+            if code in (CONTROLLER_FAILED, COMMAND_REJECTED):
+                raise self._controller_failed(code, k)
             if code == HAND_BACK:
                 self.handed_back = True
                 return k
@@ -264,7 +348,7 @@ class HandOver:
         self.python = python
         self.compiled = compiled if isinstance(compiled, CompiledStepper) else None
         self.loop: dict[str, Any] = (
-            {"kind": "compiled", "reason": "the built-in law, generated from control.laws; C compiler available"}
+            {"kind": "compiled", "reason": self.compiled.reason}
             if self.compiled
             else {"kind": "python", "reason": compiled}
         )
