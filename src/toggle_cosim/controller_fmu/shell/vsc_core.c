@@ -65,7 +65,9 @@ vsc_core *vsc_new(const char *name, vsc_emit emit, const void *env, int logging_
     c->emit = emit;
     c->env = env;
     c->logging_on = logging_on;
-    c->categories = VSC_LOG_EVENTS | VSC_LOG_WARNING | VSC_LOG_ERROR | VSC_LOG_ALL;
+    /* logging on at instantiation: the status categories; a line per sample (logEvents, logAll)
+       only when asked for by fmi2SetDebugLogging / fmi3SetDebugLogging */
+    c->categories = VSC_LOG_WARNING | VSC_LOG_ERROR;
     vsc_defaults(&c->d);
     return c;
 }
