@@ -22,9 +22,9 @@ from fmpy.fmi3 import FMU3Slave  # noqa: E402
 from fmpy.validation import validate_fmu  # noqa: E402
 
 from toggle_cosim.control.controller import VSCController  # noqa: E402
+from toggle_cosim.control.parameters import STARTED as COMPUTED  # noqa: E402
 from toggle_cosim.control.parameters import LawParameters  # noqa: E402
 from toggle_cosim.controller_fmu import build_controller_fmu  # noqa: E402
-from toggle_cosim.controller_fmu.variables import COMPUTED  # noqa: E402
 from toggle_cosim.native import c_compiler  # noqa: E402
 
 VERSIONS = ("2.0", "3.0")

@@ -4,10 +4,21 @@ its ctypes mirror, both generated from this class (`control.translate`)."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["LawParameters", "PAPER", "INTEGRAL", "OBJECTIVE_XB", "OBJECTIVE_THETA1", "described"]
+__all__ = [
+    "LawParameters",
+    "PAPER",
+    "INTEGRAL",
+    "OBJECTIVE_XB",
+    "OBJECTIVE_THETA1",
+    "STARTED",
+    "described",
+    "settable",
+    "settable_values",
+]
 
 PAPER, INTEGRAL = 0.0, 1.0  # law codes
 OBJECTIVE_XB, OBJECTIVE_THETA1 = 0.0, 1.0  # objective codes
@@ -87,6 +98,22 @@ class LawParameters:
     J3: float = field(metadata=described("kg.m2", "nominal centroidal inertia of link A-B, m3 r3^2/12"))
     J5: float = field(metadata=described("kg.m2", "nominal centroidal inertia of link D-C, m5 r5^2/12"))
     g: float = field(metadata=described("m/s2", "gravitational acceleration"))
+
+
+# The fields the law's start sets at its first sample (`laws.law_start`): t0 and T_h. A law that
+# runs on its own (the controller FMU) computes them; every other field is a setting.
+STARTED = ("t0", "T_h")
+
+
+def settable() -> tuple[str, ...]:
+    """The LawParameters fields a law is given as settings (all but STARTED), in field order:
+    the controller FMU's parameters."""
+    return tuple(f.name for f in dataclasses.fields(LawParameters) if f.name not in STARTED)
+
+
+def settable_values(law: LawParameters) -> tuple[tuple[str, float], ...]:
+    """(name, value) of `law`'s settable fields, in field order."""
+    return tuple((name, getattr(law, name)) for name in settable())
 
 
 MECHANISM_FIELDS = ("r1", "r3", "r4", "r5", "f", "h", "phi", "m3", "m5", "mB", "mC", "J2", "g")

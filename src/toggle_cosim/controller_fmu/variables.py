@@ -15,13 +15,12 @@ from dataclasses import dataclass
 from typing import Literal
 
 from toggle_cosim.control.controller import VSCController
-from toggle_cosim.control.parameters import LawParameters
+from toggle_cosim.control.parameters import STARTED, LawParameters
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.parameters import MechanismParameters
 
 __all__ = [
     "CODES",
-    "COMPUTED",
     "PAPER_X_START",
     "FmuVariable",
     "inputs",
@@ -33,7 +32,6 @@ __all__ = [
 
 Causality = Literal["input", "output", "parameter"]
 
-COMPUTED = ("t0", "T_h")  # LawParameters fields the FMU computes at its first sample
 CODES = ("law", "objective")  # parameters that are integer codes (0 or 1)
 PAPER_X_START = 0.2329  # the paper's stroke start x_B(0) [m]: the inputs' start values
 
@@ -100,7 +98,7 @@ def parameters(defaults: LawParameters | None = None) -> tuple[FmuVariable, ...]
     the paper's law on the x_B objective)."""
     values = defaults if defaults is not None else VSCController().law_parameters()
     first = VR_TIME + 1 + len(_INPUTS) + len(_OUTPUTS)
-    fields = [f for f in dataclasses.fields(LawParameters) if f.name not in COMPUTED]
+    fields = [f for f in dataclasses.fields(LawParameters) if f.name not in STARTED]
     return tuple(
         FmuVariable(
             f.name,

@@ -33,12 +33,13 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
 from toggle_cosim.plant.contract import ContractError
-from toggle_cosim.plant.controller_contract import LAW_PARAMETERS, ControllerFmu, check_controller_fmu
+from toggle_cosim.plant.controller_contract import ControllerFmu, check_controller_fmu
 from toggle_cosim.runs.definition import Run
 
 __all__ = ["builtin_controller", "controller_for", "controller_record", "fmu_settings", "load_factory"]
@@ -139,8 +140,7 @@ def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
     for a parameter the FMU does not have."""
     settings: dict[str, Any] = {}
     if fmu.law_parameters:
-        law = builtin_controller(run).law_parameters()
-        settings.update((name, getattr(law, name)) for name in LAW_PARAMETERS)
+        settings.update(settable_values(builtin_controller(run).law_parameters()))
     for name, value in run.controller.parameters.items():
         if name not in fmu.parameters:
             known = ", ".join(fmu.parameters) or "none"

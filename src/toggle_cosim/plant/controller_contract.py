@@ -18,13 +18,12 @@ runs the built-in law (``law_parameters``), whose settings the scenario's contro
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from toggle_cosim.control.parameters import LawParameters
+from toggle_cosim.control.parameters import settable
 from toggle_cosim.plant.contract import CONTRACT, ContractError, declared_unit, read_fmu
 
 __all__ = ["COMMAND", "ControllerFmu", "LAW_PARAMETERS", "check_controller_fmu"]
@@ -34,7 +33,7 @@ COMMAND_UNIT = "A"
 REALS = ("Real", "Float64")
 # the LawParameters fields a controller FMU of the built-in law takes as parameters (it computes
 # t0 and T_h itself, at its first sample)
-LAW_PARAMETERS = tuple(f.name for f in dataclasses.fields(LawParameters) if f.name not in ("t0", "T_h"))
+LAW_PARAMETERS = settable()
 _UNITS = {v.name: v.unit for v in CONTRACT if v.causality == "output"}
 _FIX = "see docs/controllers.md, 'A controller FMU'"
 

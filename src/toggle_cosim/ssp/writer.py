@@ -12,7 +12,6 @@ and written whole or not at all (`files.outputs`).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import zipfile
 from collections.abc import Mapping, Sequence
@@ -22,6 +21,7 @@ from typing import Any
 
 from lxml import etree
 
+from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
@@ -32,10 +32,9 @@ from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError, schema_problem
 from toggle_cosim.ssp.fmus import FmuVariables, describe
 
-__all__ = ["CONTROLLER_EXCLUDED", "ParameterSet", "controller_values", "parameter_sets", "write_ssp"]
+__all__ = ["ParameterSet", "controller_values", "parameter_sets", "write_ssp"]
 
 # LawParameters fields the controller FMU computes itself at its first sample
-CONTROLLER_EXCLUDED = ("t0", "T_h")
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 Value = float | bool | int
 
@@ -52,14 +51,9 @@ class ParameterSet:
 
 
 def controller_values(run: Run) -> tuple[tuple[str, float], ...]:
-    """The controller FMU's parameters for `run`: its built-in law's `law_parameters()` by field
-    name, without CONTROLLER_EXCLUDED."""
-    law = builtin_controller(run).law_parameters()
-    return tuple(
-        (field.name, getattr(law, field.name))
-        for field in dataclasses.fields(law)
-        if field.name not in CONTROLLER_EXCLUDED
-    )
+    """The controller FMU's parameters for `run`: its built-in law's settable `law_parameters()`
+    by field name (`control.parameters.settable_values`)."""
+    return settable_values(builtin_controller(run).law_parameters())
 
 
 def parameter_sets(runs: Sequence[Run], plant) -> list[ParameterSet]:  # noqa: ANN001 - a PlantInterface
