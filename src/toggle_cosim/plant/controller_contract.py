@@ -24,12 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toggle_cosim.control.parameters import settable
+from toggle_cosim.control.protocol import COMMAND_COLUMNS
 from toggle_cosim.plant.contract import CONTRACT, ContractError, declared_unit, read_fmu
 
 __all__ = ["COMMAND", "ControllerFmu", "LAW_PARAMETERS", "check_controller_fmu"]
 
-COMMAND = "iq_ref"  # the output the master sends to the plant
-COMMAND_UNIT = "A"
+COMMAND = COMMAND_COLUMNS[0]  # the output the master sends to the plant
+COMMAND_UNIT = next(v.unit for v in CONTRACT if v.name == COMMAND)  # the plant contract's unit for its input: A
 REALS = ("Real", "Float64")
 # the LawParameters fields a controller FMU of the built-in law takes as parameters (it computes
 # t0 and T_h itself, at its first sample)

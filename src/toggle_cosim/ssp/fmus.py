@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim.plant.contract import declared_unit
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import SspError
 
@@ -44,9 +45,7 @@ class FmuVariables:
         return found
 
     def unit(self, name: str) -> str | None:
-        variable = self.variable(name)
-        declared = getattr(variable, "declaredType", None)
-        return variable.unit or (declared.unit if declared is not None else None) or None
+        return declared_unit(self.variable(name)) or None
 
     def base_unit(self, unit: str) -> dict[str, float] | None:
         """The SI exponents (and factor, offset) the FMU's UnitDefinitions give `unit`, or None."""

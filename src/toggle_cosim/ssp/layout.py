@@ -19,11 +19,13 @@ controller's nominal model on a plant that has variables of the same names.
 
 from __future__ import annotations
 
+from toggle_cosim.control.protocol import COMMAND_COLUMNS
+
 SSD_MEMBER = "SystemStructure.ssd"
 RESOURCES = "resources"
 PLANT, CONTROLLER = "plant", "controller"  # the components' names
-COMMAND = "iq_ref"  # the controller's output that drives the plant
-EXTERNAL_FORCE = "F_E"  # the plant input set from the parameter set (no system-level connector)
+COMMAND, EXTERNAL_FORCE = COMMAND_COLUMNS  # the controller's output that drives the plant; the plant input
+# set from the parameter set (no system-level connector)
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 SINGLE_SET = "run"  # the parameter set of a scenario without variants (its output folder's name too)
 

@@ -246,7 +246,7 @@ def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
     """SspError for a scenario an SSP cannot hold: a controller in Python, variants that differ
     in t_end or T_s (an SSP has one experiment)."""
     for run in runs:
-        if getattr(run.controller, "fmu", None) is not None:  # controller: {fmu: ...}, where the master has it
+        if run.controller.fmu is not None:
             raise SspError(
                 f"{path}: key controller.fmu: the SSP's controller is the one given with --controller, with the built-in "
                 "law's parameters; remove controller.fmu from the scenario and name that FMU with --controller"
