@@ -11,7 +11,9 @@ import click
 
 from toggle_cosim import __version__, interrupts
 from toggle_cosim.experiments.shipped import (  # noqa: F401 - the commands' defaults, imported from here
+    CONTROLLER_MODEL,
     DEFAULT_BUILDS,
+    DEFAULT_CONTROLLER,
     DEFAULT_FMU,
     DEFAULT_MODEL,
     DEFAULT_REFERENCES,

@@ -8,7 +8,9 @@ from pathlib import Path
 import click
 
 from toggle_cosim.cli.app import (
+    CONTROLLER_MODEL,
     DEFAULT_BUILDS,
+    DEFAULT_CONTROLLER,
     DEFAULT_FMU,
     DEFAULT_MODEL,
     DEFAULT_SOURCE,
@@ -19,8 +21,7 @@ from toggle_cosim.cli.app import (
     require,
 )
 
-CONTROLLER = "ToggleVSC"  # --model of the controller FMU (no Modelica source)
-DEFAULT_CONTROLLER = Path("fmus") / f"{CONTROLLER}.fmu"
+CONTROLLER = CONTROLLER_MODEL  # --model of the controller FMU (no Modelica source)
 
 # The default file name's tag for an FMU that offers one interface only: the default FMU offers both.
 INTERFACE_TAGS = {"both": "", "cs": "_CS", "me": "_ME"}
@@ -49,7 +50,6 @@ def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0"
     from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
 
     require("modelica")
-    check_output(output, "FMU (--out)")  # a link there is refused, not followed
     if not source.exists():
         raise InputError(f"{source}: no such Modelica package folder or .mo file (fix --source)")
     _check_fmu_output(output)

@@ -9,9 +9,7 @@ from pathlib import Path
 
 import click
 
-from toggle_cosim.cli.app import DEFAULT_FMU, InputError, check_output, main
-
-DEFAULT_CONTROLLER = DEFAULT_FMU.parent / "ToggleVSC.fmu"
+from toggle_cosim.cli.app import DEFAULT_CONTROLLER, InputError, check_output, main
 
 
 @main.command()

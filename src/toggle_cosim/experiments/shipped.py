@@ -19,6 +19,9 @@ DEFAULT_BUILDS = (
     (DEFAULT_MODEL, DEFAULT_FMU),
     ("ToggleLSM.PlantNoGravity", Path("fmus/ToggleLSM_NoGravity.fmu")),
 )
+# The controller FMU (built from control/laws.py, no Modelica): its --model name and files.
+CONTROLLER_MODEL = "ToggleVSC"
+DEFAULT_CONTROLLER = Path(f"fmus/{CONTROLLER_MODEL}.fmu")
 SCENARIOS = Path("scenarios")
 DEFAULT_REFERENCES = SCENARIOS / "references"
 PAPER_SCENARIOS = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
