@@ -70,6 +70,13 @@ def _name(function: object) -> str:
     return getattr(function, "__qualname__", repr(function))
 
 
+def _replaced(controller: object, reference: type, method: str) -> bool:
+    """Whether the controller's `method` is not `reference`'s own (overridden by its class, absent,
+    or set on the object)."""
+    own = getattr(type(controller), method, None)
+    return own is not getattr(reference, method) or method in getattr(controller, "__dict__", {})
+
+
 def compiled_law(controller: object, state: object) -> LawParameters | str:
     """The law the compiled loop may run in place of `controller`, or why it may not.
 
@@ -78,10 +85,9 @@ def compiled_law(controller: object, state: object) -> LawParameters | str:
     of another class with the same methods, runs in Python at every sample), with the built-in
     diagnostics and a state `VSCController.start` made."""
     only = "the compiled loop runs only the built-in law and controller FMUs"
-    kind = type(controller)
     for method in ("step", "start"):
-        own = getattr(kind, method, None)
-        if own is not getattr(VSCController, method) or method in getattr(controller, "__dict__", {}):
+        if _replaced(controller, VSCController, method):
+            own = getattr(type(controller), method, None)
             return (
                 f"the controller's {method} is {_name(own)}, not the built-in law's {_name(getattr(VSCController, method))}: "
                 + only
@@ -99,8 +105,8 @@ def compiled_controller(controller: object, state: object) -> LawParameters | Fm
     `FmuController.step`, loaded), or why neither."""
     if not isinstance(controller, FmuController):
         return compiled_law(controller, state)
-    own = getattr(type(controller), "step", None)
-    if own is not FmuController.step or "step" in getattr(controller, "__dict__", {}):
+    if _replaced(controller, FmuController, "step"):
+        own = getattr(type(controller), "step", None)
         return (
             f"the controller's step is {_name(own)}, not {_name(FmuController.step)}: "
             "the compiled loop makes only the latter's calls"
