@@ -73,8 +73,8 @@ def connectors_of(component: Element, fmu: FmuVariables, where: str) -> dict[str
         kind = connector.get("kind")
         if kind != variable.causality:
             raise SspError(
-                f"{where}: component {name!r} declares {label!r} as an {kind} connector, but its FMU's variable is "
-                f"a {variable.causality} (give the connector kind {variable.causality!r})"
+                f"{where}: component {name!r} declares {label!r} as a connector of kind {kind}, but its FMU's variable "
+                f"has causality {variable.causality} (give the connector kind {variable.causality!r})"
             )
         typed = next((child for child in connector if etree.QName(child).namespace == layout.SSC_NS), None)
         found[label] = Connector(kind, typed.get("unit") if typed is not None else None)
@@ -179,7 +179,7 @@ def _wires(ssd: Element, connectors, where: str) -> list[Wire]:  # noqa: ANN001
         kinds = (connectors[wire.start][wire.start_connector].kind, connectors[wire.end][wire.end_connector].kind)
         if kinds != ("output", "input"):
             raise SspError(
-                f"{where}: the connection {wire} runs from a {kinds[0]} to a {kinds[1]} connector "
+                f"{where}: the connection {wire} runs from a connector of kind {kinds[0]} to one of kind {kinds[1]} "
                 "(a connection runs from an output to an input)"
             )
         _check_transformation(connection, wire, where)
@@ -234,15 +234,15 @@ def check_wiring(
 ) -> None:
     """SspError unless the SSD's connections are exactly the loop our master runs (module doc)."""
     wires = _wires(ssd, connectors, where)
-    units = _ssd_units(ssd)
-    for wire in wires:
-        _check_units(wire, connectors, fmus, units, where)
     loop = _loop(wires, fmus)
     if loop is not None:
         raise SspError(
             f"{where}: an algebraic loop {' -> '.join(loop)} (through the connections and the FMUs' direct "
             "dependencies; break it)"
         )
+    units = _ssd_units(ssd)
+    for wire in wires:
+        _check_units(wire, connectors, fmus, units, where)
     expected = [Wire(plant, name, controller, name) for name in fmus[controller].inputs()]
     expected.append(Wire(controller, layout.COMMAND, plant, layout.COMMAND))
     ends: dict[tuple[str, str], Wire] = {}
