@@ -749,3 +749,94 @@ def test_a_named_variant_runs_that_variant_only(plant_fmu: Path, toggle_vsc: Pat
         assert [p.name for p in (out / "fig4_nominal").iterdir()] == ["no_friction"]
         record = (out / "fig4_nominal" / "no_friction" / "run.json").read_text()
         assert '"ssd": "no_friction.ssd"' in record and '"mu": 0.0' in record
+
+
+def _inline(values: list[tuple[str, str, str]], name: str) -> str:
+    parameters = "".join(
+        f'<ssv:Parameter name="{n}"><ssv:{kind} value="{text}"/></ssv:Parameter>' for n, kind, text in values
+    )
+    return (
+        f'<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="{name}">'
+        f"<ssv:Parameters>{parameters}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding>"
+    )
+
+
+def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+    """An SSP this project did not write: components named vsc and mechanism (the controller
+    first), connections in another order, no Units, no annotations, parameter values inline. The
+    mechanism's first binding sets mu = 0.5 and m_B = 9 kg, its second the variant's values: the
+    later binding takes priority (mu back to the variant's); a system-level binding sets
+    mechanism.m_B back to 4.43 kg, over the component's own (a higher level takes priority).
+    It runs fig4's friction variant bit for bit, and its run.json records the values that ran."""
+    import json
+
+    from toggle_cosim.files.traces import read_csv as read_trace_csv
+
+    scenario = ROOT / "scenarios" / "fig4_nominal.yaml"
+    ours = _members(write_ssp(scenario, tmp_path / "ours.ssp", plant_fmu, toggle_vsc))
+    plant_values = [v for v in _values(ours[layout.ssv_member("friction", "plant")]) if v[0] != "m_B"]
+    m_B = next(v for v in _values(ours[layout.ssv_member("friction", "plant")]) if v[0] == "m_B")
+    controller_values_ = _values(ours[layout.ssv_member("friction", "controller")])
+    connectors = {
+        "vsc": [("x_B", "input"), ("v_B", "input"), ("theta1", "input"), ("omega1", "input"), ("iq_ref", "output")],
+        "mechanism": [
+            ("x_B", "output"),
+            ("v_B", "output"),
+            ("theta1", "output"),
+            ("omega1", "output"),
+            ("iq_ref", "input"),
+        ],
+    }
+
+    def component(name: str, source: str, bindings: str) -> str:
+        declared = "".join(
+            f'<ssd:Connector name="{n}" kind="{k}"><ssc:Real/></ssd:Connector>' for n, k in connectors[name]
+        )
+        return (
+            f'<ssd:Component name="{name}" source="{source}"><ssd:Connectors>{declared}</ssd:Connectors>'
+            f"<ssd:ParameterBindings>{bindings}</ssd:ParameterBindings></ssd:Component>"
+        )
+
+    wires = [("vsc", "iq_ref", "mechanism", "iq_ref")] + [
+        ("mechanism", s, "vsc", s) for s in ("omega1", "theta1", "v_B", "x_B")
+    ]
+    ssd = (
+        '<?xml version="1.0" encoding="UTF-8"?>'
+        '<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '
+        'xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" '
+        'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="nominal">'
+        '<ssd:System name="handmade"><ssd:ParameterBindings>'
+        + _inline([("mechanism.m_B", "Real", m_B[2])], "system")
+        + "</ssd:ParameterBindings><ssd:Elements>"
+        + component("vsc", "resources/vsc.fmu", _inline(controller_values_, "nominal"))
+        + component(
+            "mechanism",
+            "resources/plant.fmu",
+            _inline([("mu", "Real", "0.5"), ("m_B", "Real", "9.0")], "first") + _inline(plant_values, "nominal"),
+        )
+        + "</ssd:Elements><ssd:Connections>"
+        + "".join(
+            f'<ssd:Connection startElement="{a}" startConnector="{b}" endElement="{c}" endConnector="{d}"/>'
+            for a, b, c, d in wires
+        )
+        + '</ssd:Connections></ssd:System><ssd:DefaultExperiment stopTime="1.5"/></ssd:SystemStructureDescription>'
+    )
+    assert schema_problem(etree.fromstring(ssd.encode()), "ssd") is None
+    handmade = tmp_path / "handmade.ssp"
+    with zipfile.ZipFile(handmade, "w") as archive:
+        archive.writestr("SystemStructure.ssd", ssd)
+        archive.write(plant_fmu, "resources/plant.fmu")
+        archive.write(toggle_vsc, "resources/vsc.fmu")
+    for args, out in (
+        ([str(scenario), "--fmu", str(plant_fmu)], tmp_path / "yaml"),
+        ([str(handmade)], tmp_path / "ssp"),
+    ):
+        ran = CliRunner().invoke(main, ["run", *args, "--out", str(out), "-q"])
+        assert ran.exit_code == 0, ran.output
+    expected = read_trace_csv(tmp_path / "yaml" / "fig4_nominal" / "friction" / "trace.csv")
+    got = read_trace_csv(tmp_path / "ssp" / "handmade" / "nominal" / "trace.csv")
+    for column in expected.names:
+        assert np.array_equal(got.column(column), expected.column(column)), column
+    record = json.loads((tmp_path / "ssp" / "handmade" / "nominal" / "run.json").read_text())
+    ran_with = record["resolved"]["ssp"]["components"]["plant"]
+    assert ran_with["name"] == "mechanism" and ran_with["values"]["mu"] == 0.2 and ran_with["values"]["m_B"] == 4.43

@@ -81,7 +81,7 @@ def parse_xml(data: bytes, where: str) -> Element:
         root = events.root
     except etree.XMLSyntaxError as error:
         raise SspError(f"{where}: not well-formed XML ({' '.join(str(error).split())}); fix or rewrite it") from None
-    if root.getroottree().docinfo.doctype or any(isinstance(node, etree._Entity) for node in root.iter()):
+    if root.getroottree().docinfo.doctype or any(node.tag is etree.Entity for node in root.iter()):
         raise SspError(f"{where}: a DOCTYPE or entity reference (refused: an SSP file needs neither; remove it)")
     return root
 
