@@ -840,3 +840,39 @@ def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, toggl
     record = json.loads((tmp_path / "ssp" / "handmade" / "nominal" / "run.json").read_text())
     ran_with = record["resolved"]["ssp"]["components"]["plant"]
     assert ran_with["name"] == "mechanism" and ran_with["values"]["mu"] == 0.2 and ran_with["values"]["m_B"] == 4.43
+
+
+def test_ssp_variant_writes_the_variants_named_and_refuses_names_that_collide(
+    plant_fmu: Path, controller_fmu: Path, tmp_path: Path
+) -> None:
+    """`ssp --variant NAME` writes that variant alone as SystemStructure.ssd (named after it); an
+    unknown name, and two variants whose root SSDs would share a file (ignoring case, or a later
+    variant named SystemStructure), are one line, exit 2, nothing written."""
+    scenario, out = ROOT / "scenarios" / "fig4_nominal.yaml", tmp_path / "s.ssp"
+
+    def ssp(given: Path, *extra: str):  # noqa: ANN202
+        args = ["ssp", str(given), "--out", str(out), "--plant", str(plant_fmu), "--controller", str(controller_fmu)]
+        return CliRunner().invoke(main, [*args, *extra])
+
+    assert ssp(scenario, "--variant", "no_friction").exit_code == 0
+    members = _members(out)
+    assert sorted(m for m in members if m.endswith(".ssd")) == ["SystemStructure.ssd"]
+    assert etree.fromstring(members["SystemStructure.ssd"]).get("name") == "no_friction"
+    out.unlink()
+    line = _one_line(ssp(scenario, "--variant", "heavy"), tmp_path / "none")
+    assert line == f"error: {scenario}: no variant 'heavy' (choose one of friction, no_friction with --variant)"
+    text = scenario.read_text()
+    for renamed, expected in (
+        (
+            text.replace("  no_friction:\n", "  Friction:\n", 1).replace("  friction:\n", "  b: {}\n  friction:\n", 1),
+            None,
+        ),
+        (text.replace("  no_friction:\n", "  SystemStructure:\n", 1), "would both be written as SystemStructure.ssd"),
+    ):
+        if expected is None:  # b, friction, Friction: friction.ssd and Friction.ssd
+            expected = "'friction' and 'Friction' would both be written as Friction.ssd"
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(renamed)
+        line = _one_line(ssp(bad), tmp_path / "none")
+        assert expected in line and "names are compared ignoring case" in line, line
+        assert not out.exists()
