@@ -539,6 +539,13 @@ BAD_SSPS = {
         ),
         "resources/friction.plant.ssv: more than 100000 XML elements",
     ),
+    "XML nested too deep": (
+        _ssd_edit(
+            "</ssd:Annotations>\n</ssd:SystemStructureDescription>",
+            "<a>" * 70 + "</a>" * 70 + "</ssd:Annotations>\n</ssd:SystemStructureDescription>",
+        ),
+        "SystemStructure.ssd: XML nested deeper than 64 levels",
+    ),
     "an oversized SSD": (
         lambda m: m.update({layout.SSD_MEMBER: m[layout.SSD_MEMBER] + b" " * (5 << 20)}),
         "SystemStructure.ssd: over the 4 MiB an SSP's XML file may have here",
@@ -685,6 +692,9 @@ def test_an_ssp_is_written_whole_or_not_at_all(
 
 def test_run_options_that_do_not_fit_an_ssp_are_refused(fig5_ssp: Path, plant_fmu: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
+    assert _run_ssp(fig5_ssp, out, str(fig5_ssp)) == (
+        f"error: {fig5_ssp} is given twice: its runs would write the same folders (give it once)"
+    )
     assert "--fmu does not apply to an SSP" in _run_ssp(fig5_ssp, out, "--fmu", str(plant_fmu))
     result = CliRunner().invoke(
         main, ["run", str(ROOT / "scenarios" / "fig4_nominal.yaml"), "--variant", "x", "--out", str(out)]

@@ -60,6 +60,11 @@ def ssp_runs(paths: Sequence[Path], variants: Sequence[str], stack: contextlib.E
     from toggle_cosim.ssp.run import run_from_ssp
 
     asked = list(variants) or [None]
+    seen: set[Path] = set()
+    for path in paths:
+        if Path(path).resolve() in seen:
+            raise InputError(f"{path} is given twice: its runs would write the same folders (give it once)")
+        seen.add(Path(path).resolve())
     runs = []
     try:
         for path in paths:

@@ -278,7 +278,10 @@ def _start(fmu: FmuVariables, name: str) -> Value | None:
     text = str(variable.start)
     if variable.type == "Boolean":
         return text.lower() in ("true", "1")
-    return int(text) if variable.type in ("Integer", "Int32") else float(text)
+    try:
+        return int(text) if variable.type in ("Integer", "Int32") else float(text)
+    except ValueError:  # a start value that is no number: as if none (the checks then ask for one)
+        return None
 
 
 def _component_values(
