@@ -43,7 +43,7 @@ from toggle_cosim.ssp.wiring import check_wiring, connectors_of
 __all__ = ["SAFE_NAME", "Component", "SspStudy", "open_ssp", "read_ssp", "variants"]
 
 NS = layout.NAMESPACES
-SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\Z")  # a scenario's name: a folder name anywhere
+SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,199}\Z")  # a scenario's name: a folder name anywhere
 
 
 @dataclass(frozen=True)
@@ -121,7 +121,7 @@ def _root_ssds(archive: zipfile.ZipFile, path: Path) -> list[_Variant]:
             if not SAFE_NAME.match(text):
                 raise SspError(
                     f"{where}: the {what} {text!r} cannot name a results folder (use letters, digits, _ . - "
-                    "and no more than 100 of them, not starting with . or -)"
+                    "and no more than 200 of them, not starting with . or -)"
                 )
         other = seen.setdefault(name.casefold(), member)
         if other != member:
