@@ -24,12 +24,15 @@ from toggle_cosim.plant.friction import FRICTION_MODELS
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
 
-__all__ = ["run_of_values"]
+__all__ = ["CONTROLLER_NAMES", "PLANT_NAMES", "run_of_values"]
 
 Value = float | int | bool
 GAINS = ("C", "Q", "P", "delta", "beta")
 CONTROLLER_KEYS = {"mB": "nominal_m_B", "C_I": "C_I", "K_I": "K_I", "i_max": "i_max"}
 LAWS, OBJECTIVES = ("paper", "integral"), ("x_B", "theta1")
+# the values this document reads: what a component does not bind is taken from its FMU's start
+PLANT_NAMES = (*OWN_KEYS, layout.EXTERNAL_FORCE)
+CONTROLLER_NAMES = (*GAINS, *CONTROLLER_KEYS, "law", "objective", "target")
 
 
 def _choice(value: Value, choices: tuple[str, ...], name: str) -> str:

@@ -58,7 +58,8 @@ class Component:
     values: tuple[tuple[str, Value], ...]
 
     def record(self) -> dict[str, Any]:
-        return {"source": self.source, "sha256": self.sha256, "values": dict(self.values)}
+        """What run.json says about the component."""
+        return {"name": self.name, "source": self.source, "sha256": self.sha256, "values": dict(self.values)}
 
 
 @dataclass(frozen=True)
@@ -315,10 +316,11 @@ def _system_bindings(ssd: Element, archive: zipfile.ZipFile, path: Path, where: 
     return split
 
 
-def _study(variant: _Variant, names: tuple[str, ...], archive: zipfile.ZipFile, path: Path, fmus: _Extracted):  # noqa: ANN202
-    from toggle_cosim.experiments.scenario import ScenarioError
-    from toggle_cosim.ssp.as_scenario import run_of_values
-
+def _components(
+    variant: _Variant, archive: zipfile.ZipFile, path: Path, fmus: _Extracted
+) -> tuple[Component, Component, FmuVariables, FmuVariables]:
+    """The plant and the controller of a root SSD, with their FMUs' variables: wiring checked,
+    values bound (`_component_values`)."""
     where = f"{path}: {variant.member}"
     children = _elements(variant.ssd, where)
     found: dict[str, tuple[str, Path, FmuVariables, str]] = {}
@@ -339,10 +341,28 @@ def _study(variant: _Variant, names: tuple[str, ...], archive: zipfile.ZipFile, 
         member, fmu_path, fmu, sha256 = found[name]
         values = _component_values(child, system[name], fmu, archive, path, where)
         components[name] = Component(name, member, fmu_path, sha256, values)
+    return components[plant], components[controller], variables[plant], variables[controller]
+
+
+def _with_starts(component: Component, fmu: FmuVariables, names: Sequence[str]) -> dict[str, Value]:
+    """The component's values over its FMU's start values of `names`."""
+    starts = {name: start for name in names if (start := _start(fmu, name)) is not None}
+    return {**starts, **dict(component.values)}
+
+
+def _study(variant: _Variant, names: tuple[str, ...], archive: zipfile.ZipFile, path: Path, fmus: _Extracted):  # noqa: ANN202
+    """One variant as our master runs it: components, experiment, and the run checked by the
+    scenario's rules (`as_scenario`), its record saying what runs."""
+    from toggle_cosim.experiments.scenario import ScenarioError
+    from toggle_cosim.ssp.as_scenario import CONTROLLER_NAMES, PLANT_NAMES, run_of_values
+
+    where = f"{path}: {variant.member}"
+    plant, controller, plant_fmu, controller_fmu = _components(variant, archive, path, fmus)
     t_end = _experiment(variant.ssd, where)
-    given = dict(components[controller].values)
-    T_s = given.get("T_s", _start(variables[controller], "T_s"))
-    if T_s is None:
+    plant_all = _with_starts(plant, plant_fmu, PLANT_NAMES)
+    controller_all = _with_starts(controller, controller_fmu, (*CONTROLLER_NAMES, "T_s"))
+    T_s = controller_all.get("T_s")
+    if T_s is None or isinstance(T_s, bool):
         raise SspError(f"{where}: the controller binds no T_s and its FMU has none (give its sample time T_s)")
     step = _osp_step(variant.ssd)
     if step is not None and step != T_s:
@@ -350,28 +370,10 @@ def _study(variant: _Variant, names: tuple[str, ...], archive: zipfile.ZipFile, 
             f"{where}: the OSP annotation's baseStepSize {step!r} s is not the controller's T_s = {T_s!r} s "
             "(libcosim would step at the other; make them equal)"
         )
-    plant_given = dict(components[plant].values)
-    plant_all = {
-        **{
-            n: s
-            for n in ("x_B0", "m_B", "mu", "frictionModel", "mu_s", "K", layout.EXTERNAL_FORCE)
-            if (s := _start(variables[plant], n)) is not None
-        },
-        **plant_given,
-    }
-    controller_all = {
-        **{n: s for n in ("target", "objective", "law", "mB") if (s := _start(variables[controller], n)) is not None},
-        **given,
-    }
-    system_element = variant.ssd.find("ssd:System", NS)
+    system = variant.ssd.find("ssd:System", NS)
     try:
         run = run_of_values(
-            system_element.get("name"),
-            system_element.get("description", ""),
-            t_end,
-            float(T_s),
-            plant_all,
-            controller_all,
+            system.get("name"), system.get("description", ""), t_end, float(T_s), plant_all, controller_all
         )
     except ScenarioError as error:
         raise SspError(
@@ -379,37 +381,24 @@ def _study(variant: _Variant, names: tuple[str, ...], archive: zipfile.ZipFile, 
             "fix the value)"
         ) from None
     F_E = float(plant_all.get(layout.EXTERNAL_FORCE, 0.0))
-    plant_values = tuple((n, v) for n, v in components[plant].values if n != layout.EXTERNAL_FORCE)
     record = {
         "file": str(path),
         "sha256": file_sha256(path),
         "variant": variant.name,
         "ssd": variant.member,
-        "components": {
-            "plant": {"name": plant, **components[plant].record()},
-            "controller": {"name": controller, **components[controller].record()},
-        },
+        "components": {"plant": plant.record(), "controller": controller.record()},
     }
     run = dataclasses.replace(
         run,
         variant=variant.name,
         source=path,
-        fmu=components[plant].fmu,
-        plant=dataclasses.replace(run.plant, F_E=F_E, fmu_values=plant_values),
+        fmu=plant.fmu,
+        plant=dataclasses.replace(
+            run.plant, F_E=F_E, fmu_values=tuple((n, v) for n, v in plant.values if n != layout.EXTERNAL_FORCE)
+        ),
         resolved={"ssp": record},
     )
-    return SspStudy(
-        path,
-        variant.name,
-        variant.member,
-        names,
-        components[plant],
-        components[controller],
-        F_E,
-        t_end,
-        float(T_s),
-        run,
-    )
+    return SspStudy(path, variant.name, variant.member, names, plant, controller, F_E, t_end, float(T_s), run)
 
 
 def variants(path: Path) -> tuple[str, ...]:
