@@ -454,6 +454,37 @@ BAD_SSPS = {
         _ssd_edit("</ssd:Elements>", '<ssd:Component name="logger" source="resources/ToggleVSC.fmu"/></ssd:Elements>'),
         "3 components; our master runs a plant and a controller",
     ),
+    "system-level connectors": (
+        _ssd_edit(
+            "<ssd:Elements>", '<ssd:Connectors><ssd:Connector name="F" kind="input"/></ssd:Connectors><ssd:Elements>'
+        ),
+        "the system has connectors of its own (not supported; connect the components)",
+    ),
+    "a Model Exchange component": (
+        _ssd_edit('<ssd:Component name="plant"', '<ssd:Component implementation="ModelExchange" name="plant"'),
+        "component 'plant' asks for implementation 'ModelExchange' (our master runs Co-Simulation only)",
+    ),
+    "a parameter mapping": (
+        _ssd_edit(
+            'source="resources/friction.plant.ssv"/>',
+            'source="resources/friction.plant.ssv"><ssd:ParameterMapping source="resources/m.ssm"/></ssd:ParameterBinding>',
+        ),
+        "a parameter binding with a ParameterMapping (not supported; rename in the .ssv)",
+    ),
+    "a source inside the component": (
+        _ssd_edit(
+            'source="resources/friction.plant.ssv"/>', 'source="resources/friction.plant.ssv" sourceBase="component"/>'
+        ),
+        'a parameter binding with sourceBase="component" (not supported',
+    ),
+    "a source outside the archive": (
+        _ssd_edit('source="resources/friction.plant.ssv"/>', 'source="file:///etc/passwd"/>'),
+        "the parameter binding's source 'file:///etc/passwd' is not a member of the archive",
+    ),
+    "an SSP of an earlier toggle-cosim": (
+        _ssd_edit(f'type="{layout.ANNOTATION_TYPE}"', f'type="{layout.OLD_ANNOTATION_TYPE}"'),
+        "SystemStructure.ssd: written by an earlier toggle-cosim, with one binding per parameter set on each component",
+    ),
     "a system-level binding naming no component": (
         _ssd_edit(
             "<ssd:Elements>",

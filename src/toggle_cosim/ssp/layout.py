@@ -44,6 +44,9 @@ OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
 # Our annotation on each root SSD: the scenario file, variant and document it was written from. It
 # describes only: no reader of ours takes anything from it
 ANNOTATION_TYPE = "org.toggle-cosim.scenario"
+# the annotation of the SSPs of earlier versions, which stacked one binding per set on each component
+# (a conforming master applies them all, the last taking priority): such an SSP is refused
+OLD_ANNOTATION_TYPE = "org.toggle-cosim.experiment"
 TOGGLE_NS = "https://github.com/toggle-cosim/toggle-cosim/ssp/experiment"
 
 

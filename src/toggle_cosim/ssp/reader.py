@@ -117,6 +117,11 @@ def _root_ssds(archive: zipfile.ZipFile, path: Path) -> list[_Variant]:
     for member in (layout.SSD_MEMBER, *others):
         where = f"{path}: {member}"
         ssd = parse_member(archive, member, "ssd", where)
+        if any(a.get("type") == layout.OLD_ANNOTATION_TYPE for a in ssd.iterfind("ssd:Annotations/ssc:Annotation", NS)):
+            raise SspError(
+                f"{where}: written by an earlier toggle-cosim, with one binding per parameter set on each component, "
+                "which SSP 1.0 applies all at once (write it again with toggle-cosim ssp: one root SSD per variant)"
+            )
         name = ssd.get("name")
         for what, text in (("name", name), ("System name", ssd.find("ssd:System", NS).get("name"))):
             if not SAFE_NAME.match(text):
