@@ -9,10 +9,8 @@ system's), the stop time of its DefaultExperiment and the controller's T_s. Anno
 read.
 
 Checked before any run, each failure one SspError line naming the file and the fix: a zip
-archive, safe (`plant.archive`); every root SSD and .ssv within bounds and valid SSP 1.0
-(`checks`); variant names unique and usable as folder names (`SAFE_NAME`), and so the system's
-name; no two .ssv files of one component with one set name (a master that picks sets by name,
-Ecos, could not tell them apart); exactly two FMU components, Co-Simulation, whose FMUs the
+archive, safe (`plant.archive`); the variants (`variants`: names, bounds, set names); every .ssv
+within bounds and valid SSP 1.0 (`checks`); exactly two FMU components, Co-Simulation, whose FMUs the
 archive holds; connections exactly the loop our master runs (`wiring`); every bound name a
 parameter or input of its FMU, of its type, finite; the values within the scenario's ranges
 (`as_scenario`); the experiment starting at 0 and ending at a whole number of samples.
@@ -23,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-import re
 import shutil
 import tempfile
 import zipfile
@@ -36,14 +33,14 @@ from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.bindings import Binding, Value, bindings_of, merged
-from toggle_cosim.ssp.checks import Element, SspError, open_archive, parse_member
+from toggle_cosim.ssp.checks import Element, SspError, open_archive
 from toggle_cosim.ssp.fmus import FmuVariables, describe
+from toggle_cosim.ssp.variants import Variant, check_set_names, choose, root_ssds
 from toggle_cosim.ssp.wiring import check_wiring, connectors_of
 
-__all__ = ["SAFE_NAME", "Component", "SspStudy", "open_ssp", "read_ssp", "variants"]
+__all__ = ["Component", "SspStudy", "open_ssp", "open_ssp_variants", "read_ssp", "read_ssp_variants"]
 
 NS = layout.NAMESPACES
-SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,199}\Z")  # a scenario's name: a folder name anywhere
 
 
 @dataclass(frozen=True)
@@ -97,46 +94,6 @@ class SspStudy:
     @property
     def controller_values(self) -> tuple[tuple[str, Value], ...]:
         return self.controller.values
-
-
-@dataclass(frozen=True)
-class _Variant:
-    member: str
-    name: str
-    ssd: Element
-
-
-def _root_ssds(archive: zipfile.ZipFile, path: Path) -> list[_Variant]:
-    """Every root SSD, the default first, each parsed and checked; names unique and safe."""
-    names = archive.namelist()
-    if layout.SSD_MEMBER not in names:
-        raise SspError(f"{path}: no {layout.SSD_MEMBER} in the archive (an SSP needs one at its top level)")
-    others = sorted(n for n in names if "/" not in n and n.endswith(layout.SSD_SUFFIX) and n != layout.SSD_MEMBER)
-    found: list[_Variant] = []
-    seen: dict[str, str] = {}
-    for member in (layout.SSD_MEMBER, *others):
-        where = f"{path}: {member}"
-        ssd = parse_member(archive, member, "ssd", where)
-        if any(a.get("type") == layout.OLD_ANNOTATION_TYPE for a in ssd.iterfind("ssd:Annotations/ssc:Annotation", NS)):
-            raise SspError(
-                f"{where}: written by an earlier toggle-cosim, with one binding per parameter set on each component, "
-                "which SSP 1.0 applies all at once (write it again with toggle-cosim ssp: one root SSD per variant)"
-            )
-        name = ssd.get("name")
-        for what, text in (("name", name), ("System name", ssd.find("ssd:System", NS).get("name"))):
-            if not SAFE_NAME.match(text):
-                raise SspError(
-                    f"{where}: the {what} {text!r} cannot name a results folder (use letters, digits, _ . - "
-                    "and no more than 200 of them, not starting with . or -)"
-                )
-        other = seen.setdefault(name.casefold(), member)
-        if other != member:
-            raise SspError(
-                f"{where}: the variant name {name!r} is also {other}'s (names are compared ignoring case; "
-                "give each root SSD its own name)"
-            )
-        found.append(_Variant(member, name, ssd))
-    return found
 
 
 def _elements(ssd: Element, where: str) -> list[Element]:
@@ -229,24 +186,6 @@ def _typed(fmu: FmuVariables, name: str, value: Value, kind: str, unit: str | No
     return int(value) if target == "Integer" else (bool(value) if target == "Boolean" else float(value))
 
 
-def _check_set_names(variants_found: list[_Variant], archive: zipfile.ZipFile, path: Path) -> None:
-    """No two .ssv files bound to one component (by name) carry the same set name."""
-    sources: dict[tuple[str, str | None], str] = {}
-    for variant in variants_found:
-        where = f"{path}: {variant.member}"
-        for component in variant.ssd.iterfind("ssd:System/ssd:Elements/ssd:Component", NS):
-            for binding in bindings_of(component, archive, str(path), where):
-                if binding.source == "inline":
-                    continue
-                key = (component.get("name"), binding.set_name)
-                other = sources.setdefault(key, binding.source)
-                if other != binding.source:
-                    raise SspError(
-                        f"{path}: {other} and {binding.source} both hold the parameter set {binding.set_name!r} of "
-                        f"component {key[0]!r} (a master that picks sets by name cannot tell them apart; rename one)"
-                    )
-
-
 def _finite_time(text: str | None, what: str, where: str) -> float:
     try:
         value = float(text)
@@ -322,7 +261,7 @@ def _system_bindings(ssd: Element, archive: zipfile.ZipFile, path: Path, where: 
 
 
 def _components(
-    variant: _Variant, archive: zipfile.ZipFile, path: Path, fmus: _Extracted
+    variant: Variant, archive: zipfile.ZipFile, path: Path, fmus: _Extracted
 ) -> tuple[Component, Component, FmuVariables, FmuVariables]:
     """The plant and the controller of a root SSD, with their FMUs' variables: wiring checked,
     values bound (`_component_values`)."""
@@ -355,7 +294,7 @@ def _with_starts(component: Component, fmu: FmuVariables, names: Sequence[str]) 
     return {**starts, **dict(component.values)}
 
 
-def _study(variant: _Variant, names: tuple[str, ...], archive: zipfile.ZipFile, path: Path, fmus: _Extracted):  # noqa: ANN202
+def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, path: Path, fmus: _Extracted):  # noqa: ANN202
     """One variant as our master runs it: components, experiment, and the run checked by the
     scenario's rules (`as_scenario`), its record saying what runs."""
     from toggle_cosim.experiments.scenario import ScenarioError
@@ -406,33 +345,15 @@ def _study(variant: _Variant, names: tuple[str, ...], archive: zipfile.ZipFile, 
     return SspStudy(path, variant.name, variant.member, names, plant, controller, F_E, t_end, float(T_s), run)
 
 
-def variants(path: Path) -> tuple[str, ...]:
-    """The names of the SSP's variants, the default (SystemStructure.ssd) first."""
-    with open_archive(Path(path)) as archive:
-        return tuple(variant.name for variant in _root_ssds(archive, Path(path)))
-
-
-def _choose(found: list[_Variant], asked: str | None, path: Path) -> _Variant:
-    if asked is None:
-        return found[0]
-    for variant in found:
-        if asked in (variant.name, variant.member, variant.member.removesuffix(layout.SSD_SUFFIX)):
-            return variant
-    raise SspError(
-        f"{path}: no variant {asked!r} (choose one of {', '.join(v.name for v in found)} with --variant; "
-        f"the default is {found[0].name}, {layout.SSD_MEMBER})"
-    )
-
-
 def read_ssp_variants(path: Path, asked: Sequence[str | None], folder: Path) -> tuple[SspStudy, ...]:
     """Read and check the SSP at `path` for each variant asked (None: the default), every one
     checked before any is returned; the FMUs are extracted into `folder` (the caller removes it).
     Raises SspError with the one-line reason."""
     path = Path(path)
     with open_archive(path) as archive:
-        found = _root_ssds(archive, path)
-        _check_set_names(found, archive, path)
-        chosen = [_choose(found, name, path) for name in asked]
+        found = root_ssds(archive, path)
+        check_set_names(found, archive, path)
+        chosen = [choose(found, name, path) for name in asked]
         names = tuple(variant.name for variant in found)
         fmus = _Extracted(archive, path, folder)
         studies = tuple(_study(variant, names, archive, path, fmus) for variant in dict.fromkeys(chosen))
