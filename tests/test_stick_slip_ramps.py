@@ -40,7 +40,7 @@ MAX_EVENTS_PER_STEP = 12  # the first step has the start-up latches (6 here); a 
 NAMES = ("x_B", "theta1", "theta2", "theta5", "mechanism.stuck", "mechanism.T_st", "mechanism.T_s")
 
 
-def _ramp(fmu: Path, corners: list[tuple[float, float]]) -> dict[str, np.ndarray]:
+def _ramp(fmu: Path, corners: list[tuple[float, float]], mu_s: float = 0.2) -> dict[str, np.ndarray]:
     """i_q* piecewise linear through (t, i_q*) corners, held over each 1 ms step; the outputs
     after each step and the events the step took."""
     times, currents = np.array(corners).T
@@ -48,7 +48,7 @@ def _ramp(fmu: Path, corners: list[tuple[float, float]]) -> dict[str, np.ndarray
         fmu,
         frictionModel=FRICTION_MODELS["stick_slip"],
         mu=0.2,
-        mu_s=0.2,
+        mu_s=mu_s,
         idealCurrentLoop=True,
         iq_ref=float(currents[0]),
         F_E=F_E,
@@ -71,9 +71,9 @@ def _ramp(fmu: Path, corners: list[tuple[float, float]]) -> dict[str, np.ndarray
     return run
 
 
-def _breakaway_current(angles: tuple[float, float, float], direction: float) -> float:
-    """The independent threshold (in A, ideal current loop) at these angles."""
-    params = MechanismParameters(mB=4.43, mu=0.2).as_dict()
+def _breakaway_current(angles: tuple[float, float, float], direction: float, mu: float = 0.2) -> float:
+    """The independent threshold (in A, ideal current loop) at these angles, friction coefficient mu."""
+    params = MechanismParameters(mB=4.43, mu=mu).as_dict()
     thrust = reference_breakaway_thrust(angles, direction, F_E, params, (-50.0, 300.0))
     return thrust / thrust_constant(MotorParameters())
 
@@ -146,6 +146,22 @@ def test_the_thresholds_at_x_B0(plant_fmu: Path) -> None:
     run = _ramp(plant_fmu, [(0.0, 1.8), (0.01, 1.8)])
     assert run["theta1"][0] == pytest.approx(theta1, abs=1e-9)
     assert run["mechanism.T_s"][0] == pytest.approx(0.700, abs=1e-3)
+
+
+@pytest.mark.parametrize("mu_s, static", [(0.3, 0.3), (0.1, 0.2)])
+def test_the_static_coefficient_sets_the_breakaway(plant_fmu: Path, mu_s: float, static: float) -> None:
+    """mu_s = 0.3 > mu = 0.2: the mechanism breaks away forward where friction 0.3 would let it
+    (1.9897 A against 1.9297 A), then slips under 0.2. mu_s = 0.1 < mu: a slip under the larger
+    kinetic friction would stop at once, so the model uses mu as the static coefficient too and
+    breaks away at mu's threshold, without an event cascade (which a static capacity below the
+    kinetic friction gives: Zeno error at t = 0.068 s in the same ramp)."""
+    run = _ramp(plant_fmu, [(0.0, 1.80), (0.4, 2.20)], mu_s=mu_s)
+    assert run["events"].max() <= MAX_EVENTS_PER_STEP
+    b = int(np.argmax(run["mechanism.stuck"] < 1.0)) - 1
+    assert b >= 0 and np.all(run["mechanism.stuck"][: b + 1] == 1.0) and np.all(run["mechanism.stuck"][b + 1 :] == 0.0)
+    threshold = _breakaway_current((run["theta1"][b], run["theta2"][b], run["theta5"][b]), +1.0, mu=static)
+    assert run["iq"][b] <= threshold + 2e-4 and threshold - 2e-4 <= run["iq"][b + 1] <= threshold + 1.2e-3
+    assert run["x_B"][-1] - run["x_B"][b] > 1e-4
 
 
 PID_FACTORY = '''
