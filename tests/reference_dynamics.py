@@ -26,6 +26,9 @@ m3 r3²/12 and m5 r5²/12 unless the dict provides them):
     reference_joint_forces(q, qd, F_C, F_E, params, sgn=None) -> dict
     reference_energy(q, qd, params) -> dict(T, V, E)
     reference_powers(q, qd, F_C, F_E, params, sgn=None) -> dict(P_in, P_load, P_fric)
+    reference_friction_rows(q, lam, params) -> R (the rows of Q_fᵀλ/μ with sgn = 1)
+    reference_breakaway_thrust(q, direction, F_E, params, bracket) -> F_C where a slip from rest
+        in `direction` under friction μ sgn(q̇)|R| has θ̈1 = 0 (the stick-slip breakaway)
 
 Conventions: q = (θ1, θ2, θ5), qd = (ω1, ω2, ω5); F_C ≥ 0 is the thrust on slider C along −x,
 F_E the external force on slider B along −x; sgn defaults to np.sign(qd) (sgn(0) = 0).
