@@ -232,3 +232,34 @@ def test_linearize_at_one_point_takes_under_a_second(plant, base_run):
     assert model.units["F_C"] == "N" and model.units["theta1"] == "rad" and model.units["iq_ref"] == "A"
     assert model.system.nstates == 3  # python-control's StateSpace, named
     assert model.system.input_labels == ["iq_ref", "F_E"]
+
+
+def test_the_command_writes_npz_and_mat_and_refuses_bad_input(plant_fmu, tmp_path):
+    from click.testing import CliRunner
+    from scipy.io import loadmat
+
+    from toggle_cosim.cli import main
+
+    scenario = ROOT / "scenarios" / "fig5_external_force.yaml"
+    common = [str(scenario), "--fmu", str(plant_fmu), "--variant", "friction", "--x-B", "0.28"]
+    npz, mat = tmp_path / "lin.npz", tmp_path / "lin.mat"
+    result = CliRunner().invoke(main, ["linearize", *common, "--out", str(npz), "--output", "i_q"])
+    assert result.exit_code == 0, result.output
+    assert "friction-free" in result.output and "i_q* = 1.87955 A" in result.output
+    saved = np.load(npz)
+    assert list(saved["states"]) == ["theta1", "omega1", "i_lag"] and list(saved["inputs"]) == ["iq_ref", "F_E"]
+    assert list(saved["outputs"]) == ["x_B", "v_B", "theta1", "i_q"] and list(saved["output_units"])[0] == "m"
+    assert saved["u0"][0] == pytest.approx(1.87955, abs=1e-5) and float(saved["x_B"]) == pytest.approx(0.28)
+    result = CliRunner().invoke(main, ["linearize", *common, "--out", str(mat)])
+    assert result.exit_code == 0, result.output
+    assert np.array_equal(loadmat(mat)["A"], saved["A"])
+    for args, message in [
+        ([*common[:-1], "0.5", "--out", str(tmp_path / "far.npz")], "outside the working range"),
+        ([*common, "--out", str(tmp_path / "lin.txt")], "must end in .npz or .mat"),
+        ([*common[:3], "--x-B", "0.28", "--out", str(tmp_path / "v.npz")], "choose one with --variant"),
+        ([*common, "--out", str(tmp_path / "o.npz"), "--output", "nope"], "not a recorded output"),
+    ]:
+        result = CliRunner().invoke(main, ["linearize", *args])
+        assert result.exit_code == 2 and message in result.output, result.output
+        assert len(result.output.strip().splitlines()) <= 2  # a warning line at most, then the error
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lin.mat", "lin.npz"]  # nothing half-written
