@@ -232,6 +232,22 @@ def test_linearize_at_one_point_takes_under_a_second(plant, base_run):
     assert model.units["F_C"] == "N" and model.units["theta1"] == "rad" and model.units["iq_ref"] == "A"
     assert model.system.nstates == 3  # python-control's StateSpace, named
     assert model.system.input_labels == ["iq_ref", "F_E"]
+    assert "no directional derivatives" in model.method  # the shipped FMU does not provide them
+
+
+def test_a_plant_without_model_exchange_or_in_fmi3_is_refused_in_one_line(plant, base_run):
+    import copy
+
+    from toggle_cosim.design.model_exchange import ModelExchangeError
+
+    cs_only = copy.copy(plant.model_description)
+    cs_only.modelExchange = None
+    with pytest.raises(ModelExchangeError, match="offers no Model Exchange interface"):
+        trim(base_run, 0.28, dataclasses.replace(plant, model_description=cs_only))
+    fmi3 = copy.copy(plant.model_description)
+    fmi3.fmiVersion = "3.0"
+    with pytest.raises(ModelExchangeError, match="FMI 2.0 plants"):
+        trim(base_run, 0.28, dataclasses.replace(plant, model_description=fmi3))
 
 
 def test_the_command_writes_npz_and_mat_and_refuses_bad_input(plant_fmu, tmp_path):

@@ -63,6 +63,7 @@ class LinearModel:
     coordinates: Literal["manifold", "fmu"]
     error: Mapping[str, float]  # the largest estimated absolute error of each matrix, A B C D
     steps: Mapping[str, float] = field(default_factory=dict)  # the central differences' step per state and input
+    method: str = ""  # how the derivatives were taken, and why
 
     @property
     def system(self) -> Any:
@@ -122,6 +123,7 @@ class LinearModel:
             "error_D": self.error["D"],
             "friction_free": point.friction_free,
             "warnings": np.array(point.warnings if point.warnings else ("",)),
+            "method": self.method,
         }
 
 
@@ -255,4 +257,16 @@ def _model(
         coordinates=coordinates,
         error=errors,
         steps=dict(zip((*states, *INPUTS), steps, strict=True)),
+        method=_method(plant),
     )
+
+
+def _method(plant: PlantInterface) -> str:
+    """How the derivatives are taken: central differences, saying whether the FMU offers directional derivatives."""
+    offered = bool(getattr(plant.model_description.modelExchange, "providesDirectionalDerivative", False))
+    why = (
+        "the FMU declares directional derivatives, which linearize does not use yet"
+        if offered
+        else "the FMU provides no directional derivatives (providesDirectionalDerivative is false)"
+    )
+    return f"central differences, Richardson-extrapolated over steps h, h/2, h/4: {why}"
