@@ -223,6 +223,10 @@ def test_trim_reports_friction_and_refuses_points_outside_the_working_range(plan
             trim(base_run, x_B, plant)
     with pytest.raises(TrimError, match="not a recorded output"):
         linearize(base_run, point, plant, outputs=("nope",))
+    with pytest.raises(TrimError, match="'E_in' depends on mechanism.E_in"):
+        linearize(base_run, point, plant, outputs=("E_in",))
+    full = linearize(base_run, point, plant, outputs=("E_in",), coordinates="fmu")
+    assert full.C[full.outputs.index("E_in"), full.states.index("E_in")] == pytest.approx(1.0)
 
 
 def test_linearize_at_one_point_takes_under_a_second(plant, base_run):

@@ -28,7 +28,7 @@ from typing import Any, Literal
 import numpy as np
 
 from toggle_cosim.design.differences import Derivatives, FloatArray, directional_derivatives, step_for
-from toggle_cosim.design.model_exchange import ModelExchangePlant, variable_unit
+from toggle_cosim.design.model_exchange import ModelExchangePlant, state_info, variable_unit
 from toggle_cosim.design.roles import SHIPPED, PlantStates
 from toggle_cosim.design.trim import INPUTS, OperatingPoint, TrimError, open_at
 from toggle_cosim.plant.contract import PlantInterface
@@ -148,7 +148,11 @@ def _tangent(
     return t
 
 
-def _checked_outputs(plant: PlantInterface, extra: Sequence[str]) -> tuple[str, ...]:
+def _checked_outputs(
+    plant: PlantInterface, extra: Sequence[str], coordinates: str, roles: PlantStates
+) -> tuple[str, ...]:
+    """x_B, v_B, theta1 and the outputs asked for: recorded outputs of the plant, and on the
+    manifold only those that depend on no state the manifold leaves out (the energy integrals)."""
     outputs = tuple(dict.fromkeys((*DEFAULT_OUTPUTS, *extra)))
     recorded = plant.recorded_outputs
     unknown = [name for name in outputs if name not in recorded]
@@ -157,6 +161,17 @@ def _checked_outputs(plant: PlantInterface, extra: Sequence[str]) -> tuple[str, 
             f"output {', '.join(map(repr, unknown))}: not a recorded output of {plant.path} "
             f"(choose from {', '.join(recorded)})"
         )
+    if coordinates == "manifold":
+        states = set(state_info(plant).names)
+        kept = {*roles.required}
+        for unknown_ in plant.model_description.outputs:
+            name = unknown_.variable.name
+            left_out = [d.name for d in unknown_.dependencies or () if d.name in states and d.name not in kept]
+            if name in outputs and left_out:
+                raise TrimError(
+                    f"output {name!r} depends on {', '.join(left_out)}, a state the manifold coordinates leave out "
+                    "(an energy integral); linearise with coordinates='fmu' (--coordinates fmu) to have it"
+                )
     return outputs
 
 
@@ -171,7 +186,7 @@ def linearize(
     """The plant linearised about `point` (from `trim` of the same run and plant): see the module's docstring."""
     if coordinates not in COORDINATES:
         raise TrimError(f"coordinates {coordinates!r}: choose manifold or fmu")
-    names_out = _checked_outputs(plant, outputs)
+    names_out = _checked_outputs(plant, outputs, coordinates, roles)
     with open_at(run, plant, point.x_B) as me:
         names = me.states.names
         index = {name: k for k, name in enumerate(names)}
