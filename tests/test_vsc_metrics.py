@@ -105,3 +105,28 @@ def test_the_shipped_invariants_hold_and_a_moved_one_fails_compare(runs, tmp_pat
     assert run_compare(trace, reference) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "friction_ref_invariants.yaml" in err and "chattering" in err
+
+
+def test_references_check_the_invariants_and_update_re_measures_them(plant_fmu, tmp_path):
+    from toggle_cosim.analysis.invariants import update_invariants
+    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.experiments import references
+    from toggle_cosim.plant.contract import check_plant
+
+    shutil.copytree(REFERENCES / "fig4_nominal", tmp_path / "fig4_nominal")
+    shutil.copy(REFERENCES / "tolerances.yaml", tmp_path / "tolerances.yaml")
+    run = tc.load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")["no_friction"]
+    outcome = simulate(run, check_plant(plant_fmu))
+    assert references.check(outcome, tmp_path).passed
+    path = tmp_path / "fig4_nominal" / "no_friction_ref_invariants.yaml"
+    path.write_text("invariants:\n  reaching_time_s: {value: 0.040, atol: 0.002}\n")  # T_h itself: 37 ms
+    checked = references.check(outcome, tmp_path)
+    assert checked.comparison.passed and not checked.passed
+    assert checked.failures == [
+        f"fig4_nominal/no_friction: invariant reaching_time_s = {outcome.summary.reaching_time_s:.6g} "
+        "(stored 0.04 ± 0.002): FAIL"
+    ]
+    update_invariants(path, outcome.trace)  # what `references --update` does with an existing file
+    updated = load_invariants(path)["reaching_time_s"]
+    assert updated.value == outcome.summary.reaching_time_s and updated.atol == 0.002
+    assert references.check(outcome, tmp_path).passed
