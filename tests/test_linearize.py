@@ -165,16 +165,25 @@ def test_linearize_matches_the_model_equations_along_the_stroke(plant, base_run,
 
 
 def test_the_folds_are_where_the_holding_current_turns(plant, base_run):
-    """Under F_E = 100 N: the pole pair is imaginary between the folds (x_B = 0.26 m) and real
-    outside (0.21 m, 0.32 m), and the holding current rises then falls between them."""
+    """Under F_E = 100 N. On the manifold θ̈1 = F(θ1, i) and at a trimmed point F(θ1(x), i*(x)) = 0,
+    so di*/dx_B = −F_θ (dθ1/dx_B) / F_i: the holding current turns exactly where the stiffness
+    A[1, 0] = F_θ changes sign, the pole pair passing through 0 from real to imaginary. Both from
+    the FMU: the trimmed currents on a 3 mm grid and the linear models there."""
     run = with_load(base_run, 100.0, 4.43)
-    points = {x_B: trim(run, x_B, plant) for x_B in (0.21, 0.26, 0.32)}
-    imaginary = {}
-    for x_B, point in points.items():
-        mechanical = [p for p in linearize(run, point, plant).eigenvalues() if abs(p) < 100]
-        imaginary[x_B] = all(abs(p.real) < 1e-9 * abs(p) for p in mechanical)
-    assert imaginary == {0.21: False, 0.26: True, 0.32: False}
-    assert points[0.26].iq_ref > points[0.21].iq_ref - 0.04 and points[0.26].iq_ref < 1.8934
+    grid = np.arange(0.200, 0.3401, 0.003)
+    points = [trim(run, x, plant) for x in grid]
+    current = np.array([point.iq_ref for point in points])
+    stiffness = np.array([linearize(run, point, plant).A[1, 0] for point in points[1:-1]])
+    slope = (current[2:] - current[:-2]) / (grid[2:] - grid[:-2])
+    turns = grid[1:-1][np.nonzero(np.diff(np.sign(slope)))[0]]
+    folds = grid[1:-1][np.nonzero(np.diff(np.sign(stiffness)))[0]]
+    assert len(turns) == 2 and len(folds) == 2
+    assert np.allclose(turns, folds, atol=0.0031)  # the same place, to the grid
+    assert 0.226 < folds[0] < 0.234 and 0.292 < folds[1] < 0.300
+    inside = (grid[1:-1] > folds[0] + 0.003) & (grid[1:-1] < folds[1] - 0.003)
+    assert np.all(stiffness[inside] < 0) and np.all(
+        stiffness[(grid[1:-1] < folds[0] - 0.003) | (grid[1:-1] > folds[1] + 0.003)] > 0
+    )
 
 
 def test_ideal_current_loop_drops_the_current_state(plant, base_run):
