@@ -292,3 +292,13 @@ def test_the_command_writes_npz_and_mat_and_refuses_bad_input(plant_fmu, tmp_pat
         assert result.exit_code == 2 and message in result.output, result.output
         assert len(result.output.strip().splitlines()) <= 2  # a warning line at most, then the error
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lin.mat", "lin.npz"]  # nothing half-written
+
+
+def test_without_python_control_the_model_names_the_extra(plant, base_run, monkeypatch):
+    import sys
+
+    model = linearize(base_run, trim(base_run, 0.28, plant), plant)
+    monkeypatch.setitem(sys.modules, "control", None)  # as if python-control were not installed
+    with pytest.raises(ModuleNotFoundError, match=r"pip install 'toggle-cosim\[design\]'"):
+        _ = model.system
+    assert model.A.shape == (3, 3)  # the matrices need no extra
