@@ -1,0 +1,84 @@
+"""The files a tuning writes besides its study: the sweep files of the map (the starting
+controller's and the tuned one's) and the tuned scenario (the base scenario with the fixed and
+tuned keys set), each loadable by `toggle-cosim run` and `toggle-cosim sweep`."""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+from typing import Any
+
+from toggle_cosim.experiments.sweep_spec import get_key, read_yaml, set_key
+from toggle_cosim.experiments.tune_spec import Tuning
+from toggle_cosim.files.outputs import write_text
+
+
+def _relative(target: Path, folder: Path) -> str:
+    """`target` as a path from `folder` (both made absolute), as a file written in `folder` names it."""
+    return os.path.relpath(Path(target).resolve(), Path(folder).resolve())
+
+
+def _dump(document: dict[str, Any], header: str) -> str:
+    import yaml
+
+    lines = "".join(f"# {line}\n" for line in header.splitlines())
+    return lines + yaml.safe_dump(document, sort_keys=False, allow_unicode=True, width=120)
+
+
+def map_sweep(tuning: Tuning, base: Path, folder: Path, name: str, fmu: Path | None) -> dict[str, Any]:
+    """A sweep file's document for the tuning's map with `base` as its scenario: the fixed keys as
+    one-value axes (the base holds them already for a tuned scenario: the same cases), then the
+    map's other axes with their values; written in `folder` (its paths are relative to it)."""
+    sweep = tuning.sweep
+    axes: dict[str, Any] = {key: {"values": [value]} for key, value in tuning.fixed.items()}
+    for key, values in sweep.axes.items():
+        if key not in tuning.fixed:
+            axes[key] = {"values": list(values)}
+    document: dict[str, Any] = {"name": name, "description": f"{tuning.name}: the map of {sweep.name}"}
+    document["base"] = _relative(base, folder)
+    if sweep.variants != [None]:
+        document["variant"] = list(sweep.variants)
+    if fmu is not None:
+        document["fmu"] = _relative(fmu, folder)
+    document["mode"] = sweep.mode
+    document["axes"] = axes
+    if sweep.heatmap is not None and all(k in axes or k == "variant" for k in sweep.heatmap):
+        document["heatmap"] = {"x": sweep.heatmap[0], "y": sweep.heatmap[1]}
+    return document
+
+
+def write_map_sweep(path: Path, document: dict[str, Any], header: str) -> Path:
+    """Write a sweep file of `map_sweep` (atomically)."""
+    return write_text(path, _dump(document, header), what="sweep file")
+
+
+def tuned_scenario(tuning: Tuning, point: dict[str, float], folder: Path) -> dict[str, Any]:
+    """The base scenario with the fixed keys and the tuned values `point` set (at the top level,
+    and in every variant that sets them too), its paths made relative to `folder`."""
+    base = tuning.sweep.base
+    document = copy.deepcopy(read_yaml(base, "base scenario"))
+    document["name"] = tuning.name
+    document["description"] = f"tuned by {tuning.path.name} over {tuning.sweep.path.name}: " + ", ".join(
+        f"{k} = {v:.6g}" for k, v in point.items()
+    )
+    for key in ("fmu",):
+        if isinstance(document.get(key), str) and not Path(document[key]).is_absolute():
+            document[key] = _relative(base.parent / document[key], folder)
+    for node in [document, *(document.get("variants") or {}).values()]:
+        controller = node.get("controller") if isinstance(node, dict) else None
+        fmu = controller.get("fmu") if isinstance(controller, dict) else None
+        if isinstance(fmu, str) and not Path(fmu).is_absolute():
+            controller["fmu"] = _relative(base.parent / fmu, folder)
+    values = {**tuning.fixed, **point}
+    for key, value in values.items():
+        set_key(document, key, value)
+        for variant in (document.get("variants") or {}).values():
+            if isinstance(variant, dict) and get_key(variant, key) is not None:
+                set_key(variant, key, value)
+    return document
+
+
+def write_scenario(path: Path, document: dict[str, Any], header: str) -> Path:
+    """Write a scenario document (atomically)."""
+    return write_text(path, _dump(document, header), what="tuned scenario")
