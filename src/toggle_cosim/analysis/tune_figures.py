@@ -39,9 +39,7 @@ def _grid(table: Any, x: str, y: str, column: str, transform: Any) -> tuple[Any,
     return grid, xs, ys
 
 
-def write_maps_side_by_side(
-    start: Path, tuned: Path, sweep: Any, metrics: list[str], path: Path, title: str
-) -> Path:
+def write_maps_side_by_side(start: Path, tuned: Path, sweep: Any, metrics: list[str], path: Path, title: str) -> Path:
     """One row per metric (the objectives' first, then settling time, final error and peak
     current): the starting controller's map on the left, the tuned one's on the right, over the
     sweep's heat-map axes; grey: never settled or no value."""

@@ -37,6 +37,8 @@ EXTRAS = {
     "matplotlib": "plot",
     "control": "design",
     "scipy": "design",
+    "optuna": "tune",
+    "cmaes": "tune",
 }
 
 

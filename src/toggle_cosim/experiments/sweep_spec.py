@@ -161,12 +161,12 @@ def split_key(key: str) -> list[str]:
     return parts
 
 
-def check_axis_key(key: str, what: str = "axis") -> None:
+def check_axis_key(key: str, what: str = "axis ") -> None:
     """Refuse keys the scenario schema does not have (and keys that do not hold one value);
-    `what` names the key in the message ("axis", or a tuning file's "key parameters.")."""
+    `what` names the key in the message ("axis ", or a tuning file's "key parameters.")."""
     path = split_key(key)
     if path[0] in ("name", "description", "fmu", "variants"):
-        raise SweepError(f"{what} {key}: {path[0]} cannot be swept (sweep a physical or numerical key)")
+        raise SweepError(f"{what}{key}: {path[0]} cannot be swept (sweep a physical or numerical key)")
     schema: Mapping[str, Any] = SCENARIO_SCHEMA
     for depth, part in enumerate(path):
         properties = schema.get("properties", {})
@@ -177,9 +177,9 @@ def check_axis_key(key: str, what: str = "axis") -> None:
         else:
             where = ".".join(path[:depth]) or "(top level)"
             allowed = ", ".join(sorted(properties)) or "none"
-            raise SweepError(f"{what} {key}: unknown scenario key {part!r} under {where} (allowed there: {allowed})")
+            raise SweepError(f"{what}{key}: unknown scenario key {part!r} under {where} (allowed there: {allowed})")
     if schema.get("type") == "object" or "properties" in schema:
-        raise SweepError(f"{what} {key}: a group of keys, not one value (name one key inside it, e.g. {key}.<key>)")
+        raise SweepError(f"{what}{key}: a group of keys, not one value (name one key inside it, e.g. {key}.<key>)")
 
 
 def set_key(document: dict[str, Any], key: str, value: Any) -> None:

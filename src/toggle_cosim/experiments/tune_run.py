@@ -32,8 +32,8 @@ from toggle_cosim.experiments.sweep_exec import execute
 from toggle_cosim.experiments.sweep_run import execute_sweep
 from toggle_cosim.experiments.sweep_spec import SweepError, load_sweep
 from toggle_cosim.experiments.tune_files import map_sweep, tuned_scenario, write_map_sweep, write_scenario
-from toggle_cosim.experiments.tune_score import Score, score
-from toggle_cosim.experiments.tune_spec import Tuning, TuneError
+from toggle_cosim.experiments.tune_score import Score, score, violations
+from toggle_cosim.experiments.tune_spec import TuneError, Tuning
 from toggle_cosim.files.outputs import folder_lock
 
 STUDY_FILE = "study.db"
@@ -41,6 +41,8 @@ HISTORY_FILE = "trials.csv"
 MANIFEST_FILE = "tune.json"
 START_SWEEP, TUNED_SWEEP = "start_sweep.yaml", "tuned_sweep.yaml"
 START_MAP, TUNED_MAP = "map_start", "map_tuned"
+WAVES = (9, 3, 1)  # a trial's cases in three waves (`waves`)
+CASE_LIMIT_FACTOR, CASE_LIMIT_MIN_S = 20.0, 3.0  # a trial's case: at most 20 x the start map's slowest, >= 3 s
 _ORIGIN = "origin"  # a trial's user attribute: "start" (the starting values) or "optimiser"
 
 
@@ -58,6 +60,7 @@ class TuneResult:
     best: dict[str, Any] | None = None  # the same for the best trial, and "trial"
     rerun: dict[str, Any] | None = None  # the tuned map re-run: "objectives", "feasible", "figures", "equal"
     files: list[Path] = field(default_factory=list)
+    history: Any = None  # the trial history as a DataFrame (`tc.tune` reads OUTPUT/trials.csv into it)
 
 
 def _distributions(tuning: Tuning) -> dict[str, Any]:
@@ -119,9 +122,64 @@ def _open_study(tuning: Tuning, output: Path) -> Any:
     return study
 
 
-def _score_table(tuning: Tuning, rows: dict[str, dict[str, Any]], cases: list[Any]) -> Score:
-    ordered = [rows[c.case_id] for c in cases]
-    return score(ordered, tuning.rated_currents, tuning.objectives, tuning.constraints)
+def waves(cases: int) -> list[list[int]]:
+    """The order a trial's cases run in: every WAVES[0]-th case of the map first, then the other
+    every WAVES[1]-th, then the rest. A trial stops at the first wave after which a case has
+    failed or broken a constraint: it is infeasible whatever the rest of the map gives."""
+    seen: set[int] = set()
+    result = []
+    for stride in WAVES:
+        wave = [k for k in range(0, cases, stride) if k not in seen]
+        seen.update(wave)
+        if wave:
+            result.append(wave)
+    return result
+
+
+def _run_batch(
+    tuning: Tuning, batches: list[list[Any]], run: Callable[[list[Any], Callable[..., None]], None]
+) -> tuple[dict[str, dict[str, Any]], list[list[int] | None]]:
+    """Run a batch of trials' cases wave by wave (`waves`), together, on the sweep engine (`run`):
+    the rows by case_id, and each trial's case indices that ran (None: a Dask cluster lost some)."""
+    rows: dict[str, dict[str, Any]] = {}
+
+    def on_row(row: dict[str, Any], trace: Any = None) -> None:
+        rows[row["case_id"]] = row
+
+    ran: list[list[int] | None] = [[] for _ in batches]
+    alive = list(range(len(batches)))
+    for wave in waves(len(tuning.cases)):
+        todo = {batches[i][k].case_id: batches[i][k] for i in alive for k in wave}
+        run([case for key, case in todo.items() if key not in rows], on_row)
+        still = []
+        for i in alive:
+            done = ran[i]
+            if done is None or any(batches[i][k].case_id not in rows for k in wave):
+                ran[i] = None  # a Dask cluster lost some of its cases: the trial is asked again
+                continue
+            done.extend(wave)
+            if not _breaks(tuning, rows, batches[i], done):
+                still.append(i)
+        alive = still
+    return rows, ran
+
+
+def _breaks(tuning: Tuning, rows: dict[str, dict[str, Any]], cases: list[Any], indices: list[int]) -> bool:
+    """Whether the cases `indices` of a trial (all with rows) already make it infeasible."""
+    broken = violations(
+        [rows[cases[k].case_id] for k in indices], [tuning.rated_currents[k] for k in indices], tuning.constraints
+    )
+    return any(broken.values())
+
+
+def case_limit(rows: list[dict[str, Any]], given: float | None) -> float:
+    """The wall-clock limit of a trial's case: `given`, else CASE_LIMIT_FACTOR x the slowest case
+    of the starting controller's map, at least CASE_LIMIT_MIN_S (a case that runs far longer is a
+    plant stuck in events: the trial is infeasible, and waiting for it would stall the tuning)."""
+    if given is not None:
+        return given
+    slowest = max((float(r["wall_s"]) for r in rows if r.get("wall_s") is not None), default=0.0)
+    return max(CASE_LIMIT_MIN_S, CASE_LIMIT_FACTOR * slowest)
 
 
 def _attrs(result: Score) -> dict[str, Any]:
@@ -143,9 +201,11 @@ def _read_rows(table_path: Path) -> dict[str, dict[str, Any]]:
 
 def _run_map(
     tuning: Tuning, document: dict[str, Any], sweep_file: Path, folder: Path, fmu: Path | None, options: dict[str, Any]
-) -> tuple[Score, Any]:
-    """Write a map's sweep file and run it with the sweep engine: its score, and its sweep."""
-    write_map_sweep(sweep_file, document, f"written by toggle-cosim tune {tuning.path}\n  toggle-cosim sweep {sweep_file}")
+) -> tuple[Score, Any, list[dict[str, Any]]]:
+    """Write a map's sweep file and run it with the sweep engine: its score, its sweep, its rows."""
+    write_map_sweep(
+        sweep_file, document, f"written by toggle-cosim tune {tuning.path}\n  toggle-cosim sweep {sweep_file}"
+    )
     sweep = load_sweep(sweep_file, folder)
     done = execute_sweep(sweep, fmu, **options)
     if done.interrupted:
@@ -155,7 +215,7 @@ def _run_map(
     if missing:
         raise TuneError(f"{sweep_file}: {len(missing)} cases of the map were not run (a Dask cluster lost them)")
     ordered = [rows[c.case_id] for c in sweep.cases]
-    return score(ordered, tuning.rated_currents, tuning.objectives, tuning.constraints), sweep
+    return score(ordered, tuning.rated_currents, tuning.objectives, tuning.constraints), sweep, ordered
 
 
 def execute_tuning(
@@ -198,7 +258,9 @@ def _execute(
     study = _open_study(tuning, output)
     # 1. the starting controller's map, by the sweep engine (it checks the plant and the controller first)
     start_doc = map_sweep(tuning, tuning.sweep.base, output, f"{tuning.name}_start", chosen)
-    start_score, start_sweep = _run_map(tuning, start_doc, output / START_SWEEP, output / START_MAP, chosen, options)
+    start_score, start_sweep, start_rows = _run_map(
+        tuning, start_doc, output / START_SWEEP, output / START_MAP, chosen, options
+    )
     start_point = {p.key: p.start for p in tuning.parameters}
     result.start = {"parameters": start_point, **_attrs(start_score)}
     distributions = _distributions(tuning)
@@ -216,11 +278,12 @@ def _execute(
     # 2. the trials of an interrupted batch: failed, their points asked again first
     for stale in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
         study.tell(stale.number, state=optuna.trial.TrialState.FAIL)
-        study.enqueue_trial(stale.params, skip_if_exists=True)
+        study.enqueue_trial(stale.params)
     plant_path = Path(chosen).resolve()
     from toggle_cosim.plant.contract import check_plant
 
     plant = check_plant(plant_path)
+    limit = case_limit(start_rows, case_timeout)
 
     def optimiser_trials() -> int:
         states = (optuna.trial.TrialState.COMPLETE,)
@@ -236,26 +299,30 @@ def _execute(
     sampler = _sampler(tuning, len(study.trials))
     study.sampler = sampler
     stalled = 0
+
+    def run(cases: list[Any], on_row: Callable[[dict[str, Any], Any], None]) -> None:
+        execute(cases, plant_path, scheduler, workers, on_row, plant.sha256, None, limit, plant=plant)
+
     try:
         while (done := optimiser_trials()) < budget and stalled < 3:
             asked = [study.ask(distributions) for _ in range(min(tuning.batch, budget - done))]
             for trial in asked:
                 trial.set_user_attr(_ORIGIN, "optimiser")
             batches = [tuning.trial_cases(dict(trial.params)) for trial in asked]
-            unique = list({c.case_id: c for cases in batches for c in cases}.values())
-            rows: dict[str, dict[str, Any]] = {}
-
-            def on_row(row: dict[str, Any], trace: Any = None) -> None:
-                rows[row["case_id"]] = row
-
-            execute(unique, plant_path, scheduler, workers, on_row, plant.sha256, None, case_timeout, plant=plant)
+            rows, ran = _run_batch(tuning, batches, run)
             progressed = False
-            for trial, cases in zip(asked, batches, strict=True):
-                if any(c.case_id not in rows for c in cases):  # a Dask cluster lost some: asked again later
+            for index, (trial, cases) in enumerate(zip(asked, batches, strict=True)):
+                indices = sorted(ran[index] or [])
+                if not indices:  # a Dask cluster lost some of its cases: asked again later
                     study.tell(trial, state=optuna.trial.TrialState.FAIL)
-                    study.enqueue_trial(trial.params, skip_if_exists=True)
+                    study.enqueue_trial(trial.params)
                     continue
-                trial_score = _score_table(tuning, rows, cases)
+                trial_score = score(
+                    [rows[cases[k].case_id] for k in indices],
+                    [tuning.rated_currents[k] for k in indices],
+                    tuning.objectives,
+                    tuning.constraints,
+                )
                 for key, value in _attrs(trial_score).items():
                     trial.set_user_attr(key, value)
                 study.tell(trial, trial_score.told)
@@ -268,7 +335,10 @@ def _execute(
                 best = _best(study, tuning)
                 if best is not None:
                     bar.set_postfix_str(
-                        ", ".join(f"{o.label} {v:.4g}" for o, v in zip(tuning.objectives, best.user_attrs["objectives"]))
+                        ", ".join(
+                            f"{o.label} {v:.4g}"
+                            for o, v in zip(tuning.objectives, best.user_attrs["objectives"], strict=True)
+                        )
                     )
     except BaseException as error:
         if not interrupts.is_interrupt(error):
@@ -307,7 +377,7 @@ def _execute(
     )
     tuned_doc = map_sweep(tuning, scenario_path, output, f"{tuning.name}_tuned", chosen)
     try:
-        rerun, tuned_sweep = _run_map(tuning, tuned_doc, output / TUNED_SWEEP, output / TUNED_MAP, chosen, options)
+        rerun, _, _ = _run_map(tuning, tuned_doc, output / TUNED_SWEEP, output / TUNED_MAP, chosen, options)
     except BaseException as error:
         if not interrupts.is_interrupt(error):
             raise
@@ -354,9 +424,7 @@ def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
     """Which of `points` no other point dominates (lower or equal in both, lower in one)."""
     front = []
     for i, (a, b) in enumerate(points):
-        dominated = any(
-            (c <= a and d <= b and (c < a or d < b)) for j, (c, d) in enumerate(points) if j != i
-        )
+        dominated = any((c <= a and d <= b and (c < a or d < b)) for j, (c, d) in enumerate(points) if j != i)
         front.append(not dominated)
     return front
 
@@ -455,7 +523,10 @@ def run_tuning(
         return EXIT_BAD_INPUT
     print(report(tuning, result))
     if result.interrupted:
-        print(f"interrupted: {result.trials} of {trials or tuning.trials} trials done; run again to go on", file=sys.stderr)
+        print(
+            f"interrupted: {result.trials} of {trials or tuning.trials} trials done; run again to go on",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     return EXIT_OK if result.best is not None else EXIT_FAILED
 
@@ -468,9 +539,13 @@ def _figures_line(label: str, record: dict[str, Any] | None, tuning: Tuning) -> 
     parts = [
         f"settled {int(figures['settled'])}/{cases}",
         f"worst settling {figures['worst_settling_time']:.4g} s" if figures["worst_settling_time"] is not None else "",
-        f"worst |final error| {figures['worst_final_error'] * 1e3:.4g} mm" if figures["worst_final_error"] is not None else "",
+        f"worst |final error| {figures['worst_final_error'] * 1e3:.4g} mm"
+        if figures["worst_final_error"] is not None
+        else "",
         f"peak |i_q*| {figures['worst_peak_command']:.4g} A" if figures["worst_peak_command"] is not None else "",
-        "feasible" if record["feasible"] else "infeasible (" + ", ".join(f"{k} {v}" for k, v in record["violations"].items() if v) + ")",
+        "feasible"
+        if record["feasible"]
+        else "infeasible (" + ", ".join(f"{k} {v}" for k, v in record["violations"].items() if v) + ")",
     ]
     values = ", ".join(f"{k} = {v:.6g}" for k, v in record.get("parameters", {}).items() if v is not None)
     return f"{label}{' (' + values + ')' if values else ''}: " + ", ".join(p for p in parts if p)
@@ -489,4 +564,3 @@ def report(tuning: Tuning, result: TuneResult) -> str:
         lines.append(_figures_line(f"re-run by the sweep engine ({verdict})", result.rerun, tuning))
     lines.extend(f"wrote {path}" for path in result.files)
     return "\n".join(lines)
-

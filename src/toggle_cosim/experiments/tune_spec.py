@@ -307,7 +307,15 @@ def _fixed_cases(sweep: Sweep, fixed: dict[str, Any]) -> list[Case]:
             raise TuneError(f"key fix: case {case.index}: {error}") from None
         parameters = {**case.parameters, "T_s": run.T_s, "t_end": run.t_end, "plant.mu": run.plant.mu}
         changed.append(
-            Case(case.index, case_id(document, case.variant), case.variant, case.values, document, parameters, case.source)
+            Case(
+                case.index,
+                case_id(document, case.variant),
+                case.variant,
+                case.values,
+                document,
+                parameters,
+                case.source,
+            )
         )
     return changed
 
