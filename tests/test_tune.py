@@ -301,3 +301,39 @@ def test_the_start_map_is_a_sweep_file_of_the_same_cases(tiny) -> None:
     tuning = load_tuning(path)
     sweep = load_sweep(result.output / "start_sweep.yaml")
     assert [c.case_id for c in sweep.cases] == [c.case_id for c in tuning.cases]
+
+
+def test_two_objectives_give_a_pareto_front_and_its_plot(tmp_path, plant_fmu) -> None:
+    """Final error against peak current (a trade-off): the history marks the front, which no
+    other feasible trial dominates; `fix:` shortens every case (a key that is no axis)."""
+    path = write_tuning(
+        tmp_path,
+        plant_fmu,
+        fix={"controller.law": "integral", "t_end": 0.3},
+        objective=[{"metric": "final_error", "over": "worst"}, {"metric": "peak_command", "over": "mean"}],
+        optimiser={"sampler": "random", "trials": 4, "batch": 4, "seed": 5},
+    )
+    result = tc.tune(path, workers=2)
+    history = result.history
+    assert (history.loc[history["feasible"], "cases"] == 4).all()  # a feasible trial ran the whole map
+    assert {c.parameters["t_end"] for c in load_tuning(path).cases} == {0.3}
+    labels = ["worst_final_error", "mean_peak_command"]
+    feasible = history[history["feasible"]]
+    front = history[history["pareto"]]
+    assert 1 <= len(front) and front["feasible"].all()
+    for _, row in front.iterrows():
+        others = feasible.drop(index=row.name)
+        assert not ((others[labels] <= row[labels]).all(axis=1) & (others[labels] < row[labels]).any(axis=1)).any()
+    best = front.loc[front["worst_final_error"].idxmin()]
+    assert result.best["trial"] == best["trial"]
+    assert (result.output / "pareto.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_plant_that_is_not_there_is_exit_2_and_leaves_no_folder(tmp_path) -> None:
+    path = write_tuning(tmp_path)
+    missing = tmp_path / "nowhere.fmu"
+    done = CliRunner().invoke(main, ["tune", str(path), "--fmu", str(missing), "--out", str(tmp_path / "o"), "-q"])
+    assert done.exit_code == 2, done.output
+    lines = done.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and str(missing) in lines[0], lines
+    assert not (tmp_path / "o").exists()

@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import sys
@@ -28,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim import interrupts
-from toggle_cosim.experiments.sweep_exec import execute
+from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_run import execute_sweep
 from toggle_cosim.experiments.sweep_spec import SweepError, load_sweep
 from toggle_cosim.experiments.tune_files import map_sweep, tuned_scenario, write_map_sweep, write_scenario
@@ -42,7 +43,6 @@ MANIFEST_FILE = "tune.json"
 START_SWEEP, TUNED_SWEEP = "start_sweep.yaml", "tuned_sweep.yaml"
 START_MAP, TUNED_MAP = "map_start", "map_tuned"
 WAVES = (9, 3, 1)  # a trial's cases in three waves (`waves`)
-CASE_LIMIT_FACTOR, CASE_LIMIT_MIN_S = 20.0, 3.0  # a trial's case: at most 20 x the start map's slowest, >= 3 s
 _ORIGIN = "origin"  # a trial's user attribute: "start" (the starting values) or "optimiser"
 
 
@@ -172,16 +172,6 @@ def _breaks(tuning: Tuning, rows: dict[str, dict[str, Any]], cases: list[Any], i
     return any(broken.values())
 
 
-def case_limit(rows: list[dict[str, Any]], given: float | None) -> float:
-    """The wall-clock limit of a trial's case: `given`, else CASE_LIMIT_FACTOR x the slowest case
-    of the starting controller's map, at least CASE_LIMIT_MIN_S (a case that runs far longer is a
-    plant stuck in events: the trial is infeasible, and waiting for it would stall the tuning)."""
-    if given is not None:
-        return given
-    slowest = max((float(r["wall_s"]) for r in rows if r.get("wall_s") is not None), default=0.0)
-    return max(CASE_LIMIT_MIN_S, CASE_LIMIT_FACTOR * slowest)
-
-
 def _attrs(result: Score) -> dict[str, Any]:
     return {
         "objectives": [None if math.isnan(v) else v for v in result.objectives],
@@ -232,10 +222,20 @@ def execute_tuning(
     trials (default: the file's optimiser.trials), then write its files. TuneError: bad input."""
     say = log or (lambda text: print(text, file=sys.stderr, flush=True))
     output = tuning.output
+    fresh = not output.exists()
     with folder_lock(output) as locked:
         if not locked:
             raise TuneError(f"{output}: another tuning is writing to this folder (wait for it or choose another --out)")
-        return _execute(tuning, output, fmu, scheduler, workers, progress, say, case_timeout, trials or tuning.trials)
+        try:
+            return _execute(
+                tuning, output, fmu, scheduler, workers, progress, say, case_timeout, trials or tuning.trials
+            )
+        except (TuneError, SweepError):
+            if fresh:  # bad input found before any trial (the plant, a controller): nothing is left behind
+                import shutil
+
+                shutil.rmtree(output, ignore_errors=True)
+            raise
 
 
 def _execute(
@@ -258,9 +258,7 @@ def _execute(
     study = _open_study(tuning, output)
     # 1. the starting controller's map, by the sweep engine (it checks the plant and the controller first)
     start_doc = map_sweep(tuning, tuning.sweep.base, output, f"{tuning.name}_start", chosen)
-    start_score, start_sweep, start_rows = _run_map(
-        tuning, start_doc, output / START_SWEEP, output / START_MAP, chosen, options
-    )
+    start_score, start_sweep, _ = _run_map(tuning, start_doc, output / START_SWEEP, output / START_MAP, chosen, options)
     start_point = {p.key: p.start for p in tuning.parameters}
     result.start = {"parameters": start_point, **_attrs(start_score)}
     distributions = _distributions(tuning)
@@ -283,7 +281,6 @@ def _execute(
     from toggle_cosim.plant.contract import check_plant
 
     plant = check_plant(plant_path)
-    limit = case_limit(start_rows, case_timeout)
 
     def optimiser_trials() -> int:
         states = (optuna.trial.TrialState.COMPLETE,)
@@ -300,8 +297,10 @@ def _execute(
     study.sampler = sampler
     stalled = 0
 
+    client = connect(scheduler) if scheduler else None  # one connection for every wave of every batch
+
     def run(cases: list[Any], on_row: Callable[[dict[str, Any], Any], None]) -> None:
-        execute(cases, plant_path, scheduler, workers, on_row, plant.sha256, None, limit, plant=plant)
+        execute(cases, plant_path, None, workers, on_row, plant.sha256, client, case_timeout, plant=plant)
 
     try:
         while (done := optimiser_trials()) < budget and stalled < 3:
@@ -348,6 +347,9 @@ def _execute(
     finally:
         if bar is not None:
             bar.close()
+        if client is not None:
+            with contextlib.suppress(Exception):
+                client.close()
     if stalled >= 3:
         say("warning: three batches in a row lost cases on the Dask cluster; stopped (run again to go on)")
     result.trials = optimiser_trials()
