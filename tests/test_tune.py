@@ -337,3 +337,36 @@ def test_a_plant_that_is_not_there_is_exit_2_and_leaves_no_folder(tmp_path) -> N
     lines = done.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and str(missing) in lines[0], lines
     assert not (tmp_path / "o").exists()
+
+
+def test_a_python_factorys_parameters_are_tuned_as_scenario_keys(tmp_path, plant_fmu) -> None:
+    """The PD controller of examples/controllers (a controller.python factory): its Kp and Kd
+    tuned over a 2-case map of its variant; the written scenario keeps that variant only, with
+    the tuned values where the variant sets them, and its map re-run gives the tuner's figures."""
+    import shutil
+
+    for name in ("my_controllers.py", "user_controllers.yaml"):
+        shutil.copy(ROOT / "examples" / "controllers" / name, tmp_path / name)
+    sweep = {"base": "user_controllers.yaml", "variant": "pd", "axes": {"plant.F_E": {"values": [0.0, 20.0]}}}
+    (tmp_path / "pd_sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    tuning = {
+        "name": "pd",
+        "sweep": "pd_sweep.yaml",
+        "fix": {"t_end": 0.3},
+        "parameters": {
+            "controller.parameters.Kp": {"low": 5, "high": 40},
+            "controller.parameters.Kd": {"low": 1, "high": 5},
+        },
+        "objective": {"metric": "final_error", "over": "worst"},
+        "optimiser": {"sampler": "random", "trials": 2, "batch": 2, "seed": 2},
+    }
+    (tmp_path / "pd_tune.yaml").write_text(yaml.safe_dump(tuning), encoding="utf-8")
+    result = tc.tune(tmp_path / "pd_tune.yaml", fmu=plant_fmu, output=tmp_path / "out", workers=2)
+    assert result.history.loc[0, "controller.parameters.Kp"] == 12.0  # the variant's own value, trial 0
+    written = yaml.safe_load((tmp_path / "out" / "pd_best.yaml").read_text(encoding="utf-8"))
+    assert list(written["variants"]) == ["pd"] and "parameters" not in written["controller"]
+    assert written["variants"]["pd"]["controller"]["parameters"] == {
+        "Kp": result.best["parameters"]["controller.parameters.Kp"],
+        "Kd": result.best["parameters"]["controller.parameters.Kd"],
+    }
+    assert written["t_end"] == 0.3 and result.rerun["equal"] is True

@@ -54,8 +54,9 @@ def write_map_sweep(path: Path, document: dict[str, Any], header: str) -> Path:
 
 
 def tuned_scenario(tuning: Tuning, point: dict[str, float], folder: Path) -> dict[str, Any]:
-    """The base scenario with the fixed keys and the tuned values `point` set (at the top level,
-    and in every variant that sets them too), its paths made relative to `folder`."""
+    """The base scenario with the fixed keys and the tuned values `point` set, its paths made
+    relative to `folder`: only the variants the map ran are kept; a key is set in each of them
+    that sets it, and at the top level where it is set there or no variant sets it."""
     base = tuning.sweep.base
     document = copy.deepcopy(read_yaml(base, "base scenario"))
     document["name"] = tuning.name
@@ -70,12 +71,16 @@ def tuned_scenario(tuning: Tuning, point: dict[str, float], folder: Path) -> dic
         fmu = controller.get("fmu") if isinstance(controller, dict) else None
         if isinstance(fmu, str) and not Path(fmu).is_absolute():
             controller["fmu"] = _relative(base.parent / fmu, folder)
+    variants = document.get("variants") or {}
+    if variants and tuning.sweep.variants != [None]:  # the map's variants only: the values were tuned for them
+        document["variants"] = variants = {name: variants[name] for name in tuning.sweep.variants}
     values = {**tuning.fixed, **point}
     for key, value in values.items():
-        set_key(document, key, value)
-        for variant in (document.get("variants") or {}).values():
-            if isinstance(variant, dict) and get_key(variant, key) is not None:
-                set_key(variant, key, value)
+        where = [v for v in variants.values() if isinstance(v, dict) and get_key(v, key) is not None]
+        if get_key(document, key) is not None or not where:
+            set_key(document, key, value)
+        for variant in where:  # a variant that sets the key would override the top level's value
+            set_key(variant, key, value)
     return document
 
 
