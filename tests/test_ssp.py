@@ -39,7 +39,7 @@ from toggle_cosim.ssp.reader import open_ssp, open_ssp_variants, read_ssp
 from toggle_cosim.ssp.writer import controller_values, write_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith("sweep_"))
+SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith(("sweep_", "tune_")))
 NS = layout.NAMESPACES
 UNITS = {"x_B": "m", "v_B": "m/s", "theta1": "rad", "omega1": "rad/s", "iq_ref": "A"}
 
