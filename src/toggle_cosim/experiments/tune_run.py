@@ -391,16 +391,17 @@ def _execute(
     from toggle_cosim.analysis.tune_figures import write_maps_side_by_side, write_pareto
 
     with interrupts.deferred():
-        result.files.append(
-            write_maps_side_by_side(
-                output / START_MAP / "results.parquet",
-                output / TUNED_MAP / "results.parquet",
-                start_sweep,
-                [o.metric for o in tuning.objectives],
-                output / "maps.png",
-                tuning.name,
+        if start_sweep.heatmap is not None:  # a map over two axes (a one-axis sweep has no heat maps)
+            result.files.append(
+                write_maps_side_by_side(
+                    output / START_MAP / "results.parquet",
+                    output / TUNED_MAP / "results.parquet",
+                    start_sweep,
+                    [o.metric for o in tuning.objectives],
+                    output / "maps.png",
+                    tuning.name,
+                )
             )
-        )
         if len(tuning.objectives) == 2:
             result.files.append(write_pareto(_history(study, tuning), tuning, output / "pareto.png"))
     _write_manifest(tuning, result, plant.sha256)
