@@ -59,11 +59,13 @@ from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import COUPLINGS, Run
+from toggle_cosim.signals.definitions import as_signal, sample
 
 __all__ = [
     "JACOBI_REASON",
     "RunOutcome",
     "close_controller",
+    "load_samples",
     "open_session",
     "plant_settings",
     "refused_outcome",
@@ -115,7 +117,14 @@ def open_session(plant: PlantInterface, instance_name: str) -> PlantSession:
     return PlantSession(plant, instance_name, list(plant.recorded_outputs), list(INPUTS))
 
 
-def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
+def load_samples(run: Run, n: int) -> np.ndarray:
+    """The load input F_E each sample k = 0 .. n sends, sampled once from its signal at t_k = k·T_s
+    (`signals`): a number gives n + 1 copies of it, so a constant run's trace keeps its bits."""
+    return sample(as_signal(run.plant.F_E), n, run.T_s)
+
+
+def _initialise(session: PlantSession, run: Run, plant: PlantInterface, F_E: float) -> None:
+    """Instantiate, set the parameters, and initialise with the inputs (0, F_E = u(0))."""
     session.instantiate(0.0, run.t_end)
     for name, value in plant_settings(run, plant):
         try:
@@ -123,7 +132,7 @@ def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
         except Exception as error:  # noqa: BLE001 - name the variable and the value
             raise RuntimeError(f"setting {name} = {value!r} failed ({error})") from None
     session.enter_initialization()
-    session.write_inputs((0.0, run.plant.F_E))
+    session.write_inputs((0.0, F_E))
     session.exit_initialization()
 
 
@@ -182,14 +191,14 @@ def simulate(
     own_session = session is None
     if session is None:
         session = open_session(plant, run.label)
-    timing, state = Timing(n, run.T_s, run.plant.F_E), LoopState()
+    timing, state = Timing(n, run.T_s, load_samples(run, n)), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
     policy = CheckpointPolicy(saving=session.can_save_state)
     loop = {"kind": "python", "reason": "the run ended before the second sample"}
     interrupted = False
     loop_started = loop_finished = clock.perf_counter()
     try:
-        _initialise(session, run, plant)
+        _initialise(session, run, plant, float(timing.load[0]))
         policy.configure(session)
         python = PythonStepper(session, controller, recorder, timing, state, hooks, jacobi=jacobi)
         loop_started = clock.perf_counter()

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
+import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.controller import ControllerState, VSCController
@@ -124,11 +125,12 @@ class Stepper(Protocol):
 
 @dataclass
 class Timing:
-    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; F_E the constant load input."""
+    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; `load` the load input F_E that
+    sample k sends, load[k] (n + 1 float64 values, `signals.definitions.sample`)."""
 
     n: int
     T_s: float
-    F_E: float
+    load: np.ndarray
 
 
 class PythonStepper:
@@ -162,7 +164,7 @@ class PythonStepper:
         already (read by the compiled loop before it handed the sample back)."""
         rec, st = self.recorder, self.state
         data, n_out, i_x, i_v, col_u = rec.data, rec.n_out, rec.i_x, rec.i_v, rec.col_u
-        T_s, n, F_E = self.timing.T_s, self.timing.n, self.timing.F_E
+        T_s, n, load = self.timing.T_s, self.timing.n, self.timing.load.tolist()
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
         control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
         jacobi = self.jacobi
@@ -193,6 +195,7 @@ class PythonStepper:
                     held = st.held if st.held is not None else (u, diagnostics)
                     st.held = (u, diagnostics)
                     u, diagnostics = held
+                F_E = load[k]
                 row[col_u] = u
                 row[col_u + 1] = F_E
                 row[col_u + 2 :] = diagnostics
@@ -288,7 +291,7 @@ class CompiledStepper:
             recorder.col_u,
             timing.n,
             timing.T_s,
-            timing.F_E,
+            timing.load,
             parameters,
             z,
             controller,

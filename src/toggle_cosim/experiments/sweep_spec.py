@@ -42,6 +42,7 @@ from typing import Any
 from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
+from toggle_cosim.signals.schema import signal_keys
 
 STANDARD_PARAMETERS = ("plant.F_E", "plant.m_B", "plant.mu", "T_s", "t_end")
 METRICS = (*RunSummary.__dataclass_fields__, "fric_share_end")
@@ -168,7 +169,7 @@ def _check_axis_key(key: str) -> None:
         raise SweepError(f"axis {key}: {path[0]} cannot be swept (sweep a physical or numerical key)")
     schema: Mapping[str, Any] = SCENARIO_SCHEMA
     for depth, part in enumerate(path):
-        properties = schema.get("properties", {})
+        properties = schema.get("properties", {}) or signal_keys(schema)  # a signal's: plant.F_E.start_time
         if part in properties:
             schema = properties[part]
         elif "additionalProperties" in schema and isinstance(schema["additionalProperties"], Mapping):
@@ -373,7 +374,7 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
                 )
             seen[identifier] = index
             parameters: dict[str, Any] = {
-                "plant.F_E": run.plant.F_E,
+                "plant.F_E": run.plant.F_E if isinstance(run.plant.F_E, float) else math.nan,  # NaN: a signal
                 "plant.m_B": run.plant.m_B,
                 "plant.mu": run.plant.mu,
                 "T_s": run.T_s,

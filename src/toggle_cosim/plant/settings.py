@@ -4,13 +4,14 @@
 (causality parameter, variability fixed or tunable), with a value of their type (a number for a
 Real/Float64, true/false for a Boolean); `current_loop: ideal` needs the parameter
 idealCurrentLoop; the built-in controller's objective needs the optional outputs the contract
-names for it (theta1: theta1 and omega1). Each failure is one `SettingError` line naming the key
+names for it (theta1: theta1 and omega1); an input table's unit (its CSV header's) must be the
+input's unit in the FMU. Each failure is one `SettingError` line naming the key
 and the variable.
 """
 
 from __future__ import annotations
 
-from toggle_cosim.plant.contract import PlantInterface, objective_requirements
+from toggle_cosim.plant.contract import CONTRACT, PlantInterface, declared_unit, objective_requirements
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import Run
 
@@ -19,8 +20,30 @@ class SettingError(Exception):
     """A setting the plant cannot take; str() is the one-line reason."""
 
 
+def input_unit(plant: PlantInterface, name: str) -> str | None:
+    """The unit of the plant input `name`: the FMU's declared one, else the contract's."""
+    variable = next((v for v in plant.model_description.modelVariables if v.name == name), None)
+    unit = declared_unit(variable) if variable is not None else None
+    return unit or next((v.unit for v in CONTRACT if v.name == name), None)
+
+
+def check_input_units(run: Run, plant: PlantInterface) -> None:
+    """A table's unit (its CSV header's) must be the input's unit in the FMU."""
+    source = getattr(run.plant.F_E, "source", None)
+    if source is None or source.unit is None:
+        return
+    unit = input_unit(plant, "F_E")
+    if source.unit != unit:
+        where = "key plant.F_E" + (f" (variant {run.variant})" if run.variant else "")
+        raise SettingError(
+            f"{where}: {source.path} gives column {source.column} in {source.unit!r}, the plant FMU's F_E is in "
+            f"{unit!r} (convert the table to {unit}, or write its header as '{source.column} [{unit}]')"
+        )
+
+
 def check_settings(run: Run, plant: PlantInterface) -> None:
     variables = {v.name: v for v in plant.model_description.modelVariables}
+    check_input_units(run, plant)
     try:  # a friction model the plant cannot run
         friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, plant.references, plant.path)
     except ValueError as error:

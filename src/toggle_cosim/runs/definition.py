@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from toggle_cosim.physics.parameters import ControllerGains
+from toggle_cosim.signals.definitions import Signal
 
 COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples plant and controller
 
@@ -21,7 +22,7 @@ COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples p
 class PlantSettings:
     """What the master sets on the plant FMU before initialisation (and holds as inputs)."""
 
-    F_E: float = 0.0
+    F_E: float | Signal = 0.0  # N: a number (constant) or a signal in time (`signals`), applied at every sample
     m_B: float = 4.43
     mu: float = 0.2
     current_loop: Literal["first_order", "ideal"] = "first_order"

@@ -243,8 +243,8 @@ def _refuse_sweep(path: Path) -> None:
 
 
 def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
-    """SspError for a scenario an SSP cannot hold: a controller in Python, variants that differ
-    in t_end or T_s (an SSP has one experiment)."""
+    """SspError for a scenario an SSP cannot hold: a controller in Python, a load that varies in
+    time, variants that differ in t_end or T_s (an SSP has one experiment)."""
     for run in runs:
         if run.controller.fmu is not None:
             raise SspError(
@@ -255,6 +255,11 @@ def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
             raise SspError(
                 f"{path}: key controller.python: an SSP's controller is an FMU, so a Python controller cannot be "
                 "written into it (use the built-in law, or run the scenario with toggle-cosim run)"
+            )
+        if not isinstance(run.plant.F_E, (int, float)):
+            raise SspError(
+                f"{path}: key plant.F_E: the load is a {run.plant.F_E.kind} in time, and an SSP's parameter set holds"
+                " one value per input (give F_E a number, or run the scenario with toggle-cosim run)"
             )
     for key in ("t_end", "T_s"):
         values = {getattr(run, key) for run in runs}
