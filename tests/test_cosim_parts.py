@@ -70,7 +70,11 @@ def _controller() -> VSCController:
 
 def _python(session: MockSession, hooks=()) -> tuple[PythonStepper, Recorder, LoopState]:
     recorder, state = Recorder(NAMES, N), LoopState()
-    return PythonStepper(session, _controller(), recorder, Timing(N, T_S, F_E), state, hooks), recorder, state
+    return (
+        PythonStepper(session, _controller(), recorder, Timing(N, T_S, np.full(N + 1, F_E)), state, hooks),
+        recorder,
+        state,
+    )
 
 
 def _run(session: MockSession, policy: CheckpointPolicy) -> tuple[int, Recorder]:
@@ -241,7 +245,17 @@ def test_the_policy_sets_the_flag_in_the_compiled_loop_and_the_skeleton_passes_i
 
     functions = CFunctions(0, 0, 0, 0, 0, 0, False, MockSession.function_names, None)
     loop = compiled_loop.CompiledLoop(
-        library, functions, np.zeros((N + 1, len(NAMES))), 2, 1, 2, 3, N, T_S, F_E, _controller().law_parameters()
+        library,
+        functions,
+        np.zeros((N + 1, len(NAMES))),
+        2,
+        1,
+        2,
+        3,
+        N,
+        T_S,
+        np.full(N + 1, F_E),
+        _controller().law_parameters(),
     )
     assert loop.no_set_state_prior_to_current_point is False  # the safe default
     CheckpointPolicy(saving=False).configure(loop)

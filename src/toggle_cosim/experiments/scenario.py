@@ -297,7 +297,11 @@ def merge_documents(base: dict[str, Any], override: Mapping[str, Any]) -> dict[s
     merged = copy.deepcopy(base)
     for key, value in override.items():
         old = merged.get(key)
-        if isinstance(value, Mapping) and isinstance(old, dict) and value.get("kind", old.get("kind")) == old.get("kind"):
+        if (
+            isinstance(value, Mapping)
+            and isinstance(old, dict)
+            and value.get("kind", old.get("kind")) == old.get("kind")
+        ):
             merged[key] = merge_documents(merged[key], value)
         else:
             merged[key] = copy.deepcopy(value)

@@ -126,9 +126,7 @@ class Sine:
 
     kind: ClassVar[str] = "sine"
     amplitude: float = _value("the sine's amplitude, in the input's unit")
-    frequency: float = field(
-        metadata={"description": "frequency in Hz", "exclusiveMinimum": 0, "maximum": VALUE_BOUND}
-    )
+    frequency: float = field(metadata={"description": "frequency in Hz", "exclusiveMinimum": 0, "maximum": VALUE_BOUND})
     phase: float = field(
         default=0.0, metadata={"description": "phase at start_time, rad", "minimum": -100.0, "maximum": 100.0}
     )

@@ -26,7 +26,6 @@ from toggle_cosim.signals.definitions import (
     TIME_BOUND,
     VALUE_BOUND,
     Signal,
-    SignalError,
     Table,
     parameters,
 )
