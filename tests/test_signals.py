@@ -192,7 +192,7 @@ def test_the_shipped_measured_table_covers_its_run_and_records_its_file() -> Non
         ({"kind": "table", "file": "x.csv"}, "missing key: 'interpolation' is a required property"),
         ({"kind": "points", "points": [[0, 0], [0.5, 1]]}, "key plant.F_E: the table ends at t = 0.5 s, before"),
         ({"kind": "points", "points": [[0, 0], [0, 1], [1, 1]]}, "key plant.F_E: row 2: time 0.0 repeats"),
-        ("heavy", "key plant.F_E: 'heavy' is not a number or mapping"),
+        ("heavy", "key plant.F_E: 'heavy' is not of type number or mapping"),
     ],
 )
 def test_bad_signals_are_one_line_naming_the_key(F_E: object, message: str) -> None:

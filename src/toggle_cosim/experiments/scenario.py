@@ -218,7 +218,7 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
         return f"key {key}: {error.instance!r} is out of range (must be {relation[error.validator]} {error.validator_value})"
     if error.validator == "type" and isinstance(error.validator_value, list):
         kinds = " or ".join("mapping" if kind == "object" else kind for kind in error.validator_value)
-        return f"key {key}: {error.instance!r} is not a {kinds} ({error.schema.get('description', 'see docs/scenarios.md')})"
+        return f"key {key}: {error.instance!r} is not of type {kinds} (write a {kinds})"
     if error.validator == "type":
         return f"key {key}: {error.instance!r} is not of type {error.validator_value} (write a {error.validator_value})"
     if error.validator == "enum":
