@@ -149,7 +149,7 @@ def test_csv_table_errors_name_the_file_and_the_line(tmp_path: Path, text: str, 
 
 
 def test_a_missing_or_unreadable_table_is_one_line(tmp_path: Path) -> None:
-    with pytest.raises(SignalError, match="no such input table"):
+    with pytest.raises(SignalError, match="no such CSV table"):
         read_table(tmp_path / "none.csv", "hold", "F_E")
     with pytest.raises(SignalError, match="is a directory"):
         read_table(tmp_path, "hold", "F_E")

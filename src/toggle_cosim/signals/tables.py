@@ -61,7 +61,7 @@ def read_table(
     in time (`definitions.check_table`); coverage of the run is checked by the scenario."""
     name = shown or str(path)
     try:
-        raw = read_bounded(path, TABLE_LIMIT, "input table")
+        raw = read_bounded(path, TABLE_LIMIT, "CSV table")
         text = raw.decode("utf-8-sig")
     except InputFileError as error:
         raise SignalError(str(error)) from None
