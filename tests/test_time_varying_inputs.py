@@ -146,3 +146,61 @@ def test_unknown_signal_key_in_a_sweep_axis_is_refused(tmp_path: Path) -> None:
     sweep.write_text(yaml.safe_dump({"base": "base.yaml", "axes": {"plant.F_E.when": {"values": [0.1]}}}))
     with pytest.raises(SweepError, match="axis plant.F_E.when: unknown scenario key 'when' under plant.F_E"):
         load_sweep(sweep)
+
+
+def test_a_csv_table_drives_the_run_and_run_json_names_its_file_and_hash(tmp_path: Path, plant_fmu: Path) -> None:
+    """A hold table: sample k sends the value of the last row at or before t_k; run.json records
+    the CSV's path, SHA-256, column and unit."""
+    import hashlib
+    import json
+
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+
+    table = tmp_path / "load.csv"
+    table.write_text("time [s],F_E [N]\n0,0\n0.0512,30\n0.1,-10\n0.2,-10\n", encoding="utf-8")
+    document = _document({"kind": "table", "file": "load.csv", "interpolation": "hold"}, fmu=str(plant_fmu))
+    document["t_end"] = 0.2
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(document))
+    ran = CliRunner().invoke(main, ["run", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "out"), "-q"])
+    assert ran.exit_code == 0, ran.output
+    folder = tmp_path / "out" / document["name"] / "run"
+    from toggle_cosim.files.traces import read_csv
+
+    trace = read_csv(folder / "trace.csv")
+    t = trace.time
+    expected = np.where(t >= 0.2, -10.0, np.where(t >= 0.1, -10.0, np.where(t >= 0.0512, 30.0, 0.0)))
+    assert np.array_equal(trace.column("F_E"), expected)
+    assert int(np.argmax(trace.column("F_E") == 30.0)) == 103  # 0.0512 s lies between samples 102 and 103
+    record = json.loads((folder / "run.json").read_text())["inputs"]["F_E"]
+    assert record["kind"] == "table" and record["interpolation"] == "hold" and record["unit"] == "N"
+    assert record["sha256"] == hashlib.sha256(table.read_bytes()).hexdigest() and record["file"] == str(table)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("time [s],F_E [N]\n0,0\n0.1,5\n0.05,5\n0.2,0\n", "line 4: time 0.05 comes before the time of line 3"),
+        ("time [s],F_E [kN]\n0,0\n0.2,0.1\n", "gives column F_E in 'kN', the plant FMU's F_E is in 'N'"),
+        ("time [s],F_E [N]\n0,0\n0.1,5\n", "the table ends at t = 0.1 s, before the run's t_end = 0.2 s"),
+    ],
+)
+def test_a_bad_table_is_one_line_exit_2_and_nothing_written(
+    tmp_path: Path, plant_fmu: Path, text: str, message: str
+) -> None:
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+
+    (tmp_path / "load.csv").write_text(text, encoding="utf-8")
+    document = _document({"kind": "table", "file": "load.csv", "interpolation": "linear"}, fmu=str(plant_fmu))
+    document["t_end"] = 0.2
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(document))
+    ran = CliRunner().invoke(main, ["run", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "out"), "-q"])
+    assert ran.exit_code == 2
+    lines = ran.output.strip().splitlines()
+    assert (
+        len(lines) == 1 and lines[0].startswith(f"error: {tmp_path / 's.yaml'}: key plant.F_E") and message in lines[0]
+    )
+    assert not (tmp_path / "out").exists()
