@@ -15,6 +15,10 @@ every exit path. A plant fault (an error status, non-finite outputs) or a contro
 ends the run early: the trace up to the fault is kept and the run is marked failed with the
 reason. A controller with a `close()` (a controller FMU) is closed on every exit path too.
 
+The load F_E (`Run.plant.F_E`: a number, or a signal in time, `signals`) is sampled once before
+the loop at every communication point t_k = k·T_s (`load_samples`); sample k sends load[k] in
+both loops and both couplings, records it in its F_E column, and initialisation sends load[0].
+
 Coupling (`Run.coupling`, or simulate's `coupling`): "gauss-seidel" (the default) drives the
 plant over [t_k, t_k+1] with the command the controller computed from the plant's outputs at t_k;
 "jacobi" drives it with the command of sample k - 1 (sample 0's at k = 0), as a master that steps

@@ -13,6 +13,7 @@ say (a target beyond the toggle position) are checked after it.
     stroke: {x_start: 0.2329, x_target: 0.3199}
     plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, current_loop: first_order, parameters: {},
             friction_model: paper, mu_s: 0.2}     # friction_model: paper | dissipative | stick_slip
+    # F_E may be a signal in time: {kind: step, start_time: 0.25, height: 100.0}, ... (`signals.schema`)
     controller: {objective: x_B, gains: {C: 5, Q: 4, P: 50, delta: 0.25, beta: 65}}
     # or a user's controller: {python: "module:factory", parameters: {...}} (docs/controllers.md)
     # or a controller FMU: {fmu: controllers/MyLaw.fmu, parameters: {...}}

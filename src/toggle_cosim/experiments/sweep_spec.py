@@ -11,6 +11,7 @@
       plant.m_B: {values: [4.43, 6.645, 8.86]}
       controller.gains.beta: {random: {low: 40, high: 90, n: 5, seed: 1}}
       plant.parameters.mechanism.r3: {values: [0.27, 0.28]}   # after plant.parameters. the rest is one FMU name
+      # plant.F_E.start_time: {values: [0.2, 0.3]}             # a key of the base's signal (plant.F_E: {kind: step, ...})
     output: ../out/sweeps/sweep_FE_mB      # relative to this file; default out/sweeps/<name>
     heatmap: {x: plant.F_E, y: plant.m_B}  # optional, default: the first two axes
 
