@@ -74,7 +74,7 @@ def _python(
     session: MockSession, hooks=(), load: np.ndarray | None = None
 ) -> tuple[PythonStepper, Recorder, LoopState]:
     recorder, state = Recorder(NAMES, N), LoopState()
-    load = np.full(N + 1, F_E) if load is None else load
+    load = np.full((N + 1, 1), F_E) if load is None else load
     return (
         PythonStepper(session, _controller(), recorder, Timing(N, T_S, load), state, hooks),
         recorder,
@@ -153,17 +153,17 @@ def test_a_discard_is_retried_from_the_checkpoint_and_the_run_recovers() -> None
 def test_a_load_that_varies_is_sent_and_recorded_per_sample_and_replayed_as_recorded() -> None:
     """Sample k sends (iq_ref_k, load[k]) and records load[k] in its F_E column; a retry replays
     samples 1 .. 12 with the loads they sent, not one value for all."""
-    load = 10.0 + np.arange(N + 1) * 0.5
+    load = (10.0 + np.arange(N + 1) * 0.5)[:, None]
     session = MockSession(fail_at=12 * T_S, status=2)
     k, recorder = _run(session, CheckpointPolicy(saving=True), load)
     assert k == N + 1
-    assert np.array_equal(recorder.data[:, recorder.col_u + 1], load)
+    assert np.array_equal(recorder.data[:, recorder.col_u + 1], load[:, 0])
     sent = [F for _, F in session.written]
     first = [F for _, F in session.written[:12]]
-    assert first == list(load[:12])  # samples 0 .. 11 before the failed step from sample 12
+    assert first == list(load[:12, 0])  # samples 0 .. 11 before the failed step from sample 12
     replay = sent[13 : 13 + 12]  # after the failed step's own write: the replay from the checkpoint at 1
-    assert replay == list(load[1:13])
-    assert sent[-1] == load[N - 1]  # no write after the last sample
+    assert replay == list(load[1:13, 0])
+    assert sent[-1] == load[N - 1, 0]  # no write after the last sample
 
 
 def test_a_retry_that_fails_again_ends_the_run_with_both_failures() -> None:
@@ -275,7 +275,7 @@ def test_the_policy_sets_the_flag_in_the_compiled_loop_and_the_skeleton_passes_i
         3,
         N,
         T_S,
-        np.full(N + 1, F_E),
+        np.full((N + 1, 1), F_E),
         _controller().law_parameters(),
     )
     assert loop.no_set_state_prior_to_current_point is False  # the safe default

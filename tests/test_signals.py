@@ -188,7 +188,10 @@ def test_the_shipped_measured_table_covers_its_run_and_records_its_file() -> Non
         ({"kind": "step", "height": 1}, "missing key: 'start_time' is a required property"),
         ({"height": 1}, "missing key: 'kind' is a required property"),
         ({"kind": "pulse", "amplitude": 1, "period": 0.1, "width": 0.1}, "key plant.F_E: width 0.1 s is not shorter"),
-        ({"kind": "table", "file": "none.csv", "interpolation": "hold"}, "key plant.F_E: .*none.csv: no such input"),
+        (
+            {"kind": "table", "file": "none.csv", "interpolation": "hold"},
+            "key plant.F_E: .*none.csv: no such CSV table",
+        ),
         ({"kind": "table", "file": "x.csv"}, "missing key: 'interpolation' is a required property"),
         ({"kind": "points", "points": [[0, 0], [0.5, 1]]}, "key plant.F_E: the table ends at t = 0.5 s, before"),
         ({"kind": "points", "points": [[0, 0], [0, 1], [1, 1]]}, "key plant.F_E: row 2: time 0.0 repeats"),

@@ -115,7 +115,10 @@ def run_record(
         "retries": retries or [],
         "controller": controller,
         "coupling": run.coupling,
-        "inputs": {"F_E": describe(as_signal(run.plant.F_E))},
+        "inputs": {
+            "F_E": describe(as_signal(run.plant.F_E)),
+            **{name: describe(as_signal(value)) for name, value in run.plant.inputs.items()},
+        },
         "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},
         "wall_time_s": wall,
         "loop_time_s": loop_seconds,

@@ -125,8 +125,9 @@ class Stepper(Protocol):
 
 @dataclass
 class Timing:
-    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; `load` the load input F_E that
-    sample k sends, load[k] (n + 1 float64 values, `signals.definitions.sample`)."""
+    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; `load` the inputs besides the
+    command that sample k sends, load[k] = (F_E, then the plant's other inputs): an (n + 1, m)
+    float64 array, C order (`master.input_samples`)."""
 
     n: int
     T_s: float
@@ -165,10 +166,12 @@ class PythonStepper:
         rec, st = self.recorder, self.state
         data, n_out, i_x, i_v, col_u = rec.data, rec.n_out, rec.i_x, rec.i_v, rec.col_u
         T_s, n, load = self.timing.T_s, self.timing.n, self.timing.load.tolist()
+        col_x = rec.col_x
+        others = col_x < len(rec.names)  # the plant has inputs besides iq_ref and F_E
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
         control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
         jacobi = self.jacobi
-        n_diagnostics = len(rec.names) - col_u - 2
+        n_diagnostics = col_x - col_u - 2
         state = st.controller
         try:
             for k in range(k0, k_end):
@@ -195,14 +198,16 @@ class PythonStepper:
                     held = st.held if st.held is not None else (u, diagnostics)
                     st.held = (u, diagnostics)
                     u, diagnostics = held
-                F_E = load[k]
+                sent = load[k]  # F_E, then the other inputs
                 row[col_u] = u
-                row[col_u + 1] = F_E
-                row[col_u + 2 :] = diagnostics
+                row[col_u + 1] = sent[0]
+                row[col_u + 2 : col_x] = diagnostics
+                if others:
+                    row[col_x:] = sent[1:]
                 rec.rows = k + 1
                 if k == n:
                     return k + 1
-                write_inputs((u, F_E))
+                write_inputs((u, *sent))
                 try:
                     do_step(t, T_s)
                 except FMICallException as error:

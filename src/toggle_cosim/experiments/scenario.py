@@ -75,6 +75,12 @@ _PLANT = {
             "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_.\[\]]*\Z"},
             "additionalProperties": {"type": ["number", "boolean"]},
         },
+        "inputs": {
+            "type": "object",
+            "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\Z"},
+            "additionalProperties": signal_schema(-1e6, 1e6, "an input of the plant FMU, in its unit"),
+            "description": "the plant FMU's other inputs by name: a number or a signal each",
+        },
     },
 }
 _GAINS = {
@@ -370,16 +376,31 @@ def _user_controller(controller_doc: Mapping[str, Any], suffix: str, source: Pat
     }
 
 
-def _input_signal(value: Any, name: str, t_end: float, suffix: str, source: Path | None) -> float | Signal:
-    """The plant input `name` from its scenario value (`signals.schema`): a number stays a float;
-    a table must cover [0, t_end]. Raises ScenarioError naming the key."""
+def _input_signal(
+    value: Any, name: str, t_end: float, suffix: str, source: Path | None, key: str | None = None
+) -> float | Signal:
+    """The plant input `name` from its scenario value at `key` (default plant.NAME; `signals.schema`):
+    a number stays a float; a table must cover [0, t_end]. Raises ScenarioError naming the key."""
     try:
         signal = signal_from_document(value, name, None if source is None else source.parent)
         if isinstance(signal, Table):
             signal.check_covers(t_end)
     except SignalError as error:
-        raise ScenarioError(f"key plant.{name}{suffix}: {error}") from None
+        raise ScenarioError(f"key {key or f'plant.{name}'}{suffix}: {error}") from None
     return signal
+
+
+OWN_INPUTS = {"F_E": "it has its own key; set plant.F_E instead", "iq_ref": "it is the controller's command"}
+
+
+def _other_inputs(given: Mapping[str, Any], t_end: float, suffix: str, source: Path | None) -> dict[str, Any]:
+    """plant.inputs: the plant's other inputs by name, each a float or a Signal."""
+    inputs = {}
+    for name, value in given.items():
+        if name in OWN_INPUTS:
+            raise ScenarioError(f"key plant.inputs.{name}{suffix}: {name} cannot be set here: {OWN_INPUTS[name]}")
+        inputs[name] = _input_signal(value, name, t_end, suffix, source, key=f"plant.inputs.{name}")
+    return inputs
 
 
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
@@ -424,6 +445,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         rated_current=float(plant_doc.get("rated_current", PlantSettings.rated_current)),
         working_range=_working_range(plant_doc.get("working_range"), geometry, suffix),
         parameters=dict(plant_doc.get("parameters", {})),
+        inputs=_other_inputs(plant_doc.get("inputs") or {}, t_end, suffix, source),
     )
     controller = ControllerSettings(
         objective=controller_doc.get("objective", "x_B"),

@@ -34,6 +34,9 @@ class PlantSettings:
     rated_current: float = 10.0  # A
     working_range: tuple[float, float] | None = None  # m, slider B; None: the linkage's (scenario)
     parameters: Mapping[str, float | bool] = field(default_factory=dict)
+    # The plant FMU's other inputs by name (a user's plant: a disturbance, a temperature), each a
+    # number or a signal, applied at every sample as F_E is; recorded after the diagnostics
+    inputs: Mapping[str, float | Signal] = field(default_factory=dict)
     # Explicit (name, value) settings in order, e.g. an SSP's parameter set (`ssp.reader`): the
     # master sets exactly these instead of the ones it derives from the fields above
     fmu_values: tuple[tuple[str, float | bool | int], ...] | None = None

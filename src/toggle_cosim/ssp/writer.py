@@ -256,6 +256,11 @@ def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
                 f"{path}: key controller.python: an SSP's controller is an FMU, so a Python controller cannot be "
                 "written into it (use the built-in law, or run the scenario with toggle-cosim run)"
             )
+        if run.plant.inputs:
+            raise SspError(
+                f"{path}: key plant.inputs: the SSP connects the plant's iq_ref and F_E only, so its other inputs "
+                f"({', '.join(run.plant.inputs)}) cannot be written into it (run the scenario with toggle-cosim run)"
+            )
         if not isinstance(run.plant.F_E, (int, float)):
             raise SspError(
                 f"{path}: key plant.F_E: the load is a {run.plant.F_E.kind} in time, and an SSP's parameter set holds"
