@@ -204,3 +204,13 @@ def test_a_bad_table_is_one_line_exit_2_and_nothing_written(
         len(lines) == 1 and lines[0].startswith(f"error: {tmp_path / 's.yaml'}: key plant.F_E") and message in lines[0]
     )
     assert not (tmp_path / "out").exists()
+
+
+def test_trim_refuses_a_load_that_varies_in_time() -> None:
+    """An operating point holds slider B against one load: a step has none to hold against."""
+    from toggle_cosim.design.trim import TrimError, external_force
+
+    (run, _) = load_scenario(ROOT / "scenarios" / "step_load.yaml")
+    with pytest.raises(TrimError, match="key plant.F_E: the load is a step in time; an operating point needs one"):
+        external_force(run)
+    assert external_force(_run(100.0)) == 100.0
