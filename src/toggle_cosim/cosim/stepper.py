@@ -152,6 +152,7 @@ class PythonStepper:
         self.session, self.controller, self.recorder = session, controller, recorder
         self.timing, self.state, self.hooks = timing, state, tuple(hooks)
         self.jacobi = jacobi
+        self.load = timing.load.tolist()  # row k: what sample k sends besides the command, as Python floats
         self.index = {name: j for j, name in enumerate(recorder.names[1 : 1 + recorder.n_out], start=1)}
 
     def _start(self, t: float, measurement: Measurement) -> Any:
@@ -165,7 +166,7 @@ class PythonStepper:
         already (read by the compiled loop before it handed the sample back)."""
         rec, st = self.recorder, self.state
         data, n_out, i_x, i_v, col_u = rec.data, rec.n_out, rec.i_x, rec.i_v, rec.col_u
-        T_s, n, load = self.timing.T_s, self.timing.n, self.timing.load.tolist()
+        T_s, n, load = self.timing.T_s, self.timing.n, self.load
         col_x = rec.col_x
         others = col_x < len(rec.names)  # the plant has inputs besides iq_ref and F_E
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
