@@ -5,6 +5,7 @@ at t = τ), CSV tables and their errors, and the scenario keys with their one-li
 from __future__ import annotations
 
 import copy
+import re
 import math
 from pathlib import Path
 
@@ -210,3 +211,15 @@ def test_a_variant_with_another_kind_replaces_the_signal_and_one_of_the_same_kin
     assert other["plant"]["F_E"] == {"kind": "ramp", "duration": 0.2, "height": 10}
     same = merge_documents(base, {"plant": {"F_E": {"height": 10}}})
     assert same["plant"]["F_E"] == {"kind": "step", "start_time": 0.5, "height": 10}
+
+
+def test_the_docs_table_of_signal_kinds_names_every_key_the_schema_has() -> None:
+    """docs/scenarios.md lists each kind with its keys: the generated schema's, no more, no fewer."""
+    from toggle_cosim.signals.schema import KINDS, SCHEMA_KEYS
+
+    text = (ROOT / "docs" / "scenarios.md").read_text(encoding="utf-8")
+    for kind in KINDS:
+        row = next(line for line in text.splitlines() if line.startswith(f"| `{kind}` |"))
+        keys_cell = row.split("|")[2]
+        named = set(re.findall(r"`(\w+)`", keys_cell)) - {"hold", "linear"}
+        assert named == set(SCHEMA_KEYS[kind]), kind

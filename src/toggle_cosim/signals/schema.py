@@ -82,6 +82,11 @@ def _kind_schema(kind: str) -> dict[str, Any]:
     }
 
 
+SCHEMA_KEYS: dict[str, tuple[str, ...]] = {
+    kind: tuple(key for key in _kind_schema(kind)["then"]["properties"] if key != "kind") for kind in KINDS
+}  # each kind's keys, as the schema has them (docs/scenarios.md lists them)
+
+
 def signal_schema(minimum: float, maximum: float, description: str) -> dict[str, Any]:
     """The schema of an input's value in a scenario: a number in [minimum, maximum] (a constant),
     or a mapping with a `kind` and that kind's keys."""
@@ -129,4 +134,4 @@ def signal_from_document(value: Any, input_name: str, folder: Path | None) -> fl
     return read_table(path, value["interpolation"], input_name, value.get("column"), shown=str(path))
 
 
-__all__ = ["KINDS", "TIME_BOUND", "signal_from_document", "signal_keys", "signal_schema"]
+__all__ = ["KINDS", "SCHEMA_KEYS", "TIME_BOUND", "signal_from_document", "signal_keys", "signal_schema"]
