@@ -5,8 +5,8 @@ at t = τ), CSV tables and their errors, and the scenario keys with their one-li
 from __future__ import annotations
 
 import copy
-import re
 import math
+import re
 from pathlib import Path
 
 import numpy as np
