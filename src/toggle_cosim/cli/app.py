@@ -35,6 +35,7 @@ EXTRAS = {
     "junitparser": "ci",
     "buildingspy": "ci",
     "matplotlib": "plot",
+    "plotly": "report",
 }
 
 
