@@ -217,68 +217,39 @@ def shown_variables(comparison: ComparisonResult) -> list[VariableResult]:
     return failing or list(comparison.variables[:1])
 
 
-def _funnel_traces(variable: VariableResult, reference: Trace, visible: bool) -> list[Any]:
+def _funnel_traces(variable: VariableResult, reference: Trace, visible: bool) -> list[tuple[int, Any]]:
+    """(row, curve): the funnel's edges (filled between), the reference, the run and the
+    samples outside the funnel above; the distance outside the funnel below."""
     import plotly.graph_objects as go
 
     envelope = variable.envelope
     assert envelope is not None, "compare_traces keeps every envelope"
-    name = variable.name
-    lower_t, lower = thin(envelope.lower_time, envelope.lower)
-    upper_t, upper = thin(envelope.upper_time, envelope.upper)
-    ref_t, ref_y = thin(reference.time, reference.column(name))
-    res_t, res_y = thin(envelope.time, envelope.result)
     outside = np.flatnonzero(envelope.error > 0)
-    if outside.size > DISPLAY_POINTS:  # the largest excursions first, then in time order
+    if outside.size > DISPLAY_POINTS:  # the largest excursions, in time order
         outside = np.sort(outside[np.argsort(envelope.error[outside])[-DISPLAY_POINTS:]])
     band = f"funnel (±{variable.half_height:.3g}, ±{variable.half_width:.3g} s)"
-    common = {"visible": visible, "meta": name}
+    edge = {"color": "rgba(31,119,180,0.5)", "width": 0.8}
+
+    def curve(t: np.ndarray, y: np.ndarray, thinned: bool = True, **style: Any) -> Any:
+        if thinned:
+            t, y = thin(t, y)
+        return go.Scatter(x=_display(t), y=_display(y), visible=visible, meta=variable.name, **style)
+
     return [
-        go.Scatter(
-            x=_display(lower_t),
-            y=_display(lower),
-            name=band,
-            legendgroup="funnel",
-            mode="lines",
-            line={"color": "rgba(31,119,180,0.5)", "width": 0.8},
-            showlegend=False,
-            **common,
-        ),  # fmt: skip
-        go.Scatter(
-            x=_display(upper_t),
-            y=_display(upper),
-            name=band,
-            legendgroup="funnel",
-            mode="lines",
-            line={"color": "rgba(31,119,180,0.5)", "width": 0.8},
-            fill="tonexty",
-            fillcolor="rgba(31,119,180,0.18)",
-            **common,
-        ),  # fmt: skip
-        go.Scatter(
-            x=_display(ref_t),
-            y=_display(ref_y),
-            name="reference",
-            mode="lines",
-            line={"color": "black", "width": 1.2},
-            **common,
-        ),  # fmt: skip
-        go.Scatter(
-            x=_display(res_t),
-            y=_display(res_y),
-            name="run",
-            mode="lines",
-            line={"color": "#d62728", "width": 1.2, "dash": "dash"},
-            **common,
-        ),  # fmt: skip
-        go.Scatter(
-            x=_display(envelope.time[outside]),
-            y=_display(envelope.result[outside]),
-            name=f"outside the funnel ({int(np.count_nonzero(envelope.error > 0))} samples)",
-            mode="markers",
-            marker={"color": "#d62728", "size": 5, "symbol": "x"},
-            **common,
-        ),  # fmt: skip
-    ]
+        (1, curve(envelope.lower_time, envelope.lower, name=band, legendgroup="funnel", mode="lines", line=edge,
+                  showlegend=False)),
+        (1, curve(envelope.upper_time, envelope.upper, name=band, legendgroup="funnel", mode="lines", line=edge,
+                  fill="tonexty", fillcolor="rgba(31,119,180,0.18)")),
+        (1, curve(reference.time, reference.column(variable.name), name="reference", mode="lines",
+                  line={"color": "black", "width": 1.2})),
+        (1, curve(envelope.time, envelope.result, name="run", mode="lines",
+                  line={"color": "#d62728", "width": 1.2, "dash": "dash"})),
+        (1, curve(envelope.time[outside], envelope.result[outside], thinned=False, mode="markers",
+                  name=f"outside the funnel ({int(np.count_nonzero(envelope.error > 0))} samples)",
+                  marker={"color": "#d62728", "size": 5, "symbol": "x"})),
+        (2, curve(envelope.time, envelope.error, name="distance outside the funnel", mode="lines",
+                  line={"color": "#d62728", "width": 1.0}, fill="tozeroy")),
+    ]  # fmt: skip
 
 
 def _verdict_table(comparison: ComparisonResult, units: Mapping[str, str]) -> str:
@@ -301,18 +272,18 @@ def _verdict_table(comparison: ComparisonResult, units: Mapping[str, str]) -> st
 def comparison_section(comparisons: Sequence[Comparison], title: str = "Comparisons with references") -> Section:
     """Each run against its reference: a figure of its failing variables (or its first variable
     when all pass; dropdown when several) and the verdict of every variable."""
-    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
 
     parts = []
     failed = sum(1 for c in comparisons if not c.comparison.passed)
     parts.append(f"<p>{len(comparisons)} run(s) compared, {failed} failing.</p>")
     for number, item in enumerate(comparisons):
         shown = shown_variables(item.comparison)
-        figure = go.Figure()
+        figure = make_subplots(rows=2, cols=1, shared_xaxes=True, row_heights=(0.72, 0.28), vertical_spacing=0.06)
         owner: list[str] = []
         for index, variable in enumerate(shown):
-            for curve in _funnel_traces(variable, item.reference, index == 0):
-                figure.add_trace(curve)
+            for row, curve in _funnel_traces(variable, item.reference, index == 0):
+                figure.add_trace(curve, row=row, col=1)
                 owner.append(variable.name)
         buttons = [
             {
@@ -326,11 +297,12 @@ def comparison_section(comparisons: Sequence[Comparison], title: str = "Comparis
             for v in shown
         ]
         first = shown[0] if shown else None
+        figure.update_yaxes(title_text=_label(first.name, item.units) if first else "", row=1, col=1)
+        figure.update_yaxes(title_text="outside by", row=2, col=1)
+        figure.update_xaxes(title_text="time [s]", row=2, col=1)
         figure.update_layout(
             updatemenus=_dropdown(buttons) if len(buttons) > 1 else [],
-            xaxis_title="time [s]",
-            yaxis_title=_label(first.name, item.units) if first else "",
-            height=460,
+            height=580,
             margin={"t": 90 if len(buttons) > 1 else 50},
             template="plotly_white",
             title={"text": f"{item.label}: {'PASS' if item.comparison.passed else 'FAIL'}", "x": 0.5},
