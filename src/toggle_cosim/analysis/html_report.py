@@ -32,6 +32,7 @@ import numpy as np
 from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
 from toggle_cosim.analysis.display_points import DISPLAY_POINTS, thin
 from toggle_cosim.analysis.run_files import LoadedRun
+from toggle_cosim.analysis.sweep_heatmaps import value_label
 from toggle_cosim.files.outputs import write_file
 from toggle_cosim.files.traces import Trace
 
@@ -340,7 +341,7 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
     groups = table.groupby(list(sweep.groups), sort=True, dropna=False) if sweep.groups else [((), table)]
     for number, (key, group) in enumerate(groups):
         key = key if isinstance(key, tuple) else (key,)
-        tag = ", ".join(f"{k} = {v}" for k, v in zip(sweep.groups, key, strict=True))
+        tag = ", ".join(f"{k} = {value_label(v)}" for k, v in zip(sweep.groups, key, strict=True))
         xs, ys, rows, cols = _grid_of(group, sweep.x, sweep.y)
         ok = (group["status"] == "ok").to_numpy()
         ids = np.full((len(ys), len(xs)), "", dtype=object)
@@ -355,8 +356,8 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
             figure.add_trace(
                 go.Heatmap(
                     z=grid,
-                    x=[str(v) for v in xs],
-                    y=[str(v) for v in ys],
+                    x=[value_label(v) for v in xs],
+                    y=[value_label(v) for v in ys],
                     customdata=ids,
                     text=status,
                     colorscale="Viridis",
