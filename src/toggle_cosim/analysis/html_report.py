@@ -129,6 +129,10 @@ def _label(name: str, units: Mapping[str, str]) -> str:
     return f"{name} [{units[name]}]" if name in units else name
 
 
+def _outside(name: str, units: Mapping[str, str]) -> str:
+    return f"outside by [{units[name]}]" if name in units else "outside by"
+
+
 def _dropdown(buttons: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [
         {
@@ -292,14 +296,14 @@ def comparison_section(comparisons: Sequence[Comparison], title: str = "Comparis
                 "method": "update",
                 "args": [
                     {"visible": [o == v.name for o in owner]},
-                    {"yaxis": {"title": {"text": _label(v.name, item.units)}}},
+                    {"yaxis.title.text": _label(v.name, item.units), "yaxis2.title.text": _outside(v.name, item.units)},
                 ],
             }
             for v in shown
         ]
         first = shown[0] if shown else None
         figure.update_yaxes(title_text=_label(first.name, item.units) if first else "", row=1, col=1)
-        figure.update_yaxes(title_text="outside by", row=2, col=1)
+        figure.update_yaxes(title_text=_outside(first.name, item.units) if first else "", row=2, col=1)
         figure.update_xaxes(title_text="time [s]", row=2, col=1)
         figure.update_layout(
             updatemenus=_dropdown(buttons) if len(buttons) > 1 else [],
