@@ -9,22 +9,26 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from toggle_cosim.analysis.run_files import LoadedRun, check_variables, load_runs
-from toggle_cosim.api.result import Result
 from toggle_cosim.files.traces import Trace
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+Result = Any  # api.result.Result: api.result imports this module (Result.plot), so not the other way round
+
 __all__ = ["plot"]
 
-RunLike = Result | str | Path
+
+def _is_result(value: object) -> bool:
+    """A `Result` (told by its fields: api.result imports this module, not the other way round)."""
+    return all(hasattr(value, name) for name in ("trace", "units", "record", "label"))
 
 
-def _loaded(value: RunLike) -> list[LoadedRun]:
-    if isinstance(value, Result):
+def _loaded(value: Result | str | Path) -> list[LoadedRun]:
+    if _is_result(value):
         return [LoadedRun(value.label, value.trace, value.units, value.record)]
     if isinstance(value, (str, Path)):
         return load_runs([Path(value)])
@@ -41,8 +45,8 @@ def _band(first: LoadedRun, reference: Result | Trace | str | Path, variables: S
         trace, label = read_any_trace(Path(reference)), f"reference {Path(reference).name}"
         default, tolerances, _ = tolerances_for_reference(Path(reference), None)
     else:
-        trace = reference.trace if isinstance(reference, Result) else reference
-        label = f"reference {reference.label}" if isinstance(reference, Result) else "reference"
+        trace = reference.trace if _is_result(reference) else reference
+        label = f"reference {reference.label}" if _is_result(reference) else "reference"
         default, tolerances = DEFAULT_TOLERANCE, {}
     shared = [name for name in variables if name in trace.names]
     comparison = compare_traces(
@@ -58,7 +62,7 @@ def _band(first: LoadedRun, reference: Result | Trace | str | Path, variables: S
 
 
 def plot(
-    results: RunLike | Sequence[RunLike],
+    results: Result | str | Path | Sequence[Result | str | Path],
     vars: Sequence[str] | str | None = None,  # noqa: A002 - the name the command line's --vars has
     reference: Result | Trace | str | Path | None = None,
     *,
@@ -81,7 +85,7 @@ def plot(
     """
     from toggle_cosim.analysis.variable_figure import default_variables, save_figure, variables_figure
 
-    items = [results] if isinstance(results, (Result, str, Path)) else list(results)
+    items = [results] if isinstance(results, (str, Path)) or _is_result(results) else list(results)
     runs = [run for item in items for run in _loaded(item)]
     if not runs:
         raise ValueError("plot: no runs given")
