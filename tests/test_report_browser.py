@@ -7,7 +7,7 @@ whose slider mass is doubled (the references are the nominal ones) shows the fai
 its funnel band, the samples outside it and the distance outside it.
 
 Without chromium or Playwright the tests are skipped with the reason, except under CI=true,
-where they fail: CI installs both. REPORT_SCREENSHOTS=FOLDER also writes the screenshots there
+where they fail: CI installs both (TOGGLE_COSIM_CHROMIUM names another browser executable). REPORT_SCREENSHOTS=FOLDER also writes the screenshots there
 (docs/assets/report.png is the broken plant's report).
 """
 
@@ -29,7 +29,9 @@ from toggle_cosim.cli import main
 from toggle_cosim.files.traces import Trace, read_csv, select, write_csv
 
 ROOT = Path(__file__).resolve().parent.parent
-CHROMIUM = Path("/usr/bin/chromium")
+# Debian's chromium; TOGGLE_COSIM_CHROMIUM names another Chromium-based browser (GitHub's Ubuntu
+# runners have no chromium package but Google Chrome: .github/workflows/ci.yml sets it)
+CHROMIUM = Path(os.environ.get("TOGGLE_COSIM_CHROMIUM") or "/usr/bin/chromium")
 ARGS = [
     "--headless",
     "--no-sandbox",
