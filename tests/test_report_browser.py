@@ -7,8 +7,9 @@ whose slider mass is doubled (the references are the nominal ones) shows the fai
 its funnel band, the samples outside it and the distance outside it.
 
 Without chromium or Playwright the tests are skipped with the reason, except under CI=true,
-where they fail: CI installs both (TOGGLE_COSIM_CHROMIUM names another browser executable). REPORT_SCREENSHOTS=FOLDER also writes the screenshots there
-(docs/assets/report.png is the broken plant's report).
+where they fail: CI installs both (TOGGLE_COSIM_CHROMIUM names another browser executable).
+REPORT_SCREENSHOTS=FOLDER also writes the screenshots there (docs/assets/report.png is the
+broken plant's report).
 """
 
 from __future__ import annotations
