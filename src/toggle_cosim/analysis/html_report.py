@@ -44,6 +44,7 @@ __all__ = [
     "overlay_section",
     "records_section",
     "render",
+    "shown_variables",
     "sweep_section",
     "write_report",
 ]
@@ -53,13 +54,14 @@ SWEEP_TRACE_POINTS = 800  # points per curve of a sweep case's trace (hundreds o
 SWEEP_TRACE_VARIABLES = ("x_B", "iq_ref")  # what a clicked cell shows, where the trace has them
 # The one script of the page: a click on a heat-map cell shows the trace of that cell's case
 # (the traces are in the figure below it, hidden; each carries its case id in `meta`). Plotly's
-# to_html puts it after the heat map's figure, {plot_id} being that figure's element id.
+# to_html puts it after the heat map's figure, {plot_id} being that figure's element id;
+# {traces_id} is the element id of the figure of traces.
 SWEEP_CLICK = """
 (function () {
   var map = document.getElementById('{plot_id}');
   map.on('plotly_click', function (event) {
     var id = event.points[0].customdata;
-    var box = document.getElementById(map.dataset.traces);
+    var box = document.getElementById('{traces_id}');
     if (!box || !id) { return; }
     var shown = box.data.map(function (curve) { return curve.meta === id; });
     Plotly.update(box, {visible: shown}, {title: {text: 'case ' + id}});
@@ -107,17 +109,14 @@ def _e(text: Any) -> str:
     return html.escape(str(text), quote=True)
 
 
-def _figure_html(figure: Any, div_id: str, post_script: str | None = None, data_attrs: str = "") -> str:
-    body = figure.to_html(
+def _figure_html(figure: Any, div_id: str, post_script: str | None = None) -> str:
+    return figure.to_html(
         full_html=False,
         include_plotlyjs=False,
         div_id=div_id,
         post_script=post_script,
         config={"displaylogo": False, "responsive": True},
     )
-    if data_attrs:  # data-* attributes on the figure's element (read by SWEEP_CLICK)
-        body = body.replace(f'<div id="{div_id}"', f'<div id="{div_id}" {data_attrs}', 1)
-    return body
 
 
 def _display(values: np.ndarray) -> np.ndarray:
@@ -146,6 +145,20 @@ def _dropdown(buttons: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "name": "variable",
         }
     ]
+
+
+_COLORS = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+)
 
 
 def overlay_section(runs: Sequence[LoadedRun], variables: Sequence[str] | None = None, title: str = "Runs") -> Section:
@@ -183,7 +196,7 @@ def overlay_section(runs: Sequence[LoadedRun], variables: Sequence[str] | None =
         {
             "label": name,
             "method": "update",
-            "args": [{"visible": [o == name for o in owner]}, {"yaxis": {"title": {"text": _label(name, units)}}}],
+            "args": [{"visible": [o == name for o in owner]}, {"yaxis.title.text": _label(name, units)}],
         }
         for name in names
     ]
@@ -198,20 +211,6 @@ def overlay_section(runs: Sequence[LoadedRun], variables: Sequence[str] | None =
     )
     body = f"<p>{len(runs)} run(s); choose the variable above the plot.</p>" + _figure_html(figure, "runs-overlay")
     return Section(title, body, "runs")
-
-
-_COLORS = (
-    "#1f77b4",
-    "#ff7f0e",
-    "#2ca02c",
-    "#d62728",
-    "#9467bd",
-    "#8c564b",
-    "#e377c2",
-    "#7f7f7f",
-    "#bcbd22",
-    "#17becf",
-)
 
 
 def shown_variables(comparison: ComparisonResult) -> list[VariableResult]:
@@ -422,7 +421,7 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
             title={"text": "click a cell of the map above to show its case's trace", "x": 0.5},
         )
         parts.append(
-            _figure_html(figure, map_id, post_script=SWEEP_CLICK, data_attrs=f'data-traces="{traces_id}"')
+            _figure_html(figure, map_id, post_script=SWEEP_CLICK.replace("{traces_id}", traces_id))
             + _figure_html(panel, traces_id)
         )
     return Section(title, "".join(parts), "sweep")
