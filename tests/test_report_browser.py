@@ -251,8 +251,10 @@ def test_a_sweep_cell_click_shows_that_cases_trace(browser, tmp_path: Path) -> N
     assert shown == [(cases[4], "x_B"), (cases[4], "iq_ref")]
     level = page.values("sweep-trace-0", "iq_ref")[0]
     assert level == 4.0  # case 4's own trace, not another's
+    title = page.page.evaluate("document.getElementById('sweep-trace-0').layout.title.text")
+    assert title == f"plant.F_E = 50, plant.m_B = 8.86 (case {cases[4]})"
 
     page.choose("sweep-map-0", "peak |i_q*| [A]")
     assert [c["visible"] for c in page.curves("sweep-map-0")] == [False, False, True]
     assert page.errors == []
-    page.shot(tmp_path / "report-sweep.png", full_page=True)
+    page.shot(tmp_path / "report-sweep-tiny.png", full_page=True)

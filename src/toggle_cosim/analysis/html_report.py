@@ -55,7 +55,8 @@ SWEEP_TRACE_VARIABLES = ("x_B", "iq_ref")  # what a clicked cell shows, where th
 # The one script of the page: a click on a heat-map cell shows the trace of that cell's case
 # (the traces are in the figure below it, hidden; each carries its case id in `meta`). Plotly's
 # to_html puts it after the heat map's figure, {plot_id} being that figure's element id;
-# {traces_id} is the element id of the figure of traces.
+# {traces_id} is the element id of the figure of traces, {x_name} and {y_name} the axes' names
+# (as JavaScript strings).
 SWEEP_CLICK = """
 (function () {
   var map = document.getElementById('{plot_id}');
@@ -64,7 +65,8 @@ SWEEP_CLICK = """
     var box = document.getElementById('{traces_id}');
     if (!box || !id) { return; }
     var shown = box.data.map(function (curve) { return curve.meta === id; });
-    Plotly.update(box, {visible: shown}, {title: {text: 'case ' + id}});
+    var cell = {x_name} + ' = ' + event.points[0].x + ', ' + {y_name} + ' = ' + event.points[0].y;
+    Plotly.update(box, {visible: shown}, {title: {text: cell + ' (case ' + id + ')'}});
   });
 })();
 """
@@ -332,6 +334,12 @@ def _grid_of(group: Any, x: str, y: str) -> tuple[list[Any], list[Any], np.ndarr
     return xs, ys, rows, cols
 
 
+def _click_script(traces_id: str, x: str, y: str) -> str:
+    """SWEEP_CLICK for the figure of traces `traces_id` and the axes `x`, `y`."""
+    script = SWEEP_CLICK.replace("{traces_id}", traces_id)
+    return script.replace("{x_name}", json.dumps(x)).replace("{y_name}", json.dumps(y))
+
+
 def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
     """A heat map per combination of the other axes, the figure of merit chosen in a dropdown;
     failed cases are empty cells named in the hover text. With kept traces, a click on a cell
@@ -421,7 +429,7 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
             title={"text": "click a cell of the map above to show its case's trace", "x": 0.5},
         )
         parts.append(
-            _figure_html(figure, map_id, post_script=SWEEP_CLICK.replace("{traces_id}", traces_id))
+            _figure_html(figure, map_id, post_script=_click_script(traces_id, sweep.x, sweep.y))
             + _figure_html(panel, traces_id)
         )
     return Section(title, "".join(parts), "sweep")
