@@ -24,7 +24,7 @@ from typing import Any
 from toggle_cosim.analysis.results_figure import ResultsError, read_run_record
 from toggle_cosim.files.traces import Trace
 
-__all__ = ["LoadedRun", "fmu_units", "load_runs", "run_folders"]
+__all__ = ["LoadedRun", "check_variables", "fmu_units", "load_runs", "record_units", "run_folders"]
 
 TRACE_FILE = "trace.csv"
 RECORD_FILE = "run.json"
@@ -67,6 +67,15 @@ def fmu_units(fmu: str | Path | None, cache: dict[str, dict[str, str]] | None = 
     return units
 
 
+def record_units(
+    record: Mapping[str, Any], names: Sequence[str], cache: dict[str, dict[str, str]] | None = None
+) -> dict[str, str]:
+    """{column: unit} of the trace columns `names` of the run that `record` (run.json) describes:
+    time in s, the rest from the plant FMU it names (`fmu_units`)."""
+    units = {"time": "s", **fmu_units((record.get("fmu") or {}).get("path"), cache)}
+    return {name: units[name] for name in names if name in units}
+
+
 def run_folders(path: Path) -> list[Path]:
     """The run folders (holding trace.csv) at `path`: itself, its children, or its grandchildren,
     in name order; [] when there are none."""
@@ -105,8 +114,7 @@ def _from_trace_file(path: Path, cache: dict[str, dict[str, str]]) -> LoadedRun:
             ) from error
         label = "/".join(str(part) for part in (record.get("scenario"), record.get("variant")) if part)
         label = label or path.parent.name
-    units = {"time": "s", **fmu_units((record.get("fmu") or {}).get("path"), cache)}
-    return LoadedRun(label, trace, {name: units[name] for name in trace.names if name in units}, record, path)
+    return LoadedRun(label, trace, record_units(record, trace.names, cache), record, path)
 
 
 def load_runs(paths: Iterable[Path]) -> list[LoadedRun]:

@@ -113,17 +113,10 @@ def is_paper_plant(folder: Path) -> bool:
 
 
 def _runs_of_outcomes(outcomes: Sequence[Any]) -> list[Any]:
-    from toggle_cosim.analysis.run_files import LoadedRun, fmu_units
+    from toggle_cosim.analysis.run_files import LoadedRun, record_units
 
     cache: dict[str, dict[str, str]] = {}
-    runs = []
-    for outcome in outcomes:
-        units = {"time": "s", **fmu_units((outcome.record.get("fmu") or {}).get("path"), cache)}
-        trace = outcome.trace
-        runs.append(
-            LoadedRun(outcome.run.label, trace, {n: units[n] for n in trace.names if n in units}, outcome.record)
-        )
-    return runs
+    return [LoadedRun(o.run.label, o.trace, record_units(o.record, o.trace.names, cache), o.record) for o in outcomes]
 
 
 def reference_comparisons(runs: Sequence[Any], folder: Path) -> list[Any]:
