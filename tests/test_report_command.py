@@ -20,6 +20,8 @@ from toggle_cosim.analysis.display_points import thin, thin_indices
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import Trace, write_csv
 
+ROOT = Path(__file__).resolve().parent.parent
+
 # -- thinning for display -----------------------------------------------------------------------
 
 
@@ -216,3 +218,37 @@ def test_the_report_refuses_a_link_and_names_the_missing_extra(tmp_path: Path, m
         "error: toggle-cosim report needs the Python package 'plotly' of the extra [report]: "
         "pip install 'toggle-cosim[report]' (or 'toggle-cosim[all]')\n"
     )
+
+
+def test_sweep_html_writes_the_sweeps_page_with_its_kept_traces(plant_fmu: Path, tmp_path: Path) -> None:
+    """A real 2 x 2 sweep with --keep-traces --html: the page has one heat map per figure of
+    merit over F_E and m_B, and each case's x_B trace, ready for a click (the browser test
+    clicks one)."""
+    import re
+
+    import yaml
+
+    sweep = tmp_path / "sweep.yaml"
+    document = {
+        "base": str(ROOT / "scenarios" / "fig4_nominal.yaml"),
+        "variant": "friction",
+        "axes": {"plant.F_E": {"values": [0.0, 40.0]}, "plant.m_B": {"values": [4.43, 6.0]}},
+        "output": str(tmp_path / "out"),
+    }
+    sweep.write_text(yaml.safe_dump(document))
+    arguments = ["sweep", str(sweep), "--fmu", str(plant_fmu), "--workers", "1", "--quiet", "--keep-traces", "--html"]
+    result = CliRunner().invoke(main, arguments)
+    assert result.exit_code == 0, result.output
+    page = tmp_path / "out" / "report.html"
+    assert f"wrote {page}" in result.output
+    text = page.read_text()
+    cases = set(re.findall(r'"meta":"([0-9a-f]{16})"', text))
+    assert len(cases) == 4  # every case's trace is in the page, by its case id
+    from plotly.io.json import to_json_plotly  # as the page spells strings ("/" escaped)
+
+    from toggle_cosim.analysis.sweep_heatmaps import PANELS
+
+    for _, title, _, _ in PANELS:  # a map per figure of merit of the PNG maps, in the dropdown
+        spelt = to_json_plotly(title)
+        assert text.count(f'"name":{spelt}') == 1 and f'"label":{spelt}' in text
+    assert '"xaxis":{"title":{"text":"plant.F_E"}' in text.replace(" ", "")
