@@ -252,3 +252,31 @@ def test_sweep_html_writes_the_sweeps_page_with_its_kept_traces(plant_fmu: Path,
         spelt = to_json_plotly(title)
         assert text.count(f'"name":{spelt}') == 1 and f'"label":{spelt}' in text
     assert '"xaxis":{"title":{"text":"plant.F_E"}' in text.replace(" ", "")
+
+
+def test_html_options_refuse_bad_input_before_any_run(tmp_path: Path) -> None:
+    """`references --update --html` (an update checks nothing) and `sweep --html` whose page
+    would land on a link: one line each, exit 2, before any case runs."""
+    import yaml
+
+    updated = CliRunner().invoke(
+        main,
+        ["references", str(ROOT / "scenarios" / "fig4_nominal.yaml"), "--update", "--html", "--folder", str(tmp_path)],
+    )
+    assert updated.exit_code == 2 and updated.stderr.startswith("error: --html reports a check against the references")
+    assert list(tmp_path.iterdir()) == []
+
+    target = tmp_path / "elsewhere.html"
+    (tmp_path / "sweep").mkdir()
+    (tmp_path / "sweep" / "report.html").symlink_to(target)
+    sweep = tmp_path / "sweep.yaml"
+    axes = {"plant.F_E": {"values": [0.0, 40.0]}}
+    sweep.write_text(yaml.safe_dump({"base": str(ROOT / "scenarios" / "fig4_nominal.yaml"), "axes": axes,
+                                     "output": str(tmp_path / "sweep")}))  # fmt: skip
+    result = CliRunner().invoke(main, ["sweep", str(sweep), "--html", "--quiet"])
+    assert result.exit_code == 2, result.output
+    assert result.stderr == (
+        f"error: {tmp_path / 'sweep' / 'report.html'}: is a symbolic link, not a regular file (a link is not "
+        "followed); give another file name for the HTML report (--html)\n"
+    )
+    assert sorted(p.name for p in (tmp_path / "sweep").iterdir()) == ["report.html"] and not target.exists()

@@ -128,6 +128,8 @@ def references(
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     if not update:
         require("junitparser", "matplotlib", *(("plotly",) if html else ()))
+    if html and update:
+        raise InputError("--html reports a check against the references; --update rewrites them: give one of the two")
     if html:
         from toggle_cosim.cli.report_command import REPORT_FILE
 

@@ -8,8 +8,21 @@ from pathlib import Path
 import click
 
 from toggle_cosim import interrupts
-from toggle_cosim.cli.app import main, require
+from toggle_cosim.cli.app import check_output, main, require
 from toggle_cosim.cli.execution import Seconds
+
+
+def _check_report_output(sweep_file: Path, out: Path | None) -> None:
+    """Refuse, before any case runs, a report path that must not be written (a link, a folder);
+    a sweep file that cannot be read is left to the sweep, which says why."""
+    from toggle_cosim.cli.report_command import REPORT_FILE
+    from toggle_cosim.experiments.sweep_spec import SweepError, load_sweep
+
+    try:
+        folder = load_sweep(sweep_file, out).output
+    except (SweepError, OSError, ValueError):
+        return
+    check_output(folder / REPORT_FILE, "HTML report (--html)")
 
 
 @main.command()
@@ -59,6 +72,8 @@ def sweep(
 ) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
     require("pyarrow", "pandas", "distributed", "tqdm", "matplotlib", *(("plotly",) if html else ()))
+    if html:
+        _check_report_output(sweep_file, out)
     from toggle_cosim.experiments.sweep_run import run_sweep
 
     code = run_sweep(
