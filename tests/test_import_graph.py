@@ -152,7 +152,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("toggle_cosim",),
     ("native", "interrupts", "limits", "process_tree"),
     ("files",),
-    ("physics", "fmu_export"),
+    ("physics", "fmu_export", "signals"),
     ("control",),
     ("controller_fmu",),
     ("runs",),

@@ -148,6 +148,7 @@ class PlantSession:
         self._out_val = (ctypes.c_double * len(outputs))()
         self._out_view = np.frombuffer(self._out_val, dtype=np.float64)
         self._n_out = len(outputs)
+        self.inputs = tuple(inputs)  # the names write_inputs sets, in order
         self._in_vr = (ctypes.c_uint32 * len(inputs))(*(ref[n] for n in inputs))
         self._in_val = (ctypes.c_double * len(inputs))()
         self._n_in = len(inputs)

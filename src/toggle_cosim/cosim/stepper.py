@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
+import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.controller import ControllerState, VSCController
@@ -124,11 +125,13 @@ class Stepper(Protocol):
 
 @dataclass
 class Timing:
-    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; F_E the constant load input."""
+    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; `load` the inputs besides the
+    command that sample k sends, load[k] = (F_E, then the plant's other inputs): an (n + 1, m)
+    float64 array, C order (`master.input_samples`)."""
 
     n: int
     T_s: float
-    F_E: float
+    load: np.ndarray
 
 
 class PythonStepper:
@@ -149,6 +152,7 @@ class PythonStepper:
         self.session, self.controller, self.recorder = session, controller, recorder
         self.timing, self.state, self.hooks = timing, state, tuple(hooks)
         self.jacobi = jacobi
+        self.load = timing.load.tolist()  # row k: what sample k sends besides the command, as Python floats
         self.index = {name: j for j, name in enumerate(recorder.names[1 : 1 + recorder.n_out], start=1)}
 
     def _start(self, t: float, measurement: Measurement) -> Any:
@@ -162,11 +166,13 @@ class PythonStepper:
         already (read by the compiled loop before it handed the sample back)."""
         rec, st = self.recorder, self.state
         data, n_out, i_x, i_v, col_u = rec.data, rec.n_out, rec.i_x, rec.i_v, rec.col_u
-        T_s, n, F_E = self.timing.T_s, self.timing.n, self.timing.F_E
+        T_s, n, load = self.timing.T_s, self.timing.n, self.load
+        col_x = rec.col_x
+        others = col_x < len(rec.names)  # the plant has inputs besides iq_ref and F_E
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
         control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
         jacobi = self.jacobi
-        n_diagnostics = len(rec.names) - col_u - 2
+        n_diagnostics = col_x - col_u - 2
         state = st.controller
         try:
             for k in range(k0, k_end):
@@ -193,13 +199,16 @@ class PythonStepper:
                     held = st.held if st.held is not None else (u, diagnostics)
                     st.held = (u, diagnostics)
                     u, diagnostics = held
+                sent = load[k]  # F_E, then the other inputs
                 row[col_u] = u
-                row[col_u + 1] = F_E
-                row[col_u + 2 :] = diagnostics
+                row[col_u + 1] = sent[0]
+                row[col_u + 2 : col_x] = diagnostics
+                if others:
+                    row[col_x:] = sent[1:]
                 rec.rows = k + 1
                 if k == n:
                     return k + 1
-                write_inputs((u, F_E))
+                write_inputs((u, *sent))
                 try:
                     do_step(t, T_s)
                 except FMICallException as error:
@@ -288,7 +297,7 @@ class CompiledStepper:
             recorder.col_u,
             timing.n,
             timing.T_s,
-            timing.F_E,
+            timing.load,
             parameters,
             z,
             controller,

@@ -300,7 +300,7 @@ class SupervisedRun:
             diagnostics = check_controller(self.controller, plant.recorded_outputs)
         except ControllerError as error:
             self.controller, diagnostics, self.refused = None, VSCController.diagnostics, str(error)
-        self.names = master.trace_names(plant, diagnostics)
+        self.names = master.trace_names(plant, diagnostics, master.other_inputs(run))
         self.pid = -1
         self.status: int | None = None
         self.reason: str | None = None

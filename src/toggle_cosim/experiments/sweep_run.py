@@ -153,6 +153,12 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
                 controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
             # a controller.python's or controller.fmu's: built and checked once here, its columns kept for the cases
             columns = case_columns(case.payload(), plant)
+            if keep_traces and run.plant.inputs:
+                raise SweepError(
+                    f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
+                    f"law's columns, and this case also records the plant inputs {', '.join(run.plant.inputs)} "
+                    "(plant.inputs); sweep it without --keep-traces (its table row is kept)"
+                )
             if keep_traces and columns != trace_names(plant):
                 raise SweepError(
                     f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "

@@ -100,8 +100,9 @@ def case_columns(payload: Mapping[str, Any], plant: Any) -> tuple[str, ...]:
     from toggle_cosim.cosim.master import trace_names
 
     controller_doc = payload["document"].get("controller") or {}
+    inputs = tuple((payload["document"].get("plant") or {}).get("inputs") or {})  # the plant's other inputs
     if "python" not in controller_doc and "fmu" not in controller_doc:
-        return trace_names(plant)
+        return trace_names(plant, inputs=inputs)
     source = payload.get("source")
     key = (repr(controller_doc), source, plant.sha256)
     if key not in _columns:
@@ -111,7 +112,7 @@ def case_columns(payload: Mapping[str, Any], plant: Any) -> tuple[str, ...]:
         (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
         controller = controller_for(run, plant.recorded_outputs)
         _columns[key] = trace_names(plant, check_controller(controller, plant.recorded_outputs))
-    return _columns[key]
+    return (*_columns[key], *inputs)
 
 
 def case_view(buffer: np.ndarray, rows: int, columns: int) -> np.ndarray | None:
@@ -216,16 +217,19 @@ class CaseServer:
         self.plant = plant
         self.sha256 = fmu_sha256
         self.session: Any = None
+        self.sessions: dict[tuple[str, ...], Any] = {}  # by the plant's other inputs the cases set
 
-    def _session(self) -> Any:
-        """The plant's session, opened at the first case: the FMU's bytes checked against the
-        sweep's SHA-256, copied into this host's own folder and loaded from there."""
-        if self.session is None:
+    def _session(self, inputs: tuple[str, ...] = ()) -> Any:
+        """The plant's session for cases that set the other inputs `inputs` (`plant.inputs`), opened
+        at the first such case: the FMU's bytes checked against the sweep's SHA-256, copied into
+        this host's own folder and loaded from there."""
+        if inputs not in self.sessions:
             from toggle_cosim.cosim.master import open_session
 
             copy_path = _private_copy(_verified_bytes(self.plant.path, self.sha256), Path(tempfile.gettempdir()))
             plant = dataclasses.replace(self.plant, path=copy_path)
-            self.session = open_session(plant, plant.model_identifier)
+            self.sessions[inputs] = open_session(plant, plant.model_identifier, inputs)
+        self.session = self.sessions[inputs]
         return self.session
 
     def __call__(self, payload: Mapping[str, Any], buffer: np.ndarray) -> dict[str, Any]:
@@ -241,7 +245,7 @@ class CaseServer:
                     source = payload.get("source")  # the base scenario: controller.python is imported from its folder
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
-                    outcome = simulate(run, self.plant, buffer=view, session=self._session())
+                    outcome = simulate(run, self.plant, buffer=view, session=self._session(tuple(run.plant.inputs)))
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
                     row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
