@@ -29,6 +29,7 @@ typedef struct {
     fmu_t plant, ctrl;      /* ctrl: the controller FMU (CTRL_FMU only) */
     double *data;
     const double *load;     /* per sample 0 .. n, n_load values: F_E, then the plant's other inputs */
+    const double *ref;      /* CTRL_LAW: per sample 0 .. n, the law's reference (r, rd, rdd): q*, its rate, its acceleration; NULL: (law.target, 0, 0) */
     double *plant_in;       /* the plant's inputs as sent: the command, then the load row (1 + n_load) */
     const long *ctrl_cols;  /* CTRL_FMU: the row's columns of the controller's inputs */
     double *ctrl_in, *ctrl_out; /* CTRL_FMU: its input values, its outputs (iq_ref, diagnostics) */
@@ -67,13 +68,14 @@ static int fmu_step(const fmu_t *f, double t, double h, bool no_prior) {
                    : ((step2_t)f->step)(f->component, t, h, no_prior ? 1 : 0);
 }
 
-/* One law sample from the measured coordinate and rate (q, qd): out = (u, S, phase, e, z_next).
-   Returns 0, or 1 where the Python must evaluate the sample itself (it raises there, or a
-   result is not finite). */
-int kernel_control(const kernel_t *s, double t, double q, double qd, double z, double out[5]) {
+/* One law sample from the measured coordinate and rate (q, qd) and the reference (r, rd, rdd):
+   out = (u, S, phase, e, z_next). Returns 0, or 1 where the Python must evaluate the sample
+   itself (it raises there, or a result is not finite). */
+int kernel_control(const kernel_t *s, double t, double q, double qd, double z, double r, double rd, double rdd,
+                   double out[5]) {
     int i;
     if (!(isfinite(q) && isfinite(qd))) { return 1; }
-    if (law_step(t, q, qd, z, &s->law, &out[0], &out[1], &out[2], &out[3], &out[4])) { return 1; }
+    if (law_step(t, q, qd, z, r, rd, rdd, &s->law, &out[0], &out[1], &out[2], &out[3], &out[4])) { return 1; }
     for (i = 0; i < 5; i++) {
         if (!isfinite(out[i])) { return 1; }
     }
@@ -113,7 +115,7 @@ static int fmu_control(kernel_t *s, double t, const double *row) {
    is the next sample on return (the failed one for the failures), s->z the law's state there. */
 int kernel_run(kernel_t *s, long k_end) {
     double c[5], t, *row, *in = s->plant_in;
-    const double *load;
+    const double *load, *ref;
     long k, j;
     int status;
     for (k = s->k; k < k_end; k++) {
@@ -131,7 +133,9 @@ int kernel_run(kernel_t *s, long k_end) {
             for (j = 1; j < s->ctrl_n_out; j++) { row[s->col_u + 1 + j] = s->ctrl_out[j]; }
             in[0] = s->ctrl_out[0];
         } else {
-            if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, c)) {
+            ref = s->ref ? s->ref + 3 * k : NULL;
+            if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, ref ? ref[0] : s->law.target, ref ? ref[1] : 0.0,
+                               ref ? ref[2] : 0.0, c)) {
                 s->k = k;
                 return HAND_BACK;
             }

@@ -73,11 +73,13 @@ def law_source() -> str:
             ),
             "",
             "int vsc_law_start(double q, double qd, const law_t *p, double *S0, double *T_h, double *z0) {",
-            "    return law_start(q, qd, p, S0, T_h, z0);",
+            "    return law_start(q, qd, p->target, 0.0, p, S0, T_h, z0);  /* the constant target */",
             "}",
             "",
             f"int vsc_law_step(double t, double q, double qd, double z, const law_t *p, double out[{n_out}]) {{",
-            "    return law_step(t, q, qd, z, p, " + ", ".join(f"&out[{i}]" for i in range(n_out)) + ");",
+            "    return law_step(t, q, qd, z, p->target, 0.0, 0.0, p, "
+            + ", ".join(f"&out[{i}]" for i in range(n_out))
+            + ");",
             "}",
             "",
         ]

@@ -236,7 +236,16 @@ def simulate(
             compiled = (
                 law
                 if isinstance(law, str)
-                else CompiledStepper.build(session, recorder, timing, state, law, controller.measured, hooks)
+                else CompiledStepper.build(
+                    session,
+                    recorder,
+                    timing,
+                    state,
+                    law,
+                    controller.measured,
+                    hooks,
+                    getattr(controller, "reference", None) if isinstance(controller, VSCController) else None,
+                )
             )
             stepper = HandOver(python, compiled)
             if stepper.compiled is not None:

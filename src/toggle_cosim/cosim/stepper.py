@@ -29,6 +29,7 @@ from fmpy.fmi1 import FMICallException
 from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
+from toggle_cosim.control.trajectory import SampledReference
 from toggle_cosim.cosim.compiled_loop import (
     COMMAND_REJECTED,
     CONTROLLER_FAILED,
@@ -267,10 +268,15 @@ class CompiledStepper:
         law: LawParameters | FmuController,
         measured: tuple[str, ...],
         hooks: Sequence[StepHook] = (),
+        reference: SampledReference | None = None,
     ) -> CompiledStepper | str:
         """The compiled stepper from the current sample on, or why there is none. `law` is the
         built-in law to run, or the controller FMU to call (`compiled_controller`), `measured`
-        the plant outputs it reads."""
+        the plant outputs it reads, `reference` the trajectory the built-in law tracks (its
+        `VSCController.reference`; None: the constant target)."""
+        if reference is not None and (reference.T_s != timing.T_s or reference.values.shape != (timing.n + 1, 3)):
+            return "the law's reference is not sampled on the run's grid (T_s, t_end): the Python loop evaluates it"
+
         library = kernel_library()
         functions = session.c_functions()
         if library is None or functions is None:
@@ -301,6 +307,7 @@ class CompiledStepper:
             parameters,
             z,
             controller,
+            None if reference is None or controller is not None else reference.values,
         )
         return cls(loop, session, recorder, timing, state, hooks, law if controller is not None else None)
 
