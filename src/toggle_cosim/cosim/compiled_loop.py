@@ -204,8 +204,8 @@ class CompiledLoop:
     (x_B and v_B, or theta1 and omega1 for the θ1 objective) and writes (S, phase, e); `law` is
     the controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
     at the first sample the loop runs, `reference` the law's (n + 1, 3) float64 reference
-    (q*, q̇*, q̈*) per sample (`control.trajectory`; None: the constant law.target). With `controller` (a controller FMU's calls) the loop
-    calls it instead, in the order `FmuController.step` does, and hands a sample whose columns
+    (q*, q̇*, q̈*) per sample (`control.trajectory`; None: the constant law.target). With
+    `controller` (a controller FMU's calls) the loop calls it instead, in the order `FmuController.step` does, and hands a sample whose columns
     i_q, i_qd (x_B, v_B) are not finite back before calling it; `law` and `z` are unused.
     """
 
