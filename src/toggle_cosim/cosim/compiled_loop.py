@@ -205,8 +205,9 @@ class CompiledLoop:
     the controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
     at the first sample the loop runs, `reference` the law's (n + 1, 3) float64 reference
     (q*, q̇*, q̈*) per sample (`control.trajectory`; None: the constant law.target). With
-    `controller` (a controller FMU's calls) the loop calls it instead, in the order `FmuController.step` does, and hands a sample whose columns
-    i_q, i_qd (x_B, v_B) are not finite back before calling it; `law` and `z` are unused.
+    `controller` (a controller FMU's calls) the loop calls it instead, in the order
+    `FmuController.step` does, and hands a sample whose columns i_q, i_qd (x_B, v_B) are not
+    finite back before calling it; `law`, `z` and `reference` are unused.
     """
 
     def __init__(
