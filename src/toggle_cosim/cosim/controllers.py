@@ -34,6 +34,8 @@ from typing import Any
 
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import settable_values
+from toggle_cosim.control import trajectory
+from toggle_cosim.control.trajectory import SampledReference
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
@@ -46,7 +48,8 @@ __all__ = ["builtin_controller", "controller_for", "controller_record", "fmu_set
 
 
 def builtin_controller(run: Run) -> VSCController:
-    """The scenario's built-in controller, with its own nominal model (never the plant's parameters)."""
+    """The scenario's built-in controller, with its own nominal model (never the plant's parameters),
+    tracking the run's trajectory (stroke.trajectory, sampled on the run's grid) if it has one."""
     nominal = MechanismParameters(mB=run.controller.nominal_m_B, mu=0.0)
     return VSCController(
         gains=run.controller.gains,
@@ -59,6 +62,9 @@ def builtin_controller(run: Run) -> VSCController:
         K_I=run.controller.K_I,
         i_max=run.controller.i_max,
         T_s=run.T_s,
+        reference=None
+        if run.trajectory is None
+        else SampledReference.of(trajectory.build(run.trajectory), run.steps, run.T_s),
     )
 
 

@@ -290,6 +290,7 @@ def simulate(
             _number(getattr(state.controller, "T_h", None)),
             _number(getattr(state.controller, "S0", None)),
             *_diagnostics(trace, ("S", "phase")),
+            None if run.x_final == run.x_target else run.x_final,
         )
         limits = run.plant.working_range or working_range(MechanismParameters())
         warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
