@@ -32,11 +32,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim.control import trajectory
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import settable_values
-from toggle_cosim.control import trajectory
-from toggle_cosim.control.trajectory import SampledReference
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
+from toggle_cosim.control.trajectory import SampledReference
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters

@@ -35,9 +35,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from toggle_cosim.limits import MAX_SECONDS
 from toggle_cosim.control.trajectory import KINDS as TRAJECTORY_KINDS
 from toggle_cosim.control.trajectory import ProfileSpec, build
+from toggle_cosim.limits import MAX_SECONDS
 from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import COUPLINGS, ControllerSettings, ErrorSignal, PlantSettings, Run
