@@ -60,17 +60,19 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 click.echo(note, err=True)
     pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     noted: set[str] = set()
     for run, plant in pairs:  # every name and value the run sets, and its controller, before any run starts
         try:
             check_settings(run, plant)
-            controller = controller_for(run, plant.recorded_outputs)
+            if run.controller.python is None and run.controller.fmu is None:
+                controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
+            # a user's controller: checked without running its code, which runs in the run's child alone
+            fmu = check_user_controller(run, plant.recorded_outputs)
         except (SettingError, ControllerError) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
-        fmu = getattr(controller, "fmu", None) if run.controller.fmu is not None else None
         for warning in getattr(fmu, "warnings", ()):  # a controller FMU's missing units, once per file
             if f"{fmu.path}: {warning}" not in noted:
                 noted.add(f"{fmu.path}: {warning}")

@@ -54,6 +54,7 @@ from toggle_cosim.cosim.stepper import (
 )
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.messages import bounded_text
 from toggle_cosim.physics.mechanism import working_range
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
@@ -229,6 +230,7 @@ def simulate(
     if state.reason is not None and not interrupted:
         state.reason = _cut_at_first_failure(state.reason, recorder, policy.first_failure, run.T_s)
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
+    reason = bounded_text(reason) if reason is not None else None  # one line, whatever the plant or controller said
     complete = reason is None and rows == n + 1
     summary, warnings = None, []
     if rows > 1:
@@ -283,7 +285,7 @@ def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float
     message): failed, no sample; `started` is the run's perf_counter() start."""
     names = trace_names(plant)
     trace = Trace(names, np.empty((0, len(names))))
-    reason = f"controller: {reason}"
+    reason = bounded_text(reason if reason.startswith("controller: ") else f"controller: {reason}")
     loop = {"kind": "none", "reason": "the controller could not be built"}
     wall = clock.perf_counter() - started
     record = run_record(
