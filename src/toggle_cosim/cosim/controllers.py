@@ -230,6 +230,13 @@ def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
     (a python-control system adapted), checked against the protocol; `outputs` are the plant's
     recorded outputs (the measurement's names, which diagnostics may not reuse). Raises
     ControllerError with the one-line reason."""
+    try:
+        return _controller_for(run, outputs)
+    except ControllerError as error:  # the scenario's module names, as the scenario gave them
+        raise ControllerError(user_code.shown(str(error))) from None
+
+
+def _controller_for(run: Run, outputs: Sequence[str]) -> Controller:
     settings = run.controller
     if settings.fmu is not None:
         controller: Any = _fmu_controller(run, outputs)

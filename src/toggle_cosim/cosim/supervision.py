@@ -211,7 +211,9 @@ def _messages(chunks: list[bytes]) -> list[tuple]:
     return found
 
 
-def _build_controller(run: Run, plant: PlantInterface, buffer_fd: int, write_fd: int) -> tuple[Controller, np.ndarray]:
+def _build_controller(
+    run: Run, plant: PlantInterface, buffer_fd: int, write_fd: int
+) -> tuple[Controller, np.ndarray | None]:
     """In the child: the run's user controller (controller.python imported and its factory called,
     or controller.fmu), checked; its trace columns and record sent to the parent ("columns"), and
     the trace buffer sized for them in the file the parent opened (`buffer_fd`). A controller that
@@ -224,6 +226,9 @@ def _build_controller(run: Run, plant: PlantInterface, buffer_fd: int, write_fd:
     except BaseException as error:  # noqa: BLE001 - the user's code: SystemExit, KeyboardInterrupt included
         raise ControllerError(f"building the controller raised {error_text(error)}") from None
     names = master.trace_names(plant, diagnostics)
+    if buffer_fd < 0:  # a probe (`probe_columns`): the columns alone
+        _send(write_fd, ("columns", names, controller_record(run, controller)))
+        return controller, None
     size = max((run.steps + 1) * len(names) * 8, 8)
     os.ftruncate(buffer_fd, size)
     if hasattr(os, "posix_fallocate"):
@@ -266,6 +271,10 @@ def _plant_process(
             finally:
                 with contextlib.suppress(OSError):
                     os.chdir(here)  # a module that changed directory at import moves nothing of the run's
+            if buffer is None:  # a probe: built and checked, nothing to run
+                master.close_controller(controller)
+                _send(write_fd, ("probed",))
+                os._exit(0)
         outcome = master.simulate(
             run, plant, progress if progress_slot is not None else None, buffer=buffer, controller=controller
         )
@@ -367,7 +376,9 @@ class SupervisedRun:
         capture_log: bool = False,
         with_progress: bool = False,
         controller: Controller | None = None,
+        probe: bool = False,
     ) -> None:
+        self._probe = probe  # only build the user's controller and send its columns (`probe_columns`)
         self.run = run
         self.plant = plant
         self.limit = time_limit_of(run, time_limit)
@@ -423,7 +434,7 @@ class SupervisedRun:
     def _fork(self) -> None:
         try:
             self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=self._scratch))
-            if self.deferred:
+            if self.deferred and not self._probe:
                 self._buffer_fd = _unnamed_file(self._workdir)
             else:
                 _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
@@ -711,6 +722,34 @@ def simulate_supervised(
         child.stop()  # kills a child still running (an interrupt); nothing once it is done
         child.close()
     return child.outcome()
+
+
+def probe_columns(run: Run, plant: PlantInterface, time_limit: float | None = None) -> tuple[str, ...]:
+    """The trace columns of `run` with its user's controller (controller.python or controller.fmu),
+    found by building and checking the controller in a supervised child (under the run's time
+    limit, or `time_limit`), never in this process. Raises ControllerError with the one-line
+    reason: the controller's own refusal, or what ended the child (an exit, a crash, the limit)."""
+    child = SupervisedRun(run, plant, time_limit=time_limit, probe=True)
+    try:
+        child.start()
+        while not child.done:
+            wait_for([child])
+    finally:
+        child.stop()
+        child.close()
+        if child.relay is not None:
+            child.relay.relay()
+    messages = _messages(child._chunks)
+    built = next((message for message in messages if message[0] == "columns"), None)
+    if built is not None:
+        return tuple(built[1])
+    if child.refused is not None:
+        raise ControllerError(child.refused)
+    refused = next((message for message in messages if message[0] == "refused"), None)
+    if refused is not None:
+        raise ControllerError(refused[1])
+    reason = _building_reason(run, child.reason, _answer(child._chunks), child.status)
+    raise ControllerError(bounded_text(reason.removeprefix("controller: ")))
 
 
 def _answer(chunks: list[bytes]) -> tuple | None:

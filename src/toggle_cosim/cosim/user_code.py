@@ -31,6 +31,7 @@ import importlib.machinery
 import importlib.util
 import itertools
 import os
+import re
 import stat
 import sys
 from dataclasses import dataclass
@@ -46,10 +47,12 @@ _serial = itertools.count(1)
 _origins: dict[str, str] = {}  # the name a scenario's module was imported under -> the name it was given
 
 
-def shown(module: str) -> str:
-    """A module's name as the scenario gave it (`toggle_cosim_scenario_3.pid` -> `mylaws.pid`)."""
-    top, dot, rest = module.partition(".")
-    return f"{_origins[top]}{dot}{rest}" if top in _origins else module
+def shown(text: str) -> str:
+    """`text` (a module's or class's name, a message) with each name a scenario's module was
+    imported under put back as the scenario gave it (`toggle_cosim_scenario_3.PID` -> `mylaws.PID`)."""
+    if PREFIX not in text:
+        return text
+    return re.sub(rf"\b{PREFIX}\d+\b", lambda found: _origins.get(found.group(0), found.group(0)), text)
 
 
 @dataclass(frozen=True)

@@ -131,7 +131,7 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
                 " output limit; sweep fewer cases, raise T_s, shorten t_end or raise TOGGLE_COSIM_MAX_OUTPUT"
             )
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
 
     seen = set()
     for (
@@ -151,7 +151,9 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
             check_settings(run, plant)
             if run.controller.python is None and run.controller.fmu is None:
                 controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
-            # a controller.python's or controller.fmu's: built and checked once here, its columns kept for the cases
+            check_user_controller(run, plant.recorded_outputs)  # without running the user's code
+            # a controller.python's or controller.fmu's: built and checked once in a supervised child
+            # (`supervision.probe_columns`), never in this process; its columns kept for the cases
             columns = case_columns(case.payload(), plant)
             if keep_traces and columns != trace_names(plant):
                 raise SweepError(
