@@ -34,6 +34,9 @@ class OutputRelay:
             os.dup2(write, target)
             os.close(read)
             os.close(write)
+        # Python's own streams too (the parent's may be a notebook's or a test runner's objects)
+        sys.stdout = open(1, "w", encoding="utf-8", errors="replace", closefd=False, buffering=1)  # noqa: SIM115
+        sys.stderr = open(2, "w", encoding="utf-8", errors="replace", closefd=False, buffering=1)  # noqa: SIM115
 
     def after_fork(self) -> None:
         """In the parent, after the fork: close the write ends and never block on the read ends."""

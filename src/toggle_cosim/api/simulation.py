@@ -90,7 +90,10 @@ def _outcome(
 ) -> RunOutcome:
     """The one place a run starts, supervised or in this process."""
     if not supervised:
-        return master.simulate(run, plant, progress, controller=controller)
+        from toggle_cosim.cosim.supervision import in_process_folder
+
+        with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
+            return master.simulate(run, plant, progress, controller=controller)
     from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
 
     remove_stale_folders()

@@ -106,10 +106,12 @@ def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN
     the working directory is restored after it, whatever the plant did with it)."""
     if not _supervised():
         from toggle_cosim.cosim.master import simulate
+        from toggle_cosim.cosim.supervision import in_process_folder
 
         here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         try:
-            return simulate(run, plant, progress)
+            with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
+                return simulate(run, plant, progress)
         finally:  # a plant that changed directory must not move the relative paths that follow
             with contextlib.suppress(OSError):
                 os.fchdir(here)

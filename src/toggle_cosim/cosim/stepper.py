@@ -224,7 +224,7 @@ def step_raised(t: float, error: BaseException) -> ControllerFailed:
 
 
 def _error(error: BaseException) -> str:
-    return error_text(error)
+    return error_text(error, 300)  # with the sentence around it, within the reason's bound
 
 
 class CompiledStepper:

@@ -47,7 +47,7 @@ import sys
 import tempfile
 import time as clock
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +95,23 @@ def remove_stale_folders(scratch: Path | None = None) -> list[Path]:
         shutil.rmtree(path, ignore_errors=True)
         removed.append(path)
     return removed
+
+
+@contextlib.contextmanager
+def in_process_folder(scratch: Path | None = None) -> Iterator[Path]:
+    """For a run in this process (`simulate(supervised=False)`, TOGGLE_COSIM_SUPERVISE=0): a run
+    folder named as a supervised run's (so that, if a plant's crash ends this process, the next
+    command's `remove_stale_folders` removes it), where the FMUs are unzipped while the block runs
+    (`tempfile.tempdir`, restored after), removed when it ends."""
+    remove_stale_folders(scratch)
+    folder = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=scratch))
+    previous = tempfile.tempdir
+    tempfile.tempdir = str(folder)
+    try:
+        yield folder
+    finally:
+        tempfile.tempdir = previous
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def default_time_limit(t_end: float) -> float:
