@@ -39,6 +39,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from fault_plants import fault_environment, make_faulty_fmu
+from python_fmus import build_python_fmu
 
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import read_csv
@@ -98,6 +99,8 @@ class Law:
                 raise KeyboardInterrupt
             if self.how == "exit_step":
                 raise SystemExit(0)
+            if self.how == "segv_step":
+                ctypes.string_at(0)
             if self.how == "big_command":
                 return ControlStep(list(range(10_000_000)), (0.0,), state)
             if self.how == "big_error":
@@ -243,6 +246,8 @@ def test_user_code_that_ends_hangs_or_interrupts_fails_its_own_run_only(
         "kbi": r"key controller\.python: hostile:make raised KeyboardInterrupt",
         "kbi_step": r"controller failed: the controller's step raised at t = 0\.005 s: KeyboardInterrupt",
         "exit_step": r"controller failed: the controller's step raised at t = 0\.005 s: SystemExit: 0",
+        "segv_step": r"controller: the controller's hostile:make \(controller\.python\) ended the run's process: it was "
+        r"killed by SIGSEGV while it computed the sample at t = 0\.005 s",
     }
     variants = {how: {"controller": {"parameters": {"how": how}}} for how in reasons}
     variants["after"] = {}
@@ -279,6 +284,51 @@ def test_what_we_write_about_a_failure_and_relay_is_bounded(tmp_path: Path, plan
     assert re.search(r"ValueError: x+… \(500000\d\d characters in all\)", output)
     printed = json.loads((out / "bounded" / "print" / "run.json").read_text(encoding="utf-8"))
     assert printed["status"] == "complete"
+
+
+CRASH_LAW = '''
+import ctypes
+from pythonfmu import Fmi2Causality, Fmi2Slave, Real
+
+
+class CrashLaw(Fmi2Slave):
+    """iq_ref = 40 (0.3199 - x_B); its doStep from t = 0.005 s dereferences a null pointer."""
+
+    author = "toggle-cosim tests"
+    description = "crashes"
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.x_B = 0.2329
+        self.register_variable(Real("x_B", causality=Fmi2Causality.input))
+        self.register_variable(Real("iq_ref", causality=Fmi2Causality.output, getter=lambda: 40.0 * (0.3199 - self.x_B)))
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if current_time >= 0.005:
+            ctypes.string_at(0)
+        return True
+'''
+
+
+def test_a_controller_fmu_crash_names_the_controller(
+    tmp_path: Path, plant_fmu: Path
+) -> None:
+    """The controller FMU's doStep over [0.005, 0.0055] s segfaults (called at the sample
+    0.0055 s, both couplings): the reason names the controller FMU, not the plant (a plant's own
+    crash still names the plant: test_api, test_faults)."""
+    fmu = build_python_fmu(CRASH_LAW, tmp_path, "CrashLaw")
+    path = _scenario(
+        tmp_path, "crash", {"fmu": fmu.name}, variants={"gauss_seidel": {}, "jacobi": {"coupling": "jacobi"}}
+    )
+    code, output = _run(str(path), "--fmu", str(plant_fmu), "--out", str(tmp_path / "out"), "-q")
+    assert code == 1, output
+    for variant in ("gauss_seidel", "jacobi"):
+        record = json.loads((tmp_path / "out" / "crash" / variant / "run.json").read_text(encoding="utf-8"))
+        assert record["reason"] == (
+            "controller: the controller FMU CrashLaw.fmu (controller.fmu) ended the run's process: it was killed by"
+            " SIGSEGV while it computed the sample at t = 0.0055 s"
+        ), record["reason"]
+        assert "plant" not in record["reason"]
 
 
 def test_a_string_for_a_controller_fmu_real_parameter_is_refused_before_any_run(

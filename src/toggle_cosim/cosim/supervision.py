@@ -615,7 +615,15 @@ class SupervisedRun:
             if reason is None:
                 reason = self._exit_reason(answer)
             at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
-            reason = f"{_named(reason, run)}{at}"
+            in_controller = not self.interrupted and self._in_controller(rows)
+            sample = f" while it computed the sample at t = {rows * run.T_s:.6g} s"
+            if in_controller and self.reason is None:  # the plant's outputs of the next sample read, no command yet
+                reason = f"controller: {_controller_words(run)} ended the run's process: {reason}{sample}"
+                reason = reason.replace("process: the plant process", "process: it")
+            elif in_controller:  # the time limit passed while the controller computed
+                reason = f"controller: {_controller_words(run)} did not finish its step: {reason}{sample}"
+            else:
+                reason = f"{reason}{at}"
         reason = bounded_text(reason)
         status_word = "interrupted" if self.interrupted else "failed"
         if self._built is not None:
@@ -627,23 +635,36 @@ class SupervisedRun:
         record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall, controller=controller)
         return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
 
+    def _in_controller(self, rows: int) -> bool:
+        """True when the child died (by a signal or an exit) inside the controller: the first
+        unfinished sample has every plant output read but no command, which both loops write
+        in that order (read the plant, run the controller, record the command, step the plant)."""
+        if self.status is None or rows >= self.buffer.shape[0] or "iq_ref" not in self.names:
+            return False
+        row = self.buffer[rows]
+        outputs = row[1 : 1 + len(self.plant.recorded_outputs)]
+        return bool(np.all(np.isfinite(outputs)) and np.isnan(row[self.names.index("iq_ref")]))
+
     def _exit_reason(self, answer: tuple | None) -> str:
         if answer is not None and answer[0] == "error":
             return f"the plant could not be run: {answer[1]}"
         return exit_reason(self.status)
 
 
-def _controller_words(run: Run) -> str:
-    """The user's controller in words, for a failure while it was built."""
+def _controller_words(run: Run, building: bool = False) -> str:
+    """The run's controller in words, for a failure while it was built (`building`) or ran."""
     if run.controller.fmu is not None:
         return f"the controller FMU {Path(run.controller.fmu).name} (controller.fmu)"
-    return f"the controller's module or factory {run.controller.python} (controller.python)"
+    if run.controller.python is not None:
+        what = "module or factory" if building else ""
+        return f"the controller's {what} {run.controller.python} (controller.python)".replace("  ", " ")
+    return "the controller"
 
 
 def _building_reason(run: Run, limit: str | None, answer: tuple | None, status: int | None) -> str:
     """Why a run failed whose child ended (or was ended: `limit`) while it built the user's
     controller: its import, its factory or loading its FMU."""
-    words = _controller_words(run)
+    words = _controller_words(run, building=True)
     if limit is not None:
         return f"controller: building {words} did not finish: {limit}"
     if answer is not None and answer[0] == "error":
@@ -657,17 +678,6 @@ def _building_reason(run: Run, limit: str | None, answer: tuple | None, status: 
     return (
         f"controller: {words} ended the run's process {said} while it was imported or built"
         " (os._exit, or a signal it sent itself); nothing was run"
-    )
-
-
-def _named(reason: str, run: Run) -> str:
-    """An exit reason naming what runs in the process: the plant, and a controller FMU beside it
-    (whose C code runs in the same process, so a crash may be either's)."""
-    if run.controller.fmu is None or "the plant process" not in reason:
-        return reason
-    name = Path(run.controller.fmu).name
-    return reason.replace(
-        "the plant process", f"the run's process (the plant FMU and the controller FMU {name}, both native code)"
     )
 
 
