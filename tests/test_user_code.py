@@ -310,9 +310,7 @@ class CrashLaw(Fmi2Slave):
 '''
 
 
-def test_a_controller_fmu_crash_names_the_controller(
-    tmp_path: Path, plant_fmu: Path
-) -> None:
+def test_a_controller_fmu_crash_names_the_controller(tmp_path: Path, plant_fmu: Path) -> None:
     """The controller FMU's doStep over [0.005, 0.0055] s segfaults (called at the sample
     0.0055 s, both couplings): the reason names the controller FMU, not the plant (a plant's own
     crash still names the plant: test_api, test_faults)."""
