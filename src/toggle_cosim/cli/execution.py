@@ -214,10 +214,18 @@ def execute_runs(  # noqa: ANN201
     return outcomes
 
 
+SUMMARY_RUNS = 5  # the failed runs the closing line names; each run's line and run.json say the rest
+
+
 def raise_if_failed(outcomes) -> None:  # noqa: ANN001
-    failed = [f"{o.run.label} ({o.reason})" for o in outcomes if not o.complete]
+    """RunFailed naming the failed runs (the first SUMMARY_RUNS, each reason bounded), if any."""
+    from toggle_cosim.messages import bounded_text
+
+    failed = [f"{o.run.label} ({bounded_text(o.reason or '', 200)})" for o in outcomes if not o.complete]
     if failed:
-        raise RunFailed(f"{len(failed)} run(s) failed: {'; '.join(failed)}")
+        more = f"; and {len(failed) - SUMMARY_RUNS} more (each run's line and run.json say why)"
+        named = "; ".join(failed[:SUMMARY_RUNS]) + (more if len(failed) > SUMMARY_RUNS else "")
+        raise RunFailed(f"{len(failed)} run(s) failed: {named}")
 
 
 JOBS_OPTION = click.option(

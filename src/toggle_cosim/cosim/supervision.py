@@ -567,9 +567,13 @@ class SupervisedRun:
         if self._workdir is not None:
             shutil.rmtree(self._workdir, ignore_errors=True)  # the map outlives its file
 
+    def messages(self) -> list[tuple]:
+        """The whole messages the child sent so far, in order."""
+        return _messages(self._chunks)
+
     def _map_built(self) -> None:
         """Deferred: the trace buffer the child sized, mapped here once its columns came."""
-        built = next((message for message in _messages(self._chunks) if message[0] == "columns"), None)
+        built = next((message for message in self.messages() if message[0] == "columns"), None)
         if built is None or self._built is not None:
             return
         names = tuple(built[1])
@@ -592,7 +596,7 @@ class SupervisedRun:
         run, plant = self.run, self.plant
         if self.relay is not None:
             self.relay.relay()
-        answer = _answer(self._chunks)
+        answer = _answer(self.messages())
         rows = rows_recorded(self.buffer)
         trace = Trace(self.names, self.buffer[:rows])
         wall = clock.perf_counter() - self.started
@@ -766,7 +770,7 @@ def probe_columns(run: Run, plant: PlantInterface, time_limit: float | None = No
         child.close()
         if child.relay is not None:
             child.relay.relay()
-    messages = _messages(child._chunks)
+    messages = child.messages()
     built = next((message for message in messages if message[0] == "columns"), None)
     if built is not None:
         return tuple(built[1])
@@ -775,11 +779,11 @@ def probe_columns(run: Run, plant: PlantInterface, time_limit: float | None = No
     refused = next((message for message in messages if message[0] == "refused"), None)
     if refused is not None:
         raise ControllerError(refused[1])
-    reason = _building_reason(run, child.reason, _answer(child._chunks), child.status)
+    reason = _building_reason(run, child.reason, _answer(child.messages()), child.status)
     raise ControllerError(bounded_text(reason.removeprefix("controller: ")))
 
 
-def _answer(chunks: list[bytes]) -> tuple | None:
+def _answer(messages: list[tuple]) -> tuple | None:
     """The child's last word: its outcome, error or refusal (None if it sent none whole)."""
-    final = [message for message in _messages(chunks) if message[0] in ("outcome", "error", "refused")]
+    final = [message for message in messages if message[0] in ("outcome", "error", "refused")]
     return final[-1] if final else None
