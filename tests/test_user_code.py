@@ -213,6 +213,32 @@ def test_code_others_could_have_written_is_refused_before_any_run(tmp_path: Path
     assert not out.exists()
 
 
+def test_a_package_beside_the_scenario_runs_with_its_relative_imports(tmp_path: Path, plant_fmu: Path) -> None:
+    """`lawpack.laws:make` from lawpack/ beside the scenario, whose laws.py takes its gain from a
+    sibling module by a relative import; a link to a module owned by another user is refused."""
+    package = tmp_path / "lawpack"
+    package.mkdir()
+    (package / "__init__.py").write_text("", encoding="utf-8")
+    (package / "gains.py").write_text("GAIN = 17.0\n", encoding="utf-8")
+    (package / "laws.py").write_text(
+        PROPORTIONAL.format(gain="GAIN").replace("GAIN = GAIN", "from .gains import GAIN"), encoding="utf-8"
+    )
+    path = _scenario(tmp_path, "packaged", {"python": "lawpack.laws:make"})
+    code, output = _run(str(path), "--fmu", str(plant_fmu), "--out", str(tmp_path / "out"), "-q")
+    assert code == 0, output
+    trace = read_csv(tmp_path / "out" / "packaged" / "run" / "trace.csv")
+    assert trace.column("iq_ref")[0] == pytest.approx(17.0 * (X_TARGET - X_START), rel=1e-12)
+    if os.geteuid() == 0:
+        foreign = tmp_path / "foreign"
+        foreign.mkdir()
+        (foreign / "theirs.py").write_text(PROPORTIONAL.format(gain=1.0), encoding="utf-8")
+        os.chown(foreign / "theirs.py", 65534, 65534)
+        (tmp_path / "linked.py").symlink_to(foreign / "theirs.py")
+        path = _scenario(tmp_path, "linked", {"python": "linked:make"})
+        code, output = _run(str(path), "--fmu", str(plant_fmu), "--out", str(tmp_path / "out2"), "-q")
+        assert code == 2 and "is owned by user id 65534" in output and "refused" in output, output
+
+
 def test_a_module_on_sys_path_is_not_checked_for_ownership(tmp_path: Path, plant_fmu: Path, monkeypatch) -> None:
     """The user's own environment (PYTHONPATH) is theirs: a module there runs, group-writable or not."""
     library = tmp_path / "library"

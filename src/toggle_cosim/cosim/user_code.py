@@ -102,6 +102,7 @@ def _on_sys_path(name: str) -> Located | None:
 def locate(name: str, folder: Path | None) -> Located:
     """The module `name` (dotted), beside the scenario file in `folder` first, then on sys.path;
     nothing is imported. ControllerError (key controller.python) when neither has it."""
+    folder = Path(os.path.abspath(folder)) if folder is not None else None  # a chdir later moves nothing
     found = _beside(name, folder) if folder is not None else None
     found = found or _on_sys_path(name)
     if found is None:
@@ -116,12 +117,15 @@ def locate(name: str, folder: Path | None) -> Located:
 
 
 def _checked_paths(found: Located, folder: Path | None) -> list[Path]:
-    """The module's file and every folder from it up to the scenario's folder."""
+    """The module's file, every folder from it up to the scenario's folder, and the bytecode
+    caches (`__pycache__`) in them that Python would read a package's modules from."""
     assert found.path is not None
     paths = [found.path]
     parent = found.path.parent
     while True:
         paths.append(parent)
+        if (parent / "__pycache__").exists():
+            paths.append(parent / "__pycache__")
         if folder is None or parent == folder or parent == parent.parent:
             break
         parent = parent.parent
@@ -132,7 +136,9 @@ def check_owned(path: Path, key: str) -> None:
     """Refuse (ControllerError naming `key` and the file) a file, or the folder holding it, that
     is writable by group or others or owned by another user than the one running (root's own
     files excepted): the file is code this command would run."""
-    for target in (path,) if path.is_dir() else (path, path.parent):
+    real = path.resolve()  # a link is judged by what it leads to, and by the folder the link is in
+    targets = (path, real) if path.is_dir() else (path, path.parent, real, real.parent)
+    for target in dict.fromkeys(targets):
         try:
             status = target.stat()
         except OSError as error:
@@ -167,8 +173,17 @@ def import_module(found: Located) -> ModuleType:
     return importlib.import_module(".".join([unique, *rest])) if rest else package
 
 
+class _SourceOnly(importlib.machinery.SourceFileLoader):
+    """A loader that compiles the checked source file itself: no bytecode cache is read (one
+    that others could have written) or written beside the scenario."""
+
+    def get_code(self, fullname: str) -> object:
+        return compile(self.get_data(self.path), self.path, "exec", dont_inherit=True)
+
+
 def _exec(name: str, path: Path, search: list[str] | None) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, path, submodule_search_locations=search)
+    loader = _SourceOnly(name, str(path))
+    spec = importlib.util.spec_from_file_location(name, path, loader=loader, submodule_search_locations=search)
     if spec is None or spec.loader is None:
         raise ImportError(f"{path} cannot be imported")
     module = importlib.util.module_from_spec(spec)
