@@ -4,7 +4,7 @@ controller protocol (`control.protocol`) before the run.
 A scenario names a user's controller by a factory::
 
     controller:
-      python: "my_controllers:make_pid"    # module:callable, imported from the scenario's folder or sys.path
+      python: "my_controllers:make_pid"    # module:callable, beside the scenario file or on sys.path (`user_code`)
       parameters: {Kp: 40.0, Ki: 5.0}       # passed to the factory as keyword arguments
       error: {output: x_B}                  # python-control systems only: e = target − output
       command: iq_ref                       # python-control systems only: the input the system drives
@@ -22,6 +22,10 @@ checked by `plant.controller_contract` and run by `fmu_controller.FmuController`
 built-in law's parameters (`controller_contract.LAW_PARAMETERS`) first gets the scenario's own
 controller settings. Every failure is a `ControllerError` whose message names the key and
 the fix; the run commands prefix the scenario file.
+
+`controller_for` runs the user's code (imports the module, calls the factory, loads the FMU):
+the run commands call it only in the run's supervised child (`supervision`); before any run
+they call `check_user_controller`, which runs none of it.
 """
 
 from __future__ import annotations

@@ -274,7 +274,7 @@ def _plant_process(
     try:
         limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
-        here = os.getcwd()
+        here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))  # restored after the user's code
 
         def progress(fraction: float) -> None:
             progress_slot[0] = fraction
@@ -287,7 +287,7 @@ def _plant_process(
                 os._exit(0)
             finally:
                 with contextlib.suppress(OSError):
-                    os.chdir(here)  # a module that changed directory at import moves nothing of the run's
+                    os.fchdir(here)  # a module that changed directory at import moves nothing of the run's
             if buffer is None:  # a probe: built and checked, nothing to run
                 master.close_controller(controller)
                 _send(write_fd, ("probed",))
