@@ -124,7 +124,10 @@ def make(context, how="none"):
         raise SystemExit(0)
     if how == "kbi":
         raise KeyboardInterrupt
-    return Law(context.x_target, how)
+    law = Law(context.x_target, how)
+    if how == "many_diagnostics":
+        law.diagnostics = tuple(f"d{i}" for i in range(20_000))
+    return law
 """
 
 
@@ -295,13 +298,15 @@ def test_user_code_that_ends_hangs_or_interrupts_fails_its_own_run_only(
 
 def test_what_we_write_about_a_failure_and_relay_is_bounded(tmp_path: Path, plant_fmu: Path, monkeypatch) -> None:
     (tmp_path / "hostile.py").write_text(HOSTILE, encoding="utf-8")
-    variants = {how: {"controller": {"parameters": {"how": how}}} for how in ("big_command", "big_error", "print")}
+    hows = ("big_command", "big_error", "print", "many_diagnostics")
+    variants = {how: {"controller": {"parameters": {"how": how}}} for how in hows}
     path = _scenario(tmp_path, "bounded", {"python": "hostile:make"}, variants=variants)
     monkeypatch.setenv("TOGGLE_COSIM_MAX_LOG", "4K")
+    monkeypatch.setenv("TOGGLE_COSIM_MAX_OUTPUT", "1000000")  # 41 samples x 20013 columns x 8 bytes is 6.6 MB
     out = tmp_path / "out"
     code, output = _run(str(path), "--fmu", str(plant_fmu), "--out", str(out), "-q", "--jobs", "1")
     assert code == 1
-    assert len(output) < 12_000, len(output)  # 4 KiB of the print run's 410 KB, three lines, the summary
+    assert len(output) < 12_000, len(output)  # 4 KiB of the print run's 410 KB, four lines, the summary
     assert re.search(r"\.\.\. \d+ more bytes of the run's output .* were dropped: .* 4096 bytes", output)
     for how, said in (("big_command", "[0, 1, 2, 3, 4, 5, 6, 7, ...] (a list of 10000000)"), ("big_error", "xxxx")):
         record = json.loads((out / "bounded" / how / "run.json").read_text(encoding="utf-8"))
@@ -310,6 +315,9 @@ def test_what_we_write_about_a_failure_and_relay_is_bounded(tmp_path: Path, plan
     assert re.search(r"ValueError: x+… \(500000\d\d characters in all\)", output)
     printed = json.loads((out / "bounded" / "print" / "run.json").read_text(encoding="utf-8"))
     assert printed["status"] == "complete"
+    many = json.loads((out / "bounded" / "many_diagnostics" / "run.json").read_text(encoding="utf-8"))
+    assert many["reason"].startswith("controller: the controller's 20000 diagnostics make the trace 41 samples x")
+    assert "over the 0.00 GB output limit" in many["reason"] and many["samples"] == 0
 
 
 CRASH_LAW = '''

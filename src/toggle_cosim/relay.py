@@ -27,9 +27,14 @@ class OutputRelay:
         self.dropped = 0
 
     def in_child(self) -> None:
-        """In the child, first thing: its stdout and stderr become the pipes' write ends."""
+        """In the child, first thing: its stdout and stderr become the pipes' write ends, and its
+        stdin /dev/null (a plant or controller never reads what the command's user types)."""
         sys.stdout.flush()
         sys.stderr.flush()
+        with contextlib.suppress(OSError):
+            null = os.open(os.devnull, os.O_RDONLY)
+            os.dup2(null, 0)
+            os.close(null)
         for target, (read, write) in zip((1, 2), self._pipes, strict=True):
             os.dup2(write, target)
             os.close(read)

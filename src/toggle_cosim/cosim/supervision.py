@@ -243,6 +243,13 @@ def _build_controller(
     except BaseException as error:  # noqa: BLE001 - the user's code: SystemExit, KeyboardInterrupt included
         raise ControllerError(f"building the controller raised {error_text(error)}") from None
     names = master.trace_names(plant, diagnostics)
+    size = (run.steps + 1) * len(names) * 8
+    if size > limits.max_output():
+        raise ControllerError(
+            f"the controller's {len(diagnostics)} diagnostics make the trace {run.steps + 1} samples x {len(names)}"
+            f" columns, about {size / 1e9:.2f} GB, over the {limits.max_output() / 1e9:.2f} GB output limit"
+            " (record fewer diagnostics, or raise TOGGLE_COSIM_MAX_OUTPUT)"
+        )
     if buffer_fd < 0:  # a probe (`probe_columns`): the columns alone
         _send(write_fd, ("columns", names, controller_record(run, controller)))
         return controller, None
