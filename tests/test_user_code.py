@@ -395,6 +395,31 @@ def test_a_sweep_survives_a_controller_that_kills_its_parent(tmp_path: Path, pla
     assert "killed by SIGKILL" in table["reason"][1]
 
 
+@pytest.mark.parametrize(
+    ("how", "said"),
+    [
+        ("segv", "crashed the run's process while it was imported or built (killed by SIGSEGV)"),
+        ("exit0", "key controller.python: hostile:make raised SystemExit: 0"),
+        ("sleep", "did not finish: time limit 1.5 s exceeded"),
+    ],
+)
+def test_a_sweep_builds_its_controllers_in_a_child_before_any_case(
+    tmp_path: Path, plant_fmu: Path, how: str, said: str
+) -> None:
+    """A factory that crashes, exits 0 or hangs stops the sweep before any case: one line, exit 2,
+    nothing written, and the sweep's own process lives (exit 0 and 139 before)."""
+    (tmp_path / "hostile.py").write_text(HOSTILE, encoding="utf-8")
+    base = _scenario(tmp_path, "probed", {"python": "hostile:make", "parameters": {"how": how}})
+    sweep = {"base": base.name, "axes": {"plant.F_E": {"values": [0.0, 10.0]}}, "output": "swept"}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    command = [sys.executable, "-m", "toggle_cosim", "sweep", "sweep.yaml", "--fmu", str(plant_fmu), "--quiet"]
+    done = subprocess.run([*command, "--case-timeout", "1.5"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, (done.returncode, done.stderr)
+    assert lines[0].startswith("error: sweep.yaml: case 0: ") and said in lines[0], lines
+    assert not (tmp_path / "swept").exists()
+
+
 def test_a_plant_that_answers_fatal_to_reset_is_never_called_again(
     tmp_path: Path, plant_fmu: Path, monkeypatch
 ) -> None:
