@@ -465,6 +465,39 @@ def test_simulate_in_process_unzips_into_a_run_folder_it_removes(plant_fmu: Path
     assert tempfile.gettempdir() != seen[0]
 
 
+def test_an_in_process_run_that_crashes_leaves_a_folder_the_next_command_removes(
+    tmp_path: Path, plant_fmu: Path, monkeypatch
+) -> None:
+    """A child process runs simulate(supervised=False) on a plant that segfaults at t = 0.01 s: the
+    FMU's unzipped copy it leaves is in a run folder named by its process id, which
+    `remove_stale_folders` (every command's first step) then removes."""
+    import toggle_cosim as tc
+    from toggle_cosim.cosim.supervision import FOLDER_PREFIX, remove_stale_folders
+    from toggle_cosim.experiments.scenario import runs_from_document
+    from toggle_cosim.plant.contract import check_plant
+
+    faulty = make_faulty_fmu(plant_fmu, tmp_path / "faulty.fmu")
+    for name, value in fault_environment("segfault", 0.01, check_plant(faulty).references).items():
+        if name.startswith("TOGGLE_"):
+            monkeypatch.setenv(name, value)
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    (run,) = runs_from_document({"name": "crashing", **SCENARIO}, None)
+    tc.simulate(run, faulty, supervised=True)  # the plant checked (and probed) here, before the fork
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child dies in the plant
+        try:
+            tc.simulate(run, faulty, supervised=False)
+        finally:
+            os._exit(0)
+    _, status = os.waitpid(pid, 0)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == 11
+    left = list(scratch.glob(f"{FOLDER_PREFIX}{pid}-*"))
+    assert len(left) == 1 and any(left[0].rglob("modelDescription.xml"))
+    assert remove_stale_folders(scratch) == left and not left[0].exists()
+
+
 def test_the_figure_worker_never_imports_from_the_current_folder(tmp_path: Path, monkeypatch) -> None:
     from toggle_cosim.analysis.figure_worker import FigureWorker
 
