@@ -108,7 +108,8 @@ def locate(name: str, folder: Path | None) -> Located:
     if found is None:
         where = f"beside the scenario file ({folder}) or on sys.path (PYTHONPATH)" if folder else "on sys.path"
         raise ControllerError(
-            f"key controller.python: cannot import {name!r} (no such module {where}); put the module {where}"
+            f"key controller.python: cannot import {name!r}: no such module; put it {where} (a package"
+            " needs an __init__.py)"
         )
     if found.beside:
         for path in _checked_paths(found, folder):
