@@ -32,6 +32,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -485,7 +486,9 @@ def test_an_in_process_run_that_crashes_leaves_a_folder_the_next_command_removes
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     (run,) = runs_from_document({"name": "crashing", **SCENARIO}, None)
     tc.simulate(run, faulty, supervised=True)  # the plant checked (and probed) here, before the fork
-    pid = os.fork()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads: the child only runs the plant
+        pid = os.fork()
     if pid == 0:  # pragma: no cover - the child dies in the plant
         try:
             tc.simulate(run, faulty, supervised=False)
@@ -519,3 +522,12 @@ def test_bounded_text_keeps_a_line_and_says_how_long_it_was() -> None:
     assert bounded_text("short  text\n") == "short text"
     assert error_text(KeyboardInterrupt()) == "KeyboardInterrupt"
     assert short_repr(np.zeros(10**7)).endswith("(a ndarray of 10000000)")
+
+
+def test_a_bad_output_cap_is_one_line_before_any_run(tmp_path: Path, plant_fmu: Path, monkeypatch) -> None:
+    path = _scenario(tmp_path, "capped", None)
+    monkeypatch.setenv("TOGGLE_COSIM_MAX_LOG", "-1")
+    code, output = _run(str(path), "--fmu", str(plant_fmu), "--out", str(tmp_path / "out"), "-q")
+    lines = output.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "TOGGLE_COSIM_MAX_LOG='-1': give a number of bytes" in lines[0], output
+    assert not (tmp_path / "out").exists()
