@@ -94,6 +94,10 @@ class Law:
     def start(self, t0, measurement):
         return None
 
+    def close(self):
+        if self.how == "exit_close":
+            raise SystemExit(3)
+
     def step(self, state, t, measurement):
         if t >= 0.005:
             if self.how == "kbi_step":
@@ -279,7 +283,7 @@ def test_user_code_that_ends_hangs_or_interrupts_fails_its_own_run_only(
         "segv_step": r"controller: the controller's hostile:make \(controller\.python\) ended the run's process: it was "
         r"killed by SIGSEGV while it computed the sample at t = 0\.005 s",
     }
-    variants = {how: {"controller": {"parameters": {"how": how}}} for how in reasons}
+    variants = {how: {"controller": {"parameters": {"how": how}}} for how in [*reasons, "exit_close"]}
     variants["after"] = {}
     path = _scenario(tmp_path / "work", "hostile", {"python": "hostile:make"}, variants=variants)
     monkeypatch.chdir(tmp_path / "work")
@@ -292,8 +296,9 @@ def test_user_code_that_ends_hangs_or_interrupts_fails_its_own_run_only(
         record = json.loads((tmp_path / "work" / "out" / "hostile" / how / "run.json").read_text(encoding="utf-8"))
         assert record["status"] == "failed" and re.search(reason, record["reason"]), (how, record["reason"])
         assert re.search(reason, output), how
-    after = json.loads((tmp_path / "work" / "out" / "hostile" / "after" / "run.json").read_text(encoding="utf-8"))
-    assert after["status"] == "complete"
+    for complete in ("after", "exit_close"):  # a close() that raises SystemExit changes nothing of the run
+        record = json.loads((tmp_path / "work" / "out" / "hostile" / complete / "run.json").read_text(encoding="utf-8"))
+        assert record["status"] == "complete", record["reason"]
     assert list((tmp_path / "elsewhere").iterdir()) == []  # every module changed directory: no output went there
 
 

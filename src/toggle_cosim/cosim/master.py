@@ -35,6 +35,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import controller_for, controller_record
@@ -276,8 +277,9 @@ def close_controller(controller: object) -> None:
     if callable(close):
         try:
             close()
-        except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
-            pass
+        except BaseException as error:  # noqa: BLE001 - freeing never changes a run's outcome
+            if not interrupts.raised_by_code(error):  # SystemExit, or KeyboardInterrupt in a run's child
+                raise
 
 
 def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:

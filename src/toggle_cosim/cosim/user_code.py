@@ -137,7 +137,10 @@ def check_owned(path: Path, key: str) -> None:
     """Refuse (ControllerError naming `key` and the file) a file, or the folder holding it, that
     is writable by group or others or owned by another user than the one running (root's own
     files excepted): the file is code this command would run."""
-    real = path.resolve()  # a link is judged by what it leads to, and by the folder the link is in
+    try:
+        real = path.resolve()  # a link is judged by what it leads to, and by the folder the link is in
+    except (OSError, RuntimeError) as error:  # a loop of links
+        raise ControllerError(f"{key}: {path}: {getattr(error, 'strerror', None) or error}") from None
     targets = (path, real) if path.is_dir() else (path, path.parent, real, real.parent)
     for target in dict.fromkeys(targets):
         try:
