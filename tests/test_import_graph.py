@@ -159,6 +159,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("runs",),
     ("plant",),
     ("cosim",),
+    ("design",),
     ("analysis",),
     ("experiments",),
     ("ssp",),

@@ -136,6 +136,8 @@ def test_a_wheel_outside_the_clone_builds_runs_compares_and_runs_the_ci_template
     assert "fig4_nominal" in (tmp_path / "step_summary.md").read_text(encoding="utf-8")
     junit = (repository / "reports" / "references.xml").read_text(encoding="utf-8")
     assert 'failures="0"' in junit and "x_B" in junit
+    report = (repository / "reports" / "references" / "report.html").read_text(encoding="utf-8")
+    assert "fig4_nominal/friction: PASS" in report and "<script src" not in report  # plotly.js inside
 
     # a shipped scenario run and compared with its stored reference, from the installed package
     _run(["toggle-cosim", "run", "scenarios/fig4_nominal.yaml", "--out", "out"], repository, env)
@@ -158,4 +160,7 @@ def test_the_ci_template_installs_builds_and_checks_references_with_folder() -> 
     assert runs[0].startswith("python -m pip install")
     assert runs[1].startswith("toggle-cosim build --source")
     assert "toggle-cosim references" in runs[2] and "--folder" in runs[2] and "--junit" in runs[2]
+    assert "--html" in runs[2]
     assert "GITHUB_STEP_SUMMARY" in runs[3]
+    uploads = [step for step in workflow["jobs"]["references"]["steps"] if "upload-artifact" in step.get("uses", "")]
+    assert [step["with"]["path"] for step in uploads] == ["reports/", "reports/references/report.html"]

@@ -31,6 +31,7 @@ _PUBLIC = {
     "compare": "toggle_cosim.api.comparison",
     "Comparison": "toggle_cosim.api.comparison",
     "CompareInputError": "toggle_cosim.api.comparison",
+    "plot": "toggle_cosim.api.plotting",
     "sweep": "toggle_cosim.api.sweeping",
     "SweepError": "toggle_cosim.api.sweeping",
     "shipped_scenarios": "toggle_cosim.api.project",
@@ -39,6 +40,11 @@ _PUBLIC = {
     "ContractError": "toggle_cosim.plant.contract",
     "Run": "toggle_cosim.runs.definition",
     "RunSummary": "toggle_cosim.cosim.summary",
+    "trim": "toggle_cosim.api.design",
+    "linearize": "toggle_cosim.api.design",
+    "OperatingPoint": "toggle_cosim.api.design",
+    "LinearModel": "toggle_cosim.api.design",
+    "TrimError": "toggle_cosim.api.design",
 }
 __all__ = ["__version__", *_PUBLIC]
 

@@ -35,6 +35,9 @@ EXTRAS = {
     "junitparser": "ci",
     "buildingspy": "ci",
     "matplotlib": "plot",
+    "control": "design",
+    "scipy": "design",
+    "plotly": "report",
 }
 
 

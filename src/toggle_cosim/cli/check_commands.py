@@ -97,6 +97,11 @@ def compare(
 @click.option(
     "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
 )
+@click.option(
+    "--html",
+    is_flag=True,
+    help="Also write OUT/report.html: each run against its reference (funnel band), runs overlaid.",
+)
 @TIME_LIMIT_OPTION
 @JOBS_OPTION
 def references(
@@ -108,6 +113,7 @@ def references(
     junit: Path | None,
     summary: Path | None,
     fail_on_solver_change: bool,
+    html: bool,
     time_limit: float | None,
     jobs: int | None,
 ) -> None:
@@ -121,7 +127,13 @@ def references(
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     if not update:
-        require("junitparser", "matplotlib")
+        require("junitparser", "matplotlib", *(("plotly",) if html else ()))
+    if html and update:
+        raise InputError("--html reports a check against the references; --update rewrites them: give one of the two")
+    if html:
+        from toggle_cosim.cli.report_command import REPORT_FILE
+
+        check_output(out / REPORT_FILE, "HTML report")
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     if not scenarios and not Path("scenarios").is_dir():
         raise InputError(
@@ -130,13 +142,20 @@ def references(
     pairs = load_runs(files, fmu)
     failures: list[str] = []
     checks = []
+    finished = []  # the runs, for the HTML report
     with contextlib.closing(outcomes_of(pairs, folder if update else None, True, time_limit, jobs)) as results:
         for outcome in results:
             failures += _check_reference(outcome, refs, folder, update, fail_on_solver_change, checks)
+            if html and outcome.complete:
+                finished.append(outcome)
     if not update:
         written = write_reference_reports(
             checks, out, junit or out / "junit.xml", summary or out / "summary.md", fail_on_solver_change
         )
+        if html:
+            from toggle_cosim.cli.report_command import write_checks_report
+
+            written.append(write_checks_report(out / REPORT_FILE, checks, finished))
         click.echo(f"reports: {', '.join(str(path) for path in written)}")
     if failures:
         raise RunFailed("; ".join(failures))
@@ -160,9 +179,12 @@ def _check_reference(outcome, refs, folder: Path, update: bool, fail_on_solver_c
         checked = refs.check(outcome, folder)
     except (CompareInputError, ValueError) as error:
         raise InputError(str(error)) from error
-    click.echo(f"{run.label}: {'pass' if checked.comparison.passed else 'FAIL'}")
+    click.echo(f"{run.label}: {'pass' if checked.passed else 'FAIL'}")
     if not checked.comparison.passed:
         click.echo(format_table(checked.comparison))
+    for invariant in checked.invariants:
+        if not invariant.passed:
+            click.echo(f"FAIL: invariant {invariant.line}")
     for line in checked.solver_changes:
         click.echo(f"{'FAIL' if fail_on_solver_change else 'warning'}: {line}")
     checks.append((checked, outcome.trace, refs.reference_stem(folder, run)))

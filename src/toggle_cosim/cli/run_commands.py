@@ -43,11 +43,13 @@ from toggle_cosim.runs.definition import COUPLINGS
     "previous sample's command (overrides the scenarios' coupling: key; default gauss-seidel).",
 )
 @click.option(
-    "--parameter-set",
-    default=None,
+    "--variant",
+    "variants",
+    multiple=True,
     metavar="NAME",
-    help="For an .ssp: run this parameter set only (default: every parameter set, as a scenario's variants).",
+    help="For an .ssp: run this variant, a root SSD named NAME (repeat for several; default: SystemStructure.ssd).",
 )
+@click.option("--parameter-set", "parameter_sets", multiple=True, hidden=True, help="Old name of --variant.")
 @TIME_LIMIT_OPTION
 @JOBS_OPTION
 def run(
@@ -56,7 +58,8 @@ def run(
     out: Path,
     quiet: bool,
     coupling: str | None,
-    parameter_set: str | None,
+    variants: tuple[str, ...],
+    parameter_sets: tuple[str, ...],
     time_limit: float | None,
     jobs: int | None,
 ) -> None:
@@ -65,12 +68,13 @@ def run(
     from toggle_cosim.cli.ssp_command import is_ssp, ssp_runs
 
     ssps = [path for path in scenarios if is_ssp(path)]
-    if parameter_set is not None and not ssps:
-        raise InputError("--parameter-set chooses an SSP's parameter set: give an .ssp file with it")
+    variants = (*variants, *parameter_sets)  # --parameter-set: the old name (a variant is named after its set)
+    if variants and not ssps:
+        raise InputError("--variant chooses an SSP's variant (a root SSD): give an .ssp file with it")
     if fmu is not None and ssps:
         raise InputError(f"{ssps[0]}: --fmu does not apply to an SSP (its plant is inside it); run it without --fmu")
     with contextlib.ExitStack() as stack:  # an SSP's FMUs live in a folder removed after the runs
-        built = ssp_runs(ssps, parameter_set, stack)
+        built = ssp_runs(ssps, variants, stack)
         pairs = load_runs([path for path in scenarios if not is_ssp(path)], fmu, built)
         if coupling is not None:
             pairs = [(dataclasses.replace(one, coupling=coupling), plant) for one, plant in pairs]
@@ -88,15 +92,43 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
 
 @main.command()
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@out_file_option("PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
-def plot(results: tuple[Path, ...], output: Path | None) -> None:
-    """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
+@out_file_option("PNG to write (default: RESULTS/figure.png; with --vars or --reference RESULTS/variables.png).")
+@click.option(
+    "--vars",
+    "variables",
+    default=None,
+    metavar="NAMES",
+    help="Variables to draw, comma-separated (x_B,iq_ref): every RESULTS overlaid, one panel each.",
+)
+@click.option(
+    "--reference",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="A reference trace drawn with its funnel band (tolerance files by place, as compare).",
+)
+def plot(results: tuple[Path, ...], output: Path | None, variables: str | None, reference: Path | None) -> None:
+    """Draw results folders or trace files: the paper's nine-panel figure per scenario folder (variants
+    overlaid), or with --vars/--reference every run overlaid variable by variable (any scenario or plant)."""
+    from toggle_cosim.cli.report_command import is_paper_plant, parse_vars, plot_variables
+
     require("matplotlib")
+    names = parse_vars(variables)
+    if names is not None or reference is not None:
+        check_output(output, "figure (--out)")
+        click.echo(f"wrote {plot_variables(results, names, reference, output)}")
+        return
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")
     check_output(output, "figure (--out)")
     for folder in results:
-        click.echo(f"wrote {_plot_scenario(folder, output)}")
+        if not folder.is_file() and is_paper_plant(folder):
+            click.echo(f"wrote {_plot_scenario(folder, output)}")
+        else:  # a plant of one's own, or a trace file: the variables it has
+            click.echo(f"wrote {plot_variables([folder], None, None, output or _figure_path(folder))}")
+
+
+def _figure_path(result: Path) -> Path:
+    return (result if result.is_dir() else result.parent) / "figure.png"
 
 
 @main.command()
