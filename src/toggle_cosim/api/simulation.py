@@ -101,9 +101,7 @@ def _outcome(
     from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
 
     remove_stale_folders()
-    return simulate_supervised(
-        run, plant, time_limit=time_limit, progress=progress, capture_log=True, controller=controller
-    )
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, controller=controller)
 
 
 def simulate(

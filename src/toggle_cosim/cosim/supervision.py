@@ -397,7 +397,6 @@ class SupervisedRun:
         *,
         time_limit: float | None = None,
         scratch: Path | None = None,
-        capture_log: bool = False,
         with_progress: bool = False,
         controller: Controller | None = None,
         probe: bool = False,
@@ -433,7 +432,6 @@ class SupervisedRun:
         self.buffer = np.full((0, len(self.names)), np.nan)
         self.progress_slot: np.ndarray | None = None
         self.deadline = math.inf
-        del capture_log  # the child's printing is always relayed (`relay`), capped
         self._with_progress = with_progress
         self._scratch = Path(scratch) if scratch is not None else Path(tempfile.gettempdir())
         self._workdir: Path | None = None
@@ -731,11 +729,12 @@ def simulate_supervised(
     time_limit: float | None = None,
     progress: Callable[[float], None] | None = None,
     scratch: Path | None = None,
-    capture_log: bool = False,
     controller: Controller | None = None,
 ) -> outcomes.RunOutcome:
     """`master.simulate` in a supervised child process; never raises for anything the plant or
-    the controller does. `controller`: as for `master.simulate` (the child inherits it).
+    the controller does. `controller`: as for `master.simulate` (the child inherits it); None:
+    the run's own, built in the child. What the child prints is written to this process's
+    sys.stdout and sys.stderr once the run is over, capped (`relay`).
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
     interrupted (`outcome.interrupted`); the caller stops after writing it."""
@@ -744,7 +743,6 @@ def simulate_supervised(
         plant,
         time_limit=time_limit,
         scratch=scratch,
-        capture_log=capture_log,
         with_progress=progress is not None,
         controller=controller,
     )
