@@ -112,6 +112,7 @@ class Law:
                 raise ValueError("x" * 50_000_000)
             if self.how == "kill_parent":
                 os.kill(os.getppid(), 9)
+                time.sleep(5)  # ended meanwhile: its process dies with its parent
         if self.how == "print":
             print("y" * 10_000, flush=True)
         e = self.target - measurement["x_B"]
@@ -384,11 +385,12 @@ def test_a_string_for_a_controller_fmu_real_parameter_is_refused_before_any_run(
 
 
 def test_a_sweep_survives_a_controller_that_kills_its_parent(tmp_path: Path, plant_fmu: Path) -> None:
-    """The second case kills its process's parent: that case fails, the sweep's own process lives
-    on, the other cases complete (exit 1: a case failed)."""
+    """The second case kills its process's parent, the third segfaults in its step: those cases
+    fail (the crash naming the controller), the sweep's own process lives on, the other cases
+    complete (exit 1: a case failed)."""
     (tmp_path / "hostile.py").write_text(HOSTILE, encoding="utf-8")
     base = _scenario(tmp_path, "killer", {"python": "hostile:make", "parameters": {"how": "none"}})
-    axis = {"controller.parameters.how": {"values": ["none", "kill_parent", "print"]}}
+    axis = {"controller.parameters.how": {"values": ["none", "kill_parent", "segv_step", "print"]}}
     sweep = {"base": base.name, "axes": axis, "output": "swept"}
     (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
     command = [sys.executable, "-m", "toggle_cosim", "sweep", "sweep.yaml", "--fmu", str(plant_fmu), "--workers", "1"]
@@ -397,8 +399,12 @@ def test_a_sweep_survives_a_controller_that_kills_its_parent(tmp_path: Path, pla
     from toggle_cosim.experiments.sweep import read_results
 
     table = read_results(tmp_path / "swept")
-    assert list(table["status"]) == ["ok", "failed", "ok"]
-    assert "killed by SIGKILL" in table["reason"][1]
+    assert list(table["status"]) == ["ok", "failed", "failed", "ok"]
+    for case, signal_name in ((1, "SIGKILL"), (2, "SIGSEGV")):  # the controller named, not the plant
+        assert table["reason"][case] == (
+            f"controller: the controller's hostile:make (controller.python) ended the run's process: it was killed by"
+            f" {signal_name} while it computed the sample at t = 0.005 s"
+        ), table["reason"][case]
 
 
 @pytest.mark.parametrize(

@@ -624,13 +624,14 @@ class SupervisedRun:
             if reason is None:
                 reason = self._exit_reason(answer)
             at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
-            in_controller = not self.interrupted and self._in_controller(rows)
-            sample = f" while it computed the sample at t = {rows * run.T_s:.6g} s"
-            if in_controller and self.reason is None:  # the plant's outputs of the next sample read, no command yet
-                reason = f"controller: {_controller_words(run)} ended the run's process: {reason}{sample}"
-                reason = reason.replace("process: the plant process", "process: it")
-            elif in_controller:  # the time limit passed while the controller computed
-                reason = f"controller: {_controller_words(run)} did not finish its step: {reason}{sample}"
+            in_controller = (
+                not self.interrupted
+                and self.status is not None
+                and stopped_in_controller(self.buffer, rows, len(plant.recorded_outputs), self.names)
+            )
+            if in_controller:  # the plant's outputs of the next sample read, no command yet
+                words = controller_words(run.controller.python, run.controller.fmu)
+                reason = in_controller_reason(reason, words, rows * run.T_s, by_limit=self.reason is not None)
             else:
                 reason = f"{reason}{at}"
         reason = bounded_text(reason)
@@ -644,36 +645,45 @@ class SupervisedRun:
         record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall, controller=controller)
         return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
 
-    def _in_controller(self, rows: int) -> bool:
-        """True when the child died (by a signal or an exit) inside the controller: the first
-        unfinished sample has every plant output read but no command, which both loops write
-        in that order (read the plant, run the controller, record the command, step the plant)."""
-        if self.status is None or rows >= self.buffer.shape[0] or "iq_ref" not in self.names:
-            return False
-        row = self.buffer[rows]
-        outputs = row[1 : 1 + len(self.plant.recorded_outputs)]
-        return bool(np.all(np.isfinite(outputs)) and np.isnan(row[self.names.index("iq_ref")]))
-
     def _exit_reason(self, answer: tuple | None) -> str:
         if answer is not None and answer[0] == "error":
             return f"the plant could not be run: {answer[1]}"
         return exit_reason(self.status)
 
 
-def _controller_words(run: Run, building: bool = False) -> str:
-    """The run's controller in words, for a failure while it was built (`building`) or ran."""
-    if run.controller.fmu is not None:
-        return f"the controller FMU {Path(run.controller.fmu).name} (controller.fmu)"
-    if run.controller.python is not None:
-        what = "module or factory" if building else ""
-        return f"the controller's {what} {run.controller.python} (controller.python)".replace("  ", " ")
+def stopped_in_controller(buffer: np.ndarray, rows: int, n_outputs: int, names: tuple[str, ...]) -> bool:
+    """True when a run's process ended (or was ended) inside its controller: the first unfinished
+    sample of the trace `buffer` has every plant output read but no command, and both loops write
+    a sample in that order (read the plant, run the controller, record the command, step the plant)."""
+    if rows >= buffer.shape[0] or "iq_ref" not in names:
+        return False
+    row = buffer[rows]
+    return bool(np.all(np.isfinite(row[1 : 1 + n_outputs])) and np.isnan(row[names.index("iq_ref")]))
+
+
+def controller_words(python: str | None, fmu: Path | str | None, building: bool = False) -> str:
+    """A run's controller in words, for a failure while it was built (`building`) or ran."""
+    if fmu is not None:
+        return f"the controller FMU {Path(fmu).name} (controller.fmu)"
+    if python is not None:
+        return f"the controller's {'module or factory ' if building else ''}{python} (controller.python)"
     return "the controller"
+
+
+def in_controller_reason(reason: str, words: str, t: float, by_limit: bool) -> str:
+    """Why a run failed whose process ended (`reason`, said of the plant process) or reached its
+    time limit (`by_limit`) while its controller (`words`) computed the sample at `t`."""
+    sample = f" while it computed the sample at t = {t:.6g} s"
+    if by_limit:
+        return f"controller: {words} did not finish its step: {reason}{sample}"
+    said = reason.replace("the plant process", "it", 1) if reason.startswith("the plant process") else reason
+    return f"controller: {words} ended the run's process: {said}{sample}"
 
 
 def _building_reason(run: Run, limit: str | None, answer: tuple | None, status: int | None) -> str:
     """Why a run failed whose child ended (or was ended: `limit`) while it built the user's
     controller: its import, its factory or loading its FMU."""
-    words = _controller_words(run, building=True)
+    words = controller_words(run.controller.python, run.controller.fmu, building=True)
     if limit is not None:
         return f"controller: building {words} did not finish: {limit}"
     if answer is not None and answer[0] == "error":

@@ -357,7 +357,12 @@ class CaseRunner:
 
     def service(self, answer: Any) -> tuple[dict[str, Any], np.ndarray | None]:
         """The row (and, with keep_traces, the trace) of the case this slot ran, from the host's answer."""
-        from toggle_cosim.cosim.supervision import rows_recorded
+        from toggle_cosim.cosim.supervision import (
+            controller_words,
+            in_controller_reason,
+            rows_recorded,
+            stopped_in_controller,
+        )
 
         payload, self.payload = self.payload, None
         view = case_view(self.host.buffer, case_samples(payload), len(case_columns(payload, self.plant)))
@@ -372,6 +377,14 @@ class CaseRunner:
         rows = rows_recorded(view) if view is not None else answer.rows  # the samples the case recorded
         self.close()  # a host that failed a case is gone (or dying): the next case gets a new one
         T_s = payload["parameters"]["T_s"]
+        names = case_columns(payload, self.plant)
+        if view is not None and stopped_in_controller(view, rows, len(self.plant.recorded_outputs), names):
+            controller = payload["document"].get("controller") or {}
+            words = controller_words(controller.get("python"), controller.get("fmu"))
+            limited = answer.failure.startswith("time limit")
+            return crash_row(
+                payload, self.sha256, in_controller_reason(answer.failure, words, rows * T_s, limited), rows
+            ), None
         at = f" at t = {max(rows - 1, 0) * T_s:.6g} s" if rows else " before the first sample"
         return crash_row(payload, self.sha256, f"{answer.failure}{at}", rows), None
 
