@@ -26,6 +26,7 @@ Behaviour checked:
 
 from __future__ import annotations
 
+import faulthandler
 import json
 import os
 import re
@@ -501,6 +502,7 @@ def test_an_in_process_run_that_crashes_leaves_a_folder_the_next_command_removes
         warnings.simplefilter("ignore", DeprecationWarning)  # fork with threads: the child only runs the plant
         pid = os.fork()
     if pid == 0:  # pragma: no cover - the child dies in the plant
+        faulthandler.disable()  # pytest's dump of the crash is not this test's output
         try:
             tc.simulate(run, faulty, supervised=False)
         finally:

@@ -40,9 +40,9 @@ from typing import Any
 import numpy as np
 
 from toggle_cosim import interrupts, process_tree
+from toggle_cosim.cosim.exit_reasons import exit_reason
 from toggle_cosim.cosim.supervision import (
     FOLDER_PREFIX,
-    exit_reason,
     fork_child,
     limit_memory,
     rows_recorded,

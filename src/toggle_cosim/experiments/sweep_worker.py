@@ -357,12 +357,8 @@ class CaseRunner:
 
     def service(self, answer: Any) -> tuple[dict[str, Any], np.ndarray | None]:
         """The row (and, with keep_traces, the trace) of the case this slot ran, from the host's answer."""
-        from toggle_cosim.cosim.supervision import (
-            controller_words,
-            in_controller_reason,
-            rows_recorded,
-            stopped_in_controller,
-        )
+        from toggle_cosim.cosim.exit_reasons import controller_words, in_controller_reason, stopped_in_controller
+        from toggle_cosim.cosim.supervision import rows_recorded
 
         payload, self.payload = self.payload, None
         view = case_view(self.host.buffer, case_samples(payload), len(case_columns(payload, self.plant)))
