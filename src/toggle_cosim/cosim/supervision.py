@@ -630,8 +630,10 @@ class SupervisedRun:
             if reason is None:
                 reason = self._exit_reason(answer)
             at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
+            users = self.deferred or (self.controller is not None and type(self.controller) is not VSCController)
             in_controller = (
-                not self.interrupted
+                users  # the built-in law neither crashes nor hangs: a stop there is the plant's
+                and not self.interrupted
                 and self.status is not None
                 and stopped_in_controller(self.buffer, rows, len(plant.recorded_outputs), self.names)
             )
