@@ -40,6 +40,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import controller_for, controller_record
@@ -59,6 +60,7 @@ from toggle_cosim.cosim.stepper import (
 )
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.messages import bounded_text
 from toggle_cosim.physics.mechanism import working_range
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
@@ -275,6 +277,7 @@ def simulate(
     if state.reason is not None and not interrupted:
         state.reason = _cut_at_first_failure(state.reason, recorder, policy.first_failure, run.T_s)
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
+    reason = bounded_text(reason) if reason is not None else None  # one line, whatever the plant or controller said
     complete = reason is None and rows == n + 1
     summary, warnings = None, []
     if rows > 1:
@@ -322,8 +325,9 @@ def close_controller(controller: object) -> None:
     if callable(close):
         try:
             close()
-        except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
-            pass
+        except BaseException as error:  # noqa: BLE001 - freeing never changes a run's outcome
+            if not interrupts.raised_by_code(error):  # SystemExit, or KeyboardInterrupt in a run's child
+                raise
 
 
 def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:
@@ -331,7 +335,7 @@ def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float
     message): failed, no sample; `started` is the run's perf_counter() start."""
     names = trace_names(plant, inputs=other_inputs(run))
     trace = Trace(names, np.empty((0, len(names))))
-    reason = f"controller: {reason}"
+    reason = bounded_text(reason if reason.startswith("controller: ") else f"controller: {reason}")
     loop = {"kind": "none", "reason": "the controller could not be built"}
     wall = clock.perf_counter() - started
     record = run_record(

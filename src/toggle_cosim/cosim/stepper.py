@@ -26,6 +26,7 @@ from typing import Any, Protocol
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from toggle_cosim import interrupts
 from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
@@ -43,6 +44,7 @@ from toggle_cosim.cosim.compiled_loop import (
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.recorder import Recorder, StepHook
 from toggle_cosim.cosim.session import PlantSession
+from toggle_cosim.messages import error_text
 
 
 class StepFailed(Exception):
@@ -159,7 +161,9 @@ class PythonStepper:
     def _start(self, t: float, measurement: Measurement) -> Any:
         try:
             return self.controller.start(t, measurement)
-        except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run with the reason
+        except BaseException as error:  # noqa: BLE001 - the user's code: its failure ends the run with the reason
+            if not interrupts.raised_by_code(error):
+                raise
             raise ControllerFailed(f"the controller's start raised at t = {t:.6g} s: {_error(error)}") from None
 
     def advance(self, k0: int, k_end: int, read_first: bool = True) -> int:
@@ -190,7 +194,9 @@ class PythonStepper:
                     state = self._start(t, measurement)
                 try:
                     result = control_step(state, t, measurement)
-                except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                except BaseException as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                    if not interrupts.raised_by_code(error):
+                        raise
                     raise step_raised(t, error) from None
                 try:
                     u, diagnostics, state = checked_command(result, n_diagnostics, t)
@@ -228,7 +234,7 @@ def step_raised(t: float, error: BaseException) -> ControllerFailed:
 
 
 def _error(error: BaseException) -> str:
-    return " ".join(f"{type(error).__name__}: {error}".split())
+    return error_text(error, 300)  # with the sentence around it, within the reason's bound
 
 
 class CompiledStepper:
