@@ -233,6 +233,7 @@ class VSCController:
             t0=float(t0),
             T_h=float(T_h),
             **mechanism_terms(p),
+            tracking=0.0 if self.reference is None else 1.0,
         )
 
     @property
