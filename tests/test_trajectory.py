@@ -156,7 +156,7 @@ TRAPEZOID = {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0}
             TRAPEZOID,
             {"python": "mod:make"},
             0.8,
-            r"^key stroke\.trajectory: only the built-in law tracks a trajectory",
+            r"^key stroke\.trajectory: only the built-in law \(or its controller FMU\) tracks a trajectory",
         ),
         (
             {"kind": "ramp", "v_max": 0.2, "a_max": 2.0},
@@ -257,3 +257,53 @@ def test_python_and_compiled_loops_agree_bit_for_bit_on_a_trajectory(
     assert compiled.complete and python.complete
     bits = np.ascontiguousarray(compiled.trace.data).view(np.int64)
     assert np.array_equal(bits, np.ascontiguousarray(python.trace.data).view(np.int64))
+
+
+@pytest.fixture(scope="module")
+def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from toggle_cosim.controller_fmu import build_controller_fmu
+
+    return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu", "2.0").path
+
+
+@pytest.mark.parametrize("law", ["paper", "integral"])
+def test_the_controller_fmu_tracks_the_trajectory_with_the_built_in_laws_bits_in_both_loops(
+    toggle_vsc: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, law: str
+) -> None:
+    """controller.fmu: ToggleVSC.fmu on a trajectory run: the master feeds its inputs x_ref,
+    v_ref, a_ref from the run's sampled reference (the compiled loop from C, the Python loop from
+    `FmuController.step`); iq_ref, S, phase, e and x_B are the built-in law's bits."""
+    plant = check_plant(plant_fmu)
+    spec = {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0}
+    document = {**_document(spec, law=law), "t_end": 0.7}
+    builtin = simulate(runs_from_document(document)[0], plant)
+    with_fmu = {**document, "controller": {"law": law, "fmu": str(toggle_vsc)}}
+    compiled = simulate(runs_from_document(with_fmu)[0], plant)
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+    python = simulate(runs_from_document(with_fmu)[0], plant)
+    assert compiled.record["loop"]["kind"] == "compiled" and python.record["loop"]["kind"] == "python"
+    assert builtin.complete and compiled.complete and python.complete
+    for name in ("x_B", "v_B", "iq_ref", "S", "phase", "e"):
+        expected = builtin.trace.column(name).view(np.int64)
+        assert np.array_equal(compiled.trace.column(name).view(np.int64), expected), name
+        assert np.array_equal(python.trace.column(name).view(np.int64), expected), name
+    assert np.max(np.abs(builtin.trace.column("e"))) < 1e-4
+
+
+def test_a_controller_fmu_without_the_reference_inputs_is_refused(tmp_path: Path) -> None:
+    """An FMU of the built-in law with no x_ref, v_ref, a_ref (the SSP tests' stand-in) cannot
+    track: one line naming controller.fmu."""
+    from toggle_cosim.control.protocol import ControllerError
+    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.plant.controller_contract import ControllerFmu
+
+    run = runs_from_document({**_document(TRAPEZOID), "controller": {"fmu": str(tmp_path / "Old.fmu")}})[0]
+    old = ControllerFmu(
+        tmp_path / "Old.fmu", None, "2.0", "", ("x_B", "v_B"), ("S",), {}, {}, ("C", "target"), True, (), ()
+    )
+    import toggle_cosim.cosim.controllers as controllers
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(controllers, "_checked_fmu", lambda run, outputs: old)
+        with pytest.raises(ControllerError, match=r"^key controller\.fmu: Old\.fmu has no inputs x_ref, v_ref, a_ref"):
+            controller_for(run, ("x_B", "v_B"))

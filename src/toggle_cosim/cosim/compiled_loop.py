@@ -64,7 +64,8 @@ CTRL_LAW, CTRL_FMU = 0, 1  # the controller kinds of the skeleton
 @dataclass(frozen=True)
 class ControllerCalls:
     """A controller FMU as the compiled loop calls it (`fmu_controller.FmuController`): its
-    functions, the trace columns of its inputs (in its input order), the number of its outputs
+    functions, the trace columns of its inputs (in its input order; -1 - i: value i of the
+    reference's row, the built-in law's x_ref, v_ref, a_ref), the number of its outputs
     (iq_ref, then the diagnostics), and the time of its last sample (None before the first),
     whose deferred doStep the loop makes at its next sample."""
 

@@ -41,6 +41,7 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
 from toggle_cosim.control.trajectory import SampledReference
+from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.cosim import user_code
 from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.physics.mechanism import theta1_from_xB
@@ -175,7 +176,11 @@ def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
     for a parameter the FMU does not have."""
     settings: dict[str, Any] = {}
     if fmu.law_parameters:
-        settings.update(settable_values(builtin_controller(run).law_parameters()))
+        settings.update(
+            (name, value)
+            for name, value in settable_values(builtin_controller(run).law_parameters())
+            if name in fmu.parameters  # an FMU built before the parameter tracking has none
+        )
     for name, value in run.controller.parameters.items():
         if name not in fmu.parameters:
             known = ", ".join(fmu.parameters) or "none"
@@ -232,7 +237,18 @@ def _fmu_controller(run: Run, outputs: Sequence[str]) -> Any:
     from toggle_cosim.cosim.fmu_controller import FmuController
 
     fmu = _checked_fmu(run, outputs)
-    return FmuController(fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}")
+    reference = None
+    if run.trajectory is not None:
+        if fmu.reference_inputs != REFERENCE_INPUTS or "tracking" not in fmu.parameters:
+            raise ControllerError(
+                f"key controller.fmu: {fmu.path.name} has no inputs {', '.join(REFERENCE_INPUTS)} and parameter"
+                " tracking, so it cannot track stroke.trajectory (build the built-in law's FMU with toggle-cosim build,"
+                " or remove stroke.trajectory)"
+            )
+        reference = builtin_controller(run).reference
+    return FmuController(
+        fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}", reference=reference
+    )
 
 
 def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:

@@ -246,7 +246,7 @@ def simulate(
                     law,
                     controller.measured,
                     hooks,
-                    getattr(controller, "reference", None) if isinstance(controller, VSCController) else None,
+                    controller.reference if isinstance(controller, VSCController) else None,
                 )
             )
             stepper = HandOver(python, compiled)

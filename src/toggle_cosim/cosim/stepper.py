@@ -279,7 +279,9 @@ class CompiledStepper:
         """The compiled stepper from the current sample on, or why there is none. `law` is the
         built-in law to run, or the controller FMU to call (`compiled_controller`), `measured`
         the plant outputs it reads, `reference` the trajectory the built-in law tracks (its
-        `VSCController.reference`; None: the constant target)."""
+        `VSCController.reference`; None: the constant target; a controller FMU's is its own)."""
+        if isinstance(law, FmuController):
+            reference = law.reference
         if reference is not None and (reference.T_s != timing.T_s or reference.values.shape != (timing.n + 1, 3)):
             return "the law's reference is not sampled on the run's grid (T_s, t_end): the Python loop evaluates it"
 
@@ -292,8 +294,10 @@ class CompiledStepper:
             calls = law.c_functions()
             if calls is None:
                 return "the controller FMU's C functions are not reachable"
+            # the reference inputs x_ref, v_ref, a_ref: columns -1, -2, -3 (the reference's row k)
+            feed = (-1, -2, -3) if reference is not None else ()
             controller = ControllerCalls(
-                calls, tuple(names.index(name) for name in measured), 1 + len(law.diagnostics), state.controller
+                calls, (*(names.index(name) for name in measured), *feed), 1 + len(law.diagnostics), state.controller
             )
             i_q, i_qd, parameters, z = recorder.i_x, recorder.i_v, None, 0.0
         else:
@@ -313,7 +317,7 @@ class CompiledStepper:
             parameters,
             z,
             controller,
-            None if reference is None or controller is not None else reference.values,
+            None if reference is None else reference.values,
         )
         return cls(loop, session, recorder, timing, state, hooks, law if controller is not None else None)
 

@@ -442,9 +442,10 @@ def _trajectory(
             )
     if kind == "scurve" and "j_max" not in doc:
         raise ScenarioError(f"{key}: an S-curve needs a jerk limit (add j_max in m/s3, or use kind: trapezoid)")
-    if controller.python is not None or controller.fmu is not None:
+    if controller.python is not None:
         raise ScenarioError(
-            f"{key}: only the built-in law tracks a trajectory (remove stroke.trajectory, or controller.python/fmu)"
+            f"{key}: only the built-in law (or its controller FMU) tracks a trajectory (remove stroke.trajectory,"
+            " or controller.python)"
         )
     if controller.objective != "x_B":
         raise ScenarioError(
