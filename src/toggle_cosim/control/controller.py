@@ -1,6 +1,8 @@
 """Discrete two-phase variable-structure controller, eqs. (19)-(25) of the paper.
 
-Switching function S = C e + ė with e = x* − x (constant target, so ė = −ẋ). The nominal plant
+Switching function S = C e + ė with e = x* − x (constant target, so ė = −ẋ; with a reference
+trajectory (`reference`, `control.trajectory`) e = x*(t) − x, ė = ẋ*(t) − ẋ and ẍ*(t) enters the
+equivalent control: `control.laws.law_step`). The nominal plant
 ẍ = f + G u + d with u = i_q* is the controller's own model of the mechanism (μ = 0, F_E = 0,
 nominal masses, ideal current loop, d = 0); it never sees the true plant's parameters.
 
