@@ -25,6 +25,7 @@ from toggle_cosim.cli.app import (
 )
 from toggle_cosim.cli.build_command import build_plant
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_runs, load_runs, raise_if_failed
+from toggle_cosim.files.outputs import MARKDOWN, PNG
 from toggle_cosim.runs.definition import COUPLINGS
 
 
@@ -94,7 +95,7 @@ def plot(results: tuple[Path, ...], output: Path | None) -> None:
     require("matplotlib")
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")
-    check_output(output, "figure (--out)")
+    check_output(output, "figure (--out)", PNG)
     for folder in results:
         click.echo(f"wrote {_plot_scenario(folder, output)}")
 
@@ -118,6 +119,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
     from toggle_cosim.analysis.report import write_summary
 
     require("matplotlib", *(() if skip_build else ("modelica",)))
+    check_output(out / "summary.md", "summary", MARKDOWN)
 
     started = time.perf_counter()
     if not skip_build:

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from toggle_cosim.experiments.sweep_spec import METRICS, Sweep
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import PARQUET, replacing
 
 RESULTS_FILE = "results.parquet"
 PARTS_DIR = "parts"
@@ -103,7 +103,7 @@ def _write_parquet(table: Any, path: Path, compression: str) -> None:
     import pyarrow.parquet as pq
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    with replacing(path) as temporary:  # a unique temporary name, synced and renamed into place
+    with replacing(path, kind=PARQUET) as temporary:  # a unique temporary name, synced and renamed into place
         pq.write_table(table, str(temporary), compression=compression)
 
 
