@@ -544,12 +544,16 @@ def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
         ran = CliRunner().invoke(main, ["run", *args, "--out", str(out), "-q"])
         assert ran.exit_code == 0, ran.output
     for run in load_scenario(scenario):
-        folder = Path(run.scenario) / (run.variant or "run")
-        expected, got = read_trace_csv(yaml_out / folder / "trace.csv"), read_trace_csv(ssp_out / folder / "trace.csv")
+        variant = run.variant or "run"
+        folder, ssp_folder = Path(run.scenario) / variant, Path(f"{scenario.stem}_ssp") / variant
+        expected, got = (
+            read_trace_csv(yaml_out / folder / "trace.csv"),
+            read_trace_csv(ssp_out / ssp_folder / "trace.csv"),
+        )
         assert got.names == (*expected.names, "z")  # the FMU also reports the integral law's state
         for column in expected.names:
             assert np.array_equal(got.column(column), expected.column(column)), (run.label, column)
-        record = (ssp_out / folder / "run.json").read_text()
+        record = (ssp_out / ssp_folder / "run.json").read_text()
         assert str(study) in record and f'"parameter_set": "{layout.set_name(run.variant)}"' in record
 
 
@@ -558,6 +562,6 @@ def test_a_named_parameter_set_runs_that_set_only(plant_fmu: Path, toggle_vsc: P
     study = write_ssp(ROOT / "scenarios" / "fig4_nominal.yaml", tmp_path / "fig4.ssp", plant_fmu, toggle_vsc)
     ran = CliRunner().invoke(main, ["run", str(study), "--parameter-set", "no_friction", "--out", str(tmp_path), "-q"])
     assert ran.exit_code == 0, ran.output
-    assert [p.name for p in (tmp_path / "fig4_nominal").iterdir()] == ["no_friction"]
-    record = (tmp_path / "fig4_nominal" / "no_friction" / "run.json").read_text()
+    assert [p.name for p in (tmp_path / "fig4_ssp").iterdir()] == ["no_friction"]  # named for the archive
+    record = (tmp_path / "fig4_ssp" / "no_friction" / "run.json").read_text()
     assert '"parameter_set": "no_friction"' in record and '"mu": 0.0' in record

@@ -62,7 +62,8 @@ def run(
     jobs: int | None,
 ) -> None:
     """Run scenario files (or SSP archives, .ssp); write trace.csv and run.json per run under
-    OUT/<scenario>/<variant>/."""
+    OUT/<scenario>/<variant>/ (an SSP's under OUT/<archive>_ssp/<set>/; with a --coupling the
+    scenario does not give, OUT/<scenario>_<coupling>/<variant>/)."""
     from toggle_cosim.cli.ssp_command import is_ssp, ssp_runs
 
     ssps = [path for path in scenarios if is_ssp(path)]
@@ -136,12 +137,14 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
 
     figures = FigureWorkers(min(2, default_jobs(len(PAPER_SCENARIOS))))
     try:
-        left = {name: sum(1 for run, _ in pairs if run.scenario == name) for name in PAPER_SCENARIOS}
+        left: dict = {}
+        for run, _ in pairs:
+            left[run.folder.parent] = left.get(run.folder.parent, 0) + 1
 
         def written(outcome) -> None:  # noqa: ANN001 - a scenario's figure once all its runs are written
-            left[outcome.run.scenario] -= 1
-            if left[outcome.run.scenario] == 0:
-                figures.submit(out / outcome.run.scenario)
+            left[outcome.run.folder.parent] -= 1
+            if left[outcome.run.folder.parent] == 0:
+                figures.submit(out / outcome.run.folder.parent)
 
         outcomes = execute_runs(
             pairs, out, quiet=False, time_limit=time_limit, on_written=written, jobs=jobs, keep_traces=True
