@@ -381,6 +381,37 @@ def test_keep_traces_stores_every_case_readable_by_id(tmp_path, plant_fmu):
     assert json_of(sweep.output)["traces"] == "traces"
 
 
+def test_keep_traces_on_a_finished_sweep_runs_the_cases_without_a_trace(tmp_path, plant_fmu, capsys):
+    """A sweep finished without --keep-traces, then run with it: every finished case lacks its
+    trace, so each runs again and its trace is stored (it used to skip them all, exit 0, no
+    trace); a third run has every trace and runs nothing. read_trace of a folder without
+    traces, or of an unknown case, is one line naming the folder and the fix."""
+    from toggle_cosim.experiments.sweep import SweepError, read_trace
+
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0, 60]}})
+    assert run_sweep(path, None, 2, plant_fmu, progress=False) == 0
+    sweep = load_sweep(path)
+    with pytest.raises(SweepError) as missing:
+        read_trace(sweep.output, sweep.cases[0].case_id)
+    assert str(missing.value) == (
+        f"{sweep.output}: no traces stored here; run the sweep again with --keep-traces (finished cases "
+        "without a trace run again to store it)"
+    )
+    capsys.readouterr()
+    assert run_sweep(path, None, 2, plant_fmu, progress=False, keep_traces=True) == 0
+    captured = capsys.readouterr()
+    assert "--keep-traces: 2 finished cases have no stored trace; they run again to store it" in captured.err
+    assert "ran 2 cases" in captured.out
+    for case in sweep.cases:
+        stored = read_trace(sweep.output, case.case_id)
+        assert len(stored) == 601 and stored["time"].iloc[-1] == pytest.approx(0.3)
+    assert run_sweep(path, None, 2, plant_fmu, progress=False, keep_traces=True) == 0
+    assert "ran 0 cases" in capsys.readouterr().out
+    with pytest.raises(SweepError, match="no trace of case 'nope' in traces/"):
+        read_trace(sweep.output, "nope")
+    assert len(read_results(sweep.output)) == 2
+
+
 def json_of(folder: Path) -> dict:
     import json
 
