@@ -309,6 +309,72 @@ def test_dask_local_cluster_gives_the_same_table_as_the_pool(pool_run, tmp_path,
     assert sorted(p.name for p in result.figures) == ["heatmap_plant.mu=0.2.png", "heatmap_plant.mu=0.png"]
 
 
+PD_MODULE = """
+from toggle_cosim.control.protocol import ControlStep
+
+
+class PD:
+    diagnostics = ("e",)
+
+    def __init__(self, target, Kp, Kd):
+        self.target, self.Kp, self.Kd = target, Kp, Kd
+
+    def start(self, t0, measurement):
+        return None
+
+    def step(self, state, t, measurement):
+        e = self.target - measurement["x_B"]
+        return ControlStep(self.Kp * e - self.Kd * measurement["v_B"], (e,), state)
+
+
+def make_pd(context, Kp, Kd):
+    return PD(context.x_target, Kp, Kd)
+"""
+
+
+def test_dask_workers_in_another_folder_import_a_relative_sweeps_controller(tmp_path, plant_fmu, monkeypatch, capsys):
+    """A sweep named by a relative path whose base scenario's controller.python module lies
+    beside it: fresh Dask workers whose working directory is elsewhere find it (the base's
+    folder travels as an absolute path), and every case is ok (every case used to fail, reported
+    as "lost" by the cluster)."""
+    distributed = pytest.importorskip("distributed")
+    study = tmp_path / "study"
+    base = {**BASE, "t_end": 0.1, "controller": {"python": "pd_here:make_pd", "parameters": {"Kp": 12.0, "Kd": 2.5}}}
+    path = write_sweep(study, {"plant.F_E": {"values": [0.0, 20.0]}}, base=base)
+    (study / "pd_here.py").write_text(PD_MODULE, encoding="utf-8")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # the workers start here
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as cluster:
+        monkeypatch.chdir(tmp_path)  # the command runs here, with a relative sweep path
+        code = run_sweep(Path("study") / path.name, cluster.scheduler_address, None, plant_fmu, progress=False)
+        captured = capsys.readouterr()
+        assert code == 0, captured.err
+        table = read_results(study / "out")
+        assert list(table["status"]) == ["ok", "ok"], table["reason"].tolist()
+
+
+def test_a_case_whose_controller_cannot_be_built_on_a_worker_fails_with_its_whole_reason(tmp_path, plant_fmu):
+    """What a Dask task returns when a case's controller.python cannot be imported there: a
+    failed row whose reason names the module and the fix, whole (it was counted as a case the
+    cluster "lost", with advice to re-run, cut off mid-word)."""
+    from toggle_cosim.experiments.sweep_exec import _is_loss
+    from toggle_cosim.experiments.sweep_worker import run_cases
+    from toggle_cosim.plant.contract import check_plant
+
+    base = {**BASE, "t_end": 0.1, "controller": {"python": "pd_absent:make_pd", "parameters": {"Kp": 12.0, "Kd": 2.5}}}
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0.0, 20.0]}}, base=base)
+    sweep = load_sweep(path)  # the module is not beside the base scenario: not on this worker either
+    sha = check_plant(plant_fmu).sha256
+    results = run_cases([case.payload() for case in sweep.cases], str(plant_fmu), sha)
+    assert [row["status"] for row, _ in results] == ["failed", "failed"]
+    for row, trace in results:
+        assert trace is None
+        assert "key controller.python: cannot import 'pd_absent'" in row["reason"]
+        assert row["reason"].endswith("(PYTHONPATH)"), row["reason"]  # whole, not cut
+    assert not _is_loss(RuntimeError("a task's own error")) and _is_loss(TimeoutError())
+
+
 def test_unreachable_scheduler_is_bad_input(tmp_path, plant_fmu, capsys):
     dask = pytest.importorskip("dask")
     path = write_sweep(tmp_path, {"plant.F_E": {"values": [0]}})
