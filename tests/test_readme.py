@@ -222,17 +222,47 @@ def test_the_documentation_site_builds_strictly(tmp_path: Path) -> None:
     assert "Unreleased" in (tmp_path / "site" / "changelog" / "index.html").read_text(encoding="utf-8")
 
 
+def tracked_entries(root: Path) -> list[str]:
+    """The top-level names of the files git tracks in `root` (a reader's fresh clone has these
+    and nothing else), and `.venv`, which scripts/setup makes: never what a reader left there
+    (`toggle-cosim init study`, out/, fmus/, a site/ build)."""
+    listed = subprocess.run(
+        ["git", "-C", str(root), "ls-files", "-z"], capture_output=True, text=True, check=True
+    ).stdout
+    names = {name.split("/", 1)[0] for name in listed.split("\0") if name}
+    return sorted(names | ({".venv"} if (root / ".venv").is_dir() else set()))
+
+
+def test_the_working_copy_has_the_tracked_files_only(tmp_path: Path) -> None:
+    """An untracked folder (what following getting-started inside the clone leaves: `study/`)
+    is not in a reader's copy, so the examples that make it again do not fail."""
+    repository = tmp_path / "clone"
+    (repository / "docs").mkdir(parents=True)
+    (repository / "docs" / "index.md").write_text("# x\n")
+    (repository / "README.md").write_text("# x\n")
+    subprocess.run(["git", "init", "-q", str(repository)], check=True)
+    subprocess.run(["git", "-C", str(repository), "add", "."], check=True)
+    (repository / "study").mkdir()
+    (repository / "notes.txt").write_text("mine\n")
+    assert tracked_entries(repository) == ["README.md", "docs"]
+    names = tracked_entries(ROOT)
+    assert {"README.md", "docs", "scenarios", "src", "mkdocs.yml", ".venv"} <= set(names)
+    assert not {"out", "fmus", "site", ".git"} & set(names)
+
+
 @pytest.fixture
 def working_copy(tmp_path: Path) -> Path:
-    """The repository's top folder as a reader has it: the scenarios and examples copied (examples write
-    references), everything else linked; fmus/, out/ and reports/ start empty."""
+    """The repository's top folder as a reader's clone has it (`tracked_entries`): the scenarios
+    and examples copied (examples write references), everything else linked; fmus/, out/ and
+    reports/ start empty."""
     copy = tmp_path / "toggle-cosim"
     copy.mkdir()
-    for entry in ROOT.iterdir():
-        if entry.name in ("scenarios", "examples"):
-            shutil.copytree(entry, copy / entry.name)
-        elif entry.name not in ("out", "fmus", "reports", "site", "build", ".git", ".pytest_cache", ".hypothesis"):
-            (copy / entry.name).symlink_to(entry)
+    for name in tracked_entries(ROOT):
+        entry = ROOT / name
+        if name in ("scenarios", "examples"):
+            shutil.copytree(entry, copy / name)
+        elif name not in ("out", "fmus", "reports", "site", "build"):
+            (copy / name).symlink_to(entry)
     return copy
 
 
