@@ -23,6 +23,7 @@ import click
 import pytest
 import yaml
 
+import toggle_cosim
 from toggle_cosim.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -218,8 +219,38 @@ def test_the_documentation_site_builds_strictly(tmp_path: Path) -> None:
         check=False,
     )
     assert result.returncode == 0, result.stderr
-    assert "doc-heading" in (tmp_path / "site" / "api" / "index.html").read_text(encoding="utf-8")
+    api = (tmp_path / "site" / "api" / "index.html").read_text(encoding="utf-8")
+    assert "doc-heading" in api
+    for name, module in toggle_cosim._PUBLIC.items():  # every public name, its docstring rendered
+        assert f'id="{module}.{name}"' in api, name
+    assert api.count("Example") >= 6  # simulate, Result, Comparison, compare, sweep, load_scenario
     assert "Unreleased" in (tmp_path / "site" / "changelog" / "index.html").read_text(encoding="utf-8")
+    # long code lines wrap instead of being cut off: the style sheet is in the site and every page links it
+    css = (tmp_path / "site" / "assets" / "extra.css").read_text(encoding="utf-8")
+    assert "white-space: pre-wrap" in css and "overflow-x: auto" in css
+    assert 'href="../assets/extra.css"' in api
+
+
+def test_the_api_reference_documents_the_public_api_only() -> None:
+    """docs/api.md renders exactly `toggle_cosim.__all__` (each name from the module that defines
+    it), not the internals (`cosim.master.simulate`, `RunOutcome`)."""
+    rendered = re.findall(r"^::: (\S+)$", (ROOT / "docs" / "api.md").read_text(encoding="utf-8"), re.MULTILINE)
+    assert sorted(rendered) == sorted(f"{module}.{name}" for name, module in toggle_cosim._PUBLIC.items())
+    assert set(toggle_cosim.__all__) == {"__version__", *toggle_cosim._PUBLIC}
+
+
+@pytest.mark.parametrize("name", ["simulate", "Result", "Comparison", "compare", "sweep", "load_scenario"])
+def test_the_public_api_has_real_docstrings(name: str) -> None:
+    """What the user pages teach is documented: parameters, what it returns, what it raises, and
+    an example (functions); the attributes and an example (classes)."""
+    import inspect
+
+    value = getattr(toggle_cosim, name)
+    doc = inspect.getdoc(value) or ""
+    sections = ("Attributes:", "Example:") if inspect.isclass(value) else ("Args:", "Returns:", "Raises:", "Example:")
+    assert all(section in doc for section in sections), (name, [s for s in sections if s not in doc])
+    example = doc.split("Example:", 1)[1]
+    assert "tc." in example or "result" in example
 
 
 def tracked_entries(root: Path) -> list[str]:
