@@ -178,6 +178,24 @@ def test_inline_python_commands_name_the_projects_interpreter() -> None:
         assert not bare, (path.name, bare)
 
 
+HISTORY = re.compile(
+    r"\b(now|previously|formerly|used to|as before|has since|since replaced|no longer (?:needed|used|required)"
+    r"|before the [\w -]+ existed|about a minute|half a minute|a few minutes)\b",
+    re.IGNORECASE,
+)
+
+
+def test_the_documents_describe_the_code_today() -> None:
+    """README and the pages say what the code does, not how it came to be (that is the
+    changelog's), and give no vague time that nobody re-measures: a timing names what it
+    measured (docs/performance.md)."""
+    for path in documents():
+        if path.name == "changelog.md":
+            continue
+        found = [match.group(0) for match in HISTORY.finditer(path.read_text(encoding="utf-8"))]
+        assert not found, (path.name, found)
+
+
 def test_the_readme_stays_short() -> None:
     assert len(README.read_text(encoding="utf-8").splitlines()) <= 150
 
