@@ -110,8 +110,10 @@ def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
                 f"{Path(out) / run.folder}; run them into different --out folders"
             )
         seen[run.folder] = run
-        check_output(Path(out) / run.folder / "trace.csv", "trace", CSV)
-        check_output(Path(out) / run.folder / "run.json", "run record", JSON)
+        folder = Path(out) / run.folder
+        if folder.is_dir():  # a folder that is not one (an output folder that is a file) is check_runs' to report
+            check_output(folder / "trace.csv", "trace", CSV)
+            check_output(folder / "run.json", "run record", JSON)
 
 
 def _status_text(outcome) -> str:  # noqa: ANN001
