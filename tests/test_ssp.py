@@ -498,7 +498,9 @@ def test_an_ssp_is_written_whole_or_not_at_all(
     plant_fmu: Path, controller_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     out = tmp_path / "study.ssp"
-    out.write_bytes(b"the old file")
+    with zipfile.ZipFile(out, "w") as old:  # an earlier SSP (only an SSP may be replaced)
+        old.writestr(layout.SSD_MEMBER, "<the old file/>")
+    before = out.read_bytes()
 
     def interrupted(*args, **kwargs) -> None:  # noqa: ANN002, ANN003
         raise KeyboardInterrupt
@@ -506,7 +508,7 @@ def test_an_ssp_is_written_whole_or_not_at_all(
     monkeypatch.setattr(zipfile.ZipFile, "write", interrupted)
     with pytest.raises(KeyboardInterrupt):
         write_ssp(ROOT / "scenarios" / "fig4_nominal.yaml", out, plant_fmu, controller_fmu)
-    assert out.read_bytes() == b"the old file" and sorted(p.name for p in tmp_path.iterdir()) == ["study.ssp"]
+    assert out.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["study.ssp"]
 
 
 def test_run_options_that_do_not_fit_an_ssp_are_refused(fig5_ssp: Path, plant_fmu: Path, tmp_path: Path) -> None:

@@ -111,7 +111,11 @@ def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
             )
         seen[run.folder] = run
         folder = Path(out) / run.folder
-        if folder.is_dir():  # a folder that is not one (an output folder that is a file) is check_runs' to report
+        try:
+            exists = folder.is_dir()
+        except OSError:  # e.g. a name too long: check_runs reports the output folder in one line
+            exists = False
+        if exists:  # a folder that is not one (an output folder that is a file) is check_runs' to report
             check_output(folder / "trace.csv", "trace", CSV)
             check_output(folder / "run.json", "run record", JSON)
 
