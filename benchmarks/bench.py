@@ -180,6 +180,19 @@ def paper_runs() -> list:
     return [run for name in PAPER for run in load_scenario(SCENARIOS / f"{name}.yaml")]
 
 
+def linearize_cost(plant, run, repetitions: int) -> dict:
+    """Wall time of trim + linearize at x_B = 0.28 m (design/), best of `repetitions`."""
+    from toggle_cosim.design.linearize import linearize
+    from toggle_cosim.design.trim import trim
+
+    times, model = [], None
+    for _ in range(repetitions):
+        t0 = time.perf_counter()
+        model = linearize(run, trim(run, 0.28, plant), plant)
+        times.append(time.perf_counter() - t0)
+    return {"seconds": min(times), "relative_error": model.relative_error, "states": list(model.states)}
+
+
 def run_with(T_s: float, t_end: float, scenario: str = "fig4_nominal", variant: str = "friction"):
     document = yaml.safe_load((SCENARIOS / f"{scenario}.yaml").read_text())
     document["T_s"], document["t_end"] = T_s, t_end
@@ -823,6 +836,17 @@ def main() -> int:
                 f"{us(b['replay'] - b['C'])} is FMU work the loop causes (output evaluation, restart after "
                 f"each input change) and {us(b['loop'] - b['replay'])} the master's own",
             )
+
+        # ---------------------------------------------------------------- trim and linearise
+        table.section("Trim and linearise at one point (fig5_external_force/friction, x_B = 0.28 m)")
+        design = linearize_cost(plant, next(r for r in paper_runs() if r.label == "fig5_external_force/friction"), reps)
+        figures["linearize"] = design
+        table.add(
+            "trim + linearize (FMU unzipped and instantiated twice)",
+            f"{design['seconds'] * 1e3:.1f} ms",
+            f"best of {reps}; estimated relative error {design['relative_error']:.1e}",
+        )
+        table.check("linearize at one point < 1 s", design["seconds"] < 1.0, f"{design['seconds'] * 1e3:.1f} ms")
 
         # ---------------------------------------------------------------- the controller as an FMU
         table.section("The controller FMU ToggleVSC (FMI 2.0), from a C driver")

@@ -10,14 +10,17 @@ the SSP, measured with a stand-in controller in tests/test_other_masters.py and 
 docs/other-masters.md:
 
 - libcosim (libcosimpy 0.0.6, `CosimExecution.from_ssp_file`): a Jacobi master. It reads the
-  *unpacked* SSP, applies the parameter bindings of the components (not the system's), and of
-  those only the first binding of each component (libcosimc creates the execution with the
-  parameter set named ""; its loader fills that set with each component's first binding). To
-  apply the set asked for, `run_in_libcosim` removes the other bindings from the unpacked SSD.
+  *unpacked* SSP (the folder: its SystemStructure.ssd; or the path of another root SSD, a
+  variant), applies the parameter bindings of the components (not the system's), and of those
+  only the first binding of each component (libcosimc creates the execution with the parameter
+  set named ""; its loader fills that set with each component's first binding). To apply the
+  set asked for in an SSD that stacks several, `run_in_libcosim` removes the other bindings from
+  the unpacked SSD; `ssd=` names the root SSD to load instead.
   The step is an integer number of nanoseconds; t_k = k T_s exactly in integer nanoseconds.
-- ecos (ecospy 0.7.2, `EcosSimulation(ssp_path=...)`): a Jacobi master that applies a parameter
-  set only when it is named in `init`, and silently applies nothing for a name it does not know
-  (so `run_in_ecos` checks the name first). Its time accumulates t + T_s.
+- ecos (ecospy 0.7.2, `EcosSimulation(ssp_path=...)`): a Jacobi master that loads the archive's
+  SystemStructure.ssd only and applies a parameter set only when it is named in `init` (a set
+  bound in SystemStructure.ssd), and silently applies nothing for a name it does not know (so
+  `run_in_ecos` checks the name first). Its time accumulates t + T_s.
 - FMPy 0.3.32 (`fmpy.ssp.simulate_ssp`): a Jacobi master whose connections start at 0.0 (the
   controller's first sample sees x_B = 0 and the plant's first step gets iq_ref = 0) and that
   ignores the SSD's parameter bindings: `run_in_fmpy` passes the named set explicitly, with the
@@ -155,8 +158,11 @@ def _keep_only(ssp_dir: Path, parameter_set: str) -> None:
     tree.write(str(path), xml_declaration=True, encoding="UTF-8")
 
 
-def run_in_libcosim(ssp_path: Path, parameter_set: str | None, T_s: float, t_end: float) -> pd.DataFrame:
-    """Run the SSP in libcosim (libcosimpy) with a fixed step T_s to t_end.
+def run_in_libcosim(
+    ssp_path: Path, parameter_set: str | None, T_s: float, t_end: float, ssd: str | None = None
+) -> pd.DataFrame:
+    """Run the SSP in libcosim (libcosimpy) with a fixed step T_s to t_end; `ssd`: the root SSD
+    (a variant) to load, by its member name (None: SystemStructure.ssd, the unpacked folder).
 
     Records every Real input, output and parameter of every component at t_0 ... t_n with a time-series
     observer (rows 0..n-1; libcosimpy 0.0.6's `time_series_real_samples` drops the last sample it
@@ -168,7 +174,8 @@ def run_in_libcosim(ssp_path: Path, parameter_set: str | None, T_s: float, t_end
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
 
-    _check_set(ssp_path, parameter_set)
+    if ssd is None:
+        _check_set(ssp_path, parameter_set)
     n = steps(T_s, t_end)
     step_ns = round(T_s / NANOSECOND)
     if abs(step_ns * NANOSECOND - T_s) > 1e-12 * T_s:
@@ -177,7 +184,10 @@ def run_in_libcosim(ssp_path: Path, parameter_set: str | None, T_s: float, t_end
     with unpacked(ssp_path) as folder:
         if parameter_set is not None:
             _keep_only(folder, parameter_set)
-        execution = CosimExecution.from_ssp_file(str(folder), step_size=step_ns)
+        loaded = folder if ssd is None else folder / ssd
+        if not loaded.exists():
+            raise ValueError(f"{ssp_path}: no root SSD {ssd!r}")
+        execution = CosimExecution.from_ssp_file(str(loaded), step_size=step_ns)
         index = {info.name.decode(): info.index for info in execution.slave_infos()}
         series = CosimObserver.create_time_series()
         last = CosimObserver.create_last_value()

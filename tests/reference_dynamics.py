@@ -26,6 +26,9 @@ m3 r3²/12 and m5 r5²/12 unless the dict provides them):
     reference_joint_forces(q, qd, F_C, F_E, params, sgn=None) -> dict
     reference_energy(q, qd, params) -> dict(T, V, E)
     reference_powers(q, qd, F_C, F_E, params, sgn=None) -> dict(P_in, P_load, P_fric)
+    reference_friction_rows(q, lam, params) -> R (the rows of Q_fᵀλ/μ with sgn = 1)
+    reference_breakaway_thrust(q, direction, F_E, params, bracket) -> F_C where a slip from rest
+        in `direction` under friction μ sgn(q̇)|R| has θ̈1 = 0 (the stick-slip breakaway)
 
 Conventions: q = (θ1, θ2, θ5), qd = (ω1, ω2, ω5); F_C ≥ 0 is the thrust on slider C along −x,
 F_E the external force on slider B along −x; sgn defaults to np.sign(qd) (sgn(0) = 0).
@@ -251,3 +254,43 @@ def reference_powers(
     v_B = float(d["J"]["B"][0] @ d["qd"])
     v_C = float(d["J"]["C"][0] @ d["qd"])
     return {"P_in": -F_C * v_C, "P_load": F_E * v_B, "P_fric": float(d["qd"] @ d["QfT"] @ lam)}
+
+
+def reference_friction_rows(q: Sequence[float], lam: Sequence[float], params: Mapping[str, float]) -> np.ndarray:
+    """The rows R_i of Q_fᵀλ/μ with every sgn = 1: R = [∂x_B/∂q, −∂x_C/∂q] λ (the x-rows of the
+    slider Jacobians), so that friction model 2 is Q_fᵀλ = μ sgn(q̇) |R|."""
+    d = _model(q, np.zeros(3), 0.0, 0.0, params, np.ones(3))
+    return np.column_stack([d["J"]["B"][0], -d["J"]["C"][0]]) @ np.asarray(lam, dtype=float)
+
+
+def reference_breakaway_thrust(
+    q: Sequence[float], direction: float, F_E: float, params: Mapping[str, float], bracket: tuple[float, float]
+) -> float:
+    """The thrust F_C at which the mechanism at rest at q, slipping in `direction` (sgn(ω1)) under
+    friction μ sgn(q̇_i) |R_i| (model 2, q̇ along the one admissible direction), has θ̈1 = 0: below
+    it (direction +1) or above it (−1) the slip would decelerate at once, so a consistent
+    stick-slip model holds the mechanism; found by bisection on `bracket`."""
+    q = np.asarray(q, dtype=float)
+    r1, r3, r4, r5, phi = (params[k] for k in ("r1", "r3", "r4", "r5", "phi"))
+    k = np.array([1.0, -r1 * np.cos(q[0]) / (r3 * np.cos(q[1])), -r4 * np.cos(q[0] + phi) / (r5 * np.cos(q[2]))])
+
+    def alpha1(F_C: float) -> float:
+        base = direction * np.sign(k)  # sgn(q̇_i) for q̇ along k in `direction`
+        sgn = base
+        for _ in range(10):  # sgn(R_i) depends on λ, which depends on it: iterate to a fixed point
+            qdd, lam = reference_accelerations(q, np.zeros(3), F_C, F_E, params, sgn)
+            new = base * np.sign(reference_friction_rows(q, lam, params))
+            if np.array_equal(new, sgn):
+                break
+            sgn = new
+        return float(qdd[0])
+
+    lo, hi = bracket
+    f_lo = alpha1(lo)
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if (alpha1(mid) > 0.0) == (f_lo > 0.0):
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)

@@ -46,6 +46,7 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
         assert 0 < figures["controller_fmu"]["ns_per_step"] < 1e6
         assert "controller FMU <= 0.5 us per step" in result.stdout
     assert len(figures["paper_rtf"]) == 6
+    assert 0 < figures["linearize"]["seconds"] < 1.0 and figures["linearize"]["relative_error"] < 1e-6
     for target in (
         "full loop <= 1.5 x FMU alone",
         "each paper run's loop",
@@ -53,6 +54,7 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
         "sweep >= 0.8 x simulate() on the same workers",
         "Dask cluster >= 0.8 x the pool",
         "1000 cases: parent peak RSS <= 500 MB",
+        "linearize at one point < 1 s",
     ):
         assert target in result.stdout, target
     sweeps = figures["sweeps"]

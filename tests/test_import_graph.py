@@ -158,6 +158,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("runs",),
     ("plant",),
     ("cosim",),
+    ("design",),
     ("analysis",),
     ("experiments",),
     ("ssp",),

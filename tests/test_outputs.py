@@ -350,9 +350,16 @@ def _kinds_and_files(tmp_path: Path) -> dict[str, tuple[object, Path]]:
     junit = tmp_path / "r.xml"
     junit.write_text('<?xml version="1.0"?>\n<testsuites><testsuite name="x"/></testsuites>\n')
     summary = tmp_path / "s.md"
-    summary.write_text("# Results of the paper's runs\n")
+    summary.write_text("# Results of the paper's runs\n\n| run | status |\n|---|---|\n")
     settings = tmp_path / "x_ref.opt"
     settings.write_text("StartTime, 0.0\nStopTime, 1.0\n")
+    npz = tmp_path / "model.npz"
+    with open(npz, "wb") as stream:
+        np.savez(stream, A=np.eye(2))
+    mat = tmp_path / "model.mat"
+    mat.write_bytes(b"MATLAB 5.0 MAT-file, Platform: posix".ljust(128, b" "))
+    invariants = tmp_path / "x_ref_invariants.yaml"
+    invariants.write_text("# held within a tolerance\ninvariants:\n  a: {value: 1.0}\n")
     return {
         "fmu": (outputs.FMU, _zip(tmp_path / "p.fmu", "modelDescription.xml")),
         "ssp": (outputs.SSP, _zip(tmp_path / "s.ssp", "SystemStructure.ssd")),
@@ -363,6 +370,9 @@ def _kinds_and_files(tmp_path: Path) -> dict[str, tuple[object, Path]]:
         "junit": (outputs.JUNIT, junit),
         "markdown": (outputs.MARKDOWN, summary),
         "settings": (outputs.SETTINGS, settings),
+        "npz": (outputs.NPZ, npz),
+        "mat": (outputs.MAT, mat),
+        "invariants": (outputs.INVARIANTS, invariants),
     }
 
 

@@ -39,7 +39,7 @@ def test_shipped_run_matches_its_reference(run, plant_fmu: Path, no_gravity_fmu:
     outcome = simulate(run, check_plant(fmu))
     assert outcome.complete, outcome.reason
     checked = references.check(outcome, FOLDER)
-    assert checked.comparison.passed, "moved beyond tolerance: " + "; ".join(checked.failures)
+    assert checked.passed, "moved beyond tolerance: " + "; ".join(checked.failures)  # funnel and invariants
 
 
 def test_a_perturbed_model_parameter_fails_the_check_and_names_the_variables(plant_fmu: Path, tmp_path: Path) -> None:
@@ -63,10 +63,13 @@ def test_a_perturbed_model_parameter_fails_the_check_and_names_the_variables(pla
         tmp_path / "summary.md",
     )
     xml = JUnitXml.fromfile(str(junit))
-    # one case per variable, and one for the solver statistics stored beside the reference: the
-    # changed friction changes the integrator's work, a warning (not a failure) without the flag
+    # one case per variable, one per invariant stored beside the reference, and one for the solver
+    # statistics: the changed friction changes the integrator's work, a warning (not a failure)
+    # without the flag
     assert checked.solver is not None and checked.solver.changed
-    assert (xml.tests, xml.failures) == (len(checked.comparison.variables) + 1, len(failed))
+    assert len(checked.invariants) == 3
+    broken = sum(not i.passed for i in checked.invariants)
+    assert (xml.tests, xml.failures) == (len(checked.comparison.variables) + 3 + 1, len(failed) + broken)
     assert sorted(
         p.stem.removesuffix("_funnel") for p in (tmp_path / "fig4_nominal" / "friction").glob("*.png")
     ) == sorted(failed)

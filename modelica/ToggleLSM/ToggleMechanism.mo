@@ -15,10 +15,15 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
        1 paper        tau_i = mu sgn(omega_i) R_i                 (eq. (17), the default)
        2 dissipative  tau_i = mu sgn(omega_i) |R_i|               (friction power >= 0)
        3 stick_slip   as 2 while the mechanism slips; when omega1 would reverse, the
-                      mechanism sticks: all velocities are set to zero, and a holding torque
-                      T_st on theta1 keeps alpha1 = -stickDecay omega1, until |T_st| exceeds
-                      the static capacity mu_s sum_i |domega_i/domega1| |R_i|; then it slips
-                      again in the direction of T_st.
+                      mechanism sticks: all velocities are set to zero, and the static friction
+                      keeps alpha1 = -stickDecay omega1: joints theta2 and theta5 carry their
+                      full static friction in the direction the mechanism would break away
+                      (dStick), the lever's joint the rest, so that T_st, the total projected on
+                      theta1, is what holds the mechanism. When T_st exceeds the static capacity
+                      mu_s sum_i |domega_i/domega1| |R_i| in direction dStick, it slips again in
+                      that direction; at that instant the stuck and the slipping equations are
+                      the same (with mu = mu_s), so the slip starts with alpha1 >= 0 in its
+                      direction and cannot stick again at the same instant.
      |R_i| is mu sgn(R_i) R_i with sgn(R_i) a relation latch, so the block stays linear in
      (alpha, lambda). The events of models 2 and 3 have indicators that are identically zero
      under model 1, so the paper's model integrates exactly as before. */
@@ -46,6 +51,7 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   parameter Real mu_s = 0.2 "Static coefficient of friction (frictionModel = 3)";
   parameter Real stickDecay(unit = "1/s") = 1000 "Rate at which a stuck mechanism's residual velocity decays (frictionModel = 3)";
   parameter Real stickCompliance = 1e-12 "Residual acceleration of a stuck mechanism per N.m of holding torque, rad/s2 (model 3; numerical regularisation)";
+  parameter Real muStatic = if mu_s > mu then mu_s else mu "Static coefficient in force (model 3): mu_s, or mu where mu_s is below it (breakaway is then continuous)";
   parameter Real wDiss = if frictionModel == 1 then 0.0 else 1.0 "1 where the sign of R_i is watched (models 2, 3)";
   parameter Real wStick = if frictionModel == 3 then 1.0 else 0.0 "1 where sticking is modelled (model 3)";
   parameter Real baumgarte(unit = "1/s") = 20 "Rate of the constraint stabilisation; 0 integrates Phi_q qdd = gamma unmodified";
@@ -74,6 +80,7 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   discrete Real sgn5(start = 0.0) "sgn(omega5), latched at its zero crossings";
   discrete Real stuck(start = wStick) "1 while the mechanism sticks (model 3; it starts at rest, stuck)";
   discrete Real dir(start = 0.0) "Direction of omega1 since the last breakaway (model 3), 0 while stuck";
+  discrete Real dStick(start = 1.0) "Direction a stuck mechanism would break away in (model 3): the sign of T_st, switched when -dStick T_st exceeds half the static capacity";
   Real R1(unit = "N.m") "Row theta1 of Q_f' lambda / (mu sgn1)";
   Real R2(unit = "N.m") "Row theta2 of Q_f' lambda / (mu sgn2)";
   Real R5(unit = "N.m") "Row theta5 of Q_f' lambda / (mu sgn5)";
@@ -84,8 +91,12 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   Real c2 "Factor of mu R2 in tau2_f";
   Real c5 "Factor of mu R5 in tau5_f";
   Real u_st "Free variable of the theta1 row: alpha1 while slipping, the holding torque T_st while stuck";
-  Real T_st(unit = "N.m") "Holding (static friction) torque on theta1 while stuck (model 3), else 0";
+  Real T_st(unit = "N.m") "Holding (static friction) torque of all joints projected on theta1 while stuck (model 3), else 0";
   Real T_s(unit = "N.m") "Static friction capacity mu_s sum_i |domega_i/domega1| |R_i| (model 3)";
+  Real k2 "Kinematic ratio omega2/omega1 = -r1 cos(theta1)/(r3 cos(theta2))";
+  Real k5 "Kinematic ratio omega5/omega1 = -r4 cos(theta1 + phi)/(r5 cos(theta5))";
+  Real T_j2(unit = "N.m") "Static friction at joint theta2 while stuck (model 3): muStatic dStick sgn(k2) |R2|, else 0";
+  Real T_j5(unit = "N.m") "Static friction at joint theta5 while stuck (model 3): muStatic dStick sgn(k5) |R5|, else 0";
 
   Real x_B(unit = "m") "Position of slider B";
   Real v_B(unit = "m/s") "Velocity of slider B";
@@ -168,18 +179,26 @@ equation
     sgn5 = -1.0;
   end when;
 
-  // Sticking (model 3): break away when the holding torque exceeds the static capacity (the
-  // factor time keeps the condition false at the start, so a load above it breaks away at
-  // t = 0+); stick when omega1 crosses zero against the direction of slip
-  when time * stuck * (abs(T_st) - T_s) > 0 then
+  // Sticking (model 3): break away when the holding torque exceeds the static capacity in the
+  // direction dStick (the factor time keeps the condition false at the start, so a load above
+  // it breaks away at t = 0+); stick when omega1 crosses zero against the direction of slip
+  when time * stuck * (dStick * T_st - T_s) > 0 then
     stuck = 0.0;
-    dir = sign(T_st);
+    dir = dStick;
   elsewhen (1.0 - stuck) * (-dir * omega1) > 0 then
     stuck = 1.0;
     dir = 0.0;
     reinit(omega1, 0.0);
     reinit(omega2, 0.0);
     reinit(omega5, 0.0);
+  end when;
+
+  // The direction a stuck mechanism would break away in: switched with a margin of half the
+  // static capacity, so that the switch (which moves the friction of joints theta2 and theta5
+  // and with it lambda and T_s a little) cannot switch back at the same instant, and always
+  // before the capacity in the other direction is reached
+  when time * stuck * (-dStick * T_st - 0.5 * T_s) > 0 then
+    dStick = sign(T_st);
   end when;
 
   // Signs of the rows R_i (models 2, 3); the factor time sets them at t = 0+ whatever the
@@ -237,16 +256,21 @@ equation
   c1 = if frictionModel == 1 then sgn1 else (1.0 - stuck) * sgn1 * sR1;
   c2 = if frictionModel == 1 then sgn2 else (1.0 - stuck) * sgn2 * sR2;
   c5 = if frictionModel == 1 then sgn5 else (1.0 - stuck) * sgn5 * sR5;
-  tau1_f = mu * c1 * (-r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2) + T_st;
-  tau2_f = -mu * c2 * r3 * sin(theta2) * lambda1;
-  tau5_f = mu * c5 * r5 * sin(theta5) * lambda2;
-  // Sticking: alpha1 = u_st and T_st = 0 while slipping; while stuck T_st = u_st and
+  tau1_f = mu * c1 * (-r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2) + T_st - k2 * T_j2 - k5 * T_j5;
+  tau2_f = -mu * c2 * r3 * sin(theta2) * lambda1 + T_j2;
+  tau5_f = mu * c5 * r5 * sin(theta5) * lambda2 + T_j5;
+  k2 = -r1 * cos(theta1) / (r3 * cos(theta2));
+  k5 = -r4 * cos(theta1 + phi) / (r5 * cos(theta5));
+  T_j2 = stuck * muStatic * dStick * sign(k2) * sR2 * R2;
+  T_j5 = stuck * muStatic * dStick * sign(k5) * sR5 * R5;
+  // Sticking: alpha1 = u_st and T_st = 0 while slipping; while stuck T_st = u_st (the lever's
+  // joint takes T_st - k2 T_j2 - k5 T_j5, so the three joints' friction projected on theta1,
+  // tau1 + k2 tau2 + k5 tau5, is T_st) and
   // alpha1 = -stickDecay omega1 + stickCompliance T_st (the coefficient of u_st is never zero,
   // so the compiler may solve this equation for u_st in either state)
   alpha1 = ((1.0 - stuck) + stuck * stickCompliance) * u_st - stuck * stickDecay * omega1;
   T_st = stuck * u_st;
-  T_s = mu_s * (abs(R1) + abs(r1 * cos(theta1) / (r3 * cos(theta2))) * abs(R2)
-    + abs(r4 * cos(theta1 + phi) / (r5 * cos(theta5))) * abs(R5));
+  T_s = muStatic * (abs(R1) + abs(k2) * abs(R2) + abs(k5) * abs(R5));
 
   // Eq. (18), generalized equation of theta1
   J2 * alpha1 + m3 * (-aG3x * r1 * sin(theta1) + aG3y * r1 * cos(theta1)) - m_B * a_B * r1 * sin(theta1)

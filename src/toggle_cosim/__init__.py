@@ -39,6 +39,11 @@ _PUBLIC = {
     "ContractError": "toggle_cosim.plant.contract",
     "Run": "toggle_cosim.runs.definition",
     "RunSummary": "toggle_cosim.cosim.summary",
+    "trim": "toggle_cosim.api.design",
+    "linearize": "toggle_cosim.api.design",
+    "OperatingPoint": "toggle_cosim.api.design",
+    "LinearModel": "toggle_cosim.api.design",
+    "TrimError": "toggle_cosim.api.design",
 }
 __all__ = ["__version__", *_PUBLIC]
 

@@ -5,7 +5,8 @@ JUnit: one `<testsuite>` per compared trace, one `<testcase>` per variable (clas
 trace's label, name = the variable); a failing variable carries a `<failure>` whose message gives
 its largest distance to the funnel and when it happens. Solver statistics that changed add a
 test case "solver statistics" that fails under `--fail-on-solver-change` and is otherwise passed
-with the change in its system-out (a warning). Written with junitparser.
+with the change in its system-out (a warning). Each invariant of the reference
+(`analysis.invariants`) is a test case "invariant <metric>". Written with junitparser.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
+from toggle_cosim.analysis.invariants import InvariantResult
 from toggle_cosim.analysis.solver_stats import SolverCheck
 from toggle_cosim.files.outputs import JUNIT, MARKDOWN, replacing, write_text
 
@@ -34,10 +36,12 @@ class CheckedTrace:
     plots: dict[str, Path] = field(default_factory=dict)
     solver: SolverCheck | None = None
     solver_fails: bool = False  # --fail-on-solver-change
+    invariants: tuple[InvariantResult, ...] = ()  # the reference's invariants, checked
 
     @property
     def passed(self) -> bool:
-        return self.comparison.passed and not (self.solver_fails and self.solver is not None and self.solver.changed)
+        solver_failed = self.solver_fails and self.solver is not None and self.solver.changed
+        return self.comparison.passed and not solver_failed and all(i.passed for i in self.invariants)
 
 
 def failure_message(variable: VariableResult) -> str:
@@ -64,6 +68,11 @@ def write_junit(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
                     f"\nplot: {check.plots[variable.name]}" if variable.name in check.plots else ""
                 )
                 case.result = [failure]
+            suite.add_testcase(case)
+        for invariant in check.invariants:
+            case = TestCase(f"invariant {invariant.invariant.name}", classname=check.label, time=0.0)
+            if not invariant.passed:
+                case.result = [Failure(invariant.line, type_="InvariantChanged")]
             suite.add_testcase(case)
         if check.solver is not None and check.solver.changed:
             case = TestCase(SOLVER_CASE, classname=check.label, time=0.0)
@@ -115,6 +124,10 @@ def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = No
                 f"| {check.label} | `{v.name}` | {v.max_error:.3e} | {when} | ±{v.half_height:.3g}, "
                 f"±{v.half_width:.3g} s | {shown} |"
             )
+    broken = [(check, i) for check in checks for i in check.invariants if not i.passed]
+    if broken:
+        lines.append("")
+        lines += [f"- FAIL: {check.label}: invariant {i.line}" for check, i in broken]
     changed = [check for check in checks if check.solver is not None and check.solver.changed]
     if changed:
         lines.append("")

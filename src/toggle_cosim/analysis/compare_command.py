@@ -14,6 +14,7 @@ from pathlib import Path
 from toggle_cosim.analysis.ci_reports import CheckedTrace, write_junit, write_markdown_summary
 from toggle_cosim.analysis.compare import ComparisonResult, compare_traces, format_table, write_report
 from toggle_cosim.analysis.csv_traces import CompareInputError
+from toggle_cosim.analysis.invariants import check_invariants, invariants_path, load_invariants
 from toggle_cosim.analysis.reference_files import check_span, read_options, reference_paths
 from toggle_cosim.analysis.solver_stats import (
     SolverCheck,
@@ -159,6 +160,7 @@ def run_compare(
         checked = _compared(reference, options, result, reference_path, tolerance_path, str(result_path))
         comparison, files = checked.comparison, checked.tolerance_files
         solver = solver_check(reference_path, _result_statistics(result_path))
+        invariants = check_invariants(result, load_invariants(invariants_path(reference_path)))
     except (CompareInputError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -171,11 +173,20 @@ def run_compare(
         word = "FAIL" if fail_on_solver_change and solver.changed else "warning" if solver.changed else "note"
         for line in solver.lines or ("solver statistics unchanged",):
             print(f"{word if solver.lines else 'solver'}: {line}")
-    check = CheckedTrace(trace_label(reference_path), comparison, solver=solver, solver_fails=fail_on_solver_change)
+    for invariant in invariants:
+        print(f"invariant {invariant.line}")
+    check = CheckedTrace(
+        trace_label(reference_path),
+        comparison,
+        solver=solver,
+        solver_fails=fail_on_solver_change,
+        invariants=invariants,
+    )
     try:
         if out_dir is not None:
             written = write_report(comparison, Path(out_dir), result, reference)
-            check = CheckedTrace(check.label, comparison, plots_of(comparison, written), solver, fail_on_solver_change)
+            plots = plots_of(comparison, written)
+            check = CheckedTrace(check.label, comparison, plots, solver, fail_on_solver_change, invariants)
             print(f"report: {len(written)} files in {out_dir}")
         if junit is not None:
             print(f"junit: {write_junit([check], junit)}")

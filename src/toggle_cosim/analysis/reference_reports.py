@@ -33,5 +33,7 @@ def write_reference_reports(
             reference, _ = read_reference(stem)
             written = write_report(check.comparison, Path(out) / check.label, trace, reference)
             plots = plots_of(check.comparison, written)
-        checked.append(CheckedTrace(check.label, check.comparison, plots, check.solver, fail_on_solver_change))
+        checked.append(
+            CheckedTrace(check.label, check.comparison, plots, check.solver, fail_on_solver_change, check.invariants)
+        )
     return [write_junit(checked, junit), write_markdown_summary(checked, summary)]

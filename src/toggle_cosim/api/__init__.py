@@ -10,4 +10,5 @@ imports that module on first use, so `import toggle_cosim` (and the command line
 * `units.py`      the units of a trace's columns, from the plant FMU's modelDescription
 * `comparison.py` `compare`, `Comparison`: the funnel comparison against a reference
 * `sweeping.py`   `sweep`: a parameter sweep's results table as a DataFrame
+* `design.py`     `trim`, `linearize`: an operating point and the linear model there (python-control)
 """

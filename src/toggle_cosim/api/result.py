@@ -43,7 +43,9 @@ class Result:
         reason: why the run did not complete; None when it did.
         summary: the figures of merit (`RunSummary`: final error x_B* − x_B [m], settling time
             [s], overshoot [%], peak |i_q*| [A], the hitting time T_h of eq. (21) [s], S(t0) of
-            eq. (21), E_in and E_fric at t_end [J], ...); None when the run ended before its
+            eq. (21), E_in and E_fric at t_end [J], the VSC metrics: total variation of i_q* per
+            second, sign changes of S per second while sliding, the measured reaching time and its
+            ratio to T_h, ...); None when the run ended before its
             second sample.
         record: the run record, what `toggle-cosim run` writes to run.json (the resolved
             scenario, the FMU's path and SHA-256, the loop that ran, wall time, solver counts).

@@ -33,6 +33,7 @@ from toggle_cosim.cli import (  # noqa: E402, F401 - they add the commands
     build_command,
     check_commands,
     init_command,
+    linearize_command,
     run_commands,
     ssp_command,
     sweep_command,

@@ -35,6 +35,8 @@ EXTRAS = {
     "junitparser": "ci",
     "buildingspy": "ci",
     "matplotlib": "plot",
+    "control": "design",
+    "scipy": "design",
 }
 
 

@@ -161,9 +161,12 @@ def _check_reference(outcome, refs, folder: Path, update: bool, fail_on_solver_c
         checked = refs.check(outcome, folder)
     except (CompareInputError, ValueError) as error:
         raise InputError(str(error)) from error
-    click.echo(f"{run.label}: {'pass' if checked.comparison.passed else 'FAIL'}")
+    click.echo(f"{run.label}: {'pass' if checked.passed else 'FAIL'}")
     if not checked.comparison.passed:
         click.echo(format_table(checked.comparison))
+    for invariant in checked.invariants:
+        if not invariant.passed:
+            click.echo(f"FAIL: invariant {invariant.line}")
     for line in checked.solver_changes:
         click.echo(f"{'FAIL' if fail_on_solver_change else 'warning'}: {line}")
     checks.append((checked, outcome.trace, refs.reference_stem(folder, run)))

@@ -44,11 +44,13 @@ from toggle_cosim.runs.definition import COUPLINGS
     "previous sample's command (overrides the scenarios' coupling: key; default gauss-seidel).",
 )
 @click.option(
-    "--parameter-set",
-    default=None,
+    "--variant",
+    "variants",
+    multiple=True,
     metavar="NAME",
-    help="For an .ssp: run this parameter set only (default: every parameter set, as a scenario's variants).",
+    help="For an .ssp: run this variant, a root SSD named NAME (repeat for several; default: SystemStructure.ssd).",
 )
+@click.option("--parameter-set", "parameter_sets", multiple=True, hidden=True, help="Old name of --variant.")
 @TIME_LIMIT_OPTION
 @JOBS_OPTION
 def run(
@@ -57,7 +59,8 @@ def run(
     out: Path,
     quiet: bool,
     coupling: str | None,
-    parameter_set: str | None,
+    variants: tuple[str, ...],
+    parameter_sets: tuple[str, ...],
     time_limit: float | None,
     jobs: int | None,
 ) -> None:
@@ -67,12 +70,13 @@ def run(
     from toggle_cosim.cli.ssp_command import is_ssp, ssp_runs
 
     ssps = [path for path in scenarios if is_ssp(path)]
-    if parameter_set is not None and not ssps:
-        raise InputError("--parameter-set chooses an SSP's parameter set: give an .ssp file with it")
+    variants = (*variants, *parameter_sets)  # --parameter-set: the old name (a variant is named after its set)
+    if variants and not ssps:
+        raise InputError("--variant chooses an SSP's variant (a root SSD): give an .ssp file with it")
     if fmu is not None and ssps:
         raise InputError(f"{ssps[0]}: --fmu does not apply to an SSP (its plant is inside it); run it without --fmu")
     with contextlib.ExitStack() as stack:  # an SSP's FMUs live in a folder removed after the runs
-        built = ssp_runs(ssps, parameter_set, stack)
+        built = ssp_runs(ssps, variants, stack)
         pairs = load_runs([path for path in scenarios if not is_ssp(path)], fmu, built)
         if coupling is not None:
             pairs = [(dataclasses.replace(one, coupling=coupling), plant) for one, plant in pairs]

@@ -26,15 +26,23 @@ from toggle_cosim.files.outputs import SSP
     show_default=True,
     help="Controller FMU.",
 )
-def ssp(scenario: Path, output: Path, plant: Path | None, controller: Path) -> None:
-    """Write SCENARIO (its variants as parameter sets, with the plant and controller FMUs) as an SSP 1.0 archive."""
+@click.option(
+    "--variant",
+    "variants",
+    multiple=True,
+    metavar="NAME",
+    help="Write only this variant (repeat for several; default: every variant, the first as SystemStructure.ssd).",
+)
+def ssp(scenario: Path, output: Path, plant: Path | None, controller: Path, variants: tuple[str, ...]) -> None:
+    """Write SCENARIO as an SSP 1.0 archive: one root SSD per variant (SystemStructure.ssd the first), with the
+    plant and controller FMUs and one parameter set per component."""
     from toggle_cosim.experiments.scenario import ScenarioError
     from toggle_cosim.ssp.checks import SspError
     from toggle_cosim.ssp.writer import write_ssp
 
     check_output(output, "SSP (--out)", SSP)
     try:
-        written = write_ssp(scenario, output, plant, controller)
+        written = write_ssp(scenario, output, plant, controller, variants)
     except (ScenarioError, SspError) as error:
         raise InputError(str(error)) from error
     click.echo(f"wrote {written}")
@@ -44,20 +52,24 @@ def is_ssp(path: Path) -> bool:
     return Path(path).suffix.lower() == ".ssp"
 
 
-def ssp_runs(paths: Sequence[Path], parameter_set: str | None, stack: contextlib.ExitStack) -> list:
-    """The runs of each SSP: the parameter set named, else every set in order; the FMUs extracted
-    into folders that `stack` removes."""
+def ssp_runs(paths: Sequence[Path], variants: Sequence[str], stack: contextlib.ExitStack) -> list:
+    """The runs of each SSP: the variants named (each a root SSD, by its name), else its default
+    (SystemStructure.ssd); every one read and checked before any runs, the FMUs extracted into
+    folders that `stack` removes."""
     from toggle_cosim.ssp.checks import SspError
-    from toggle_cosim.ssp.reader import open_ssp, open_ssp_sets
+    from toggle_cosim.ssp.reader import open_ssp_variants
     from toggle_cosim.ssp.run import run_from_ssp
 
+    asked = list(variants) or [None]
+    seen: set[Path] = set()
+    for path in paths:
+        if Path(path).resolve() in seen:
+            raise InputError(f"{path} is given twice: its runs would write the same folders (give it once)")
+        seen.add(Path(path).resolve())
     runs = []
     try:
         for path in paths:
-            if parameter_set is None:
-                studies = stack.enter_context(open_ssp_sets(path))
-            else:
-                studies = (stack.enter_context(open_ssp(path, parameter_set)),)
+            studies = stack.enter_context(open_ssp_variants(path, asked))
             runs.extend(run_from_ssp(study) for study in studies)
     except SspError as error:
         raise InputError(str(error)) from error

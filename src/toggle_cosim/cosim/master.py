@@ -109,6 +109,13 @@ def _number(value: object) -> float | None:
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
+def _diagnostics(trace: Trace, names: tuple[str, ...]) -> tuple[np.ndarray | None, ...]:
+    """The columns `names` of the trace if it has them all (the built-in law's S and phase), else Nones."""
+    if all(name in trace.names for name in names):
+        return tuple(trace.column(name) for name in names)
+    return tuple(None for _ in names)
+
+
 def open_session(plant: PlantInterface, instance_name: str) -> PlantSession:
     """A session of `plant` with the master's outputs and inputs: the FMU unzipped and its binary
     loaded, no instance yet. `simulate(..., session=)` runs on it, run after run."""
@@ -243,6 +250,7 @@ def simulate(
             run.x_target,
             _number(getattr(state.controller, "T_h", None)),
             _number(getattr(state.controller, "S0", None)),
+            *_diagnostics(trace, ("S", "phase")),
         )
         limits = run.plant.working_range or working_range(MechanismParameters())
         warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)

@@ -7,6 +7,7 @@ Layout (FMI cross-check style), one folder per scenario:
     scenarios/references/<scenario>/<variant>_ref.csv
     scenarios/references/<scenario>/<variant>_ref.opt
     scenarios/references/<scenario>/<variant>_ref_solver.json   solver statistics, where the FMU exposes them
+    scenarios/references/<scenario>/<variant>_ref_invariants.yaml  optional: metrics held within a tolerance
 
 A reference keeps every `DECIMATION`-th sample of the run (every 5 ms at T_s = 0.5 ms), so the
 repository stays small; the check compares the full-resolution run with it, and the comparison
@@ -20,6 +21,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toggle_cosim.analysis.compare import ComparisonResult, Tolerance, compare_traces
+from toggle_cosim.analysis.invariants import (
+    InvariantResult,
+    check_invariants,
+    invariants_path,
+    load_invariants,
+    update_invariants,
+)
 from toggle_cosim.analysis.reference_files import read_reference, write_reference
 from toggle_cosim.analysis.solver_stats import (
     SolverCheck,
@@ -42,6 +50,11 @@ class ReferenceCheck:
     label: str
     comparison: ComparisonResult
     solver: SolverCheck | None = None  # None: no statistics stored with the reference and none from the run
+    invariants: tuple[InvariantResult, ...] = ()  # the reference's invariants file, checked (analysis.invariants)
+
+    @property
+    def passed(self) -> bool:
+        return self.comparison.passed and all(invariant.passed for invariant in self.invariants)
 
     @property
     def failures(self) -> list[str]:
@@ -49,7 +62,7 @@ class ReferenceCheck:
             f"{self.label}: {v.name} off by {v.max_error:.3g} at t = {v.time_of_max_error:.4f} s"
             for v in self.comparison.variables
             if not v.passed
-        ]
+        ] + [f"{self.label}: invariant {i.line}" for i in self.invariants if not i.passed]
 
     @property
     def solver_changes(self) -> list[str]:
@@ -85,6 +98,7 @@ def store(outcome: RunOutcome, folder: Path) -> Path:
     counts = outcome.record.get("solver_statistics")
     if isinstance(counts, dict) and counts:
         write_statistics_file(statistics_path(csv_path), counts)
+    update_invariants(invariants_path(csv_path), outcome.trace)  # an existing file's values, re-measured
     return csv_path
 
 
@@ -110,4 +124,5 @@ def check(outcome: RunOutcome, folder: Path) -> ReferenceCheck:
     solver = None
     if stored is not None or isinstance(current, dict):
         solver = compare_solver_statistics(stored, current)
-    return ReferenceCheck(run.label, comparison, solver)
+    invariants = check_invariants(outcome.trace, load_invariants(invariants_path(Path(str(stem) + "_ref.csv"))))
+    return ReferenceCheck(run.label, comparison, solver, invariants)

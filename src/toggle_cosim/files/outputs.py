@@ -83,6 +83,18 @@ def _zip_with(member: str) -> Callable[[Path], bool]:
     return recognize
 
 
+def _zip_of(suffix: str) -> Callable[[Path], bool]:
+    def recognize(path: Path) -> bool:
+        try:
+            with zipfile.ZipFile(path) as archive:
+                names = archive.namelist()
+        except (OSError, zipfile.BadZipFile, ValueError):
+            return False
+        return bool(names) and all(name.endswith(suffix) for name in names)
+
+    return recognize
+
+
 def _starts(*signatures: bytes) -> Callable[[Path], bool]:
     return lambda path: _head(path).lstrip().startswith(signatures)
 
@@ -101,8 +113,10 @@ def _csv_table(path: Path) -> bool:
 
 
 def _markdown_summary(path: Path) -> bool:
-    """A Markdown summary as this project writes them: a heading or a table row first."""
-    return _head(path).startswith((b"# ", b"| "))
+    """A Markdown summary as this project writes them: a heading or a table row first, and a
+    table (a `|---` row) in it."""
+    head = _head(path)
+    return head.startswith((b"# ", b"| ")) and any(line.startswith(b"|---") for line in head.splitlines())
 
 
 FMU = OutputKind("an FMU (a zip archive with a modelDescription.xml)", _zip_with("modelDescription.xml"))
@@ -112,7 +126,13 @@ PARQUET = OutputKind("a Parquet table", _starts(b"PAR1"))
 CSV = OutputKind("a CSV table (a header of column names)", _csv_table)
 JSON = OutputKind("a JSON object", _starts(b"{"))
 JUNIT = OutputKind("a JUnit XML report", lambda path: b"<testsuite" in _head(path))
-MARKDOWN = OutputKind("a Markdown summary (a '# ' heading or a '| ' table row first)", _markdown_summary)
+MARKDOWN = OutputKind("a Markdown summary (a '# ' heading or a '| ' table row first, and a table)", _markdown_summary)
+NPZ = OutputKind("a NumPy .npz archive", _zip_of(".npy"))
+MAT = OutputKind("a MATLAB .mat file (version 5)", _starts(b"MATLAB 5.0 MAT-file"))
+INVARIANTS = OutputKind(
+    "a reference's invariants file (an 'invariants:' mapping)",
+    lambda path: any(line.startswith(b"invariants:") for line in _head(path).splitlines()),
+)
 SETTINGS = OutputKind(
     "a reference's settings file (StartTime, ... lines)", _starts(b"StartTime,", b"StopTime,", b"StepSize,")
 )
@@ -288,9 +308,12 @@ __all__ = [
     "CSV",
     "FILE_MODE",
     "FMU",
+    "INVARIANTS",
     "JSON",
     "JUNIT",
     "MARKDOWN",
+    "MAT",
+    "NPZ",
     "PARQUET",
     "PNG",
     "SETTINGS",

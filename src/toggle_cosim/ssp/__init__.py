@@ -1,8 +1,10 @@
 """The study as an SSP 1.0 archive (System Structure and Parameterization): the plant FMU and the
-controller FMU as components, their connections, one parameter set per scenario variant, the
-default experiment. `writer` writes one from a scenario file, `reader` reads one back into what
-our master runs (`run`), `checks` holds what both check (the vendored SSP 1.0 schemas, the
-archive's safety), `layout` the fixed shape of the archive. User documentation: docs/ssp.md."""
+controller FMU as components, their connections, one root SSD per scenario variant (each binding
+one parameter set per component), the default experiment. `writer` writes one from a scenario
+file; `reader` reads a variant back into what our master runs (`run`), from the SSD and its .ssv
+files only (`variants`, `bindings`, `wiring`, `as_scenario`); `checks` holds what both check (the
+vendored SSP 1.0 schemas, bounded XML, the archive's safety), `layout` the archive's shape. User
+documentation: docs/ssp.md."""
 
 from toggle_cosim.ssp.checks import SspError
 

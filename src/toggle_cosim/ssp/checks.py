@@ -1,10 +1,13 @@
 """What the SSP writer and reader both check: XML against the vendored SSP 1.0 schemas
-(`schemas/`, validated with lxml, which FMPy's own SSP reader uses too) and the archive's safety
-(the FMU archive checks of `plant.archive`: member names, sizes, members, corrupt data)."""
+(`schemas/`, validated with lxml, which FMPy's own SSP reader uses too), XML read within bounds
+(member size XML_LIMIT, MAX_ELEMENTS elements, MAX_DEPTH levels; no DOCTYPE, so no entities, and
+nothing fetched), and the archive's safety (the FMU archive checks of `plant.archive`: member
+names, sizes, members, corrupt data)."""
 
 from __future__ import annotations
 
 import functools
+import io
 import zipfile
 from importlib import resources
 from pathlib import Path
@@ -12,6 +15,7 @@ from typing import Any, TypeAlias
 
 from lxml import etree
 
+from toggle_cosim.files.bounded import MiB
 from toggle_cosim.plant.archive import ArchiveError, check_archive
 
 SCHEMAS = {
@@ -21,6 +25,10 @@ SCHEMAS = {
     "ssb": "SystemStructureSignalDictionary.xsd",
 }
 
+
+XML_LIMIT = 4 * MiB  # an SSD or .ssv: ours are a few kB
+MAX_ELEMENTS = 100_000
+MAX_DEPTH = 64
 
 Element: TypeAlias = Any  # an lxml element (lxml names its class privately)
 
@@ -47,14 +55,47 @@ def schema_problem(root: Element, kind: str) -> str | None:
     return f"line {entry.line}: {' '.join(entry.message.split())}"
 
 
-def parse_member(archive: zipfile.ZipFile, member: str, kind: str, where: str) -> Element:
-    """The root of an XML member, checked against its SSP 1.0 schema; SspError naming `where`
-    (the SSP file and the member) otherwise. Entities are not resolved and nothing is fetched."""
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False)
+def parse_xml(data: bytes, where: str) -> Element:
+    """The root of the XML document `data`, read within MAX_ELEMENTS elements and MAX_DEPTH
+    levels; a DOCTYPE (and so any entity) is refused, entities are never resolved and nothing
+    is fetched. SspError naming `where` otherwise."""
+    counted = depth = 0
+    events = etree.iterparse(
+        io.BytesIO(data),
+        events=("start", "end"),
+        resolve_entities=False,
+        no_network=True,
+        huge_tree=False,
+        load_dtd=False,
+    )
     try:
-        root = etree.fromstring(archive.read(member), parser)
+        for event, _ in events:
+            if event == "end":
+                depth -= 1
+                continue
+            counted, depth = counted + 1, depth + 1
+            if counted > MAX_ELEMENTS:
+                raise SspError(f"{where}: more than {MAX_ELEMENTS} XML elements (refused; an SSP file is smaller)")
+            if depth > MAX_DEPTH:
+                raise SspError(f"{where}: XML nested deeper than {MAX_DEPTH} levels (refused; an SSP file is flatter)")
+        root = events.root
     except etree.XMLSyntaxError as error:
         raise SspError(f"{where}: not well-formed XML ({' '.join(str(error).split())}); fix or rewrite it") from None
+    if root.getroottree().docinfo.doctype or any(node.tag is etree.Entity for node in root.iter()):
+        raise SspError(f"{where}: a DOCTYPE or entity reference (refused: an SSP file needs neither; remove it)")
+    return root
+
+
+def parse_member(archive: zipfile.ZipFile, member: str, kind: str, where: str) -> Element:
+    """The root of an XML member (at most XML_LIMIT bytes, `parse_xml`), checked against its SSP
+    1.0 schema; SspError naming `where` (the SSP file and the member) otherwise."""
+    if archive.getinfo(member).file_size > XML_LIMIT:
+        raise SspError(f"{where}: over the {XML_LIMIT // MiB} MiB an SSP's XML file may have here (refused)")
+    with archive.open(member) as stream:
+        data = stream.read(XML_LIMIT + 1)
+    if len(data) > XML_LIMIT:
+        raise SspError(f"{where}: over the {XML_LIMIT // MiB} MiB an SSP's XML file may have here (refused)")
+    root = parse_xml(data, where)
     problem = schema_problem(root, kind)
     if problem is not None:
         raise SspError(f"{where}: not valid SSP 1.0 ({problem}); fix it or write the SSP again")

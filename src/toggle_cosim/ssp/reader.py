@@ -1,334 +1,387 @@
-"""An SSP archive -> what our master needs to run one of its parameter sets (`read_ssp`).
+"""An SSP archive -> what our master runs for one of its variants (`read_ssp`, `open_ssp`).
 
-Checked, each failure one SspError line naming the file and the fix: a zip archive, safe
-(`plant.archive`); a SystemStructure.ssd valid against the SSP 1.0 schema; components `plant` and
-`controller` whose FMUs the archive holds; connectors the FMUs have; connections between existing
-components and connectors, their units equal; the parameter set named (or the default, `layout`);
-its .ssv files valid and naming variables the FMUs have; our annotation (T_s, the runs' scenario
-documents) present and agreeing with the controller's T_s.
+A variant is a root SSD (SSP 1.0.1, section 3): `SystemStructure.ssd`, the default, and any other
+`*.ssd` at the archive's top level, each named by its `name` attribute (or its file name). What
+runs is read from the chosen SSD and its .ssv files only: the two components (the controller is
+the FMU with an output iq_ref, the plant the one with an input iq_ref, whatever their names),
+the values their bindings give (`bindings`: every binding, later ones taking priority, then the
+system's), the stop time of its DefaultExperiment and the controller's T_s. Annotations are not
+read.
+
+Checked before any run, each failure one SspError line naming the file and the fix: a zip
+archive, safe (`plant.archive`); the variants (`variants`: names, bounds, set names); every .ssv
+within bounds and valid SSP 1.0 (`checks`); exactly two FMU components, Co-Simulation, whose FMUs the
+archive holds; connections exactly the loop our master runs (`wiring`); every bound name a
+parameter or input of its FMU, of its type, finite; the values within the scenario's ranges
+(`as_scenario`); the experiment starting at 0 and ending at a whole number of samples.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import math
 import shutil
 import tempfile
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import TypeVar
+from typing import Any
 
-from lxml import etree
-
+from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
-from toggle_cosim.ssp.checks import Element, SspError, open_archive, parse_member
+from toggle_cosim.ssp.bindings import Binding, Value, bindings_of, merged
+from toggle_cosim.ssp.checks import Element, SspError, open_archive
 from toggle_cosim.ssp.fmus import FmuVariables, describe
+from toggle_cosim.ssp.variants import Variant, check_set_names, choose, root_ssds
+from toggle_cosim.ssp.wiring import check_wiring, connectors_of
 
-__all__ = ["SspStudy", "open_ssp", "open_ssp_sets", "read_ssp", "read_ssp_sets"]
+__all__ = ["Component", "SspStudy", "open_ssp", "open_ssp_variants", "read_ssp", "read_ssp_variants"]
 
-Value = float | bool | int
-T = TypeVar("T")
 NS = layout.NAMESPACES
 
 
 @dataclass(frozen=True)
-class SspStudy:
-    """One parameter set of an SSP, ready for our master.
+class Component:
+    """One component as it runs: its name in the SSD, its FMU (archive member, extracted copy,
+    SHA-256) and every value its bindings set, in the order they are set."""
 
-    `plant_values` are what the master sets on the plant before initialisation, in the .ssv's
-    order (F_E, the plant's input, apart); `controller_values` the controller FMU's parameters;
-    `run` the run for the records (labels, stroke, ...) with the SSP's t_end, T_s, F_E and plant
-    values. `plant_fmu` and `controller_fmu` are extracted copies (`open_ssp`'s folder)."""
+    name: str
+    source: str
+    fmu: Path
+    sha256: str
+    values: tuple[tuple[str, Value], ...]
+
+    def record(self) -> dict[str, Any]:
+        """What run.json says about the component."""
+        return {"name": self.name, "source": self.source, "sha256": self.sha256, "values": dict(self.values)}
+
+
+@dataclass(frozen=True)
+class SspStudy:
+    """One variant of an SSP, ready for our master.
+
+    `plant_values` are what the master sets on the plant before initialisation (F_E, the plant's
+    input, apart); `controller_values` the controller FMU's parameters; `run` the run with the
+    SSP's t_end, T_s, F_E and plant values, its record naming the SSP, the variant and each
+    component's source, hash and values. `plant_fmu` and `controller_fmu` are extracted copies."""
 
     path: Path
-    parameter_set: str
-    parameter_sets: tuple[str, ...]
-    plant_fmu: Path
-    controller_fmu: Path
-    plant_values: tuple[tuple[str, Value], ...]
+    variant: str
+    member: str
+    variants: tuple[str, ...]
+    plant: Component
+    controller: Component
     F_E: float
-    controller_values: tuple[tuple[str, Value], ...]
     t_end: float
     T_s: float
     run: Run
 
+    @property
+    def plant_fmu(self) -> Path:
+        return self.plant.fmu
 
-def _value(element: Element) -> Value:
-    kind, text = etree.QName(element).localname, element.get("value")
-    if kind == "Boolean":
-        return text in ("true", "1")
-    if kind == "Integer":
-        return int(text)
-    return float(text)
+    @property
+    def controller_fmu(self) -> Path:
+        return self.controller.fmu
 
+    @property
+    def plant_values(self) -> tuple[tuple[str, Value], ...]:
+        return tuple((n, v) for n, v in self.plant.values if n != layout.EXTERNAL_FORCE)
 
-def _values(root: Element) -> tuple[tuple[str, Value], ...]:
-    found = []
-    for parameter in root.iterfind("ssv:Parameters/ssv:Parameter", NS):
-        typed = [child for child in parameter if etree.QName(child).localname in ("Real", "Integer", "Boolean")]
-        if typed:
-            found.append((parameter.get("name"), _value(typed[0])))
-    return tuple(found)
+    @property
+    def controller_values(self) -> tuple[tuple[str, Value], ...]:
+        return self.controller.values
 
 
-def _components(ssd: Element, where: str) -> dict[str, Element]:
+def _elements(ssd: Element, where: str) -> list[Element]:
     system = ssd.find("ssd:System", NS)
-    components = {c.get("name"): c for c in system.iterfind("ssd:Elements/ssd:Component", NS)}
-    for name in (layout.PLANT, layout.CONTROLLER):
-        if name not in components:
+    if system.find("ssd:Connectors", NS) is not None and len(system.find("ssd:Connectors", NS)):
+        raise SspError(f"{where}: the system has connectors of its own (not supported; connect the components)")
+    elements = system.find("ssd:Elements", NS)
+    children = list(elements) if elements is not None else []
+    for child in children:
+        kind = child.tag.rsplit("}", 1)[-1]
+        if kind != "Component":
+            raise SspError(f"{where}: a {kind} in the system (our master runs two FMU components; remove it)")
+        if child.get("type", layout.FMU_TYPE) != layout.FMU_TYPE:
             raise SspError(
-                f"{where}: no component {name!r} (an SSP for our master has the components plant and controller)"
+                f"{where}: component {child.get('name')!r} is of type {child.get('type')!r} (only FMUs, "
+                f"{layout.FMU_TYPE}, are supported)"
             )
-    others = [name for name in components if name not in (layout.PLANT, layout.CONTROLLER)]
-    if others or system.find("ssd:Elements/ssd:System", NS) is not None:
-        what = f"the component {others[0]!r}" if others else "a subsystem"
-        raise SspError(f"{where}: {what} besides plant and controller (our master runs those two only; remove it)")
-    return components
-
-
-def _connector_units(component: Element, fmu: FmuVariables, where: str) -> dict[str, str | None]:
-    units = {}
-    for connector in component.iterfind("ssd:Connectors/ssd:Connector", NS):
-        name = connector.get("name")
-        if name not in fmu.variables:
+        if child.get("implementation", "any") not in ("any", "CoSimulation"):
             raise SspError(
-                f"{where}: component {component.get('name')!r} declares the connector {name!r}, which its FMU "
-                f"{PurePosixPath(component.get('source')).name} does not have (remove it or fix the name)"
+                f"{where}: component {child.get('name')!r} asks for implementation "
+                f"{child.get('implementation')!r} (our master runs Co-Simulation only)"
             )
-        real = connector.find("ssc:Real", NS)
-        units[name] = real.get("unit") if real is not None else None
-    return units
-
-
-def _check_connections(ssd: Element, units: dict[str, dict[str, str | None]], where: str) -> None:
-    for connection in ssd.iterfind("ssd:System/ssd:Connections/ssd:Connection", NS):
-        ends = []
-        for side in ("start", "end"):
-            element, connector = connection.get(f"{side}Element"), connection.get(f"{side}Connector")
-            if element is None:
-                raise SspError(
-                    f"{where}: a connection to the system's own connector {connector!r} (system-level connectors "
-                    "are not supported; connect the components directly)"
-                )
-            if element not in units:
-                raise SspError(
-                    f"{where}: a connection names the component {element!r}, which does not exist "
-                    f"(choose one of {', '.join(units)})"
-                )
-            if connector not in units[element]:
-                raise SspError(
-                    f"{where}: a connection names the connector {element}.{connector}, which the component does "
-                    "not declare (declare it in its Connectors or fix the name)"
-                )
-            ends.append((f"{element}.{connector}", units[element][connector]))
-        (start, start_unit), (end, end_unit) = ends
-        if start_unit and end_unit and start_unit != end_unit:
-            raise SspError(
-                f"{where}: the connection {start} -> {end} joins {start_unit} to {end_unit} "
-                "(give both connectors the same unit)"
-            )
-
-
-def _bindings(component: Element) -> list[str]:
-    return [b.get("source") for b in component.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS)]
-
-
-def _experiment(ssd: Element, where: str) -> Element:
-    for annotation in ssd.iterfind("ssd:Annotations/ssc:Annotation", NS):
-        if annotation.get("type") == layout.ANNOTATION_TYPE:
-            experiment = annotation.find(f"{{{layout.TOGGLE_NS}}}Experiment")
-            if experiment is not None:
-                return experiment
-    raise SspError(
-        f"{where}: no annotation {layout.ANNOTATION_TYPE} (T_s and the runs' settings); write the SSP with "
-        "toggle-cosim ssp SCENARIO.yaml"
-    )
+    if len(children) != 2:
+        raise SspError(
+            f"{where}: {len(children)} components; our master runs a plant and a controller (two FMU components)"
+        )
+    return children
 
 
 def _member_of(source: str, archive: zipfile.ZipFile, where: str, what: str) -> str:
     member = str(PurePosixPath(source))
-    if member not in archive.namelist():
+    if ":" in source.split("/", 1)[0] or member not in archive.namelist():
         raise SspError(f"{where}: {what} {source!r} is not in the archive (add it, or fix the source)")
     return member
 
 
-def _extract(archive: zipfile.ZipFile, member: str, folder: Path, name: str) -> Path:
-    target = folder / name / PurePosixPath(member).name
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with archive.open(member) as source, open(target, "wb") as copy:
-        shutil.copyfileobj(source, copy)
-    return target
+class _Extracted:
+    """The archive's FMUs extracted into `folder`, each member once (its own numbered folder: no
+    name from the archive decides where a file goes beyond its last part)."""
+
+    def __init__(self, archive: zipfile.ZipFile, path: Path, folder: Path) -> None:
+        self.archive, self.path, self.folder = archive, path, folder
+        self.fmus: dict[str, tuple[Path, FmuVariables, str]] = {}
+
+    def get(self, member: str, what: str) -> tuple[Path, FmuVariables, str]:
+        if member not in self.fmus:
+            target = self.folder / str(len(self.fmus)) / PurePosixPath(member).name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            with self.archive.open(member) as source, open(target, "wb") as copy:
+                shutil.copyfileobj(source, copy)
+            if not zipfile.is_zipfile(target):
+                raise SspError(f"{self.path}: {member}: the {what} FMU is not a zip archive (give an FMU)")
+            variables = describe(target, what, label=f"{self.path}: {member}")
+            self.fmus[member] = (target, variables, file_sha256(target))
+        return self.fmus[member]
 
 
-def _run(experiment: Element, parameter_set: str, path: Path, where: str) -> Run:
-    from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
+def _roles(children: list[Element], fmus: dict[str, FmuVariables], where: str) -> tuple[str, str]:
+    """(plant, controller): the controller has an output iq_ref, the plant an input iq_ref."""
 
-    entry = next((e for e in experiment if e.get("parameterSet") == parameter_set), None)
-    if entry is None:
+    def causality(name: str) -> str | None:
+        variable = fmus[name].variables.get(layout.COMMAND)
+        return variable.causality if variable is not None else None
+
+    names = [child.get("name") for child in children]
+    controllers = [n for n in names if causality(n) == "output"]
+    plants = [n for n in names if causality(n) == "input"]
+    if len(controllers) != 1 or len(plants) != 1:
         raise SspError(
-            f"{where}: the annotation has no run for the parameter set {parameter_set!r}; write the SSP again"
+            f"{where}: cannot tell the plant from the controller (one FMU needs an output {layout.COMMAND}, the "
+            f"other an input {layout.COMMAND}; the components are {', '.join(names)})"
         )
-    try:
-        document = json.loads(entry.text or "")
-        (run,) = runs_from_document(document, path)
-    except (ValueError, ScenarioError) as error:
-        raise SspError(f"{where}: the run of parameter set {parameter_set!r} cannot be read ({error})") from None
-    return dataclasses.replace(run, variant=entry.get("variant"))
+    return plants[0], controllers[0]
 
 
-def _float(element: Element, name: str, where: str) -> float:
-    """A finite number in an attribute that the schema does not type (our annotation's)."""
+def _typed(fmu: FmuVariables, name: str, value: Value, kind: str, unit: str | None, where: str) -> Value:
+    """The value as the FMU variable's type, checked: a parameter or input, of its type, its unit."""
+    variable = fmu.variables.get(name)
+    if variable is None or variable.causality not in ("parameter", "input"):
+        what = "no variable" if variable is None else f"a {variable.causality}, not a parameter or input,"
+        raise SspError(f"{fmu.label}: the FMU has {what} {name!r}, which {where} sets (fix the name)")
+    target = fmu.value_type(name, value)
+    if target == "Boolean" and kind != "Boolean":
+        raise SspError(f"{where}: {name} is a Boolean; give it as <ssv:Boolean>, not {kind} {value!r}")
+    if target != "Boolean" and kind == "Boolean":
+        raise SspError(f"{where}: {name} is {target}; give it as a number, not a Boolean")
+    own = fmu.unit(name)
+    if unit and own and unit != own:
+        raise SspError(f"{where}: {name} is given in {unit}, its FMU's unit is {own} (give the value in {own})")
+    return int(value) if target == "Integer" else (bool(value) if target == "Boolean" else float(value))
+
+
+def _finite_time(text: str | None, what: str, where: str) -> float:
     try:
-        value = float(element.get(name))
+        value = float(text)
     except (TypeError, ValueError):
         value = math.nan
     if not math.isfinite(value):
-        raise SspError(f"{where}: {name} = {element.get(name)!r} is not a finite number (write the SSP again)")
+        raise SspError(f"{where}: DefaultExperiment {what} {text!r} is not a finite time (give the run's end in s)")
     return value
 
 
-def _check_finite(values: tuple[tuple[str, Value], ...], where: str) -> None:
-    for name, value in values:
-        if not math.isfinite(value):
-            raise SspError(f"{where}: {name} = {value!r} is not a finite number (give a finite value)")
+def _experiment(ssd: Element, where: str) -> float:
+    default = ssd.find("ssd:DefaultExperiment", NS)
+    if default is None or default.get("stopTime") is None:
+        raise SspError(f"{where}: no DefaultExperiment stopTime (give the run's end time t_end there)")
+    start = _finite_time(default.get("startTime", "0"), "startTime", where)
+    if start != 0.0:
+        raise SspError(f"{where}: DefaultExperiment startTime {start!r} s (our master starts at 0; give 0)")
+    return _finite_time(default.get("stopTime"), "stopTime", where)
 
 
-def read_ssp(path: Path, parameter_set: str | None = None, folder: Path | None = None) -> SspStudy:
-    """Read and check the SSP at `path` for one parameter set (None: the default, `layout`); the
-    FMUs are extracted into `folder` (None: a new temporary folder, which the caller removes once
-    done with the FMUs; `open_ssp` does). Raises SspError with the one-line reason (and then
-    leaves no temporary folder)."""
-
-    def choose(studies: tuple[SspStudy, ...]) -> SspStudy:
-        names = studies[0].parameter_sets
-        chosen = names[0] if parameter_set is None else parameter_set
-        if chosen not in names:
-            raise SspError(
-                f"{path}: no parameter set {chosen!r} (choose one of {', '.join(names)} with --parameter-set)"
-            )
-        return studies[names.index(chosen)]
-
-    return _reading(Path(path), folder, choose)
+def _osp_step(ssd: Element) -> float | None:
+    for algorithm in ssd.iterfind("ssd:DefaultExperiment/ssd:Annotations/ssc:Annotation/*/*", NS):
+        if algorithm.tag == f"{{{layout.OSP_NS}}}FixedStepAlgorithm" and algorithm.get("baseStepSize"):
+            try:
+                return float(algorithm.get("baseStepSize"))
+            except ValueError:
+                return math.nan
+    return None
 
 
-def read_ssp_sets(path: Path, folder: Path | None = None) -> tuple[SspStudy, ...]:
-    """`read_ssp` for every parameter set, the default first, sharing one copy of the FMUs."""
-    return _reading(Path(path), folder, lambda studies: studies)
+def _start(fmu: FmuVariables, name: str) -> Value | None:
+    variable = fmu.variables.get(name)
+    if variable is None or variable.start is None:
+        return None
+    text = str(variable.start)
+    if variable.type == "Boolean":
+        return text.lower() in ("true", "1")
+    try:
+        return int(text) if variable.type in ("Integer", "Int32") else float(text)
+    except ValueError:  # a start value that is no number: as if none (the checks then ask for one)
+        return None
 
 
-def _reading(path: Path, folder: Path | None, pick: Callable[[tuple[SspStudy, ...]], T]) -> T:
+def _component_values(
+    component: Element, extra: list[Binding], fmu: FmuVariables, archive: zipfile.ZipFile, path: Path, where: str
+) -> tuple[tuple[str, Value], ...]:
+    """Every value set on the component: its bindings, then the system's (priority), checked."""
+    own = bindings_of(component, archive, str(path), f"{where}: component {component.get('name')!r}")
+    values = merged([*own, *extra])
+    return tuple(
+        (name, _typed(fmu, name, value, kind, unit, f"{where}: component {component.get('name')!r}"))
+        for name, (value, kind, unit) in values.items()
+    )
+
+
+def _system_bindings(ssd: Element, archive: zipfile.ZipFile, path: Path, where: str, names: list[str]):  # noqa: ANN202
+    """The system's bindings, split by component (`plant.mu` -> plant's mu)."""
+    system = ssd.find("ssd:System", NS)
+    split: dict[str, list[Binding]] = {name: [] for name in names}
+    for binding in bindings_of(system, archive, str(path), f"{where}: the system"):
+        parts: dict[str, list] = {name: [] for name in names}
+        for name, value, kind, unit in binding.values:
+            element, _, variable = name.partition(".")
+            if element not in parts or not variable:
+                raise SspError(
+                    f"{where}: the system's binding {binding.source} sets {name!r}, which names no component's "
+                    f"variable (write COMPONENT.VARIABLE with one of {', '.join(names)})"
+                )
+            parts[element].append((variable, value, kind, unit))
+        for element, values in parts.items():
+            split[element].append(Binding(binding.set_name, binding.source, tuple(values)))
+    return split
+
+
+def _components(
+    variant: Variant, archive: zipfile.ZipFile, path: Path, fmus: _Extracted
+) -> tuple[Component, Component, FmuVariables, FmuVariables]:
+    """The plant and the controller of a root SSD, with their FMUs' variables: wiring checked,
+    values bound (`_component_values`)."""
+    where = f"{path}: {variant.member}"
+    children = _elements(variant.ssd, where)
+    found: dict[str, tuple[str, Path, FmuVariables, str]] = {}
+    for child in children:
+        name = child.get("name")
+        member = _member_of(child.get("source"), archive, where, f"component {name!r}'s FMU")
+        found[name] = (member, *fmus.get(member, "component"))
+    variables = {name: entry[2] for name, entry in found.items()}
+    plant, controller = _roles(children, variables, where)
+    if getattr(variables[controller].model_description, "coSimulation", None) is None:
+        raise SspError(f"{variables[controller].label}: the controller FMU has no Co-Simulation interface")
+    connectors = {child.get("name"): connectors_of(child, variables[child.get("name")], where) for child in children}
+    check_wiring(variant.ssd, where, plant, controller, variables, connectors)
+    system = _system_bindings(variant.ssd, archive, path, where, list(found))
+    components = {}
+    for child in children:
+        name = child.get("name")
+        member, fmu_path, fmu, sha256 = found[name]
+        values = _component_values(child, system[name], fmu, archive, path, where)
+        components[name] = Component(name, member, fmu_path, sha256, values)
+    return components[plant], components[controller], variables[plant], variables[controller]
+
+
+def _with_starts(component: Component, fmu: FmuVariables, names: Sequence[str]) -> dict[str, Value]:
+    """The component's values over its FMU's start values of `names`."""
+    starts = {name: start for name in names if (start := _start(fmu, name)) is not None}
+    return {**starts, **dict(component.values)}
+
+
+def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, path: Path, fmus: _Extracted):  # noqa: ANN202
+    """One variant as our master runs it: components, experiment, and the run checked by the
+    scenario's rules (`as_scenario`), its record saying what runs."""
+    from toggle_cosim.experiments.scenario import ScenarioError
+    from toggle_cosim.ssp.as_scenario import CONTROLLER_NAMES, PLANT_NAMES, run_of_values
+
+    where = f"{path}: {variant.member}"
+    plant, controller, plant_fmu, controller_fmu = _components(variant, archive, path, fmus)
+    t_end = _experiment(variant.ssd, where)
+    plant_all = _with_starts(plant, plant_fmu, PLANT_NAMES)
+    controller_all = _with_starts(controller, controller_fmu, (*CONTROLLER_NAMES, "T_s"))
+    T_s = controller_all.get("T_s")
+    if T_s is None or isinstance(T_s, bool):
+        raise SspError(f"{where}: the controller binds no T_s and its FMU has none (give its sample time T_s)")
+    step = _osp_step(variant.ssd)
+    if step is not None and step != T_s:
+        raise SspError(
+            f"{where}: the OSP annotation's baseStepSize {step!r} s is not the controller's T_s = {T_s!r} s "
+            "(libcosim would step at the other; make them equal)"
+        )
+    system = variant.ssd.find("ssd:System", NS)
+    try:
+        run = run_of_values(
+            system.get("name"), system.get("description", ""), t_end, float(T_s), plant_all, controller_all
+        )
+    except ScenarioError as error:
+        raise SspError(
+            f"{where}: {error} (read from the variant's parameter values, to which the scenario's ranges apply; "
+            "fix the value)"
+        ) from None
+    F_E = float(plant_all.get(layout.EXTERNAL_FORCE, 0.0))
+    record = {
+        "file": str(path),
+        "sha256": file_sha256(path),
+        "variant": variant.name,
+        "ssd": variant.member,
+        "components": {"plant": plant.record(), "controller": controller.record()},
+    }
+    run = dataclasses.replace(
+        run,
+        variant=variant.name,
+        source=path,
+        fmu=plant.fmu,
+        plant=dataclasses.replace(
+            run.plant, F_E=F_E, fmu_values=tuple((n, v) for n, v in plant.values if n != layout.EXTERNAL_FORCE)
+        ),
+        resolved={"ssp": record},
+    )
+    return SspStudy(path, variant.name, variant.member, names, plant, controller, F_E, t_end, float(T_s), run)
+
+
+def read_ssp_variants(path: Path, asked: Sequence[str | None], folder: Path) -> tuple[SspStudy, ...]:
+    """Read and check the SSP at `path` for each variant asked (None: the default), every one
+    checked before any is returned; the FMUs are extracted into `folder` (the caller removes it).
+    Raises SspError with the one-line reason."""
+    path = Path(path)
+    with open_archive(path) as archive:
+        found = root_ssds(archive, path)
+        check_set_names(found, archive, path)
+        chosen = [choose(found, name, path) for name in asked]
+        names = tuple(variant.name for variant in found)
+        fmus = _Extracted(archive, path, folder)
+        studies = tuple(_study(variant, names, archive, path, fmus) for variant in dict.fromkeys(chosen))
+    return studies
+
+
+def read_ssp(path: Path, variant: str | None = None, folder: Path | None = None) -> SspStudy:
+    """One variant of the SSP at `path` (None: the default), FMUs extracted into `folder` (None: a
+    temporary folder the caller removes; `open_ssp` does). No folder is left on an error."""
     made = folder is None
     folder = Path(tempfile.mkdtemp(prefix="toggle-cosim-ssp-")) if folder is None else Path(folder)
     try:
-        return pick(_read(path, folder))
+        return read_ssp_variants(path, [variant], folder)[0]
     except BaseException:
         if made:
             shutil.rmtree(folder, ignore_errors=True)
         raise
 
 
-def _read(path: Path, folder: Path) -> tuple[SspStudy, ...]:
-    with open_archive(path) as archive:
-        if layout.SSD_MEMBER not in archive.namelist():
-            raise SspError(f"{path}: no {layout.SSD_MEMBER} in the archive (an SSP needs one at its top level)")
-        where = f"{path}: {layout.SSD_MEMBER}"
-        ssd = parse_member(archive, layout.SSD_MEMBER, "ssd", where)
-        components = _components(ssd, where)
-        fmus: dict[str, FmuVariables] = {}
-        paths: dict[str, Path] = {}
-        for name in (layout.PLANT, layout.CONTROLLER):
-            member = _member_of(components[name].get("source"), archive, where, f"component {name!r}'s FMU")
-            paths[name] = _extract(archive, member, folder, name)
-            fmus[name] = describe(paths[name], name, label=f"{path}: {member}")
-        units = {name: _connector_units(element, fmus[name], where) for name, element in components.items()}
-        _check_connections(ssd, units, where)
-        sets: dict[str, dict[str, tuple[tuple[str, Value], ...]]] = {}
-        for name in (layout.PLANT, layout.CONTROLLER):
-            for source in _bindings(components[name]):
-                member = _member_of(source, archive, where, f"component {name!r}'s parameter binding")
-                root = parse_member(archive, member, "ssv", f"{path}: {member}")
-                values = _values(root)
-                fmus[name].check_parameters(values, name, member)
-                _check_finite(values, f"{path}: {member}")
-                sets.setdefault(root.get("name"), {})[name] = values
-        if not sets:
-            raise SspError(f"{where}: no parameter set is bound (write the SSP with toggle-cosim ssp)")
-        experiment = _experiment(ssd, where)
-        T_s = _float(experiment, "T_s", where)
-        default = ssd.find("ssd:DefaultExperiment", NS)
-        stop = default.get("stopTime") if default is not None else None
-        if stop is None:
-            raise SspError(f"{where}: no DefaultExperiment stopTime (give the run's end time t_end there)")
-        t_end = float(stop)
-        if not 0 < T_s <= t_end or abs(round(t_end / T_s) * T_s - t_end) > 1e-9 * t_end:
-            raise SspError(
-                f"{where}: stopTime {t_end!r} s is not a whole number of samples T_s = {T_s!r} s (fix either)"
-            )
-        runs = {name: _run(experiment, name, path, where) for name in sets}
-    names = tuple(sets)
-    return tuple(_study(path, name, names, sets[name], runs[name], paths, t_end, T_s) for name in names)
-
-
-def _study(
-    path: Path,
-    name: str,
-    names: tuple[str, ...],
-    values: dict[str, tuple[tuple[str, Value], ...]],
-    run: Run,
-    paths: dict[str, Path],
-    t_end: float,
-    T_s: float,
-) -> SspStudy:
-    """One parameter set's study: its values, and the run with the SSP's t_end, T_s, F_E and
-    plant values (run.json names the SSP and the set)."""
-    plant_values = values.get(layout.PLANT, ())
-    controller_values = values.get(layout.CONTROLLER, ())
-    given_T_s = dict(controller_values).get("T_s")
-    if given_T_s is not None and given_T_s != T_s:
-        raise SspError(
-            f"{path}: parameter set {name!r} sets the controller's T_s = {given_T_s!r} s, the experiment's T_s is "
-            f"{T_s!r} s (make them equal)"
-        )
-    F_E = next((float(v) for n, v in plant_values if n == layout.EXTERNAL_FORCE), run.plant.F_E)
-    settings = tuple((n, v) for n, v in plant_values if n != layout.EXTERNAL_FORCE)
-    run = dataclasses.replace(
-        run,
-        source=path,
-        fmu=paths[layout.PLANT],
-        t_end=t_end,
-        T_s=T_s,
-        plant=dataclasses.replace(run.plant, F_E=F_E, fmu_values=settings),
-        resolved={**run.resolved, "ssp": {"file": str(path), "parameter_set": name}},
-    )
-    return SspStudy(
-        path,
-        name,
-        names,
-        paths[layout.PLANT],
-        paths[layout.CONTROLLER],
-        settings,
-        F_E,
-        controller_values,
-        t_end,
-        T_s,
-        run,
-    )
-
-
 @contextlib.contextmanager
-def open_ssp(path: Path, parameter_set: str | None = None) -> Iterator[SspStudy]:
+def open_ssp(path: Path, variant: str | None = None) -> Iterator[SspStudy]:
     """`read_ssp` with the FMUs in a temporary folder that lives as long as the block."""
     with tempfile.TemporaryDirectory(prefix="toggle-cosim-ssp-") as folder:
-        yield read_ssp(path, parameter_set, Path(folder))
+        yield read_ssp(path, variant, Path(folder))
 
 
 @contextlib.contextmanager
-def open_ssp_sets(path: Path) -> Iterator[tuple[SspStudy, ...]]:
-    """`read_ssp_sets` with the FMUs in a temporary folder that lives as long as the block."""
+def open_ssp_variants(path: Path, asked: Sequence[str | None]) -> Iterator[tuple[SspStudy, ...]]:
+    """`read_ssp_variants` with the FMUs in a temporary folder that lives as long as the block."""
     with tempfile.TemporaryDirectory(prefix="toggle-cosim-ssp-") as folder:
-        yield read_ssp_sets(path, Path(folder))
+        yield read_ssp_variants(path, asked, Path(folder))

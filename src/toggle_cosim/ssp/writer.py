@@ -1,7 +1,8 @@
-"""A scenario file -> an SSP 1.0 archive (`toggle-cosim ssp`): SystemStructure.ssd with the plant
-and the controller FMU as components, the connections, one parameter set per variant (`layout`),
-DefaultExperiment (0, t_end, with T_s as libcosim's fixed step) and our annotation (T_s, each set's
-scenario document).
+"""A scenario file -> an SSP 1.0 archive (`toggle-cosim ssp`): one root SSD per variant
+(`SystemStructure.ssd` the first, `<variant>.ssd` the others: `layout`), each with the plant and
+the controller FMU as components, the connections, one parameter binding per component (that
+variant's .ssv), DefaultExperiment (0, t_end, with T_s as libcosim's fixed step) and our
+annotation (the variant's scenario document, a description that no reader acts on).
 
 Each set holds, for the plant, exactly what our master sets on it (`cosim.master.plant_settings`)
 and F_E, its input; for the controller, every field of the built-in law's `LawParameters` but t0
@@ -136,21 +137,22 @@ def _document(run: Run) -> dict[str, Any]:
 
 
 def system_structure(
-    name: str, sets: Sequence[ParameterSet], plant: FmuVariables, controller: FmuVariables, fmus: Mapping[str, str]
+    scenario: str, parameter_set: ParameterSet, plant: FmuVariables, controller: FmuVariables, fmus: Mapping[str, str]
 ) -> Element:
-    """The SSD of the study: `fmus` maps each component to its FMU's member name."""
-    first = sets[0].run
+    """The root SSD of one variant: `fmus` maps each component to its FMU's member name; each
+    component binds that variant's .ssv, and nothing else."""
+    run = parameter_set.run
     root = etree.Element(
         _q(layout.SSD_NS, "SystemStructureDescription"),
         # osp declared here: libcosim reads an attribute of osp:Algorithm (xmlns:osp too) as an algorithm
         nsmap={"ssd": layout.SSD_NS, "ssc": layout.SSC_NS, "ssv": layout.SSV_NS, "osp": layout.OSP_NS},
         version="1.0",
-        name=name,
+        name=parameter_set.name,
         generationTool="toggle-cosim",
     )
-    system = etree.SubElement(root, _q(layout.SSD_NS, "System"), name=name)
-    if first.description:
-        system.set("description", first.description)
+    system = etree.SubElement(root, _q(layout.SSD_NS, "System"), name=scenario)
+    if run.description:
+        system.set("description", run.description)
     elements = etree.SubElement(system, _q(layout.SSD_NS, "Elements"))
     inputs = controller.inputs()
     connections = [(layout.PLANT, signal, layout.CONTROLLER, signal) for signal in inputs]
@@ -171,13 +173,12 @@ def system_structure(
         )
         units |= _connectors(element, connectors, variables)
         bindings = etree.SubElement(element, _q(layout.SSD_NS, "ParameterBindings"))
-        for parameter_set in sets:
-            etree.SubElement(
-                bindings,
-                _q(layout.SSD_NS, "ParameterBinding"),
-                type="application/x-ssp-parameter-set",
-                source=layout.ssv_member(parameter_set.name, component),
-            )
+        etree.SubElement(
+            bindings,
+            _q(layout.SSD_NS, "ParameterBinding"),
+            type="application/x-ssp-parameter-set",
+            source=layout.ssv_member(parameter_set.name, component),
+        )
     wires = etree.SubElement(system, _q(layout.SSD_NS, "Connections"))
     for start, start_connector, end, end_connector in connections:
         etree.SubElement(
@@ -194,30 +195,38 @@ def system_structure(
             _unit_element(unit_list, unit, (plant, controller))
         if len(unit_list) == 0:
             root.remove(unit_list)
-    default = etree.SubElement(
-        root, _q(layout.SSD_NS, "DefaultExperiment"), startTime="0.0", stopTime=repr(first.t_end)
-    )
+    default = etree.SubElement(root, _q(layout.SSD_NS, "DefaultExperiment"), startTime="0.0", stopTime=repr(run.t_end))
     osp = etree.SubElement(  # T_s as libcosim's fixed step
         etree.SubElement(default, _q(layout.SSD_NS, "Annotations")),
         _q(layout.SSC_NS, "Annotation"),
         type=layout.OSP_ANNOTATION_TYPE,
     )
     algorithm = etree.SubElement(osp, _q(layout.OSP_NS, "Algorithm"))
-    etree.SubElement(algorithm, _q(layout.OSP_NS, "FixedStepAlgorithm"), baseStepSize=repr(first.T_s))
+    etree.SubElement(algorithm, _q(layout.OSP_NS, "FixedStepAlgorithm"), baseStepSize=repr(run.T_s))
     annotations = etree.SubElement(root, _q(layout.SSD_NS, "Annotations"))
     annotation = etree.SubElement(annotations, _q(layout.SSC_NS, "Annotation"), type=layout.ANNOTATION_TYPE)
-    experiment = etree.SubElement(
-        annotation, _q(layout.TOGGLE_NS, "Experiment"), nsmap={"tc": layout.TOGGLE_NS}, T_s=repr(first.T_s)
-    )
-    experiment.set("scenario", first.scenario)
-    for parameter_set in sets:
-        run = parameter_set.run
-        entry = etree.SubElement(experiment, _q(layout.TOGGLE_NS, "Run"), parameterSet=parameter_set.name)
-        entry.set("label", run.label)
-        if run.variant is not None:
-            entry.set("variant", run.variant)
-        entry.text = json.dumps(_document(run), sort_keys=True)
+    described = etree.SubElement(annotation, _q(layout.TOGGLE_NS, "Scenario"), nsmap={"tc": layout.TOGGLE_NS})
+    described.set("name", run.scenario)
+    if run.variant is not None:
+        described.set("variant", run.variant)
+    described.text = json.dumps(_document(run), sort_keys=True)
     return root
+
+
+def variant_members(path: Path, sets: Sequence[ParameterSet]) -> list[str]:
+    """The root SSD of each set, in order (`layout.ssd_member`); SspError if two would share a
+    name, also on a file system that ignores case (a variant named SystemStructure, or two that
+    differ in case only)."""
+    members = [layout.ssd_member(index, parameter_set.name) for index, parameter_set in enumerate(sets)]
+    seen: dict[str, str] = {}
+    for member, parameter_set in zip(members, sets, strict=True):
+        other = seen.setdefault(member.casefold(), parameter_set.name)
+        if other != parameter_set.name:
+            raise SspError(
+                f"{parameter_set.run.source}: key variants: {other!r} and {parameter_set.name!r} would both be "
+                f"written as {member} (names are compared ignoring case; rename one variant)"
+            )
+    return members
 
 
 def _checked(root: Element, kind: str, member: str) -> bytes:
@@ -265,10 +274,24 @@ def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
             )
 
 
-def write_ssp(scenario: Path, output: Path, plant_fmu: Path | None, controller_fmu: Path) -> Path:
+def _chosen(path: Path, runs: list[Run], variants: Sequence[str]) -> list[Run]:
+    """The runs of the variants named, in the order named (none named: every run)."""
+    if not variants:
+        return runs
+    known = {layout.set_name(run.variant): run for run in runs}
+    for name in variants:
+        if name not in known:
+            raise SspError(f"{path}: no variant {name!r} (choose one of {', '.join(known)} with --variant)")
+    return [known[name] for name in dict.fromkeys(variants)]
+
+
+def write_ssp(
+    scenario: Path, output: Path, plant_fmu: Path | None, controller_fmu: Path, variants: Sequence[str] = ()
+) -> Path:
     """Write the SSP of `scenario` to `output` (whole or not at all) and return `output`.
 
-    `plant_fmu`: the plant (None: the scenario's fmu: key). Raises ScenarioError for a scenario
+    `plant_fmu`: the plant (None: the scenario's fmu: key); `variants`: the variants to write, the
+    first as SystemStructure.ssd (none: every variant in the scenario's order). Raises ScenarioError for a scenario
     that `run` refuses, SspError (one line) for anything else an SSP cannot be made from."""
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.settings import SettingError, check_settings
@@ -279,6 +302,7 @@ def write_ssp(scenario: Path, output: Path, plant_fmu: Path | None, controller_f
     except ScenarioError:
         _refuse_sweep(scenario)  # a sweep file is no scenario: say what it is
         raise
+    runs = _chosen(scenario, runs, variants)
     refuse_unwritable(scenario, runs)
     chosen = plant_fmu if plant_fmu is not None else runs[0].fmu
     if chosen is None:
@@ -306,9 +330,10 @@ def write_ssp(scenario: Path, output: Path, plant_fmu: Path | None, controller_f
     members = {component: layout.fmu_member(path.name) for component, path in fmus.items()}
     if members[layout.PLANT] == members[layout.CONTROLLER]:
         members[layout.CONTROLLER] = layout.fmu_member(f"{layout.CONTROLLER}_{fmus[layout.CONTROLLER].name}")
-    ssd = system_structure(runs[0].scenario, sets, plant_variables, controller_variables, members)
-    texts = {layout.SSD_MEMBER: _checked(ssd, "ssd", layout.SSD_MEMBER)}
-    for parameter_set in sets:
+    texts = {}
+    for member, parameter_set in zip(variant_members(scenario, sets), sets, strict=True):
+        ssd = system_structure(runs[0].scenario, parameter_set, plant_variables, controller_variables, members)
+        texts[member] = _checked(ssd, "ssd", member)
         for component, values, variables in (
             (layout.PLANT, parameter_set.plant, plant_variables),
             (layout.CONTROLLER, parameter_set.controller, controller_variables),

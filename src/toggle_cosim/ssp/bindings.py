@@ -1,0 +1,116 @@
+"""An SSD's parameter bindings as the values each component gets (SSP 1.0.1, section 5,
+ParameterBindings): every binding of a component applies, in document order, later ones taking
+priority; then the system's bindings, whose names are hierarchical (`plant.mu`) and which take
+priority over the components' own. A binding's values come from an .ssv member of the archive
+(`source`, relative to the SSD at the archive's top level) or inline (ParameterValues); a
+binding's `prefix` is prepended to its names.
+
+Refused, one SspError line each naming the SSD and the binding: a source outside the archive
+or resolved against the component (`sourceBase="component"`), a type other than a parameter set,
+a ParameterMapping, a value that is not a finite Real, an Integer or a Boolean, and (checked by
+the reader against the FMUs) a name that no component has.
+"""
+
+from __future__ import annotations
+
+import math
+import zipfile
+from dataclasses import dataclass
+from pathlib import PurePosixPath
+
+from lxml import etree
+
+from toggle_cosim.ssp import layout
+from toggle_cosim.ssp.checks import Element, SspError, parse_member
+
+__all__ = ["Binding", "Value", "bindings_of", "merged"]
+
+NS = layout.NAMESPACES
+SET_TYPE = "application/x-ssp-parameter-set"
+Value = float | int | bool
+
+
+@dataclass(frozen=True)
+class Binding:
+    """One ParameterBinding: the set's name, where it came from (an archive member, or `inline`),
+    and its values as (name, value, kind, unit) with the binding's prefix applied; kind is the
+    SSV element (Real, Integer, Boolean)."""
+
+    set_name: str | None
+    source: str
+    values: tuple[tuple[str, Value, str, str | None], ...]
+
+
+def _value(element: Element, name: str, where: str) -> Value:
+    kind, text = etree.QName(element).localname, element.get("value")
+    if kind == "Boolean":
+        return text in ("true", "1")
+    if kind == "Integer":
+        return int(text)
+    value = float(text)
+    if not math.isfinite(value):
+        raise SspError(f"{where}: {name} = {value!r} is not a finite number (give a finite value)")
+    return value
+
+
+def _values(parameter_set: Element, prefix: str, where: str) -> tuple[tuple[str, Value, str, str | None], ...]:
+    found = []
+    for parameter in parameter_set.iterfind("ssv:Parameters/ssv:Parameter", NS):
+        name = prefix + parameter.get("name")
+        typed = next((child for child in parameter if etree.QName(child).namespace == layout.SSV_NS), None)
+        kind = etree.QName(typed).localname if typed is not None else "nothing"
+        if kind not in ("Real", "Integer", "Boolean"):
+            raise SspError(
+                f"{where}: parameter {name!r} is given as {kind}; an SSP here sets Real, Integer and Boolean values"
+            )
+        found.append((name, _value(typed, name, where), kind, typed.get("unit")))
+    return tuple(found)
+
+
+def _member(source: str, archive: zipfile.ZipFile, where: str) -> str:
+    path = PurePosixPath(source)
+    member = str(path)
+    if ":" in source.split("/", 1)[0] or path.is_absolute() or member not in archive.namelist():
+        raise SspError(
+            f"{where}: the parameter binding's source {source!r} is not a member of the archive "
+            "(give the path of an .ssv inside it, relative to the SSD)"
+        )
+    return member
+
+
+def bindings_of(owner: Element, archive: zipfile.ZipFile, path: str, where: str) -> list[Binding]:
+    """The bindings of a component or system element, in document order; `path` names the SSP
+    in messages, `where` the SSD and the element."""
+    found = []
+    for binding in owner.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
+        kind = binding.get("type", SET_TYPE)
+        if kind != SET_TYPE:
+            raise SspError(f"{where}: a parameter binding of type {kind!r} (only {SET_TYPE} is supported)")
+        if binding.find("ssd:ParameterMapping", NS) is not None:
+            raise SspError(f"{where}: a parameter binding with a ParameterMapping (not supported; rename in the .ssv)")
+        if binding.get("sourceBase", "SSD") != "SSD":
+            raise SspError(
+                f'{where}: a parameter binding with sourceBase="component" (not supported; put the .ssv in the '
+                "archive and give its path from the SSD)"
+            )
+        prefix = binding.get("prefix", "")
+        source = binding.get("source")
+        if source:
+            member = _member(source, archive, where)
+            root = parse_member(archive, member, "ssv", f"{path}: {member}")
+            found.append(Binding(root.get("name"), member, _values(root, prefix, f"{path}: {member}")))
+            continue
+        inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
+        if inline is None:
+            raise SspError(f"{where}: a parameter binding with neither a source nor inline ParameterValues")
+        found.append(Binding(inline.get("name"), "inline", _values(inline, prefix, f"{where} (inline values)")))
+    return found
+
+
+def merged(bindings: list[Binding]) -> dict[str, tuple[Value, str, str | None]]:
+    """The values the bindings give together: later bindings take priority (the standard's rule)."""
+    values: dict[str, tuple[Value, str, str | None]] = {}
+    for binding in bindings:
+        for name, value, kind, unit in binding.values:
+            values[name] = (value, kind, unit)
+    return values
