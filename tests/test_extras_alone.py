@@ -211,3 +211,5 @@ def test_the_ci_template_runs_as_written(environments: dict[str, Path], project_
     assert "fig4_nominal" in (tmp_path / "step_summary.md").read_text(encoding="utf-8")
     junit = (repository / "reports" / "references.xml").read_text(encoding="utf-8")
     assert 'failures="0"' in junit and "x_B" in junit
+    report = (repository / "reports" / "references" / "report.html").read_text(encoding="utf-8")
+    assert "fig4_nominal/friction: PASS" in report and "<script src" not in report  # plotly.js inside

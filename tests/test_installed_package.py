@@ -38,4 +38,7 @@ def test_the_ci_template_installs_builds_and_checks_references_with_folder() -> 
     assert 'python -m pip install "toggle-cosim[build,ci] @ $TOGGLE_COSIM_SOURCE"' in runs[0]
     assert runs[1].startswith("toggle-cosim build --source")
     assert "toggle-cosim references" in runs[2] and "--folder" in runs[2] and "--junit" in runs[2]
+    assert "--html" in runs[2]
     assert "GITHUB_STEP_SUMMARY" in runs[3]
+    uploads = [step for step in workflow["jobs"]["references"]["steps"] if "upload-artifact" in step.get("uses", "")]
+    assert [step["with"]["path"] for step in uploads] == ["reports/", "reports/references/report.html"]

@@ -360,7 +360,10 @@ def _kinds_and_files(tmp_path: Path) -> dict[str, tuple[object, Path]]:
     mat.write_bytes(b"MATLAB 5.0 MAT-file, Platform: posix".ljust(128, b" "))
     invariants = tmp_path / "x_ref_invariants.yaml"
     invariants.write_text("# held within a tolerance\ninvariants:\n  a: {value: 1.0}\n")
+    html = tmp_path / "report.html"
+    html.write_text('<!DOCTYPE html>\n<html lang="en"><head></head></html>\n')
     return {
+        "html": (outputs.HTML, html),
         "fmu": (outputs.FMU, _zip(tmp_path / "p.fmu", "modelDescription.xml")),
         "ssp": (outputs.SSP, _zip(tmp_path / "s.ssp", "SystemStructure.ssd")),
         "png": (outputs.PNG, png),

@@ -37,6 +37,7 @@ EXTRAS = {
     "matplotlib": "plot",
     "control": "design",
     "scipy": "design",
+    "plotly": "report",
 }
 
 

@@ -94,15 +94,43 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
 
 @main.command()
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@out_file_option("PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
-def plot(results: tuple[Path, ...], output: Path | None) -> None:
-    """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
+@out_file_option("PNG to write (default: RESULTS/figure.png; with --vars or --reference RESULTS/variables.png).")
+@click.option(
+    "--vars",
+    "variables",
+    default=None,
+    metavar="NAMES",
+    help="Variables to draw, comma-separated (x_B,iq_ref): every RESULTS overlaid, one panel each.",
+)
+@click.option(
+    "--reference",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="A reference trace drawn with its funnel band (tolerance files by place, as compare).",
+)
+def plot(results: tuple[Path, ...], output: Path | None, variables: str | None, reference: Path | None) -> None:
+    """Draw results folders or trace files: the paper's nine-panel figure per scenario folder (variants
+    overlaid), or with --vars/--reference every run overlaid variable by variable (any scenario or plant)."""
+    from toggle_cosim.cli.report_command import is_paper_plant, parse_vars, plot_variables
+
     require("matplotlib")
+    names = parse_vars(variables)
+    if names is not None or reference is not None:
+        check_output(output, "figure (--out)", PNG)
+        click.echo(f"wrote {plot_variables(results, names, reference, output)}")
+        return
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")
     check_output(output, "figure (--out)", PNG)
     for folder in results:
-        click.echo(f"wrote {_plot_scenario(folder, output)}")
+        if not folder.is_file() and is_paper_plant(folder):
+            click.echo(f"wrote {_plot_scenario(folder, output)}")
+        else:  # a plant of one's own, or a trace file: the variables it has
+            click.echo(f"wrote {plot_variables([folder], None, None, output or _figure_path(folder))}")
+
+
+def _figure_path(result: Path) -> Path:
+    return (result if result.is_dir() else result.parent) / "figure.png"
 
 
 @main.command()

@@ -127,6 +127,7 @@ CSV = OutputKind("a CSV table (a header of column names)", _csv_table)
 JSON = OutputKind("a JSON object", _starts(b"{"))
 JUNIT = OutputKind("a JUnit XML report", lambda path: b"<testsuite" in _head(path))
 MARKDOWN = OutputKind("a Markdown summary (a '# ' heading or a '| ' table row first, and a table)", _markdown_summary)
+HTML = OutputKind("an HTML page", _starts(b"<!DOCTYPE html", b"<!doctype html", b"<html"))
 NPZ = OutputKind("a NumPy .npz archive", _zip_of(".npy"))
 MAT = OutputKind("a MATLAB .mat file (version 5)", _starts(b"MATLAB 5.0 MAT-file"))
 INVARIANTS = OutputKind(
@@ -308,6 +309,7 @@ __all__ = [
     "CSV",
     "FILE_MODE",
     "FMU",
+    "HTML",
     "INVARIANTS",
     "JSON",
     "JUNIT",
