@@ -10,6 +10,7 @@ environment), runs its own commands:
 | ci | `references` with its JUnit report and Markdown summary |
 | plot | `run`, then `plot` the results folder |
 | design | `linearize` into a .mat file, and `tc.linearize(...).system` as a python-control StateSpace |
+| report | `run`, then `report` the results folder as one HTML page |
 | docs | `mkdocs build` of a page rendering `toggle_cosim.simulate`'s docstring from the installed package |
 
 `pip install 'toggle-cosim[build]'` used to leave `toggle-cosim build` without scipy, which the
@@ -34,7 +35,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = ROOT / "templates" / "ci" / "toggle-cosim-references.yml"
-EXTRAS = ("core", "build", "sweep", "ci", "plot", "design", "docs")
+EXTRAS = ("core", "build", "sweep", "ci", "plot", "design", "report", "docs")
 
 
 def _run(command: list[str], cwd: Path, env: dict[str, str], timeout: float = 300) -> str:
@@ -143,6 +144,10 @@ def test_each_extra_alone_runs_its_commands(
         _run([program, "run", str(scenario), "--out", "out", "-q"], tmp_path, env)
         _run([program, "plot", "out/fig4_nominal"], tmp_path, env)
         assert (tmp_path / "out" / "fig4_nominal" / "figure.png").read_bytes()[:4] == b"\x89PNG"
+    elif extra == "report":
+        _run([program, "run", str(scenario), "--out", "out", "-q"], tmp_path, env)
+        _run([program, "report", "out/fig4_nominal", "--out", "page.html"], tmp_path, env)
+        assert (tmp_path / "page.html").read_text(encoding="utf-8").startswith("<!DOCTYPE html>")
     elif extra == "design":
         arguments = [str(scenario), "--variant", "no_friction", "--x-B", "0.3", "-o", "lin.mat"]
         _run([program, "linearize", *arguments], tmp_path, env)
