@@ -17,9 +17,9 @@ environment), runs its own commands:
 pinned Modelica compiler imports: the development environment (every extra, and the test extra's
 scipy) hid it. The environments are made two at a time with pip and its cache (the machine's
 package index or mirror): the core once into a new venv, each extra into a hard-linked copy of
-it (see `environments`). Measured on two shared cores under a load average of 4: 224 s for the
-module, 150 s of it the environments (with the session's plant FMU and wheel), 37 s the CI
-template's steps."""
+it (see `environments`). Measured on two shared cores under a load average of 4: about 250 s
+for the module, 166 s of it the environments (with the session's plant FMU and wheel), 35 s the
+CI template's steps."""
 
 from __future__ import annotations
 
