@@ -20,6 +20,7 @@ def test_the_wheel_carries_the_modelica_source_the_scenarios_and_the_licence(pro
     assert "toggle_cosim/shipped/ToggleLSM/package.mo" in names
     assert "toggle_cosim/shipped/ToggleLSM/Plant.mo" in names
     assert "toggle_cosim/shipped/scenarios/fig4_nominal.yaml" in names
+    assert "toggle_cosim/shipped/scenarios/measured_load.csv" in names  # a scenario's input table
     assert "toggle_cosim/shipped/scenarios/references/tolerances.yaml" in names
     assert "toggle_cosim/shipped/scenarios/references/fig4_nominal/friction_ref.csv" in names
     assert "toggle_cosim/py.typed" in names and "toggle_cosim/__main__.py" in names

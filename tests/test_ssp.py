@@ -39,7 +39,11 @@ from toggle_cosim.ssp.reader import open_ssp, open_ssp_variants, read_ssp
 from toggle_cosim.ssp.writer import controller_values, write_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith("sweep_"))
+# an SSP's parameter set holds one value per input: the scenarios whose load varies in time are refused
+VARYING = ("step_load", "measured_load")
+SCENARIOS = sorted(
+    p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith("sweep_") and p.stem not in VARYING
+)
 NS = layout.NAMESPACES
 UNITS = {"x_B": "m", "v_B": "m/s", "theta1": "rad", "omega1": "rad/s", "iq_ref": "A"}
 
@@ -586,6 +590,18 @@ BAD_SSPS = {
         "unsafe or corrupt archive: member '../escape.txt' has a '..'",
     ),
 }
+
+
+@pytest.mark.parametrize("name", VARYING)
+def test_a_load_that_varies_in_time_is_refused_in_one_line(name: str, tmp_path: Path) -> None:
+    scenario = ROOT / "scenarios" / f"{name}.yaml"
+    ran = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(tmp_path / "x.ssp")])
+    assert ran.exit_code == 2 and not (tmp_path / "x.ssp").exists()
+    kind = "step" if name == "step_load" else "table"
+    assert ran.output.strip() == (
+        f"error: {scenario}: key plant.F_E: the load is a {kind} in time, and an SSP's parameter set holds one value"
+        " per input (give F_E a number, or run the scenario with toggle-cosim run)"
+    )
 
 
 def _bad(case: str, fig5_ssp: Path, tmp_path: Path) -> Path:

@@ -60,17 +60,19 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 click.echo(note, err=True)
     pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     noted: set[str] = set()
     for run, plant in pairs:  # every name and value the run sets, and its controller, before any run starts
         try:
             check_settings(run, plant)
-            controller = controller_for(run, plant.recorded_outputs)
+            if run.controller.python is None and run.controller.fmu is None:
+                controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
+            # a user's controller: checked without running its code, which runs in the run's child alone
+            fmu = check_user_controller(run, plant.recorded_outputs)
         except (SettingError, ControllerError) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
-        fmu = getattr(controller, "fmu", None) if run.controller.fmu is not None else None
         for warning in getattr(fmu, "warnings", ()):  # a controller FMU's missing units, once per file
             if f"{fmu.path}: {warning}" not in noted:
                 noted.add(f"{fmu.path}: {warning}")
@@ -133,10 +135,12 @@ def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN
     the working directory is restored after it, whatever the plant did with it)."""
     if not _supervised():
         from toggle_cosim.cosim.master import simulate
+        from toggle_cosim.cosim.supervision import in_process_folder
 
         here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         try:
-            return simulate(run, plant, progress)
+            with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
+                return simulate(run, plant, progress)
         finally:  # a plant that changed directory must not move the relative paths that follow
             with contextlib.suppress(OSError):
                 os.fchdir(here)
@@ -242,10 +246,18 @@ def execute_runs(  # noqa: ANN201
     return outcomes
 
 
+SUMMARY_RUNS = 5  # the failed runs the closing line names; each run's line and run.json say the rest
+
+
 def raise_if_failed(outcomes) -> None:  # noqa: ANN001
-    failed = [f"{o.run.label} ({o.reason})" for o in outcomes if not o.complete]
+    """RunFailed naming the failed runs (the first SUMMARY_RUNS, each reason bounded), if any."""
+    from toggle_cosim.messages import bounded_text
+
+    failed = [f"{o.run.label} ({bounded_text(o.reason or '', 200)})" for o in outcomes if not o.complete]
     if failed:
-        raise RunFailed(f"{len(failed)} run(s) failed: {'; '.join(failed)}")
+        more = f"; and {len(failed) - SUMMARY_RUNS} more (each run's line and run.json say why)"
+        named = "; ".join(failed[:SUMMARY_RUNS]) + (more if len(failed) > SUMMARY_RUNS else "")
+        raise RunFailed(f"{len(failed)} run(s) failed: {named}")
 
 
 JOBS_OPTION = click.option(

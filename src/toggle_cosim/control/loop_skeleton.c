@@ -1,8 +1,9 @@
 /* toggle-cosim: the co-simulation loop in C, a skeleton with no physics and no control law.
    cosim/compiled_loop.py puts the law in front of it: the struct law_t and the function law_step,
    both generated from their Python definition (control/laws.py, control/translate.py).
-   Per sample: read the plant FMU's outputs into the trace row, control, record, set the
-   plant's inputs, doStep. The controller is one of two kinds: the generated law (CTRL_LAW), or
+   Per sample k: read the plant FMU's outputs into the trace row, control, record, set the
+   plant's inputs (the command, then the load row k: F_E and the plant's other inputs, sampled
+   from their signals before the run), doStep. The controller is one of two kinds: the generated law (CTRL_LAW), or
    a controller FMU called through its function pointers (CTRL_FMU) in the order
    cosim/fmu_controller.py's FmuController.step calls it: the previous sample's doStep (deferred
    to this sample), set its inputs from the row, get iq_ref and its diagnostics. */
@@ -27,14 +28,17 @@ typedef struct {
 typedef struct {
     fmu_t plant, ctrl;      /* ctrl: the controller FMU (CTRL_FMU only) */
     double *data;
+    const double *load;     /* per sample 0 .. n, n_load values: F_E, then the plant's other inputs */
+    double *plant_in;       /* the plant's inputs as sent: the command, then the load row (1 + n_load) */
     const long *ctrl_cols;  /* CTRL_FMU: the row's columns of the controller's inputs */
     double *ctrl_in, *ctrl_out; /* CTRL_FMU: its input values, its outputs (iq_ref, diagnostics) */
     long n_out, ncols, i_q, i_qd, col_u, n;  /* i_q, i_qd: the columns the law reads (x_B, v_B or theta1, omega1) */
+    long n_load, col_x;     /* load values per sample; the trace column of the first input after F_E */
     long k, fault, status;  /* next sample; the failed FMI function (1 get, 2 set, 3 step; + 3 for the controller FMU), its status */
     long no_prior;          /* doStep's noSetFMUStatePriorToCurrentPoint: 1 only if no checkpoint is restored */
     long kind;              /* CTRL_LAW or CTRL_FMU */
     long ctrl_n_in, ctrl_n_out, ctrl_due; /* CTRL_FMU: counts; 1 when the doStep from ctrl_t is due */
-    double T_s, F_E, z;     /* z: the law's state (an integrator) at sample k */
+    double T_s, z;          /* z: the law's state (an integrator) at sample k */
     double ctrl_t;          /* CTRL_FMU: the time of the sample its last outputs were read at */
     law_t law;
 } kernel_t;
@@ -108,12 +112,14 @@ static int fmu_control(kernel_t *s, double t, const double *row) {
    CONTROLLER_FAILED or COMMAND_REJECTED (the controller FMU; the sample not recorded). s->k
    is the next sample on return (the failed one for the failures), s->z the law's state there. */
 int kernel_run(kernel_t *s, long k_end) {
-    double in[2], c[5], t, *row;
+    double c[5], t, *row, *in = s->plant_in;
+    const double *load;
     long k, j;
     int status;
     for (k = s->k; k < k_end; k++) {
         t = (double)k * s->T_s;
         row = s->data + k * s->ncols;
+        load = s->load + k * s->n_load;
         status = fmu_get(&s->plant, (size_t)s->n_out, row + 1);
         if (FAILED(status)) { s->k = k; s->fault = 1; s->status = status; return FMI_FAILED; }
         if (s->kind == CTRL_FMU) {
@@ -121,7 +127,7 @@ int kernel_run(kernel_t *s, long k_end) {
             if (status != DONE) { s->k = k; return status; }
             row[0] = t;
             row[s->col_u] = s->ctrl_out[0];
-            row[s->col_u + 1] = s->F_E;
+            row[s->col_u + 1] = load[0];
             for (j = 1; j < s->ctrl_n_out; j++) { row[s->col_u + 1 + j] = s->ctrl_out[j]; }
             in[0] = s->ctrl_out[0];
         } else {
@@ -131,16 +137,17 @@ int kernel_run(kernel_t *s, long k_end) {
             }
             row[0] = t;
             row[s->col_u] = c[0];
-            row[s->col_u + 1] = s->F_E;
+            row[s->col_u + 1] = load[0];
             row[s->col_u + 2] = c[1];
             row[s->col_u + 3] = c[2];
             row[s->col_u + 4] = c[3];
             s->z = c[4];
             in[0] = c[0];
         }
+        for (j = 1; j < s->n_load; j++) { row[s->col_x + j - 1] = load[j]; }
         if (k == s->n) { s->k = k + 1; return DONE; }
-        in[1] = s->F_E;
-        status = fmu_set(&s->plant, 2, in);
+        for (j = 0; j < s->n_load; j++) { in[1 + j] = load[j]; }
+        status = fmu_set(&s->plant, (size_t)(1 + s->n_load), in);
         if (FAILED(status)) { s->k = k; s->fault = 2; s->status = status; return FMI_FAILED; }
         status = fmu_step(&s->plant, t, s->T_s, s->no_prior != 0);
         if (FAILED(status)) { s->k = k; s->fault = 3; s->status = status; return FMI_FAILED; }

@@ -52,12 +52,12 @@ if TYPE_CHECKING:
 KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
 _FMU_POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr")
-_POINTERS = ("data", "ctrl_cols", "ctrl_in", "ctrl_out")
+_POINTERS = ("data", "load", "plant_in", "ctrl_cols", "ctrl_in", "ctrl_out")
 _LONGS = (
-    *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "k", "fault", "status", "no_prior"),
+    *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "n_load", "col_x", "k", "fault", "status", "no_prior"),
     *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due"),
 )
-_DOUBLES = ("T_s", "F_E", "z", "ctrl_t")
+_DOUBLES = ("T_s", "z", "ctrl_t")
 CTRL_LAW, CTRL_FMU = 0, 1  # the controller kinds of the skeleton
 
 
@@ -200,7 +200,9 @@ class CompiledLoop:
     """Samples k .. k_end - 1 of the master loop in one C call (see the module docstring).
 
     `data` is the master's preallocated (n + 1, ncols) float64 trace: column 0 time, columns
-    1 .. n_out the FMU outputs, col_u .. col_u + 1 (iq_ref, F_E), then the diagnostics. With
+    1 .. n_out the FMU outputs, col_u .. col_u + 1 (iq_ref, F_E), then the diagnostics, then the
+    plant's other inputs (its last m - 1 columns); `load` the (n + 1, m) float64 array of what
+    sample k sends besides the command, load[k] = (F_E, the other inputs), recorded in its row. With
     `controller` None the controller is the generated law: it reads the columns i_q and i_qd
     (x_B and v_B, or theta1 and omega1 for the θ1 objective) and writes (S, phase, e); `law` is
     the controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
@@ -220,19 +222,26 @@ class CompiledLoop:
         col_u: int,
         n: int,
         T_s: float,
-        F_E: float,
+        load: np.ndarray,
         law: LawParameters | None,
         z: float = 0.0,
         controller: ControllerCalls | None = None,
     ) -> None:
         if data.dtype != np.float64 or not data.flags.c_contiguous or data.shape[0] < n + 1:
             raise ValueError("the trace must be a C-contiguous float64 array of n + 1 rows")
+        if load.dtype != np.float64 or not load.flags.c_contiguous or load.ndim != 2 or load.shape[0] != n + 1:
+            raise ValueError("the load must be a C-contiguous float64 array of n + 1 rows")
+        n_load = load.shape[1]
+        if not 1 <= n_load <= data.shape[1] - col_u - 1:
+            raise ValueError("the load needs F_E and a trace column for each other input")
         self._library = library
         k = _kernel_struct()()
         _point_at(k.plant, fmu)
-        k.data = data.ctypes.data
+        plant_in = (ctypes.c_double * (1 + n_load))()  # the plant's inputs: the command, then the load row
+        k.data, k.load, k.plant_in = data.ctypes.data, load.ctypes.data, ctypes.addressof(plant_in)
+        k.n_load, k.col_x = n_load, data.shape[1] - (n_load - 1)
         k.n_out, k.ncols, k.i_q, k.i_qd, k.col_u, k.n = n_out, data.shape[1], i_q, i_qd, col_u, n
-        k.T_s, k.F_E, k.z = float(T_s), float(F_E), float(z)
+        k.T_s, k.z = float(T_s), float(z)
         k.no_prior = 0  # the FMU keeps its history unless a policy that never restores says so
         if law is not None:
             for name in LawParameters.__dataclass_fields__:
@@ -251,7 +260,7 @@ class CompiledLoop:
             k.ctrl_cols, k.ctrl_in, k.ctrl_out = (ctypes.addressof(b) for b in (columns, values, outputs))
             k.ctrl_due, k.ctrl_t = (0, 0.0) if controller.t is None else (1, float(controller.t))
             self._outputs = outputs
-        self._keep = (fmu, data, buffers)  # everything the C side points into stays alive
+        self._keep = (fmu, data, load, plant_in, buffers)  # everything the C side points into stays alive
         self._state = k
         self._pointer = ctypes.pointer(k)
         self._out = (ctypes.c_double * 5)()

@@ -36,7 +36,15 @@ from fmpy import extract
 from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim.session import CFunctions, FunctionNames, bound_function
 from toggle_cosim.plant.controller_contract import COMMAND, ControllerFmu
-from toggle_cosim.plant.fmi_calls import FMU2SlaveChecked, FMU3SlaveChecked, failed, last_log_line, logger3, quiet
+from toggle_cosim.plant.fmi_calls import (
+    FATAL,
+    FMU2SlaveChecked,
+    FMU3SlaveChecked,
+    failed,
+    last_log_line,
+    logger3,
+    quiet,
+)
 
 __all__ = ["ControllerFmuError", "FmuController"]
 
@@ -51,9 +59,6 @@ _SETTERS = {  # fmpy's setter per FMI type, FMI 2.0 then 3.0
     "Boolean": "setBoolean",
     "String": "setString",
 }
-
-
-FATAL = 4  # fmi2Fatal, fmi3Fatal
 
 
 class ControllerFmuError(Exception):

@@ -23,8 +23,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
+import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from toggle_cosim import interrupts
 from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
@@ -41,6 +43,7 @@ from toggle_cosim.cosim.compiled_loop import (
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.recorder import Recorder, StepHook
 from toggle_cosim.cosim.session import PlantSession
+from toggle_cosim.messages import error_text
 
 
 class StepFailed(Exception):
@@ -124,11 +127,13 @@ class Stepper(Protocol):
 
 @dataclass
 class Timing:
-    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; F_E the constant load input."""
+    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; `load` the inputs besides the
+    command that sample k sends, load[k] = (F_E, then the plant's other inputs): an (n + 1, m)
+    float64 array, C order (`master.input_samples`)."""
 
     n: int
     T_s: float
-    F_E: float
+    load: np.ndarray
 
 
 class PythonStepper:
@@ -149,12 +154,15 @@ class PythonStepper:
         self.session, self.controller, self.recorder = session, controller, recorder
         self.timing, self.state, self.hooks = timing, state, tuple(hooks)
         self.jacobi = jacobi
+        self.load = timing.load.tolist()  # row k: what sample k sends besides the command, as Python floats
         self.index = {name: j for j, name in enumerate(recorder.names[1 : 1 + recorder.n_out], start=1)}
 
     def _start(self, t: float, measurement: Measurement) -> Any:
         try:
             return self.controller.start(t, measurement)
-        except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run with the reason
+        except BaseException as error:  # noqa: BLE001 - the user's code: its failure ends the run with the reason
+            if not interrupts.raised_by_code(error):
+                raise
             raise ControllerFailed(f"the controller's start raised at t = {t:.6g} s: {_error(error)}") from None
 
     def advance(self, k0: int, k_end: int, read_first: bool = True) -> int:
@@ -162,11 +170,13 @@ class PythonStepper:
         already (read by the compiled loop before it handed the sample back)."""
         rec, st = self.recorder, self.state
         data, n_out, i_x, i_v, col_u = rec.data, rec.n_out, rec.i_x, rec.i_v, rec.col_u
-        T_s, n, F_E = self.timing.T_s, self.timing.n, self.timing.F_E
+        T_s, n, load = self.timing.T_s, self.timing.n, self.load
+        col_x = rec.col_x
+        others = col_x < len(rec.names)  # the plant has inputs besides iq_ref and F_E
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
         control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
         jacobi = self.jacobi
-        n_diagnostics = len(rec.names) - col_u - 2
+        n_diagnostics = col_x - col_u - 2
         state = st.controller
         try:
             for k in range(k0, k_end):
@@ -183,7 +193,9 @@ class PythonStepper:
                     state = self._start(t, measurement)
                 try:
                     result = control_step(state, t, measurement)
-                except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                except BaseException as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                    if not interrupts.raised_by_code(error):
+                        raise
                     raise step_raised(t, error) from None
                 try:
                     u, diagnostics, state = checked_command(result, n_diagnostics, t)
@@ -193,13 +205,16 @@ class PythonStepper:
                     held = st.held if st.held is not None else (u, diagnostics)
                     st.held = (u, diagnostics)
                     u, diagnostics = held
+                sent = load[k]  # F_E, then the other inputs
                 row[col_u] = u
-                row[col_u + 1] = F_E
-                row[col_u + 2 :] = diagnostics
+                row[col_u + 1] = sent[0]
+                row[col_u + 2 : col_x] = diagnostics
+                if others:
+                    row[col_x:] = sent[1:]
                 rec.rows = k + 1
                 if k == n:
                     return k + 1
-                write_inputs((u, F_E))
+                write_inputs((u, *sent))
                 try:
                     do_step(t, T_s)
                 except FMICallException as error:
@@ -218,7 +233,7 @@ def step_raised(t: float, error: BaseException) -> ControllerFailed:
 
 
 def _error(error: BaseException) -> str:
-    return " ".join(f"{type(error).__name__}: {error}".split())
+    return error_text(error, 300)  # with the sentence around it, within the reason's bound
 
 
 class CompiledStepper:
@@ -288,7 +303,7 @@ class CompiledStepper:
             recorder.col_u,
             timing.n,
             timing.T_s,
-            timing.F_E,
+            timing.load,
             parameters,
             z,
             controller,

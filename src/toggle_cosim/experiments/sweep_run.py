@@ -82,7 +82,9 @@ def check_address_space() -> None:
         )
 
 
-def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) -> tuple[Path, Any]:
+def _resolve_plant(
+    sweep: Sweep, fmu: Path | None, keep_traces: bool = False, case_timeout: float | None = None
+) -> tuple[Path, Any]:
     from toggle_cosim.plant.contract import ContractError, check_plant
 
     chosen = fmu if fmu is not None else sweep.fmu
@@ -131,7 +133,7 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
                 " output limit; sweep fewer cases, raise T_s, shorten t_end or raise TOGGLE_COSIM_MAX_OUTPUT"
             )
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
 
     seen = set()
     for (
@@ -151,8 +153,16 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
             check_settings(run, plant)
             if run.controller.python is None and run.controller.fmu is None:
                 controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
-            # a controller.python's or controller.fmu's: built and checked once here, its columns kept for the cases
-            columns = case_columns(case.payload(), plant)
+            check_user_controller(run, plant.recorded_outputs)  # without running the user's code
+            # a controller.python's or controller.fmu's: built and checked once in a supervised child
+            # (`supervision.probe_columns`), never in this process; its columns kept for the cases
+            columns = case_columns(case.payload(), plant, case_timeout)
+            if keep_traces and run.plant.inputs:
+                raise SweepError(
+                    f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
+                    f"law's columns, and this case also records the plant inputs {', '.join(run.plant.inputs)} "
+                    "(plant.inputs); sweep it without --keep-traces (its table row is kept)"
+                )
             if keep_traces and columns != trace_names(plant):
                 raise SweepError(
                     f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
@@ -197,7 +207,7 @@ def execute_sweep(
         rows_per_batch = batch_rows()
     except ValueError as error:
         raise SweepError(str(error)) from error
-    fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces)
+    fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces, case_timeout)
     from toggle_cosim.cosim.supervision import remove_stale_folders
 
     remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory

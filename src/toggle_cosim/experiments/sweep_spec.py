@@ -11,6 +11,7 @@
       plant.m_B: {values: [4.43, 6.645, 8.86]}
       controller.gains.beta: {random: {low: 40, high: 90, n: 5, seed: 1}}
       plant.parameters.mechanism.r3: {values: [0.27, 0.28]}   # after plant.parameters. the rest is one FMU name
+      # plant.F_E.start_time: {values: [0.2, 0.3]}             # a key of the base's signal (plant.F_E: {kind: step, ...})
     output: ../out/sweeps/sweep_FE_mB      # relative to this file; default out/sweeps/<name>
     heatmap: {x: plant.F_E, y: plant.m_B}  # optional, default: the first two axes
 
@@ -42,6 +43,7 @@ from typing import Any
 from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
+from toggle_cosim.signals.schema import signal_keys
 
 STANDARD_PARAMETERS = ("plant.F_E", "plant.m_B", "plant.mu", "T_s", "t_end")
 METRICS = (*RunSummary.__dataclass_fields__, "fric_share_end")
@@ -170,7 +172,7 @@ def _check_axis_key(key: str) -> None:
         raise SweepError(f"axis {key}: {path[0]} cannot be swept (sweep a physical or numerical key)")
     schema: Mapping[str, Any] = SCENARIO_SCHEMA
     for depth, part in enumerate(path):
-        properties = schema.get("properties", {})
+        properties = schema.get("properties", {}) or signal_keys(schema)  # a signal's: plant.F_E.start_time
         if part in properties:
             schema = properties[part]
         elif "additionalProperties" in schema and isinstance(schema["additionalProperties"], Mapping):
@@ -375,7 +377,7 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
                 )
             seen[identifier] = index
             parameters: dict[str, Any] = {
-                "plant.F_E": run.plant.F_E,
+                "plant.F_E": run.plant.F_E if isinstance(run.plant.F_E, float) else math.nan,  # NaN: a signal
                 "plant.m_B": run.plant.m_B,
                 "plant.mu": run.plant.mu,
                 "T_s": run.T_s,

@@ -13,6 +13,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any, Literal
 
 from toggle_cosim.physics.parameters import ControllerGains
+from toggle_cosim.signals.definitions import Signal
 
 COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples plant and controller
 
@@ -21,7 +22,7 @@ COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples p
 class PlantSettings:
     """What the master sets on the plant FMU before initialisation (and holds as inputs)."""
 
-    F_E: float = 0.0
+    F_E: float | Signal = 0.0  # N: a number (constant) or a signal in time (`signals`), applied at every sample
     m_B: float = 4.43
     mu: float = 0.2
     current_loop: Literal["first_order", "ideal"] = "first_order"
@@ -33,6 +34,9 @@ class PlantSettings:
     rated_current: float = 10.0  # A
     working_range: tuple[float, float] | None = None  # m, slider B; None: the linkage's (scenario)
     parameters: Mapping[str, float | bool] = field(default_factory=dict)
+    # The plant FMU's other inputs by name (a user's plant: a disturbance, a temperature), each a
+    # number or a signal, applied at every sample as F_E is; recorded after the diagnostics
+    inputs: Mapping[str, float | Signal] = field(default_factory=dict)
     # Explicit (name, value) settings in order, e.g. an SSP's parameter set (`ssp.reader`): the
     # master sets exactly these instead of the ones it derives from the fields above
     fmu_values: tuple[tuple[str, float | bool | int], ...] | None = None

@@ -252,8 +252,8 @@ def _refuse_sweep(path: Path) -> None:
 
 
 def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
-    """SspError for a scenario an SSP cannot hold: a controller in Python, variants that differ
-    in t_end or T_s (an SSP has one experiment)."""
+    """SspError for a scenario an SSP cannot hold: a controller in Python, a load that varies in
+    time, variants that differ in t_end or T_s (an SSP has one experiment)."""
     for run in runs:
         if run.controller.fmu is not None:
             raise SspError(
@@ -264,6 +264,16 @@ def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
             raise SspError(
                 f"{path}: key controller.python: an SSP's controller is an FMU, so a Python controller cannot be "
                 "written into it (use the built-in law, or run the scenario with toggle-cosim run)"
+            )
+        if run.plant.inputs:
+            raise SspError(
+                f"{path}: key plant.inputs: the SSP connects the plant's iq_ref and F_E only, so its other inputs "
+                f"({', '.join(run.plant.inputs)}) cannot be written into it (run the scenario with toggle-cosim run)"
+            )
+        if not isinstance(run.plant.F_E, (int, float)):
+            raise SspError(
+                f"{path}: key plant.F_E: the load is a {run.plant.F_E.kind} in time, and an SSP's parameter set holds"
+                " one value per input (give F_E a number, or run the scenario with toggle-cosim run)"
             )
     for key in ("t_end", "T_s"):
         values = {getattr(run, key) for run in runs}
