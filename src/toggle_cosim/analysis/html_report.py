@@ -33,7 +33,7 @@ from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
 from toggle_cosim.analysis.display_points import DISPLAY_POINTS, thin
 from toggle_cosim.analysis.run_files import LoadedRun
 from toggle_cosim.analysis.sweep_heatmaps import value_label
-from toggle_cosim.files.outputs import write_file
+from toggle_cosim.files.outputs import HTML, write_file
 from toggle_cosim.files.traces import Trace
 
 __all__ = [
@@ -512,4 +512,4 @@ def write_report(path: Path | str, title: str, sections: Sequence[Section], note
     """Render the page and write it to `path` (a unique temporary name renamed into place;
     a link, folder or device at `path` is refused: `files.outputs`)."""
     text = render(title, [s for s in sections if s is not None], note)
-    return write_file(Path(path), lambda stream: stream.write(text), what="HTML report")
+    return write_file(Path(path), lambda stream: stream.write(text), what="HTML report", kind=HTML)

@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import PNG, replacing
 
 HEATMAP_DIR = "heatmaps"
 
@@ -121,7 +121,7 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
         )
         path = folder / f"{name}.png"
         try:
-            with replacing(path) as temporary:  # a unique temporary name, renamed into place
+            with replacing(path, "heat map", kind=PNG) as temporary:  # a unique temporary name, renamed into place
                 figure.savefig(temporary, dpi=100, format="png")
         finally:
             plt.close(figure)

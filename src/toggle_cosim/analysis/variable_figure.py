@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from toggle_cosim.analysis.compare import ComparisonResult
 from toggle_cosim.analysis.display_points import thin
 from toggle_cosim.analysis.run_files import LoadedRun
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import PNG, replacing
 from toggle_cosim.files.traces import Trace
 
 __all__ = ["ReferenceBand", "axis_label", "default_variables", "save_figure", "variables_figure"]
@@ -108,7 +108,7 @@ def variables_figure(
 def save_figure(figure: Figure, output: Path) -> Path:
     """Write `figure` as a PNG to `output` (a unique temporary name renamed into place)."""
     output = Path(output)
-    with replacing(output) as temporary:
+    with replacing(output, "figure", kind=PNG) as temporary:
         figure.savefig(temporary, dpi=100, format="png")
     return output
 

@@ -52,6 +52,16 @@ class Result:
         record: the run record, what `toggle-cosim run` writes to run.json (the resolved
             scenario, the FMU's path and SHA-256, the loop that ran, wall time, solver counts).
         units: {column: unit} from the plant FMU's modelDescription and the controller (`units`).
+
+    Example:
+        ```python
+        result = tc.simulate(tc.load_scenario("scenarios/fig4_nominal.yaml")["friction"], tc.plant_fmu())
+        if not result.ok:
+            print(result.status, result.reason)
+        df = result.to_dataframe()             # indexed by time [s]
+        df["x_B"].plot()                       # df.attrs["units"]["x_B"] == "m"
+        result.write("out/mine/friction")      # trace.csv and run.json, as `toggle-cosim run` writes them
+        ```
     """
 
     run: Run

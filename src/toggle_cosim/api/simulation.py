@@ -121,6 +121,9 @@ def simulate(
     the measured x_B, v_B and holds i_q* until the next sample, as `toggle-cosim run` does.
 
     Args:
+        run: a `Run` (`tc.load_scenario(path)["friction"]`), or a `Scenario` with one variant.
+        fmu: the plant FMU's path (default: the run's `fmu:` key); it is checked against the
+            plant contract and its binary probed once while the file is unchanged.
         supervised: run in a forked child (default): a plant crash or hang fails the run, not
             this process. False: in this process, without a time limit.
         time_limit: wall-clock limit of a supervised run in s (default: the scenario's
@@ -141,6 +144,17 @@ def simulate(
         ContractError: the FMU is missing or does not meet the plant's interface contract.
         RunInterrupted: an interrupt (Ctrl-C, the notebook's stop button) stopped the run; the
             partial result is its `.result`.
+        ValueError: a `coupling` or `time_limit` that is not one of the allowed values.
+
+    Example:
+        ```python
+        import toggle_cosim as tc
+
+        fig4 = tc.load_scenario("scenarios/fig4_nominal.yaml")
+        result = tc.simulate(fig4["friction"], tc.plant_fmu())
+        print(result.status, result.summary.final_error_m)   # complete 6.4e-05
+        jacobi = tc.simulate(fig4["friction"], "fmus/ToggleLSM.fmu", coupling="jacobi")
+        ```
     """
     run = _one_run(run)
     if coupling is not None:

@@ -19,6 +19,7 @@ from toggle_cosim.cli.app import (
     require,
 )
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of
+from toggle_cosim.files.outputs import HTML, JUNIT, MARKDOWN
 
 
 @main.command()
@@ -122,8 +123,8 @@ def references(
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim.experiments import references as refs
 
-    check_output(junit, "JUnit report")
-    check_output(summary, "Markdown summary")
+    check_output(junit, "JUnit report", JUNIT)
+    check_output(summary, "Markdown summary", MARKDOWN)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     if not update:
@@ -133,7 +134,7 @@ def references(
     if html:
         from toggle_cosim.cli.report_command import REPORT_FILE
 
-        check_output(out / REPORT_FILE, "HTML report")
+        check_output(out / REPORT_FILE, "HTML report", HTML)
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     if not scenarios and not Path("scenarios").is_dir():
         raise InputError(

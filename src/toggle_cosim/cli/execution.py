@@ -80,17 +80,46 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
     return pairs
 
 
-def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
+def _write_outcome(outcome, out: Path) -> tuple[Path, bool]:  # noqa: ANN001
+    """Write the run's trace.csv and run.json into OUT/`Run.folder`; the folder, and whether an
+    earlier run's files there were replaced."""
     from toggle_cosim.files.naming import naming
     from toggle_cosim.files.traces import write_csv, write_json
 
-    folder = out / outcome.run.scenario / (outcome.run.variant or "run")
+    folder = out / outcome.run.folder
+    replaced = (folder / "run.json").is_file() or (folder / "trace.csv").is_file()
     with interrupts.deferred():  # both files whole, or an interrupt waits for them
         with naming(folder / "trace.csv"):  # a full disk names the file it could not write
             write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
         with naming(folder / "run.json"):
             write_json(folder / "run.json", outcome.record)
-    return folder
+    return folder, replaced
+
+
+def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
+    """Before any run: no two runs write the same folder (`runs.definition.results_folder`: one
+    per source and setting), and their trace.csv and run.json may be written there (the output
+    rule of `files.outputs`: only a CSV table and a JSON object of an earlier run are replaced)."""
+    from toggle_cosim.cli.app import check_output
+    from toggle_cosim.files.outputs import CSV, JSON
+
+    seen: dict = {}
+    for run, _ in pairs:
+        if run.folder in seen:
+            other = seen[run.folder]
+            raise InputError(
+                f"{other.source or other.label} and {run.source or run.label}: both runs would write "
+                f"{Path(out) / run.folder}; run them into different --out folders"
+            )
+        seen[run.folder] = run
+        folder = Path(out) / run.folder
+        try:
+            exists = folder.is_dir()
+        except OSError:  # e.g. a name too long: check_runs reports the output folder in one line
+            exists = False
+        if exists:  # a folder that is not one (an output folder that is a file) is check_runs' to report
+            check_output(folder / "trace.csv", "trace", CSV)
+            check_output(folder / "run.json", "run record", JSON)
 
 
 def _status_text(outcome) -> str:  # noqa: ANN001
@@ -184,11 +213,13 @@ def execute_runs(  # noqa: ANN201
     if `keep_traces`, else without them, so that any number of runs holds no descriptor or
     scratch space once written."""
     target = Path(out).absolute()  # before any plant runs: one that changes directory must not move it
+    check_folders(pairs, out)
     outcomes = []
     with contextlib.closing(outcomes_of(pairs, out, quiet, time_limit, jobs)) as results:
         for number, outcome in enumerate(results, start=1):
             label = f"[{number}/{len(pairs)}] {outcome.run.label}"
-            folder = Path(out) / _write_outcome(outcome, target).relative_to(target)  # as the user named it
+            written, replaced = _write_outcome(outcome, target)
+            folder = Path(out) / written.relative_to(target)  # as the user named it
             s = outcome.summary
             detail = (
                 f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A"
@@ -198,6 +229,7 @@ def execute_runs(  # noqa: ANN201
             )
             click.echo(
                 f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}"
+                + (" (replaced the earlier run's files there)" if replaced else "")
             )
             for warning in outcome.warnings:  # plausibility flags (`cosim.plausibility`)
                 click.echo(f"{label}: warning: {warning}")

@@ -10,6 +10,7 @@ from typing import Any
 import click
 
 from toggle_cosim.cli.app import InputError, check_output, main, require
+from toggle_cosim.files.outputs import HTML
 
 REPORT_FILE = "report.html"
 
@@ -216,7 +217,7 @@ def report(
 
     names = parse_vars(variables)
     output = output or _default_output(folders[0], REPORT_FILE)
-    check_output(output, "HTML report (--out)")
+    check_output(output, "HTML report (--out)", HTML)
     sweeps = [folder for folder in folders if folder.is_dir() and is_sweep_folder(folder)]
     if sweeps:
         if len(folders) > 1:

@@ -25,6 +25,7 @@ from toggle_cosim.cli.app import (
 )
 from toggle_cosim.cli.build_command import build_plant
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_runs, load_runs, raise_if_failed
+from toggle_cosim.files.outputs import MARKDOWN, PNG
 from toggle_cosim.runs.definition import COUPLINGS
 
 
@@ -64,7 +65,8 @@ def run(
     jobs: int | None,
 ) -> None:
     """Run scenario files (or SSP archives, .ssp); write trace.csv and run.json per run under
-    OUT/<scenario>/<variant>/."""
+    OUT/<scenario>/<variant>/ (an SSP's under OUT/<archive>_ssp/<set>/; with a --coupling the
+    scenario does not give, OUT/<scenario>_<coupling>/<variant>/)."""
     from toggle_cosim.cli.ssp_command import is_ssp, ssp_runs
 
     ssps = [path for path in scenarios if is_ssp(path)]
@@ -114,12 +116,12 @@ def plot(results: tuple[Path, ...], output: Path | None, variables: str | None, 
     require("matplotlib")
     names = parse_vars(variables)
     if names is not None or reference is not None:
-        check_output(output, "figure (--out)")
+        check_output(output, "figure (--out)", PNG)
         click.echo(f"wrote {plot_variables(results, names, reference, output)}")
         return
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")
-    check_output(output, "figure (--out)")
+    check_output(output, "figure (--out)", PNG)
     for folder in results:
         if not folder.is_file() and is_paper_plant(folder):
             click.echo(f"wrote {_plot_scenario(folder, output)}")
@@ -150,6 +152,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
     from toggle_cosim.analysis.report import write_summary
 
     require("matplotlib", *(() if skip_build else ("modelica",)))
+    check_output(out / "summary.md", "summary", MARKDOWN)
 
     started = time.perf_counter()
     if not skip_build:
@@ -166,12 +169,14 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
 
     figures = FigureWorkers(min(2, default_jobs(len(PAPER_SCENARIOS))))
     try:
-        left = {name: sum(1 for run, _ in pairs if run.scenario == name) for name in PAPER_SCENARIOS}
+        left: dict = {}
+        for run, _ in pairs:
+            left[run.folder.parent] = left.get(run.folder.parent, 0) + 1
 
         def written(outcome) -> None:  # noqa: ANN001 - a scenario's figure once all its runs are written
-            left[outcome.run.scenario] -= 1
-            if left[outcome.run.scenario] == 0:
-                figures.submit(out / outcome.run.scenario)
+            left[outcome.run.folder.parent] -= 1
+            if left[outcome.run.folder.parent] == 0:
+                figures.submit(out / outcome.run.folder.parent)
 
         outcomes = execute_runs(
             pairs, out, quiet=False, time_limit=time_limit, on_written=written, jobs=jobs, keep_traces=True

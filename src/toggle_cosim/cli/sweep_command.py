@@ -10,6 +10,7 @@ import click
 from toggle_cosim import interrupts
 from toggle_cosim.cli.app import check_output, main, require
 from toggle_cosim.cli.execution import Seconds
+from toggle_cosim.files.outputs import HTML
 
 
 def _check_report_output(sweep_file: Path, out: Path | None) -> None:
@@ -22,7 +23,7 @@ def _check_report_output(sweep_file: Path, out: Path | None) -> None:
         folder = load_sweep(sweep_file, out).output
     except (SweepError, OSError, ValueError):
         return
-    check_output(folder / REPORT_FILE, "HTML report (--html)")
+    check_output(folder / REPORT_FILE, "HTML report (--html)", HTML)
 
 
 @main.command()

@@ -257,7 +257,11 @@ def _execute_sweep(
             say(f"warning: unreadable result files, their cases run again: {', '.join(store.unreadable[:5])}")
         if retry_failed:
             store.forget_failed()
-        todo = [c for c in sweep.cases if c.case_id not in store.done]
+        untraced = set()
+        if keep_traces:  # a finished case whose trace is not stored (an earlier run without --keep-traces) runs again
+            traced = store.traced()
+            untraced = {c for c, ok in store.done.items() if ok and c not in traced}
+        todo = [c for c in sweep.cases if c.case_id not in store.done or c.case_id in untraced]
         if keep_traces:
             store.drop_traces(c.case_id for c in todo)
         result = SweepResult(total=len(sweep.cases), skipped=len(sweep.cases) - len(todo))
@@ -269,6 +273,8 @@ def _execute_sweep(
             f"sweep {sweep.name}: {result.total} cases; skipped {result.skipped} already done; "
             f"running {len(todo)} on the {backend}"
         )
+        if untraced:
+            say(f"--keep-traces: {len(untraced)} finished cases have no stored trace; they run again to store it")
         if other_fmu:
             say(
                 f"warning: {other_fmu} finished cases were computed with a different FMU; "

@@ -133,7 +133,9 @@ class Case:
             "variant": self.variant,
             "document": self.document,
             "parameters": self.parameters,
-            "source": self.source,
+            # absolute: a worker (a Dask worker in another folder) finds the base scenario's
+            # folder, and the controller.python module and controller.fmu beside it, as we do
+            "source": None if self.source is None else os.path.abspath(self.source),
         }
 
 

@@ -431,7 +431,11 @@ def run_cases(
         _open_runners.append(runner)
     results = []
     for payload in payloads:
-        runner.submit(payload)
+        try:
+            runner.submit(payload)
+        except Exception as error:  # noqa: BLE001 - e.g. its controller cannot be built here: the case fails
+            results.append((crash_row(payload, fmu_sha256, " ".join(f"{type(error).__name__}: {error}".split())), None))
+            continue
         while runner.busy:
             for _, answer in wait_for_hosts([runner.host]):
                 results.append(runner.service(answer))

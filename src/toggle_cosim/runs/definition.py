@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any, Literal
 
 from toggle_cosim.control.trajectory import ProfileSpec
@@ -105,5 +105,29 @@ class Run:
         return self.scenario if self.variant is None else f"{self.scenario}/{self.variant}"
 
     @property
+    def folder(self) -> PurePosixPath:
+        """Where `toggle-cosim run` writes this run's files under OUT (`results_folder`)."""
+        return results_folder(self)
+
+    @property
     def steps(self) -> int:
         return int(round(self.t_end / self.T_s))
+
+
+SSP_FOLDER_TAG = "_ssp"  # OUT/<archive>_ssp/<set>/: an SSP's runs
+
+
+def results_folder(run: Run) -> PurePosixPath:
+    """The folder, relative to the output folder, of a run's trace.csv and run.json: one per
+    source and setting, so that no run replaces another's results.
+
+    * a scenario file's run as the file says it: <scenario>/<variant>
+    * an SSP's run: <the archive's name without .ssp>_ssp/<set>
+    * a run whose coupling is not the one its file gives (`--coupling`): _<coupling> after the
+      first part, e.g. fig4_nominal_jacobi/friction
+    """
+    source = Path(run.source) if run.source is not None else None
+    top = f"{source.stem}{SSP_FOLDER_TAG}" if source is not None and source.suffix.lower() == ".ssp" else run.scenario
+    if run.coupling != run.resolved.get("coupling", "gauss-seidel"):
+        top += f"_{run.coupling}"
+    return PurePosixPath(top) / (run.variant or "run")

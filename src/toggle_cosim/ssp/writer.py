@@ -26,7 +26,7 @@ from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import SSP, replacing
 from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
@@ -356,7 +356,7 @@ def write_ssp(
         ):
             member = layout.ssv_member(parameter_set.name, component)
             texts[member] = _checked(_ssv(parameter_set.name, values, variables), "ssv", member)
-    with replacing(output, "SSP (--out)") as temporary:
+    with replacing(output, "SSP (--out)", kind=SSP) as temporary:
         with zipfile.ZipFile(temporary, "w", compression=zipfile.ZIP_DEFLATED) as archive:
             for member, text in texts.items():
                 archive.writestr(member, text)
