@@ -41,8 +41,11 @@ from toggle_cosim.ssp.writer import controller_values, write_ssp
 ROOT = Path(__file__).resolve().parent.parent
 # an SSP's parameter set holds one value per input: the scenarios whose load varies in time are refused
 VARYING = ("step_load", "measured_load")
+TRACKING = ("press_cycle",)  # a reference trajectory: refused too (the SSP's controller FMU regulates to a constant)
 SCENARIOS = sorted(
-    p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith("sweep_") and p.stem not in VARYING
+    p
+    for p in (ROOT / "scenarios").glob("*.yaml")
+    if not p.name.startswith("sweep_") and p.stem not in VARYING + TRACKING
 )
 NS = layout.NAMESPACES
 UNITS = {"x_B": "m", "v_B": "m/s", "theta1": "rad", "omega1": "rad/s", "iq_ref": "A"}
@@ -602,6 +605,14 @@ def test_a_load_that_varies_in_time_is_refused_in_one_line(name: str, tmp_path: 
         f"error: {scenario}: key plant.F_E: the load is a {kind} in time, and an SSP's parameter set holds one value"
         " per input (give F_E a number, or run the scenario with toggle-cosim run)"
     )
+
+
+def test_a_trajectory_is_refused_in_one_line(tmp_path: Path) -> None:
+    scenario = ROOT / "scenarios" / "press_cycle.yaml"
+    ran = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(tmp_path / "x.ssp")])
+    assert ran.exit_code == 2 and not (tmp_path / "x.ssp").exists()
+    assert ran.output.strip().startswith(f"error: {scenario}: key stroke.trajectory: an SSP's controller FMU regulates")
+    assert "\n" not in ran.output.strip()
 
 
 def _bad(case: str, fig5_ssp: Path, tmp_path: Path) -> Path:

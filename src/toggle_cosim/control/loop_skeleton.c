@@ -29,8 +29,10 @@ typedef struct {
     fmu_t plant, ctrl;      /* ctrl: the controller FMU (CTRL_FMU only) */
     double *data;
     const double *load;     /* per sample 0 .. n, n_load values: F_E, then the plant's other inputs */
+    const double *ref;      /* per sample 0 .. n, the law's reference (r, rd, rdd): q*, its rate, its acceleration;
+                               NULL: CTRL_LAW reads (law.target, 0, 0) */
     double *plant_in;       /* the plant's inputs as sent: the command, then the load row (1 + n_load) */
-    const long *ctrl_cols;  /* CTRL_FMU: the row's columns of the controller's inputs */
+    const long *ctrl_cols;  /* CTRL_FMU: the row's columns of the controller's inputs; -1 - i: ref's value i */
     double *ctrl_in, *ctrl_out; /* CTRL_FMU: its input values, its outputs (iq_ref, diagnostics) */
     long n_out, ncols, i_q, i_qd, col_u, n;  /* i_q, i_qd: the columns the law reads (x_B, v_B or theta1, omega1) */
     long n_load, col_x;     /* load values per sample; the trace column of the first input after F_E */
@@ -67,13 +69,14 @@ static int fmu_step(const fmu_t *f, double t, double h, bool no_prior) {
                    : ((step2_t)f->step)(f->component, t, h, no_prior ? 1 : 0);
 }
 
-/* One law sample from the measured coordinate and rate (q, qd): out = (u, S, phase, e, z_next).
-   Returns 0, or 1 where the Python must evaluate the sample itself (it raises there, or a
-   result is not finite). */
-int kernel_control(const kernel_t *s, double t, double q, double qd, double z, double out[5]) {
+/* One law sample from the measured coordinate and rate (q, qd) and the reference (r, rd, rdd):
+   out = (u, S, phase, e, z_next). Returns 0, or 1 where the Python must evaluate the sample
+   itself (it raises there, or a result is not finite). */
+int kernel_control(const kernel_t *s, double t, double q, double qd, double z, double r, double rd, double rdd,
+                   double out[5]) {
     int i;
     if (!(isfinite(q) && isfinite(qd))) { return 1; }
-    if (law_step(t, q, qd, z, &s->law, &out[0], &out[1], &out[2], &out[3], &out[4])) { return 1; }
+    if (law_step(t, q, qd, z, r, rd, rdd, &s->law, &out[0], &out[1], &out[2], &out[3], &out[4])) { return 1; }
     for (i = 0; i < 5; i++) {
         if (!isfinite(out[i])) { return 1; }
     }
@@ -84,7 +87,7 @@ int kernel_control(const kernel_t *s, double t, double q, double qd, double z, d
    outputs read into s->ctrl_out. Returns DONE, HAND_BACK (non-finite plant outputs: nothing
    sent to the controller), CONTROLLER_FAILED (s->fault, s->status say which call) or
    COMMAND_REJECTED (a command that is not finite). */
-static int fmu_control(kernel_t *s, double t, const double *row) {
+static int fmu_control(kernel_t *s, double t, const double *row, long k) {
     long j;
     int status;
     if (!(isfinite(row[s->i_q]) && isfinite(row[s->i_qd]))) { return HAND_BACK; }
@@ -93,7 +96,9 @@ static int fmu_control(kernel_t *s, double t, const double *row) {
         if (FAILED(status)) { s->fault = 6; s->status = status; return CONTROLLER_FAILED; }
         s->ctrl_due = 0;
     }
-    for (j = 0; j < s->ctrl_n_in; j++) { s->ctrl_in[j] = row[s->ctrl_cols[j]]; }
+    for (j = 0; j < s->ctrl_n_in; j++) {
+        s->ctrl_in[j] = s->ctrl_cols[j] >= 0 ? row[s->ctrl_cols[j]] : s->ref[3 * k - 1 - s->ctrl_cols[j]];
+    }
     if (s->ctrl_n_in) {
         status = fmu_set(&s->ctrl, (size_t)s->ctrl_n_in, s->ctrl_in);
         if (FAILED(status)) { s->fault = 5; s->status = status; return CONTROLLER_FAILED; }
@@ -113,7 +118,7 @@ static int fmu_control(kernel_t *s, double t, const double *row) {
    is the next sample on return (the failed one for the failures), s->z the law's state there. */
 int kernel_run(kernel_t *s, long k_end) {
     double c[5], t, *row, *in = s->plant_in;
-    const double *load;
+    const double *load, *ref;
     long k, j;
     int status;
     for (k = s->k; k < k_end; k++) {
@@ -123,7 +128,7 @@ int kernel_run(kernel_t *s, long k_end) {
         status = fmu_get(&s->plant, (size_t)s->n_out, row + 1);
         if (FAILED(status)) { s->k = k; s->fault = 1; s->status = status; return FMI_FAILED; }
         if (s->kind == CTRL_FMU) {
-            status = fmu_control(s, t, row);
+            status = fmu_control(s, t, row, k);
             if (status != DONE) { s->k = k; return status; }
             row[0] = t;
             row[s->col_u] = s->ctrl_out[0];
@@ -131,7 +136,9 @@ int kernel_run(kernel_t *s, long k_end) {
             for (j = 1; j < s->ctrl_n_out; j++) { row[s->col_u + 1 + j] = s->ctrl_out[j]; }
             in[0] = s->ctrl_out[0];
         } else {
-            if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, c)) {
+            ref = s->ref ? s->ref + 3 * k : NULL;
+            if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, ref ? ref[0] : s->law.target, ref ? ref[1] : 0.0,
+                               ref ? ref[2] : 0.0, c)) {
                 s->k = k;
                 return HAND_BACK;
             }

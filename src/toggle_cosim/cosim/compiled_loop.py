@@ -52,7 +52,7 @@ if TYPE_CHECKING:
 KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
 _FMU_POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr")
-_POINTERS = ("data", "load", "plant_in", "ctrl_cols", "ctrl_in", "ctrl_out")
+_POINTERS = ("data", "load", "ref", "plant_in", "ctrl_cols", "ctrl_in", "ctrl_out")
 _LONGS = (
     *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "n_load", "col_x", "k", "fault", "status", "no_prior"),
     *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due"),
@@ -64,7 +64,8 @@ CTRL_LAW, CTRL_FMU = 0, 1  # the controller kinds of the skeleton
 @dataclass(frozen=True)
 class ControllerCalls:
     """A controller FMU as the compiled loop calls it (`fmu_controller.FmuController`): its
-    functions, the trace columns of its inputs (in its input order), the number of its outputs
+    functions, the trace columns of its inputs (in its input order; -1 - i: value i of the
+    reference's row, the built-in law's x_ref, v_ref, a_ref), the number of its outputs
     (iq_ref, then the diagnostics), and the time of its last sample (None before the first),
     whose deferred doStep the loop makes at its next sample."""
 
@@ -171,10 +172,7 @@ def kernel_library() -> ctypes.CDLL | None:
             library.kernel_run.restype = ctypes.c_int
             library.kernel_control.argtypes = [
                 ctypes.POINTER(kernel),
-                ctypes.c_double,
-                ctypes.c_double,
-                ctypes.c_double,
-                ctypes.c_double,
+                *(ctypes.c_double,) * 7,
                 ctypes.POINTER(ctypes.c_double),
             ]
             library.kernel_control.restype = ctypes.c_int
@@ -206,9 +204,11 @@ class CompiledLoop:
     `controller` None the controller is the generated law: it reads the columns i_q and i_qd
     (x_B and v_B, or theta1 and omega1 for the θ1 objective) and writes (S, phase, e); `law` is
     the controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
-    at the first sample the loop runs. With `controller` (a controller FMU's calls) the loop
-    calls it instead, in the order `FmuController.step` does, and hands a sample whose columns
-    i_q, i_qd (x_B, v_B) are not finite back before calling it; `law` and `z` are unused.
+    at the first sample the loop runs, `reference` the law's (n + 1, 3) float64 reference
+    (q*, q̇*, q̈*) per sample (`control.trajectory`; None: the constant law.target). With
+    `controller` (a controller FMU's calls) the loop calls it instead, in the order
+    `FmuController.step` does, and hands a sample whose columns i_q, i_qd (x_B, v_B) are not
+    finite back before calling it; `law`, `z` and `reference` are unused.
     """
 
     def __init__(
@@ -226,11 +226,16 @@ class CompiledLoop:
         law: LawParameters | None,
         z: float = 0.0,
         controller: ControllerCalls | None = None,
+        reference: np.ndarray | None = None,
     ) -> None:
         if data.dtype != np.float64 or not data.flags.c_contiguous or data.shape[0] < n + 1:
             raise ValueError("the trace must be a C-contiguous float64 array of n + 1 rows")
         if load.dtype != np.float64 or not load.flags.c_contiguous or load.ndim != 2 or load.shape[0] != n + 1:
             raise ValueError("the load must be a C-contiguous float64 array of n + 1 rows")
+        if reference is not None and (
+            reference.dtype != np.float64 or not reference.flags.c_contiguous or reference.shape != (n + 1, 3)
+        ):
+            raise ValueError("the reference must be a C-contiguous float64 array of n + 1 rows of 3")
         n_load = load.shape[1]
         if not 1 <= n_load <= data.shape[1] - col_u - 1:
             raise ValueError("the load needs F_E and a trace column for each other input")
@@ -239,6 +244,7 @@ class CompiledLoop:
         _point_at(k.plant, fmu)
         plant_in = (ctypes.c_double * (1 + n_load))()  # the plant's inputs: the command, then the load row
         k.data, k.load, k.plant_in = data.ctypes.data, load.ctypes.data, ctypes.addressof(plant_in)
+        k.ref = None if reference is None else reference.ctypes.data
         k.n_load, k.col_x = n_load, data.shape[1] - (n_load - 1)
         k.n_out, k.ncols, k.i_q, k.i_qd, k.col_u, k.n = n_out, data.shape[1], i_q, i_qd, col_u, n
         k.T_s, k.z = float(T_s), float(z)
@@ -260,7 +266,7 @@ class CompiledLoop:
             k.ctrl_cols, k.ctrl_in, k.ctrl_out = (ctypes.addressof(b) for b in (columns, values, outputs))
             k.ctrl_due, k.ctrl_t = (0, 0.0) if controller.t is None else (1, float(controller.t))
             self._outputs = outputs
-        self._keep = (fmu, data, load, plant_in, buffers)  # everything the C side points into stays alive
+        self._keep = (fmu, data, load, reference, plant_in, buffers)  # everything the C side points into stays alive
         self._state = k
         self._pointer = ctypes.pointer(k)
         self._out = (ctypes.c_double * 5)()
@@ -291,10 +297,13 @@ class CompiledLoop:
         """The controller FMU's outputs read at its last sample (iq_ref, then the diagnostics)."""
         return tuple(self._outputs)
 
-    def control(self, t: float, q: float, qd: float, z: float = 0.0) -> tuple[float, float, float, float, float] | None:
-        """(u, S, phase, e, z_next) of the compiled law at the measured (q, qd), or None where it
-        defers to Python."""
-        if self._library.kernel_control(self._pointer, t, q, qd, z, self._out):
+    def control(
+        self, t: float, q: float, qd: float, z: float = 0.0, reference: tuple[float, float, float] | None = None
+    ) -> tuple[float, float, float, float, float] | None:
+        """(u, S, phase, e, z_next) of the compiled law at the measured (q, qd) and the reference
+        (q*, q̇*, q̈*) (None: law.target, 0, 0), or None where it defers to Python."""
+        r, rd, rdd = (self._state.law.target, 0.0, 0.0) if reference is None else reference
+        if self._library.kernel_control(self._pointer, t, q, qd, z, r, rd, rdd, self._out):
             return None
         return tuple(self._out)
 

@@ -36,9 +36,12 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim import interrupts
+from toggle_cosim.control import trajectory
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
+from toggle_cosim.control.trajectory import SampledReference
+from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.cosim import user_code
 from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.physics.mechanism import theta1_from_xB
@@ -60,7 +63,8 @@ __all__ = [
 
 
 def builtin_controller(run: Run) -> VSCController:
-    """The scenario's built-in controller, with its own nominal model (never the plant's parameters)."""
+    """The scenario's built-in controller, with its own nominal model (never the plant's parameters),
+    tracking the run's trajectory (stroke.trajectory, sampled on the run's grid) if it has one."""
     nominal = MechanismParameters(mB=run.controller.nominal_m_B, mu=0.0)
     return VSCController(
         gains=run.controller.gains,
@@ -73,6 +77,9 @@ def builtin_controller(run: Run) -> VSCController:
         K_I=run.controller.K_I,
         i_max=run.controller.i_max,
         T_s=run.T_s,
+        reference=None
+        if run.trajectory is None
+        else SampledReference.of(trajectory.build(run.trajectory), run.steps, run.T_s),
     )
 
 
@@ -169,7 +176,11 @@ def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
     for a parameter the FMU does not have."""
     settings: dict[str, Any] = {}
     if fmu.law_parameters:
-        settings.update(settable_values(builtin_controller(run).law_parameters()))
+        settings.update(
+            (name, value)
+            for name, value in settable_values(builtin_controller(run).law_parameters())
+            if name in fmu.parameters  # an FMU built before the parameter tracking has none
+        )
     for name, value in run.controller.parameters.items():
         if name not in fmu.parameters:
             known = ", ".join(fmu.parameters) or "none"
@@ -226,7 +237,18 @@ def _fmu_controller(run: Run, outputs: Sequence[str]) -> Any:
     from toggle_cosim.cosim.fmu_controller import FmuController
 
     fmu = _checked_fmu(run, outputs)
-    return FmuController(fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}")
+    reference = None
+    if run.trajectory is not None:
+        if fmu.reference_inputs != REFERENCE_INPUTS or "tracking" not in fmu.parameters:
+            raise ControllerError(
+                f"key controller.fmu: {fmu.path.name} has no inputs {', '.join(REFERENCE_INPUTS)} and parameter"
+                " tracking, so it cannot track stroke.trajectory (build the built-in law's FMU with toggle-cosim build,"
+                " or remove stroke.trajectory)"
+            )
+        reference = builtin_controller(run).reference
+    return FmuController(
+        fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}", reference=reference
+    )
 
 
 def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:

@@ -238,7 +238,16 @@ def simulate(
             compiled = (
                 law
                 if isinstance(law, str)
-                else CompiledStepper.build(session, recorder, timing, state, law, controller.measured, hooks)
+                else CompiledStepper.build(
+                    session,
+                    recorder,
+                    timing,
+                    state,
+                    law,
+                    controller.measured,
+                    hooks,
+                    controller.reference if isinstance(controller, VSCController) else None,
+                )
             )
             stepper = HandOver(python, compiled)
             if stepper.compiled is not None:
@@ -284,6 +293,7 @@ def simulate(
             _number(getattr(state.controller, "T_h", None)),
             _number(getattr(state.controller, "S0", None)),
             *_diagnostics(trace, ("S", "phase")),
+            None if run.x_final == run.x_target else run.x_final,
         )
         limits = run.plant.working_range or working_range(MechanismParameters())
         warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)

@@ -30,6 +30,7 @@ from toggle_cosim import interrupts
 from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
+from toggle_cosim.control.trajectory import SampledReference
 from toggle_cosim.cosim.compiled_loop import (
     COMMAND_REJECTED,
     CONTROLLER_FAILED,
@@ -273,10 +274,17 @@ class CompiledStepper:
         law: LawParameters | FmuController,
         measured: tuple[str, ...],
         hooks: Sequence[StepHook] = (),
+        reference: SampledReference | None = None,
     ) -> CompiledStepper | str:
         """The compiled stepper from the current sample on, or why there is none. `law` is the
         built-in law to run, or the controller FMU to call (`compiled_controller`), `measured`
-        the plant outputs it reads."""
+        the plant outputs it reads, `reference` the trajectory the built-in law tracks (its
+        `VSCController.reference`; None: the constant target; a controller FMU's is its own)."""
+        if isinstance(law, FmuController):
+            reference = law.reference
+        if reference is not None and (reference.T_s != timing.T_s or reference.values.shape != (timing.n + 1, 3)):
+            return "the law's reference is not sampled on the run's grid (T_s, t_end): the Python loop evaluates it"
+
         library = kernel_library()
         functions = session.c_functions()
         if library is None or functions is None:
@@ -286,8 +294,10 @@ class CompiledStepper:
             calls = law.c_functions()
             if calls is None:
                 return "the controller FMU's C functions are not reachable"
+            # the reference inputs x_ref, v_ref, a_ref: columns -1, -2, -3 (the reference's row k)
+            feed = (-1, -2, -3) if reference is not None else ()
             controller = ControllerCalls(
-                calls, tuple(names.index(name) for name in measured), 1 + len(law.diagnostics), state.controller
+                calls, (*(names.index(name) for name in measured), *feed), 1 + len(law.diagnostics), state.controller
             )
             i_q, i_qd, parameters, z = recorder.i_x, recorder.i_v, None, 0.0
         else:
@@ -307,6 +317,7 @@ class CompiledStepper:
             parameters,
             z,
             controller,
+            None if reference is None else reference.values,
         )
         return cls(loop, session, recorder, timing, state, hooks, law if controller is not None else None)
 

@@ -11,6 +11,8 @@ say (a target beyond the toggle position) are checked after it.
     t_end: 1.5                          # s
     T_s: 0.0005                         # s, controller sample time
     stroke: {x_start: 0.2329, x_target: 0.3199}
+    # the built-in law may track a profile instead of the constant x_target (control/trajectory.py):
+    # stroke: {x_start: .., x_target: .., trajectory: {kind: trapezoid, v_max: 0.2, a_max: 2.0}}
     plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, current_loop: first_order, parameters: {},
             friction_model: paper, mu_s: 0.2}     # friction_model: paper | dissipative | stick_slip
     # F_E may be a signal in time: {kind: step, start_time: 0.25, height: 100.0}, ... (`signals.schema`)
@@ -33,6 +35,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from toggle_cosim.control.trajectory import KINDS as TRAJECTORY_KINDS
+from toggle_cosim.control.trajectory import ProfileSpec, build
 from toggle_cosim.limits import MAX_SECONDS
 from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
@@ -136,11 +140,26 @@ _CONTROLLER = {
         "command": {"enum": ["iq_ref"]},
     },
 }
+_TRAJECTORY = {
+    "type": "object",
+    "additionalProperties": False,
+    "required": ["kind", "v_max", "a_max"],
+    "description": "the reference the built-in law tracks from x_start to x_target (control/trajectory.py)",
+    "properties": {
+        "kind": {"enum": list(TRAJECTORY_KINDS)},
+        "v_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 100, "description": "velocity limit in m/s"},
+        "a_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e5, "description": "acceleration limit, m/s2"},
+        "j_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e8, "description": "jerk limit in m/s3"},
+        "dwell": {"type": "number", "minimum": 0, "maximum": 100, "description": "a cycle's dwell at each end, s"},
+        "repeat": {"type": "integer", "minimum": 1, "maximum": 10000, "description": "a cycle's number of cycles"},
+        "t_start": {"type": "number", "minimum": 0, "maximum": 100, "description": "when the first move starts, s"},
+    },
+}
 _STROKE = {
     "type": "object",
     "additionalProperties": False,
     "required": ["x_start", "x_target"],
-    "properties": {"x_start": _POSITIVE, "x_target": _POSITIVE},
+    "properties": {"x_start": _POSITIVE, "x_target": _POSITIVE, "trajectory": _TRAJECTORY},
 }
 _OVERRIDE = {
     "type": "object",
@@ -403,6 +422,58 @@ def _other_inputs(given: Mapping[str, Any], t_end: float, suffix: str, source: P
     return inputs
 
 
+_ONLY_FOR = {"j_max": ("scurve", "cycle"), "dwell": ("cycle",), "repeat": ("cycle",)}
+
+
+def _trajectory(
+    stroke: Mapping[str, Any], controller: ControllerSettings, t_end: float, suffix: str
+) -> ProfileSpec | None:
+    """stroke.trajectory as a `ProfileSpec`, checked: its keys fit its kind, the built-in law
+    on the x_B objective tracks it, and it ends by t_end. Raises ScenarioError naming the key."""
+    doc = stroke.get("trajectory")
+    if doc is None:
+        return None
+    key = f"key stroke.trajectory{suffix}"
+    kind = doc["kind"]
+    for name, kinds in _ONLY_FOR.items():
+        if name in doc and kind not in kinds:
+            raise ScenarioError(
+                f"key stroke.trajectory.{name}{suffix}: only for kind {' or '.join(kinds)} (remove it, or change the kind)"
+            )
+    if kind == "scurve" and "j_max" not in doc:
+        raise ScenarioError(f"{key}: an S-curve needs a jerk limit (add j_max in m/s3, or use kind: trapezoid)")
+    if controller.python is not None:
+        raise ScenarioError(
+            f"{key}: only the built-in law (or its controller FMU) tracks a trajectory (remove stroke.trajectory,"
+            " or controller.python)"
+        )
+    if controller.objective != "x_B":
+        raise ScenarioError(
+            f"{key}: the theta1 objective tracks a constant target only (use controller.objective: x_B, or remove"
+            " stroke.trajectory)"
+        )
+    spec = ProfileSpec(
+        kind=kind,
+        x_start=float(stroke["x_start"]),
+        x_target=float(stroke["x_target"]),
+        v_max=float(doc["v_max"]),
+        a_max=float(doc["a_max"]),
+        j_max=float(doc["j_max"]) if "j_max" in doc else None,
+        dwell=float(doc.get("dwell", 0.0)),
+        repeat=int(doc.get("repeat", 1)),
+        t_start=float(doc.get("t_start", 0.0)),
+    )
+    end = build(spec).end
+    if end > t_end:
+        raise ScenarioError(
+            f"{key}: the profile ends at t = {end:.6g} s, after t_end = {t_end:g} s (raise v_max or a_max"
+            + (", j_max" if spec.j_max is not None else "")
+            + (", shorten dwell or repeat" if kind == "cycle" else "")
+            + ", or lengthen t_end)"
+        )
+    return spec
+
+
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
     stroke = document["stroke"]
     geometry = MechanismParameters()
@@ -457,6 +528,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         i_max=float(controller_doc.get("i_max", ControllerSettings.i_max)),
         **_user_controller(controller_doc, suffix, source),
     )
+    trajectory = _trajectory(stroke, controller, t_end, suffix)
     fmu = document.get("fmu")
     fmu_path = None
     if fmu is not None:
@@ -471,6 +543,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         T_s=T_s,
         x_start=float(stroke["x_start"]),
         x_target=float(stroke["x_target"]),
+        trajectory=trajectory,
         plant=plant,
         controller=controller,
         resolved={k: v for k, v in document.items() if k != "variants"},

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any, Literal
 
+from toggle_cosim.control.trajectory import ProfileSpec
 from toggle_cosim.physics.parameters import ControllerGains
 from toggle_cosim.signals.definitions import Signal
 
@@ -90,6 +91,14 @@ class Run:
     # how the master couples plant and controller (`cosim.master`): gauss-seidel, the command of
     # sample k drives the plant over [t_k, t_k+1]; jacobi, the command of sample k - 1 does
     coupling: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
+    # the profile the built-in law tracks from x_start to x_target (stroke.trajectory); None: the
+    # constant target x_target
+    trajectory: ProfileSpec | None = None
+
+    @property
+    def x_final(self) -> float:
+        """Where the reference ends: x_target, or x_start after a cycle."""
+        return self.x_start if self.trajectory is not None and self.trajectory.kind == "cycle" else self.x_target
 
     @property
     def label(self) -> str:

@@ -270,6 +270,12 @@ def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
                 f"{path}: key plant.inputs: the SSP connects the plant's iq_ref and F_E only, so its other inputs "
                 f"({', '.join(run.plant.inputs)}) cannot be written into it (run the scenario with toggle-cosim run)"
             )
+        if run.trajectory is not None:
+            raise SspError(
+                f"{path}: key stroke.trajectory: an SSP's controller FMU regulates to the constant target (its"
+                " reference inputs are left unconnected), so a trajectory cannot be written into it (remove"
+                " stroke.trajectory, or run the scenario with toggle-cosim run)"
+            )
         if not isinstance(run.plant.F_E, (int, float)):
             raise SspError(
                 f"{path}: key plant.F_E: the load is a {run.plant.F_E.kind} in time, and an SSP's parameter set holds"
