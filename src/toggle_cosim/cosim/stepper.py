@@ -5,9 +5,10 @@ one can take over from another at any sample.
 * `PythonStepper`: the loop in Python over the `PlantSession` and any controller that meets
   the protocol (`control.protocol`).
 * `CompiledStepper`: the same loop in C (`compiled_loop`, generated from `control.laws`),
-  stopping at every sample a step hook wants to see. It runs the built-in law, or calls a
-  controller FMU's C functions in the order `FmuController.step` calls them
-  (`compiled_controller` says which, or why neither). A controller FMU's failure in C raises
+  stopping at every sample a step hook wants to see. It runs the built-in law, calls a
+  controller FMU's C functions in the order `FmuController.step` calls them, or runs a
+  python-control system's matrices as `control.lti` does (`compiled_controller` says which, or
+  why none). A controller FMU's failure in C raises
   the `ControllerFailed` the Python loop raises for it, at the same sample.
 * `HandOver`: the compiled stepper while it can, then, from a sample the C hands back (non-
   finite outputs, a law that raises there), the Python stepper. It says which loop ran, and why.
@@ -27,6 +28,7 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.controller import ControllerState, VSCController
+from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
 from toggle_cosim.cosim.compiled_loop import (
@@ -36,6 +38,7 @@ from toggle_cosim.cosim.compiled_loop import (
     HAND_BACK,
     CompiledLoop,
     ControllerCalls,
+    LtiCalls,
     kernel_library,
     kernel_reason,
 )
@@ -100,10 +103,26 @@ def compiled_law(controller: object, state: object) -> LawParameters | str:
     return state.law
 
 
-def compiled_controller(controller: object, state: object) -> LawParameters | FmuController | str:
+def compiled_controller(
+    controller: object, state: object
+) -> LawParameters | FmuController | DiscreteSystemController | str:
     """What the compiled loop may run in place of `controller`: the built-in law (`compiled_law`),
     a controller FMU whose C functions it can call (an `FmuController` whose step is
-    `FmuController.step`, loaded), or why neither."""
+    `FmuController.step`, loaded), a python-control system's adapter whose start and step are
+    `DiscreteSystemController`'s (with its diagnostics and a state its start made), or why none."""
+    if isinstance(controller, DiscreteSystemController):
+        for method in ("step", "start"):
+            if _replaced(controller, DiscreteSystemController, method):
+                own = getattr(type(controller), method, None)
+                return (
+                    f"the controller's {method} is {_name(own)}, not {_name(getattr(DiscreteSystemController, method))}: "
+                    "the compiled loop runs only the latter's sums"
+                )
+        if controller.diagnostics != DiscreteSystemController.diagnostics:
+            return "the controller's diagnostics are not DiscreteSystemController's: the compiled loop records only e"
+        if not (isinstance(state, tuple) and len(state) == controller.matrices.n):
+            return "the controller's state is not a tuple of its system's states"
+        return controller
     if not isinstance(controller, FmuController):
         return compiled_law(controller, state)
     if _replaced(controller, FmuController, "step"):
@@ -242,7 +261,7 @@ class CompiledStepper:
         timing: Timing,
         state: LoopState,
         hooks: Sequence[StepHook] = (),
-        controller: FmuController | None = None,
+        controller: FmuController | DiscreteSystemController | None = None,
     ) -> None:
         self.loop, self.recorder, self.timing, self.state = loop, recorder, timing, state
         self.names = session.function_names
@@ -250,12 +269,18 @@ class CompiledStepper:
         self.every = min((hook.every for hook in self.hooks), default=0)
         self.handed_back = False
         self.controller = controller
-        self.reason = (
-            "the built-in law, generated from control.laws; C compiler available"
-            if controller is None
-            else f"the controller FMU {controller.fmu.path.name}, called from C through its function pointers; "
-            "C compiler available"
-        )
+        if controller is None:
+            self.reason = "the built-in law, generated from control.laws; C compiler available"
+        elif isinstance(controller, DiscreteSystemController):
+            self.reason = (
+                f"the python-control system ({controller.matrices.n} states) as matrices in C, summed as "
+                "control.lti sums them; C compiler available"
+            )
+        else:
+            self.reason = (
+                f"the controller FMU {controller.fmu.path.name}, called from C through its function pointers; "
+                "C compiler available"
+            )
 
     @classmethod
     def build(
@@ -264,19 +289,23 @@ class CompiledStepper:
         recorder: Recorder,
         timing: Timing,
         state: LoopState,
-        law: LawParameters | FmuController,
+        law: LawParameters | FmuController | DiscreteSystemController,
         measured: tuple[str, ...],
         hooks: Sequence[StepHook] = (),
     ) -> CompiledStepper | str:
         """The compiled stepper from the current sample on, or why there is none. `law` is the
-        built-in law to run, or the controller FMU to call (`compiled_controller`), `measured`
-        the plant outputs it reads."""
+        built-in law to run, the controller FMU to call, or the python-control system's adapter
+        (`compiled_controller`), `measured` the plant outputs it reads."""
         library = kernel_library()
         functions = session.c_functions()
         if library is None or functions is None:
             return kernel_reason() or "the FMU's C functions are not reachable"
         names = recorder.names
-        if isinstance(law, FmuController):
+        controller: ControllerCalls | LtiCalls | None
+        if isinstance(law, DiscreteSystemController):
+            controller = LtiCalls(law.matrices, names.index(law.output), law.target, state.controller)
+            i_q, i_qd, parameters, z = recorder.i_x, recorder.i_v, None, 0.0
+        elif isinstance(law, FmuController):
             calls = law.c_functions()
             if calls is None:
                 return "the controller FMU's C functions are not reachable"
@@ -305,8 +334,11 @@ class CompiledStepper:
         return cls(loop, session, recorder, timing, state, hooks, law if controller is not None else None)
 
     def _sync(self) -> None:
-        """The shared controller state from the C's: the law's integrator, or the controller
-        FMU's last sample."""
+        """The shared controller state from the C's: the law's integrator, the LTI system's
+        state, or the controller FMU's last sample."""
+        if isinstance(self.controller, DiscreteSystemController):
+            self.state.controller = self.loop.lti_state()
+            return
         if self.controller is not None:
             self.state.controller = self.loop.controller_time
             return
