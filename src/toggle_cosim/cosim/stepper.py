@@ -192,6 +192,8 @@ class PythonStepper:
         control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
         jacobi = self.jacobi
         n_diagnostics = col_x - col_u - 2
+        col_d = col_u + 2  # the first diagnostic's column
+        outputs = data[:, 1 : 1 + n_out]  # row k's outputs: outputs[k], a view the session reads into
         state = st.controller
         try:
             for k in range(k0, k_end):
@@ -199,7 +201,7 @@ class PythonStepper:
                 row = data[k]
                 row[0] = t
                 if read_first or k != k0:
-                    read_outputs(row[1 : 1 + n_out])
+                    read_outputs(outputs[k])
                 if not (isfinite(row[i_x]) and isfinite(row[i_v])):
                     st.reason = f"plant outputs became non-finite at t = {t:.6g} s"
                     return -1
@@ -221,7 +223,10 @@ class PythonStepper:
                 sent = load[k]  # F_E, then the other inputs
                 row[col_u] = u
                 row[col_u + 1] = sent[0]
-                row[col_u + 2 : col_x] = diagnostics
+                if n_diagnostics == 1:
+                    row[col_d] = diagnostics[0]
+                elif n_diagnostics:
+                    row[col_d:col_x] = diagnostics
                 if others:
                     row[col_x:] = sent[1:]
                 rec.rows = k + 1
@@ -232,9 +237,10 @@ class PythonStepper:
                     do_step(t, T_s)
                 except FMICallException as error:
                     raise StepFailed(k, error) from None
-                for hook in hooks:
-                    if k % hook.every == 0:
-                        hook(k)
+                if hooks:
+                    for hook in hooks:
+                        if k % hook.every == 0:
+                            hook(k)
             return k_end
         finally:
             st.controller = state
