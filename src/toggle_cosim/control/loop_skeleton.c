@@ -3,10 +3,12 @@
    both generated from their Python definition (control/laws.py, control/translate.py).
    Per sample k: read the plant FMU's outputs into the trace row, control, record, set the
    plant's inputs (the command, then the load row k: F_E and the plant's other inputs, sampled
-   from their signals before the run), doStep. The controller is one of two kinds: the generated law (CTRL_LAW), or
+   from their signals before the run), doStep. The controller is one of three kinds: the generated law (CTRL_LAW),
    a controller FMU called through its function pointers (CTRL_FMU) in the order
    cosim/fmu_controller.py's FmuController.step calls it: the previous sample's doStep (deferred
-   to this sample), set its inputs from the row, get iq_ref and its diagnostics. */
+   to this sample), set its inputs from the row, get iq_ref and its diagnostics; or a discrete
+   LTI system (CTRL_LTI), u = C x + D e, x <- A x + B e on the error e of one plant output, summed
+   in the order of control/lti.py's lti_step. */
 #include <stdbool.h>
 #include <stddef.h>
 
@@ -34,19 +36,23 @@ typedef struct {
     double *plant_in;       /* the plant's inputs as sent: the command, then the load row (1 + n_load) */
     const long *ctrl_cols;  /* CTRL_FMU: the row's columns of the controller's inputs; -1 - i: ref's value i */
     double *ctrl_in, *ctrl_out; /* CTRL_FMU: its input values, its outputs (iq_ref, diagnostics) */
+    const double *lti_a, *lti_b, *lti_c; /* CTRL_LTI: A (n x n, row by row), B, C (n each) */
+    double *lti_x, *lti_xn; /* CTRL_LTI: the state at sample k, the next state (scratch) */
     long n_out, ncols, i_q, i_qd, col_u, n;  /* i_q, i_qd: the columns the law reads (x_B, v_B or theta1, omega1) */
     long n_load, col_x;     /* load values per sample; the trace column of the first input after F_E */
     long k, fault, status;  /* next sample; the failed FMI function (1 get, 2 set, 3 step; + 3 for the controller FMU), its status */
     long no_prior;          /* doStep's noSetFMUStatePriorToCurrentPoint: 1 only if no checkpoint is restored */
     long kind;              /* CTRL_LAW or CTRL_FMU */
     long ctrl_n_in, ctrl_n_out, ctrl_due; /* CTRL_FMU: counts; 1 when the doStep from ctrl_t is due */
+    long lti_n, lti_col;    /* CTRL_LTI: the number of states; the row's column of the output e is formed from */
     double T_s, z;          /* z: the law's state (an integrator) at sample k */
     double ctrl_t;          /* CTRL_FMU: the time of the sample its last outputs were read at */
+    double lti_d, lti_target; /* CTRL_LTI: D; the target, e = target - row[lti_col] */
     law_t law;
 } kernel_t;
 
 enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2, CONTROLLER_FAILED = 3, COMMAND_REJECTED = 4 };
-enum { CTRL_LAW = 0, CTRL_FMU = 1 };
+enum { CTRL_LAW = 0, CTRL_FMU = 1, CTRL_LTI = 2 };
 
 /* Only OK (0) and Warning (1) let the loop go on: Discard, Error, Fatal, Pending and any value
    the standard does not define (a negative one, 5, ...) fail the run. */
@@ -111,6 +117,31 @@ static int fmu_control(kernel_t *s, double t, const double *row, long k) {
     return DONE;
 }
 
+/* The LTI system's sample from the row: out = (u, e), the next state in s->lti_xn. Returns DONE,
+   or HAND_BACK (nothing committed) where the plant outputs i_q, i_qd, e, u or the next state is
+   not finite: the Python adapter then evaluates the sample itself, from the same state. */
+static int lti_control(kernel_t *s, const double *row, double out[2]) {
+    long i, j, n = s->lti_n;
+    double e, u, acc;
+    if (!(isfinite(row[s->i_q]) && isfinite(row[s->i_qd]))) { return HAND_BACK; }
+    e = s->lti_target - row[s->lti_col];
+    if (!isfinite(e)) { return HAND_BACK; }
+    u = 0.0;
+    for (j = 0; j < n; j++) { u = u + s->lti_c[j] * s->lti_x[j]; }
+    u = u + s->lti_d * e;
+    if (!isfinite(u)) { return HAND_BACK; }
+    for (i = 0; i < n; i++) {
+        acc = 0.0;
+        for (j = 0; j < n; j++) { acc = acc + s->lti_a[i * n + j] * s->lti_x[j]; }
+        acc = acc + s->lti_b[i] * e;
+        if (!isfinite(acc)) { return HAND_BACK; }
+        s->lti_xn[i] = acc;
+    }
+    out[0] = u;
+    out[1] = e;
+    return DONE;
+}
+
 /* Samples s->k .. k_end - 1: read outputs into the trace row, control, record, then (except
    after the last sample n) set the inputs and doStep. Stops early with HAND_BACK at a sample
    the Python must take (nothing of it sent to the plant FMU), FMI_FAILED (the plant FMU),
@@ -135,6 +166,15 @@ int kernel_run(kernel_t *s, long k_end) {
             row[s->col_u + 1] = load[0];
             for (j = 1; j < s->ctrl_n_out; j++) { row[s->col_u + 1 + j] = s->ctrl_out[j]; }
             in[0] = s->ctrl_out[0];
+        } else if (s->kind == CTRL_LTI) {
+            status = lti_control(s, row, c);
+            if (status != DONE) { s->k = k; return status; }
+            row[0] = t;
+            row[s->col_u] = c[0];
+            row[s->col_u + 1] = load[0];
+            row[s->col_u + 2] = c[1];
+            for (j = 0; j < s->lti_n; j++) { s->lti_x[j] = s->lti_xn[j]; }
+            in[0] = c[0];
         } else {
             ref = s->ref ? s->ref + 3 * k : NULL;
             if (kernel_control(s, t, row[s->i_q], row[s->i_qd], s->z, ref ? ref[0] : s->law.target, ref ? ref[1] : 0.0,

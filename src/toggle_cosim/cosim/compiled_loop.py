@@ -4,10 +4,12 @@ A step in Python (read outputs, controller, set inputs, doStep, record) costs se
 the FMU's own doStep, most of it the controller's nominal model. `CompiledLoop` runs whole
 stretches of the loop in C: it calls the FMU's functions through their pointers, evaluates the
 control law and writes each sample into the master's preallocated trace. The controller is one
-of two kinds: the generated law, or a controller FMU (`ControllerCalls`), whose functions the
+of three kinds: the generated law; a controller FMU (`ControllerCalls`), whose functions the
 loop calls through their pointers in the order `fmu_controller.FmuController.step` calls them
 (its doStep from the previous sample, deferred to this one; its inputs set from the row; its
-command and diagnostics read), so the trace has the Python loop's bits.
+command and diagnostics read); or a discrete LTI system (`LtiCalls`, a python-control system
+adapted by `control.lti`), whose matrices the loop multiplies in the order `control.lti.lti_step`
+sums in. Each way the trace has the Python loop's bits.
 
 Nothing of the law is written twice. The C source is assembled here from
 * the struct `law_t`, generated from the fields of `control.parameters.LawParameters`;
@@ -43,6 +45,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from toggle_cosim.control.lti import LtiMatrices
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.native import CachedLibrary, cached_library_from, load_library_from
 
@@ -52,13 +55,26 @@ if TYPE_CHECKING:
 KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
 _FMU_POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr")
-_POINTERS = ("data", "load", "ref", "plant_in", "ctrl_cols", "ctrl_in", "ctrl_out")
+_POINTERS = (
+    "data",
+    "load",
+    "ref",
+    "plant_in",
+    "ctrl_cols",
+    "ctrl_in",
+    "ctrl_out",
+    "lti_a",
+    "lti_b",
+    "lti_c",
+    "lti_x",
+    "lti_xn",
+)
 _LONGS = (
     *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "n_load", "col_x", "k", "fault", "status", "no_prior"),
-    *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due"),
+    *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due", "lti_n", "lti_col"),
 )
-_DOUBLES = ("T_s", "z", "ctrl_t")
-CTRL_LAW, CTRL_FMU = 0, 1  # the controller kinds of the skeleton
+_DOUBLES = ("T_s", "z", "ctrl_t", "lti_d", "lti_target")
+CTRL_LAW, CTRL_FMU, CTRL_LTI = 0, 1, 2  # the controller kinds of the skeleton
 
 
 @dataclass(frozen=True)
@@ -73,6 +89,18 @@ class ControllerCalls:
     columns: tuple[int, ...]
     n_out: int
     t: float | None
+
+
+@dataclass(frozen=True)
+class LtiCalls:
+    """A discrete LTI controller as the compiled loop runs it (`control.lti.DiscreteSystemController`):
+    its matrices, the trace column of the output its error is formed from, that output's target,
+    and its state at the first sample the loop runs."""
+
+    matrices: LtiMatrices
+    column: int
+    target: float
+    x: tuple[float, ...]
 
 
 @functools.cache
@@ -208,7 +236,9 @@ class CompiledLoop:
     (q*, q̇*, q̈*) per sample (`control.trajectory`; None: the constant law.target). With
     `controller` (a controller FMU's calls) the loop calls it instead, in the order
     `FmuController.step` does, and hands a sample whose columns i_q, i_qd (x_B, v_B) are not
-    finite back before calling it; `law`, `z` and `reference` are unused.
+    finite back before calling it; `law`, `z` and `reference` are unused. With an `LtiCalls` the
+    loop runs that system (diagnostic e), handing back a sample where i_q, i_qd, e, the command or
+    the next state is not finite; `lti_state()` is its state.
     """
 
     def __init__(
@@ -225,7 +255,7 @@ class CompiledLoop:
         load: np.ndarray,
         law: LawParameters | None,
         z: float = 0.0,
-        controller: ControllerCalls | None = None,
+        controller: ControllerCalls | LtiCalls | None = None,
         reference: np.ndarray | None = None,
     ) -> None:
         if data.dtype != np.float64 or not data.flags.c_contiguous or data.shape[0] < n + 1:
@@ -254,7 +284,18 @@ class CompiledLoop:
                 setattr(k.law, name, float(getattr(law, name)))
         buffers: tuple[object, ...] = ()
         k.kind = CTRL_LAW
-        if controller is not None:
+        self._x: ctypes.Array[ctypes.c_double] | None = None
+        if isinstance(controller, LtiCalls):
+            m, size = controller.matrices, max(controller.matrices.n, 1)
+            a = (ctypes.c_double * max(m.n * m.n, 1))(*(value for row in m.A for value in row))
+            b, c = (ctypes.c_double * size)(*m.B), (ctypes.c_double * size)(*m.C)
+            x, xn = (ctypes.c_double * size)(*controller.x), (ctypes.c_double * size)()
+            buffers = (a, b, c, x, xn)
+            k.lti_a, k.lti_b, k.lti_c, k.lti_x, k.lti_xn = (ctypes.addressof(v) for v in buffers)
+            k.kind, k.lti_n, k.lti_col = CTRL_LTI, m.n, controller.column
+            k.lti_d, k.lti_target = m.D, controller.target
+            self._x = x
+        elif controller is not None:
             n_in = len(controller.columns)
             if data.shape[1] < col_u + 1 + controller.n_out:
                 raise ValueError("the trace has fewer columns than the controller FMU's outputs")
@@ -292,6 +333,11 @@ class CompiledLoop:
     def controller_time(self) -> float:
         """The controller FMU's state: the time of its last sample, whose doStep is deferred."""
         return float(self._state.ctrl_t)
+
+    def lti_state(self) -> tuple[float, ...]:
+        """The LTI controller's state at the next sample (`LtiCalls`)."""
+        assert self._x is not None, "not an LTI controller"
+        return tuple(self._x[: self._state.lti_n])
 
     def controller_outputs(self) -> tuple[float, ...]:
         """The controller FMU's outputs read at its last sample (iq_ref, then the diagnostics)."""

@@ -46,6 +46,7 @@ class SweepResult:
     lost: int = 0  # cases a Dask cluster lost (not run)
     lost_reason: str = ""
     wall_seconds: float = 0.0
+    started_at: float | None = None  # the Unix time the cases started running
     worker_peak_rss_mb: float = 0.0  # the largest peak RSS a worker reported
     results: Path | None = None
     figures: list[Path] = field(default_factory=list)
@@ -104,7 +105,10 @@ def _resolve_plant(
         path = split_key(key)
         if path[:2] == ["plant", "parameters"] and path[2] not in plant.references:
             raise SweepError(f"{sweep.path}: axis {key}: the plant FMU has no variable {path[2]!r}")
-    names = {name for case in sweep.cases for name in (case.document.get("plant", {}).get("parameters") or {})}
+    firsts = {
+        case.variant: case for case in reversed(sweep.cases)
+    }.values()  # every case of a variant sets the same keys
+    names = {name for case in firsts for name in (case.document.get("plant", {}).get("parameters") or {})}
     for name in sorted(names):
         if name not in plant.references:
             raise SweepError(f"{sweep.base}: key plant.parameters.{name}: the plant FMU has no variable {name!r}")
@@ -136,15 +140,11 @@ def _resolve_plant(
     from toggle_cosim.cosim.controllers import check_user_controller, controller_for
 
     seen = set()
-    for (
-        case
-    ) in sweep.cases:  # each distinct setting of the plant (all but F_E and m_B) and controller, before any case runs
-        plant_doc = case.document.get("plant") or {}
-        key = (
-            case.variant,
-            repr(sorted(((k, v) for k, v in plant_doc.items() if k not in ("F_E", "m_B")), key=repr)),
-            repr(case.document.get("controller")),
-        )
+    # the axes that change the plant (all but F_E and m_B) or the controller: a variant and their
+    # values make one setting, checked before any case runs
+    setting = [key for key in sweep.axes if _sets_plant_or_controller(key)]
+    for case in sweep.cases:
+        key = (case.variant, *((type(case.values[name]), case.values[name]) for name in setting))
         if key in seen:
             continue
         seen.add(key)
@@ -294,6 +294,7 @@ def _execute_sweep(
                 mininterval=0.2 if sys.stderr.isatty() else 5.0,
             )
         run_started = time.perf_counter()
+        result.started_at = time.time()
 
         def on_row(row: dict[str, Any], trace: Any = None) -> None:
             nonlocal failed_now
@@ -333,6 +334,12 @@ def _execute_sweep(
     return result
 
 
+def _sets_plant_or_controller(key: str) -> bool:
+    """Whether an axis key lies in the plant's settings other than F_E and m_B, or the controller's."""
+    path = split_key(key)
+    return path[0] == "controller" or (path[0] == "plant" and len(path) > 1 and path[1] not in ("F_E", "m_B"))
+
+
 def _write_manifest(
     sweep: Sweep, result: SweepResult, fmu: Path, sha: str, scheduler: str | None, workers: int | None
 ) -> None:
@@ -355,6 +362,7 @@ def _write_manifest(
                 "failed_in_table": result.failed,
                 "done_in_table": result.done,
                 "interrupted": result.interrupted,
+                "started_at_unix": result.started_at,
                 "wall_s": result.wall_seconds,
                 "cases_per_s": result.rate,
                 "peak_rss_mb": {"sweep": peak_rss_mb(), "worker": result.worker_peak_rss_mb},
