@@ -20,12 +20,17 @@ What is measured (benchmarks/README.md says more):
 * the cost per step of simulate() with the controller as an FMU (`controller: {fmu: ...}`),
   beside the compiled and the Python loop of the built-in law: ToggleVSC (generated from the
   law) when `toggle_cosim.controller_fmu` is there, else a PD law built here with PythonFMU;
+* controllers in the loop: the shipped example's python-control PID with its matrices in the
+  compiled loop against the built-in law on the same run (and in the Python loop), and the
+  Python loop's own cost per sample around a step that returns a constant (the loop minus the
+  plant's share of the same samples, replayed by the C driver);
 * the cost per step and per simulated second for T_s = 2 ms ... 0.05 ms;
 * the throughput of a batch of runs on 1 and 2 worker processes;
 * sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the
   same number of workers, of a Dask cluster (a scheduler and two workers started here as
   processes) against the local pool, and a many-case sweep as a command (100,000 cases; 1,000
-  with --quick): its time and the peak memory of its process and of a worker.
+  with --quick): its time, the time from the command's start to its first case starting, and
+  the peak memory of its process and of a worker.
 
 Every figure is the best (minimum time) of several repetitions, measured interleaved so the
 ratios compare like with like on a shared, noisy machine. The script checks the targets of
@@ -37,6 +42,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import ctypes
+import dataclasses
 import json
 import math
 import os
@@ -62,6 +68,7 @@ FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
 from timing import run_to_last_file  # noqa: E402 - benchmarks/timing.py, beside this script
 
+from toggle_cosim.control.protocol import ControllerContext, ControlStep  # noqa: E402
 from toggle_cosim.cosim import compiled_loop, master, session  # noqa: E402
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document  # noqa: E402
 from toggle_cosim.fmu_export import build_fmu  # noqa: E402
@@ -341,6 +348,99 @@ def full_loop(plant, run, python_loop: bool = False) -> dict:
 
 def best(values) -> float:
     return min(values)
+
+
+# ------------------------------------------------------------------------------------------
+# Controllers in the loop: a python-control PID in C, and the Python loop's own cost
+# ------------------------------------------------------------------------------------------
+class ConstantController:
+    """A protocol controller whose step returns a constant command (a fresh ControlStep each sample)."""
+
+    diagnostics = ()
+
+    def __init__(self, command: float) -> None:
+        self.command = command
+
+    def start(self, t0, measurement):
+        return None
+
+    def step(self, state, t, measurement):
+        return ControlStep(self.command, (), state)
+
+
+def example_pid_run():
+    """The shipped example's PID run (examples/controllers/user_controllers.yaml, 1.5 s, 3000 steps),
+    and the python-control system its factory makes."""
+    path = ROOT / "examples" / "controllers" / "user_controllers.yaml"
+    run = next(r for r in load_scenario(path) if r.variant == "pid")
+    sys.path.insert(0, str(path.parent))
+    try:
+        from my_controllers import make_pid
+    finally:
+        sys.path.remove(str(path.parent))
+    context = ControllerContext(run.T_s, run.t_end, run.x_start, run.x_target, "x_B", run.label)
+    return run, make_pid(context, **run.controller.parameters)
+
+
+def lti_loop(plant, run, system, python_loop: bool = False) -> float:
+    """Seconds per step of simulate() with the python-control system adapted (`control.lti`)."""
+    from toggle_cosim.control.lti import DiscreteSystemController
+
+    with loop_switch(python_loop) as expected:
+        outcome = master.simulate(run, plant, controller=DiscreteSystemController(system, "x_B", run.x_target, run.T_s))
+    if not outcome.complete or outcome.record["loop"]["kind"] != expected:
+        raise RuntimeError(f"{run.label}: {outcome.reason or outcome.record['loop']}")
+    return outcome.loop_seconds / run.steps
+
+
+def builtin_loop(plant, run) -> float:
+    """Seconds per step of simulate() with the run's built-in law (compiled loop where there is one)."""
+    from toggle_cosim.cosim.controllers import builtin_controller
+
+    outcome = master.simulate(run, plant, controller=builtin_controller(run))
+    if not outcome.complete:
+        raise RuntimeError(f"{run.label}: {outcome.reason}")
+    return outcome.loop_seconds / run.steps
+
+
+def python_loop_overhead(plant, run, driver) -> dict:
+    """The Python loop's own cost per sample around a step that returns a constant: simulate()
+    (TOGGLE_COSIM_KERNEL=0) with `ConstantController(FIXED_INPUTS[0])` minus the plant's share of
+    the same samples (the C driver reading the outputs, setting the same inputs, stepping)."""
+    with loop_switch(True):
+        outcome = master.simulate(run, plant, controller=ConstantController(FIXED_INPUTS[0]))
+    if not outcome.complete:
+        raise RuntimeError(f"{run.label}: {outcome.reason}")
+    loop = outcome.loop_seconds / run.steps
+    plant_share = fmu_alone(plant, run, "replay", driver, outcome.trace.column("iq_ref"))
+    calls = python_replay(plant, run, outcome.trace.column("iq_ref"))
+    return {"loop_s": loop, "plant_s": plant_share, "own_s": loop - plant_share, "python_calls_s": calls}
+
+
+def python_replay(plant, run, commands: np.ndarray) -> float:
+    """Seconds per sample of the plant's share called from Python as the loop calls it (the
+    session's read_outputs, write_inputs, do_step with the recorded commands): the loop minus
+    this is the stepper's own cost, this minus the C driver's replay the cost of calling the
+    FMI functions from Python."""
+    from toggle_cosim.cosim.retry import CHECKPOINT_SAMPLES
+
+    fmu = open_fmu(plant, run, inputs=(0.0, run.plant.F_E))
+    saving = fmu.can_save_state  # as simulate()'s checkpoint policy: doStep's flag, a checkpoint every 200 samples
+    fmu.no_set_state_prior_to_current_point = not saving
+    row = np.zeros(len(plant.recorded_outputs))
+    read, write, step = fmu.read_outputs, fmu.write_inputs, fmu.do_step
+    u, F_E, h = commands.tolist(), run.plant.F_E, run.T_s
+    try:
+        started = time.perf_counter()
+        for k in range(run.steps):
+            if saving and k % CHECKPOINT_SAMPLES == 1:
+                fmu.save_state()
+            read(row)
+            write((u[k], F_E))
+            step(k * h, h)
+        return (time.perf_counter() - started) / run.steps
+    finally:
+        fmu.close()
 
 
 # ------------------------------------------------------------------------------------------
@@ -626,22 +726,31 @@ def big_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figu
     axes = {"plant.F_E": {"linspace": [0, 150, side[0]]}, "plant.m_B": {"linspace": [4.43, 8.86, side[1]]}}
     path = write_sweep_file(folder / "big", cases, 0.01, axes)
     command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--fmu", str(fmu), "--quiet"]
-    started = time.perf_counter()
+    started, launched = time.perf_counter(), time.time()
     done = subprocess.run([*command, "--workers", "2"], capture_output=True, text=True, check=False)
     wall = time.perf_counter() - started
     manifest = json.loads((folder / "big" / "out" / "sweep.json").read_text())
     last = manifest["last_run"]
+    first_case = last["started_at_unix"] - launched  # the command's start to its cases starting
     table.section(f"A {cases}-case sweep (t_end = 0.01 s, 2 workers), as a command")
     table.add(
         "wall time, start to last file",
         f"{wall:.0f} s",
         f"exit {done.returncode}; {last['cases_per_s']:.0f} cases/s while running",
     )
+    table.add(
+        "the command's start to its first case starting",
+        f"{first_case:.1f} s",
+        "process start, imports, the sweep file and its cases checked (per axis value), the plant checked",
+    )
+    table.check(
+        f"{cases} cases: the first case starts within 5 s of the command", first_case <= 5.0, f"{first_case:.1f} s"
+    )
     table.add("peak RSS of the sweep's process", f"{last['peak_rss_mb']['sweep']:.0f} MB", "")
     table.add("peak RSS of a worker", f"{last['peak_rss_mb']['worker']:.0f} MB", "")
     size = sum(p.stat().st_size for p in (folder / "big" / "out").rglob("*") if p.is_file())
     table.add("output folder", f"{size / 1e6:.1f} MB", "results.parquet, sweep.json, heat maps")
-    figures["big_sweep"] = {"cases": cases, "wall_s": wall, "exit": done.returncode, **last}
+    figures["big_sweep"] = {"cases": cases, "wall_s": wall, "first_case_s": first_case, "exit": done.returncode, **last}
     ok = done.returncode == 0 and last["peak_rss_mb"]["sweep"] <= 500 and manifest["heatmaps"]
     table.check(
         f"{cases} cases: parent peak RSS <= 500 MB, table and heat maps written",
@@ -835,6 +944,62 @@ def main() -> int:
                 f"{us(b['loop'])} / {us(b['C'])} = {strict:.2f}; of the {us(b['loop'] - b['C'])} difference "
                 f"{us(b['replay'] - b['C'])} is FMU work the loop causes (output evaluation, restart after "
                 f"each input change) and {us(b['loop'] - b['replay'])} the master's own",
+            )
+
+        # ---------------------------------------------------------------- controllers in the loop
+        pid_run, pid = example_pid_run()
+        table.section(f"Controllers in the loop ({pid_run.label}, {pid_run.steps} steps; best of {reps})")
+        runs_b, runs_c, runs_p = [], [], []
+        for _ in range(reps):
+            runs_b.append(builtin_loop(plant, pid_run))
+            runs_c.append(lti_loop(plant, pid_run, pid))
+            runs_p.append(lti_loop(plant, pid_run, pid, python_loop=True))
+        lti = {"builtin_s": best(runs_b), "compiled_s": best(runs_c), "python_s": best(runs_p)}
+        lti["ratio"] = lti["compiled_s"] / lti["builtin_s"]
+        figures["python_control_pid"] = lti
+        table.add("built-in law (the scenario's gains)", us(lti["builtin_s"]), loop_kind)
+        table.add("python-control PID (make_pid), its matrices in the compiled loop", us(lti["compiled_s"]), loop_kind)
+        table.add("python-control PID, Python loop", us(lti["python_s"]), "TOGGLE_COSIM_KERNEL=0")
+        table.add("ratio PID compiled / built-in law", f"{lti['ratio']:.2f}")
+        if compiled:
+            table.check(
+                "python-control controller in the compiled loop <= 1.2 x the built-in law per step",
+                lti["ratio"] <= 1.2,
+                f"{us(lti['compiled_s'])} / {us(lti['builtin_s'])} = {lti['ratio']:.2f}",
+            )
+        if driver is not None:
+            const_run = dataclasses.replace(run, plant=dataclasses.replace(run.plant, F_E=FIXED_INPUTS[1]))
+            overheads = [python_loop_overhead(plant, const_run, driver) for _ in range(reps)]
+            own = min(overheads, key=lambda o: o["own_s"])
+            figures["python_loop_overhead"] = own
+            table.add(
+                "Python loop, a step returning a constant (fig4_nominal/friction, F_E = 0)",
+                us(own["loop_s"]),
+                f"{FIXED_INPUTS[0]:g} A every sample",
+            )
+            stepper = own["loop_s"] - own["python_calls_s"]
+            figures["python_loop_overhead"]["stepper_s"] = stepper
+            table.add(
+                "  the plant's share, called from Python as the loop calls it",
+                us(own["python_calls_s"]),
+                "the session's read, write, doStep (same flag, checkpoints) with the same commands",
+            )
+            table.add("  the plant's share, called from the C driver", us(own["plant_s"]), "get, set, doStep")
+            table.add(
+                "  the Python loop's own cost per sample (Measurement, step, checks, recording)",
+                us(stepper),
+                "loop - the plant's share from Python",
+            )
+            table.add(
+                "  the loop - the plant's share from C",
+                us(own["own_s"]),
+                "adds the cost of calling the three FMI functions through ctypes",
+            )
+            table.check(
+                "Python loop's own cost per sample (a step returning a constant) <= 5 us",
+                stepper <= 5e-6,
+                f"{us(own['loop_s'])} - {us(own['python_calls_s'])} = {us(stepper)}"
+                f" ({us(own['own_s'])} counting the ctypes calls as the loop's)",
             )
 
         # ---------------------------------------------------------------- trim and linearise

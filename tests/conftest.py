@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -41,3 +43,20 @@ def shim_fmu(plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     from fault_plants import make_faulty_fmu
 
     return make_faulty_fmu(plant_fmu, tmp_path_factory.mktemp("shim") / "Shim.fmu")
+
+
+@pytest.fixture(scope="session")
+def project_wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A wheel of this repository, built once the ordinary way (pip, isolated build)."""
+    folder = tmp_path_factory.mktemp("wheel")
+    built = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "--wheel-dir", str(folder), str(ROOT)],
+        cwd=folder,
+        env=dict(os.environ),
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert built.returncode == 0, built.stderr
+    return next(folder.glob("toggle_cosim-*.whl"))

@@ -14,6 +14,7 @@ run whose input F_E is at least TOGGLE_FAULT_MIN_FE (N), misbehaves as TOGGLE_FA
     error     fmi2DoStep returns fmi2Error
     status    fmi2DoStep returns TOGGLE_FAULT_STATUS (any integer, e.g. -1 or 5) and does not step
     log       fmi2DoStep logs a message in invalid UTF-8 with status TOGGLE_FAULT_STATUS, then steps
+    resetfatal  fmi2Reset returns fmi2Fatal; any later call to the binary aborts (FMI allows none)
     chatter   fmi2DoStep returns fmi2Discard for a full step, while smaller steps (a retry's
               substeps) pass until TOGGLE_FAULT_END (s); from then on every step is discarded
 
@@ -133,7 +134,10 @@ __attribute__((constructor)) static void on_load(void) {
     }
 }
 
+static int dead; /* set once fmi2Reset answered Fatal (resetfatal): any later call aborts */
+
 static void *real(const char *name) {
+    if (dead) abort();
     if (!real_library) {
         Dl_info info;
         char path[4096];
@@ -151,8 +155,8 @@ static void *real(const char *name) {
         if (!real_library) abort();
         const char *k = getenv("TOGGLE_FAULT_KIND");
         const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error",
-                               "status", "log", "fork", "daemon", "chdir", "orphan", "chatter"};
-        for (int i = 1; k && i < 15; i++) if (strcmp(k, names[i]) == 0) kind = i;
+                               "status", "log", "fork", "daemon", "chdir", "orphan", "chatter", "resetfatal"};
+        for (int i = 1; k && i < 16; i++) if (strcmp(k, names[i]) == 0) kind = i;
         if (getenv("TOGGLE_FAULT_STATUS")) fault_status = atoi(getenv("TOGGLE_FAULT_STATUS"));
         if (getenv("TOGGLE_FAULT_END")) fault_end = atof(getenv("TOGGLE_FAULT_END"));
         if (getenv("TOGGLE_FAULT_TIME")) fault_time = atof(getenv("TOGGLE_FAULT_TIME"));
@@ -255,6 +259,9 @@ def shim_source() -> str:
     for name, result, parameters in _FUNCTIONS:
         call = f'(({name}TYPE *)real("{name}"))({_argument_names(parameters)})'
         body = f"{call};" if result == "void" else f"return {call};"
+        if name == "fmi2Reset":  # resetfatal: Fatal, and the binary may not be called again
+            body = f'real("fmi2Reset"); if (kind == 15) {{ dead = 1; return fmi2Fatal; }} {body}'
+
         lines.append(f"{result} {name}({parameters or 'void'}) {{ {body} }}")
     return "\n".join(lines) + "\n"
 

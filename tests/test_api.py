@@ -101,7 +101,7 @@ def test_a_scenario_is_its_runs_by_variant_name() -> None:
 
 BAD_DOCUMENTS = [
     ({**SHORT, "plant": {"mu": 3}}, "key plant.mu: 3 is out of range"),
-    ({**SHORT, "plant": {"F_E": "heavy"}}, "key plant.F_E: 'heavy' is not of type number"),
+    ({**SHORT, "plant": {"F_E": "heavy"}}, "key plant.F_E: 'heavy' is not of type number or mapping"),
     ({**SHORT, "plant": {"m_B": float("nan")}}, "key plant.m_B: nan is not a finite number"),
     ({**SHORT, "colour": "red"}, "unknown key colour"),
     ({key: value for key, value in SHORT.items() if key != "T_s"}, "missing key: 'T_s'"),

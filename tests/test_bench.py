@@ -1,7 +1,8 @@
 """The benchmark runs in the suite, so it cannot go stale: `benchmarks/bench.py --quick` must
 finish, measure the loop it says it measures (the compiled loop when there is a C compiler),
-time the compiled loop's C build, measure the sweeps (local workers, a Dask cluster of its own,
-a many-case sweep as a command), and report every target it checks."""
+time the compiled loop's C build, measure a python-control PID in the compiled loop and the
+Python loop's own cost, measure the sweeps (local workers, a Dask cluster of its own, a many-case
+sweep as a command, with the time to its first case), and report every target it checks."""
 
 from __future__ import annotations
 
@@ -60,3 +61,13 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
     sweeps = figures["sweeps"]
     assert all(sweeps[key] > 0 for key in ("sweep1", "sweep2", "sim1", "sim2", "dask", "pool2"))
     assert figures["big_sweep"]["exit"] == 0 and figures["big_sweep"]["done_in_table"] == 1000
+    assert 0 < figures["big_sweep"]["first_case_s"] < figures["big_sweep"]["wall_s"]
+    assert "the first case starts within 5 s of the command" in result.stdout
+    pid = figures["python_control_pid"]  # the example's PID in the compiled loop, beside the built-in law
+    assert 0 < pid["compiled_s"] < pid["python_s"] and pid["ratio"] == pid["compiled_s"] / pid["builtin_s"]
+    if compiled_loop.kernel_available():
+        assert "python-control controller in the compiled loop <= 1.2 x the built-in law" in result.stdout
+    if "python_loop_overhead" in figures:  # measured wherever the C driver compiles
+        overhead = figures["python_loop_overhead"]
+        assert overhead["stepper_s"] == overhead["loop_s"] - overhead["python_calls_s"]
+        assert "Python loop's own cost per sample" in result.stdout

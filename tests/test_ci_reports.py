@@ -232,5 +232,8 @@ def test_the_github_workflow_is_valid_yaml_and_runs_both_commands():
     assert any("toggle-cosim references" in command and "--junit" in command for command in commands)
     upload = next(step for step in steps if step.get("uses", "").startswith("actions/upload-artifact"))
     assert upload["if"] == "always()" and upload["with"]["path"] == "reports/"
+    assert any("toggle-cosim references" in command and "--html" in command for command in commands)
+    uploads = [step["with"]["path"] for step in steps if step.get("uses", "").startswith("actions/upload-artifact")]
+    assert "reports/references/report.html" in uploads
     assert "scripts/test" in (ROOT / "README.md").read_text()
     assert json.dumps(document)  # plain data all through

@@ -98,18 +98,21 @@ def test_generated_law_matches_the_python_at_every_sample_point(law: float, obje
         coordinates, rates = np.linspace(0.05, 0.40, 36), (-0.9, -0.2, 0.0, 0.3, 1.1)
     else:
         coordinates, rates = np.linspace(-2.0 * math.pi, math.pi, 36), (-9.0, -2.0, 0.0, 3.0, 11.0)
+    # the reference: the constant target, and a moving one (q*, q̇*, q̈*) of a trajectory
+    scale = 1.0 if objective == 0.0 else 10.0
+    references = ((p.target, 0.0, 0.0), (p.target - 0.01 * scale, 0.15 * scale, -1.5 * scale), (p.target, 0.0, 2.0))
     checked = deferred = 0
     for q in [*coordinates, math.nan, math.inf]:
         for qd in rates:
             for t in (0.0, 0.05, 1.0):
-                for z in (-0.02, 0.0, 0.01):
+                for z, ref in zip((-0.02, 0.0, 0.01), references, strict=True):
                     try:
-                        expected = laws.law_step(t, float(q), qd, z, p)
+                        expected = laws.law_step(t, float(q), qd, z, *ref, p)
                         if not all(math.isfinite(v) for v in expected):
                             expected = None
                     except (ArithmeticError, ValueError):
                         expected = None
-                    got = loop.control(t, float(q), qd, z)
+                    got = loop.control(t, float(q), qd, z, ref)
                     if expected is None:
                         assert got is None, (q, qd, t, z)
                         deferred += 1
@@ -124,10 +127,12 @@ def test_the_integral_law_clips_at_i_max_and_holds_its_integrator() -> None:
     """Anti-windup: far from the target the integral law asks for more than i_max; u is i_max
     exactly, and z does not integrate the error that would push u further out."""
     p = _law(1.0, 0.0)
-    u, S, phase, e, z_next = laws.law_step(1.0, 0.2329, 0.0, 0.0, p)
+    u, S, phase, e, z_next = laws.law_step(1.0, 0.2329, 0.0, 0.0, p.target, 0.0, 0.0, p)
     assert u == p.i_max and e > 0
     assert z_next == 0.0
-    u_free, _, _, e_in, z_in = laws.law_step(1.0, p.target - 1e-4, 0.0, 0.0, p)  # near the target: not clipped
+    u_free, _, _, e_in, z_in = laws.law_step(
+        1.0, p.target - 1e-4, 0.0, 0.0, p.target, 0.0, 0.0, p
+    )  # near the target: not clipped
     assert abs(u_free) < p.i_max and z_in == p.T_s * e_in and e_in > 0
 
 

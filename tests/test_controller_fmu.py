@@ -12,6 +12,7 @@ import subprocess
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 fmpy = pytest.importorskip("fmpy")
@@ -111,7 +112,8 @@ def test_the_fmu_validates_and_declares_the_laws_variables(fmus: dict[str, Path]
     assert all(float(by_name[f.name].start) == getattr(defaults, f.name) for f in expected)
     assert [u.variable.name for u in md.outputs] == ["iq_ref", "S", "phase", "e", "z"]
     assert by_name["iq_ref"].unit == "A" and by_name["x_B"].unit == "m" and by_name["omega1"].unit == "rad/s"
-    inputs = [by_name[n] for n in ("x_B", "v_B", "theta1", "omega1")]
+    inputs = [by_name[n] for n in ("x_B", "v_B", "theta1", "omega1", "x_ref", "v_ref", "a_ref")]
+    assert [by_name[n].unit for n in ("x_ref", "v_ref", "a_ref")] == ["m", "m/s", "m/s2"]
     for unknowns in (md.outputs, md.initialUnknowns):  # direct feedthrough: each output depends on the inputs
         assert [u.variable.name for u in unknowns] == ["iq_ref", "S", "phase", "e", "z"]
         for unknown in unknowns:
@@ -172,6 +174,53 @@ def test_the_fmu_gives_the_built_in_laws_bits(
             assert clipped > 0  # the anti-windup was exercised
     finally:
         fmu.close()
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("law", ["paper", "integral"])
+def test_the_fmu_tracks_a_trajectory_with_the_python_laws_bits(
+    fmus: dict[str, Path], plant_fmu: Path, version: str, law: str
+) -> None:
+    """A trajectory run (an S-curve move of the paper's stroke, μ = 0.2) replayed through the FMU
+    with tracking = 1: its inputs x_B, v_B from the run's trace and x_ref, v_ref, a_ref from the
+    run's sampled reference; every sample's iq_ref, S, phase and e are the Python law's bits."""
+    from toggle_cosim.cosim.controllers import builtin_controller
+    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.experiments.scenario import runs_from_document
+    from toggle_cosim.plant.contract import check_plant
+
+    document = {
+        "name": "tracking",
+        "t_end": 0.7,
+        "T_s": T_S,
+        "stroke": {
+            "x_start": 0.2329,
+            "x_target": 0.3199,
+            "trajectory": {"kind": "scurve", "v_max": 0.2, "a_max": 2.0, "j_max": 40.0},
+        },
+        "plant": {"mu": 0.2, "friction_model": "stick_slip"},
+        "controller": {"law": law},
+    }
+    run = runs_from_document(document)[0]
+    controller = builtin_controller(run)
+    outcome = simulate(run, check_plant(plant_fmu), controller=controller)
+    assert outcome.complete
+    trace = outcome.trace
+    columns = [trace.column(name) for name in ("x_B", "v_B", "iq_ref", "S", "phase", "e")]
+    parameters = controller.law_parameters()
+    assert parameters.tracking == 1.0
+    fmu = Controller(fmus[version], version, parameters)
+    try:
+        for k in range(len(trace.time)):
+            x_B, v_B, *expected = (float(c[k]) for c in columns)
+            x_ref, v_ref, a_ref = controller.reference.values[k]
+            fmu.set(x_B=x_B, v_B=v_B, x_ref=x_ref, v_ref=v_ref, a_ref=a_ref)
+            got = fmu.get("iq_ref", "S", "phase", "e")
+            assert got == expected, (k, got, expected)
+            fmu.step(k * T_S)
+    finally:
+        fmu.close()
+    assert np.max(np.abs(trace.column("e"))) < 1e-4  # it tracked: |e| < 0.1 mm all along
 
 
 @pytest.mark.parametrize("version", VERSIONS)

@@ -36,12 +36,14 @@ class MockSession:
         self.steps: list[tuple[float, float]] = []
         self.saved: tuple[float, float] | None = None
         self.saves = self.restores = self.reads = 0
+        self.written: list[tuple[float, ...]] = []  # every write_inputs, in order
 
     def read_outputs(self, into: np.ndarray) -> None:
         self.reads += 1
         into[:] = (self.x, self.v)
 
     def write_inputs(self, values: tuple[float, ...]) -> None:
+        self.written.append(tuple(values))
         self.u = float(values[0])
 
     def do_step(self, t: float, h: float) -> None:
@@ -68,13 +70,20 @@ def _controller() -> VSCController:
     return VSCController(gains=ControllerGains(C=5.0), nominal=MechanismParameters(mu=0.0), target=0.25, T_s=T_S)
 
 
-def _python(session: MockSession, hooks=()) -> tuple[PythonStepper, Recorder, LoopState]:
+def _python(
+    session: MockSession, hooks=(), load: np.ndarray | None = None
+) -> tuple[PythonStepper, Recorder, LoopState]:
     recorder, state = Recorder(NAMES, N), LoopState()
-    return PythonStepper(session, _controller(), recorder, Timing(N, T_S, F_E), state, hooks), recorder, state
+    load = np.full((N + 1, 1), F_E) if load is None else load
+    return (
+        PythonStepper(session, _controller(), recorder, Timing(N, T_S, load), state, hooks),
+        recorder,
+        state,
+    )
 
 
-def _run(session: MockSession, policy: CheckpointPolicy) -> tuple[int, Recorder]:
-    python, recorder, _ = _python(session)
+def _run(session: MockSession, policy: CheckpointPolicy, load: np.ndarray | None = None) -> tuple[int, Recorder]:
+    python, recorder, _ = _python(session, load=load)
     policy.configure(session)
     k = python.advance(0, 1)
     return policy.drive(python, session, recorder, k, N, T_S), recorder
@@ -139,6 +148,22 @@ def test_a_discard_is_retried_from_the_checkpoint_and_the_run_recovers() -> None
     assert np.allclose(recorder.data, clean_recorder.data, rtol=0, atol=1e-12)
     assert session.flags and not any(session.flags)
     assert not policy.no_set_state_prior_to_current_point
+
+
+def test_a_load_that_varies_is_sent_and_recorded_per_sample_and_replayed_as_recorded() -> None:
+    """Sample k sends (iq_ref_k, load[k]) and records load[k] in its F_E column; a retry replays
+    samples 1 .. 12 with the loads they sent, not one value for all."""
+    load = (10.0 + np.arange(N + 1) * 0.5)[:, None]
+    session = MockSession(fail_at=12 * T_S, status=2)
+    k, recorder = _run(session, CheckpointPolicy(saving=True), load)
+    assert k == N + 1
+    assert np.array_equal(recorder.data[:, recorder.col_u + 1], load[:, 0])
+    sent = [F for _, F in session.written]
+    first = [F for _, F in session.written[:12]]
+    assert first == list(load[:12, 0])  # samples 0 .. 11 before the failed step from sample 12
+    replay = sent[13 : 13 + 12]  # after the failed step's own write: the replay from the checkpoint at 1
+    assert replay == list(load[1:13, 0])
+    assert sent[-1] == load[N - 1, 0]  # no write after the last sample
 
 
 def test_a_retry_that_fails_again_ends_the_run_with_both_failures() -> None:
@@ -241,7 +266,17 @@ def test_the_policy_sets_the_flag_in_the_compiled_loop_and_the_skeleton_passes_i
 
     functions = CFunctions(0, 0, 0, 0, 0, 0, False, MockSession.function_names, None)
     loop = compiled_loop.CompiledLoop(
-        library, functions, np.zeros((N + 1, len(NAMES))), 2, 1, 2, 3, N, T_S, F_E, _controller().law_parameters()
+        library,
+        functions,
+        np.zeros((N + 1, len(NAMES))),
+        2,
+        1,
+        2,
+        3,
+        N,
+        T_S,
+        np.full((N + 1, 1), F_E),
+        _controller().law_parameters(),
     )
     assert loop.no_set_state_prior_to_current_point is False  # the safe default
     CheckpointPolicy(saving=False).configure(loop)

@@ -34,6 +34,9 @@ def _invoke(arguments: list[str]):  # noqa: ANN202 - click's Result
         ("junitparser", ["compare", str(REFERENCE), str(REFERENCE), "--junit", "r.xml"], "ci"),
         ("matplotlib", ["paper", "--skip-build"], "plot"),
         ("modelica", ["paper"], "build"),
+        ("plotly", ["report", "out"], "report"),
+        ("plotly", ["references", str(SCENARIO), "--html"], "report"),
+        ("plotly", ["sweep", str(ROOT / "scenarios" / "sweep_FE_mB.yaml"), "--html"], "report"),
     ],
 )
 def test_a_missing_extra_is_named_in_one_line(

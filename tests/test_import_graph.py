@@ -151,8 +151,9 @@ def test_no_module_touches_a_private_attribute_of_another_object() -> None:
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("toggle_cosim",),
     ("native", "interrupts", "limits", "process_tree"),
+    ("messages", "relay"),
     ("files",),
-    ("physics", "fmu_export"),
+    ("physics", "fmu_export", "signals"),
     ("control",),
     ("controller_fmu",),
     ("runs",),

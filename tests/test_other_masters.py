@@ -32,6 +32,7 @@ import shutil
 import subprocess
 import sys
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -505,7 +506,10 @@ def paper(study: Path) -> dict[str, dict]:
     for name, scenario in zip(PAPER, scenarios, strict=True):
         runs = load_scenario(scenario)
         traces = {
-            coupling: {run.variant: read_csv(study / coupling / name / run.variant / "trace.csv") for run in runs}
+            coupling: {  # jacobi from --coupling: the run's own folder, <scenario>_jacobi/<variant>
+                run.variant: read_csv(study / coupling / replace(run, coupling=coupling).folder / "trace.csv")
+                for run in runs
+            }
             for coupling in ("gauss-seidel", "jacobi")
         }
         alone = {run.variant: study / f"{name}.{run.variant}.ssp" for run in runs[1:]}

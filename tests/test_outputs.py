@@ -21,8 +21,16 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from toggle_cosim.files.outputs import FILE_MODE, OutputError, check_destination, folder_lock, replacing, write_file
-from toggle_cosim.files.traces import Trace, read_csv, write_csv
+from toggle_cosim.files.outputs import (
+    FILE_MODE,
+    OutputError,
+    OutputKind,
+    check_destination,
+    folder_lock,
+    replacing,
+    write_file,
+)
+from toggle_cosim.files.traces import Trace, read_csv, write_csv, write_json
 
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "src" / "toggle_cosim"
@@ -51,14 +59,16 @@ def _device(tmp_path: Path, name: str, minor: int) -> Path:
 
 # ------------------------------------------------------------------------------- the helper
 
+ANY = OutputKind("any file (these tests are not about the kind)", lambda path: True)
+
 
 def test_a_new_file_is_written_whole_with_the_usual_mode_and_nothing_else(tmp_path: Path) -> None:
     target = tmp_path / "sub" / "out.txt"
-    write_file(target, lambda stream: stream.write("one\ntwo\n"))
+    write_file(target, lambda stream: stream.write("one\ntwo\n"), kind=ANY)
     assert target.read_text() == "one\ntwo\n"
     assert stat.S_IMODE(target.stat().st_mode) == FILE_MODE
     assert sorted(p.name for p in target.parent.iterdir()) == ["out.txt"]
-    write_file(target, lambda stream: stream.write(b"\x00\x01"), binary=True)  # replaces a regular file
+    write_file(target, lambda stream: stream.write(b"\x00\x01"), binary=True, kind=ANY)  # replaces a regular file
     assert target.read_bytes() == b"\x00\x01"
 
 
@@ -71,7 +81,7 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path: Path) -> 
         raise RuntimeError("disk on fire")
 
     with pytest.raises(RuntimeError):
-        write_file(target, fail)
+        write_file(target, fail, kind=ANY)
     assert target.read_text() == "old\n"
     assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
 
@@ -97,7 +107,7 @@ def test_a_destination_that_is_not_a_regular_file_is_refused_and_left_alone(tmp_
         server.close()
     before = os.lstat(target)
     with pytest.raises(OutputError) as caught:
-        write_file(target, lambda stream: stream.write("<xml/>"), what="JUnit report")
+        write_file(target, lambda stream: stream.write("<xml/>"), what="JUnit report", kind=ANY)
     message = str(caught.value)
     assert message.startswith(f"{target}: is ") and "give another file name for the JUnit report" in message
     assert "\n" not in message
@@ -110,11 +120,11 @@ def test_a_destination_that_is_not_a_regular_file_is_refused_and_left_alone(tmp_
 
 def test_character_devices_are_written_through_and_stay_devices(tmp_path: Path) -> None:
     null = _device(tmp_path, "null", 3)
-    write_file(null, lambda stream: stream.write("discarded"))
+    write_file(null, lambda stream: stream.write("discarded"), kind=ANY)
     assert stat.S_ISCHR(os.lstat(null).st_mode)
     full = _device(tmp_path, "full", 7)
     with pytest.raises(OutputError, match=r"full: cannot be written \(No space left on device\)"):
-        write_file(full, lambda stream: stream.write("x" * 10))
+        write_file(full, lambda stream: stream.write("x" * 10), kind=ANY)
     assert stat.S_ISCHR(os.lstat(full).st_mode)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["full", "null"]
 
@@ -136,7 +146,7 @@ def test_concurrent_writers_of_one_target_all_succeed(tmp_path: Path) -> None:
     def writer(number: int) -> None:
         try:
             for _ in range(20):
-                with replacing(target) as temporary:
+                with replacing(target, kind=ANY) as temporary:
                     temporary.write_bytes(str(number).encode() * 1000)
                     time.sleep(0.001)
         except BaseException as error:  # noqa: BLE001
@@ -312,3 +322,159 @@ def test_plot_ignores_a_planted_partial_name_and_refuses_a_linked_output(tmp_pat
     run = CliRunner().invoke(main, ["plot", str(folder), "-o", str(link)])
     assert run.exit_code == 2 and run.output.count("\n") == 1, run.output
     assert victim.read_text() == "keep me\n" and link.is_symlink()
+
+
+# ------------------------------------------------------------------------------- only an output's own kind is replaced
+
+
+def _zip(path: Path, member: str) -> Path:
+    import zipfile
+
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr(member, "<x/>")
+    return path
+
+
+def _kinds_and_files(tmp_path: Path) -> dict[str, tuple[object, Path]]:
+    """One file of each kind, as the project writes it."""
+    from toggle_cosim.files import outputs
+
+    png = tmp_path / "f.png"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 16)
+    parquet = tmp_path / "t.parquet"
+    parquet.write_bytes(b"PAR1" + b"\0" * 16 + b"PAR1")
+    trace = tmp_path / "trace.csv"
+    write_csv(trace, Trace(("time", "x_B"), np.zeros((2, 2))))
+    record = tmp_path / "run.json"
+    write_json(record, {"scenario": "x"})
+    junit = tmp_path / "r.xml"
+    junit.write_text('<?xml version="1.0"?>\n<testsuites><testsuite name="x"/></testsuites>\n')
+    summary = tmp_path / "s.md"
+    summary.write_text("# Results of the paper's runs\n\n| run | status |\n|---|---|\n")
+    settings = tmp_path / "x_ref.opt"
+    settings.write_text("StartTime, 0.0\nStopTime, 1.0\n")
+    npz = tmp_path / "model.npz"
+    with open(npz, "wb") as stream:
+        np.savez(stream, A=np.eye(2))
+    mat = tmp_path / "model.mat"
+    mat.write_bytes(b"MATLAB 5.0 MAT-file, Platform: posix".ljust(128, b" "))
+    invariants = tmp_path / "x_ref_invariants.yaml"
+    invariants.write_text("# held within a tolerance\ninvariants:\n  a: {value: 1.0}\n")
+    html = tmp_path / "report.html"
+    html.write_text('<!DOCTYPE html>\n<html lang="en"><head></head></html>\n')
+    return {
+        "html": (outputs.HTML, html),
+        "fmu": (outputs.FMU, _zip(tmp_path / "p.fmu", "modelDescription.xml")),
+        "ssp": (outputs.SSP, _zip(tmp_path / "s.ssp", "SystemStructure.ssd")),
+        "png": (outputs.PNG, png),
+        "parquet": (outputs.PARQUET, parquet),
+        "csv": (outputs.CSV, trace),
+        "json": (outputs.JSON, record),
+        "junit": (outputs.JUNIT, junit),
+        "markdown": (outputs.MARKDOWN, summary),
+        "settings": (outputs.SETTINGS, settings),
+        "npz": (outputs.NPZ, npz),
+        "mat": (outputs.MAT, mat),
+        "invariants": (outputs.INVARIANTS, invariants),
+    }
+
+
+def test_each_kind_replaces_its_own_kind_and_no_other(tmp_path: Path) -> None:
+    """A re-run replaces what it wrote (its own kind, told by content), and every other kind,
+    a scenario file and notes are refused in one line naming the path and the kind; an empty
+    file holds nothing and may be replaced."""
+    files = _kinds_and_files(tmp_path)
+    scenario = tmp_path / "myscen.yaml"
+    scenario.write_text("name: x\nt_end: 1\n")
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes, do not lose\n")
+    empty = tmp_path / "empty"
+    empty.touch()
+    for name, (kind, own) in files.items():
+        check_destination(own, name, kind)  # its own kind: replaced
+        check_destination(empty, name, kind)
+        for other_name, (_, other) in files.items():
+            if other_name == name:
+                continue
+            before = other.read_bytes()
+            with pytest.raises(OutputError) as caught:
+                check_destination(other, name, kind)
+            assert str(caught.value) == (
+                f"{other}: exists and is not {kind.name}, so it is not replaced; give another file name for the "
+                f"{name} (or move the file away)"
+            ), (name, other_name)
+            assert other.read_bytes() == before
+        for foreign in (scenario, notes):
+            with pytest.raises(OutputError, match="exists and is not"):
+                check_destination(foreign, name, kind)
+
+
+def test_a_file_put_at_the_destination_while_writing_is_not_replaced(tmp_path: Path) -> None:
+    from toggle_cosim.files.outputs import PNG
+
+    target = tmp_path / "figure.png"
+    with pytest.raises(OutputError, match="exists and is not a PNG image"):
+        with replacing(target, "figure", kind=PNG) as temporary:
+            temporary.write_bytes(b"\x89PNG\r\n\x1a\nnew")
+            target.write_text("notes written meanwhile\n")
+    assert target.read_text() == "notes written meanwhile\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["figure.png"]  # no temporary left
+
+
+@pytest.mark.parametrize("victim", ["myscen.yaml", "plant.fmu", "notes.txt"])
+def test_ssp_refuses_to_write_over_a_file_that_is_not_an_ssp(tmp_path: Path, victim: str) -> None:
+    """`ssp SCENARIO --out SCENARIO` used to replace the scenario with the archive."""
+    from toggle_cosim.cli import main
+
+    scenario = tmp_path / "myscen.yaml"
+    scenario.write_text((ROOT / "scenarios" / "fig4_nominal.yaml").read_text(encoding="utf-8"))
+    target = tmp_path / victim
+    if victim == "plant.fmu":
+        _zip(target, "modelDescription.xml")
+    elif victim == "notes.txt":
+        target.write_text("notes\n")
+    before = target.read_bytes()
+    run = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(target)])
+    assert run.exit_code == 2, run.output
+    assert run.output == (
+        f"error: {target}: exists and is not an SSP (a zip archive with a SystemStructure.ssd), so it is not "
+        "replaced; give another file name for the SSP (--out) (or move the file away)\n"
+    )
+    assert target.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({"myscen.yaml", victim})
+
+
+@pytest.mark.parametrize(
+    ("command", "option"),
+    [("compare", "--junit"), ("compare", "--summary"), ("references", "--junit"), ("references", "--summary")],
+)
+def test_reports_refuse_to_write_over_notes(tmp_path: Path, command: str, option: str) -> None:
+    from toggle_cosim.cli import main
+
+    result_csv, reference_csv = _trace_pair(tmp_path)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("notes\n")
+    arguments = (
+        [str(result_csv), str(reference_csv)]
+        if command == "compare"
+        else [str(ROOT / "scenarios" / "fig4_nominal.yaml"), "--out", str(tmp_path / "reports")]
+    )
+    run = CliRunner().invoke(main, [command, *arguments, option, str(notes)])
+    assert run.exit_code == 2, run.output
+    assert f"{notes}: exists and is not a " in run.output and run.output.count("\n") == 1, run.output
+    assert notes.read_text() == "notes\n"
+    assert not (tmp_path / "reports").exists()
+
+
+def test_plot_refuses_to_write_over_notes_and_replaces_its_own_figure(tmp_path: Path) -> None:
+    from toggle_cosim.cli import main
+
+    folder = _results_folder(tmp_path)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("notes\n")
+    run = CliRunner().invoke(main, ["plot", str(folder), "-o", str(notes)])
+    assert run.exit_code == 2 and "exists and is not a PNG image" in run.output, run.output
+    assert notes.read_text() == "notes\n"
+    for _ in range(2):  # the second run replaces the figure the first wrote
+        run = CliRunner().invoke(main, ["plot", str(folder), "-o", str(tmp_path / "fig.png")])
+        assert run.exit_code == 0, run.output

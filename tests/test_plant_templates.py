@@ -173,3 +173,23 @@ def test_plots_summaries_and_sweeps_cope_with_absent_outputs(modelica_template: 
     assert results["E_in_J"].isna().all() and results["fric_share_end"].isna().all()
     assert results["warnings"].isna().all() and results["final_error_m"].notna().all()
     assert len(list((tmp_path / "sweep" / "heatmaps").glob("heatmap_*.png"))) == 2  # one per variant
+
+
+def test_plot_draws_the_pythonfmu_templates_own_variables(pythonfmu_template: Path, tmp_path: Path) -> None:
+    """`plot` of a plant with only the contract's required outputs: without --vars the variables
+    it has (no "not an output of this plant" panels), with --vars any of them beside another run."""
+    from toggle_cosim.analysis.run_files import load_runs
+    from toggle_cosim.analysis.variable_figure import default_variables
+    from toggle_cosim.cli.report_command import is_paper_plant
+
+    _run(pythonfmu_template, tmp_path / "out")
+    folder = tmp_path / "out" / "guided_mass"
+    assert not is_paper_plant(folder)
+    assert default_variables(load_runs([folder])) == REQUIRED_COLUMNS[1:]
+    drawn = CliRunner().invoke(main, ["plot", str(folder)])
+    assert drawn.exit_code == 0, drawn.output
+    assert drawn.output == f"wrote {folder / 'figure.png'}\n" and (folder / "figure.png").stat().st_size > 10_000
+    chosen = CliRunner().invoke(main, ["plot", str(folder / "friction" / "trace.csv"), str(folder / "no_friction"),
+                                       "--vars", "x_B,iq_ref", "--out", str(tmp_path / "x_B.png")])  # fmt: skip
+    assert chosen.exit_code == 0, chosen.output
+    assert (tmp_path / "x_B.png").stat().st_size > 10_000

@@ -23,6 +23,7 @@ import click
 import pytest
 import yaml
 
+import toggle_cosim
 from toggle_cosim.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -177,6 +178,24 @@ def test_inline_python_commands_name_the_projects_interpreter() -> None:
         assert not bare, (path.name, bare)
 
 
+HISTORY = re.compile(
+    r"\b(now|previously|formerly|used to|as before|has since|since replaced|no longer (?:needed|used|required)"
+    r"|before the [\w -]+ existed|about a minute|half a minute|a few minutes)\b",
+    re.IGNORECASE,
+)
+
+
+def test_the_documents_describe_the_code_today() -> None:
+    """README and the pages say what the code does, not how it came to be (that is the
+    changelog's), and give no vague time that nobody re-measures: a timing names what it
+    measured (docs/performance.md)."""
+    for path in documents():
+        if path.name == "changelog.md":
+            continue
+        found = [match.group(0) for match in HISTORY.finditer(path.read_text(encoding="utf-8"))]
+        assert not found, (path.name, found)
+
+
 def test_the_readme_stays_short() -> None:
     assert len(README.read_text(encoding="utf-8").splitlines()) <= 150
 
@@ -218,21 +237,81 @@ def test_the_documentation_site_builds_strictly(tmp_path: Path) -> None:
         check=False,
     )
     assert result.returncode == 0, result.stderr
-    assert "doc-heading" in (tmp_path / "site" / "api" / "index.html").read_text(encoding="utf-8")
+    api = (tmp_path / "site" / "api" / "index.html").read_text(encoding="utf-8")
+    assert "doc-heading" in api
+    for name, module in toggle_cosim._PUBLIC.items():  # every public name, its docstring rendered
+        assert f'id="{module}.{name}"' in api, name
+    assert api.count("Example") >= 6  # simulate, Result, Comparison, compare, sweep, load_scenario
     assert "Unreleased" in (tmp_path / "site" / "changelog" / "index.html").read_text(encoding="utf-8")
+    # long code lines wrap instead of being cut off: the style sheet is in the site and every page links it
+    css = (tmp_path / "site" / "assets" / "extra.css").read_text(encoding="utf-8")
+    assert "white-space: pre-wrap" in css and "overflow-x: auto" in css
+    assert 'href="../assets/extra.css"' in api
+
+
+def test_the_api_reference_documents_the_public_api_only() -> None:
+    """docs/api.md renders exactly `toggle_cosim.__all__` (each name from the module that defines
+    it), not the internals (`cosim.master.simulate`, `RunOutcome`)."""
+    rendered = re.findall(r"^::: (\S+)$", (ROOT / "docs" / "api.md").read_text(encoding="utf-8"), re.MULTILINE)
+    assert sorted(rendered) == sorted(f"{module}.{name}" for name, module in toggle_cosim._PUBLIC.items())
+    assert set(toggle_cosim.__all__) == {"__version__", *toggle_cosim._PUBLIC}
+
+
+@pytest.mark.parametrize("name", ["simulate", "Result", "Comparison", "compare", "sweep", "load_scenario"])
+def test_the_public_api_has_real_docstrings(name: str) -> None:
+    """What the user pages teach is documented: parameters, what it returns, what it raises, and
+    an example (functions); the attributes and an example (classes)."""
+    import inspect
+
+    value = getattr(toggle_cosim, name)
+    doc = inspect.getdoc(value) or ""
+    sections = ("Attributes:", "Example:") if inspect.isclass(value) else ("Args:", "Returns:", "Raises:", "Example:")
+    assert all(section in doc for section in sections), (name, [s for s in sections if s not in doc])
+    example = doc.split("Example:", 1)[1]
+    assert "tc." in example or "result" in example
+
+
+def tracked_entries(root: Path) -> list[str]:
+    """The top-level names of the files git tracks in `root` (a reader's fresh clone has these
+    and nothing else), and `.venv`, which scripts/setup makes: never what a reader left there
+    (`toggle-cosim init study`, out/, fmus/, a site/ build)."""
+    listed = subprocess.run(
+        ["git", "-C", str(root), "ls-files", "-z"], capture_output=True, text=True, check=True
+    ).stdout
+    names = {name.split("/", 1)[0] for name in listed.split("\0") if name}
+    return sorted(names | ({".venv"} if (root / ".venv").is_dir() else set()))
+
+
+def test_the_working_copy_has_the_tracked_files_only(tmp_path: Path) -> None:
+    """An untracked folder (what following getting-started inside the clone leaves: `study/`)
+    is not in a reader's copy, so the examples that make it again do not fail."""
+    repository = tmp_path / "clone"
+    (repository / "docs").mkdir(parents=True)
+    (repository / "docs" / "index.md").write_text("# x\n")
+    (repository / "README.md").write_text("# x\n")
+    subprocess.run(["git", "init", "-q", str(repository)], check=True)
+    subprocess.run(["git", "-C", str(repository), "add", "."], check=True)
+    (repository / "study").mkdir()
+    (repository / "notes.txt").write_text("mine\n")
+    assert tracked_entries(repository) == ["README.md", "docs"]
+    names = tracked_entries(ROOT)
+    assert {"README.md", "docs", "scenarios", "src", "mkdocs.yml", ".venv"} <= set(names)
+    assert not {"out", "fmus", "site", ".git"} & set(names)
 
 
 @pytest.fixture
 def working_copy(tmp_path: Path) -> Path:
-    """The repository's top folder as a reader has it: the scenarios and examples copied (examples write
-    references), everything else linked; fmus/, out/ and reports/ start empty."""
+    """The repository's top folder as a reader's clone has it (`tracked_entries`): the scenarios
+    and examples copied (examples write references), everything else linked; fmus/, out/ and
+    reports/ start empty."""
     copy = tmp_path / "toggle-cosim"
     copy.mkdir()
-    for entry in ROOT.iterdir():
-        if entry.name in ("scenarios", "examples"):
-            shutil.copytree(entry, copy / entry.name)
-        elif entry.name not in ("out", "fmus", "reports", "site", "build", ".git", ".pytest_cache", ".hypothesis"):
-            (copy / entry.name).symlink_to(entry)
+    for name in tracked_entries(ROOT):
+        entry = ROOT / name
+        if name in ("scenarios", "examples"):
+            shutil.copytree(entry, copy / name)
+        elif name not in ("out", "fmus", "reports", "site", "build"):
+            (copy / name).symlink_to(entry)
     return copy
 
 

@@ -39,7 +39,14 @@ from toggle_cosim.ssp.reader import open_ssp, open_ssp_variants, read_ssp
 from toggle_cosim.ssp.writer import controller_values, write_ssp
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith(("sweep_", "tune_")))
+# an SSP's parameter set holds one value per input: the scenarios whose load varies in time are refused
+VARYING = ("step_load", "measured_load")
+TRACKING = ("press_cycle",)  # a reference trajectory: refused too (the SSP's controller FMU regulates to a constant)
+SCENARIOS = sorted(
+    p
+    for p in (ROOT / "scenarios").glob("*.yaml")
+    if not p.name.startswith(("sweep_", "tune_")) and p.stem not in VARYING + TRACKING
+)
 NS = layout.NAMESPACES
 UNITS = {"x_B": "m", "v_B": "m/s", "theta1": "rad", "omega1": "rad/s", "iq_ref": "A"}
 
@@ -588,6 +595,26 @@ BAD_SSPS = {
 }
 
 
+@pytest.mark.parametrize("name", VARYING)
+def test_a_load_that_varies_in_time_is_refused_in_one_line(name: str, tmp_path: Path) -> None:
+    scenario = ROOT / "scenarios" / f"{name}.yaml"
+    ran = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(tmp_path / "x.ssp")])
+    assert ran.exit_code == 2 and not (tmp_path / "x.ssp").exists()
+    kind = "step" if name == "step_load" else "table"
+    assert ran.output.strip() == (
+        f"error: {scenario}: key plant.F_E: the load is a {kind} in time, and an SSP's parameter set holds one value"
+        " per input (give F_E a number, or run the scenario with toggle-cosim run)"
+    )
+
+
+def test_a_trajectory_is_refused_in_one_line(tmp_path: Path) -> None:
+    scenario = ROOT / "scenarios" / "press_cycle.yaml"
+    ran = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(tmp_path / "x.ssp")])
+    assert ran.exit_code == 2 and not (tmp_path / "x.ssp").exists()
+    assert ran.output.strip().startswith(f"error: {scenario}: key stroke.trajectory: an SSP's controller FMU regulates")
+    assert "\n" not in ran.output.strip()
+
+
 def _bad(case: str, fig5_ssp: Path, tmp_path: Path) -> Path:
     change, _ = BAD_SSPS[case]
     if case == "not a zip":
@@ -710,7 +737,9 @@ def test_an_ssp_is_written_whole_or_not_at_all(
     plant_fmu: Path, controller_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     out = tmp_path / "study.ssp"
-    out.write_bytes(b"the old file")
+    with zipfile.ZipFile(out, "w") as old:  # an earlier SSP (only an SSP may be replaced)
+        old.writestr(layout.SSD_MEMBER, "<the old file/>")
+    before = out.read_bytes()
 
     def interrupted(*args, **kwargs) -> None:  # noqa: ANN002, ANN003
         raise KeyboardInterrupt
@@ -718,7 +747,7 @@ def test_an_ssp_is_written_whole_or_not_at_all(
     monkeypatch.setattr(zipfile.ZipFile, "write", interrupted)
     with pytest.raises(KeyboardInterrupt):
         write_ssp(ROOT / "scenarios" / "fig4_nominal.yaml", out, plant_fmu, controller_fmu)
-    assert out.read_bytes() == b"the old file" and sorted(p.name for p in tmp_path.iterdir()) == ["study.ssp"]
+    assert out.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["study.ssp"]
 
 
 def test_run_options_that_do_not_fit_an_ssp_are_refused(fig5_ssp: Path, plant_fmu: Path, tmp_path: Path) -> None:
@@ -765,11 +794,13 @@ def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
         assert ran.exit_code == 0, ran.output
     for index, run in enumerate(runs):
         folder = Path(run.scenario) / (run.variant or "run")
-        expected, got = read_trace_csv(yaml_out / folder / "trace.csv"), read_trace_csv(ssp_out / folder / "trace.csv")
+        ssp_folder = Path(f"{scenario.stem}_ssp") / (run.variant or "run")  # an SSP's runs: named for the archive
+        expected = read_trace_csv(yaml_out / folder / "trace.csv")
+        got = read_trace_csv(ssp_out / ssp_folder / "trace.csv")
         assert got.names == (*expected.names, "z")  # the FMU also reports the integral law's state
         for column in expected.names:
             assert np.array_equal(got.column(column), expected.column(column)), (run.label, column)
-        record = json.loads((ssp_out / folder / "run.json").read_text())["resolved"]["ssp"]
+        record = json.loads((ssp_out / ssp_folder / "run.json").read_text())["resolved"]["ssp"]
         assert record["file"] == str(study) and record["variant"] == layout.set_name(run.variant)
         assert record["ssd"] == layout.ssd_member(index, layout.set_name(run.variant))
         assert record["components"]["plant"]["values"]["F_E"] == run.plant.F_E
@@ -777,7 +808,7 @@ def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
     if len(runs) > 1:
         ran = CliRunner().invoke(main, ["run", str(study), "--out", str(default_out), "-q"])
         assert ran.exit_code == 0, ran.output
-        assert [p.name for p in (default_out / runs[0].scenario).iterdir()] == [layout.set_name(runs[0].variant)]
+        assert [p.name for p in (default_out / f"{scenario.stem}_ssp").iterdir()] == [layout.set_name(runs[0].variant)]
 
 
 def test_a_named_variant_runs_that_variant_only(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
@@ -787,8 +818,8 @@ def test_a_named_variant_runs_that_variant_only(plant_fmu: Path, toggle_vsc: Pat
     for option, out in (("--variant", tmp_path / "a"), ("--parameter-set", tmp_path / "b")):
         ran = CliRunner().invoke(main, ["run", str(study), option, "no_friction", "--out", str(out), "-q"])
         assert ran.exit_code == 0, ran.output
-        assert [p.name for p in (out / "fig4_nominal").iterdir()] == ["no_friction"]
-        record = (out / "fig4_nominal" / "no_friction" / "run.json").read_text()
+        assert [p.name for p in (out / "fig4_ssp").iterdir()] == ["no_friction"]  # named for the archive
+        record = (out / "fig4_ssp" / "no_friction" / "run.json").read_text()
         assert '"ssd": "no_friction.ssd"' in record and '"mu": 0.0' in record
 
 
@@ -875,10 +906,10 @@ def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, toggl
         ran = CliRunner().invoke(main, ["run", *args, "--out", str(out), "-q"])
         assert ran.exit_code == 0, ran.output
     expected = read_trace_csv(tmp_path / "yaml" / "fig4_nominal" / "friction" / "trace.csv")
-    got = read_trace_csv(tmp_path / "ssp" / "handmade" / "nominal" / "trace.csv")
+    got = read_trace_csv(tmp_path / "ssp" / "handmade_ssp" / "nominal" / "trace.csv")
     for column in expected.names:
         assert np.array_equal(got.column(column), expected.column(column)), column
-    record = json.loads((tmp_path / "ssp" / "handmade" / "nominal" / "run.json").read_text())
+    record = json.loads((tmp_path / "ssp" / "handmade_ssp" / "nominal" / "run.json").read_text())
     ran_with = record["resolved"]["ssp"]["components"]["plant"]
     assert ran_with["name"] == "mechanism" and ran_with["values"]["mu"] == 0.2 and ran_with["values"]["m_B"] == 4.43
 

@@ -309,6 +309,73 @@ def test_dask_local_cluster_gives_the_same_table_as_the_pool(pool_run, tmp_path,
     assert sorted(p.name for p in result.figures) == ["heatmap_plant.mu=0.2.png", "heatmap_plant.mu=0.png"]
 
 
+PD_MODULE = """
+from toggle_cosim.control.protocol import ControlStep
+
+
+class PD:
+    diagnostics = ("e",)
+
+    def __init__(self, target, Kp, Kd):
+        self.target, self.Kp, self.Kd = target, Kp, Kd
+
+    def start(self, t0, measurement):
+        return None
+
+    def step(self, state, t, measurement):
+        e = self.target - measurement["x_B"]
+        return ControlStep(self.Kp * e - self.Kd * measurement["v_B"], (e,), state)
+
+
+def make_pd(context, Kp, Kd):
+    return PD(context.x_target, Kp, Kd)
+"""
+
+
+def test_dask_workers_in_another_folder_import_a_relative_sweeps_controller(tmp_path, plant_fmu, monkeypatch, capsys):
+    """A sweep named by a relative path whose base scenario's controller.python module lies
+    beside it: fresh Dask workers whose working directory is elsewhere find it (the base's
+    folder travels as an absolute path), and every case is ok (every case used to fail, reported
+    as "lost" by the cluster)."""
+    distributed = pytest.importorskip("distributed")
+    study = tmp_path / "study"
+    base = {**BASE, "t_end": 0.1, "controller": {"python": "pd_here:make_pd", "parameters": {"Kp": 12.0, "Kd": 2.5}}}
+    path = write_sweep(study, {"plant.F_E": {"values": [0.0, 20.0]}}, base=base)
+    (study / "pd_here.py").write_text(PD_MODULE, encoding="utf-8")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # the workers start here
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as cluster:
+        monkeypatch.chdir(tmp_path)  # the command runs here, with a relative sweep path
+        code = run_sweep(Path("study") / path.name, cluster.scheduler_address, None, plant_fmu, progress=False)
+        captured = capsys.readouterr()
+        assert code == 0, captured.err
+        table = read_results(study / "out")
+        assert list(table["status"]) == ["ok", "ok"], table["reason"].tolist()
+
+
+def test_a_case_whose_controller_cannot_be_built_on_a_worker_fails_with_its_whole_reason(tmp_path, plant_fmu):
+    """What a Dask task returns when a case's controller.python cannot be imported there: a
+    failed row whose reason names the module and the fix, whole (it was counted as a case the
+    cluster "lost", with advice to re-run, cut off mid-word)."""
+    from toggle_cosim.experiments.sweep_exec import _is_loss
+    from toggle_cosim.experiments.sweep_worker import run_cases
+    from toggle_cosim.plant.contract import check_plant
+
+    base = {**BASE, "t_end": 0.1, "controller": {"python": "pd_absent:make_pd", "parameters": {"Kp": 12.0, "Kd": 2.5}}}
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0.0, 20.0]}}, base=base)
+    sweep = load_sweep(path)  # the module is not beside the base scenario: not on this worker either
+    sha = check_plant(plant_fmu).sha256
+    results = run_cases([case.payload() for case in sweep.cases], str(plant_fmu), sha)
+    assert [row["status"] for row, _ in results] == ["failed", "failed"]
+    for row, trace in results:
+        assert trace is None
+        assert "key controller.python: cannot import 'pd_absent'" in row["reason"]
+        reason = row["reason"]
+        assert "or on sys.path (PYTHONPATH)" in reason and reason.count("(") == reason.count(")"), reason  # whole
+    assert not _is_loss(RuntimeError("a task's own error")) and _is_loss(TimeoutError())
+
+
 def test_unreachable_scheduler_is_bad_input(tmp_path, plant_fmu, capsys):
     dask = pytest.importorskip("dask")
     path = write_sweep(tmp_path, {"plant.F_E": {"values": [0]}})
@@ -379,6 +446,37 @@ def test_keep_traces_stores_every_case_readable_by_id(tmp_path, plant_fmu):
         assert list(stored.columns) == list(expected.names)
         assert np.array_equal(stored.to_numpy(), expected.data)
     assert json_of(sweep.output)["traces"] == "traces"
+
+
+def test_keep_traces_on_a_finished_sweep_runs_the_cases_without_a_trace(tmp_path, plant_fmu, capsys):
+    """A sweep finished without --keep-traces, then run with it: every finished case lacks its
+    trace, so each runs again and its trace is stored (it used to skip them all, exit 0, no
+    trace); a third run has every trace and runs nothing. read_trace of a folder without
+    traces, or of an unknown case, is one line naming the folder and the fix."""
+    from toggle_cosim.experiments.sweep import SweepError, read_trace
+
+    path = write_sweep(tmp_path, {"plant.F_E": {"values": [0, 60]}})
+    assert run_sweep(path, None, 2, plant_fmu, progress=False) == 0
+    sweep = load_sweep(path)
+    with pytest.raises(SweepError) as missing:
+        read_trace(sweep.output, sweep.cases[0].case_id)
+    assert str(missing.value) == (
+        f"{sweep.output}: no traces stored here; run the sweep again with --keep-traces (finished cases "
+        "without a trace run again to store it)"
+    )
+    capsys.readouterr()
+    assert run_sweep(path, None, 2, plant_fmu, progress=False, keep_traces=True) == 0
+    captured = capsys.readouterr()
+    assert "--keep-traces: 2 finished cases have no stored trace; they run again to store it" in captured.err
+    assert "ran 2 cases" in captured.out
+    for case in sweep.cases:
+        stored = read_trace(sweep.output, case.case_id)
+        assert len(stored) == 601 and stored["time"].iloc[-1] == pytest.approx(0.3)
+    assert run_sweep(path, None, 2, plant_fmu, progress=False, keep_traces=True) == 0
+    assert "ran 0 cases" in capsys.readouterr().out
+    with pytest.raises(SweepError, match="no trace of case 'nope' in traces/"):
+        read_trace(sweep.output, "nope")
+    assert len(read_results(sweep.output)) == 2
 
 
 def json_of(folder: Path) -> dict:

@@ -16,6 +16,7 @@ import dataclasses
 import json
 import math
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -78,9 +79,12 @@ def _check_user_law(run, trace, record) -> None:
     scale = max(float(np.max(np.abs(expected))), 1.0)
     assert np.max(np.abs(got - expected)) <= 1e-9 * scale, run.variant
     assert np.max(np.abs(got - vsc)) > 0.1, "the built-in law ran, not the user's"
-    assert record["loop"]["kind"] == "python"
     assert record["controller"]["python"] == run.controller.python
-    method = {"pd": "PDController.step", "pid": "DiscreteSystemController.step", "limited_vsc": "LimitedVSC.step"}
+    if run.variant == "pid":  # a python-control system: its matrices in the compiled loop (test_compiled_lti)
+        assert record["loop"]["kind"] == "compiled" and "python-control system" in record["loop"]["reason"]
+        return
+    assert record["loop"]["kind"] == "python"
+    method = {"pd": "PDController.step", "limited_vsc": "LimitedVSC.step"}
     assert method[run.variant] in record["loop"]["reason"], record["loop"]
 
 
@@ -206,6 +210,26 @@ def _bad_scenario(folder: Path, controller: dict, **extra) -> Path:
     ("controller", "message"),
     [
         ({"python": "no_such_module:make"}, "key controller.python: cannot import 'no_such_module'"),
+        ({"error": {"output": "x_B"}}, "key controller.error: only with controller.python"),
+        ({"python": "not a module"}, "key controller.python"),
+    ],
+)
+def test_bad_controller_is_one_line_exit_2_before_any_run(
+    tmp_path: Path, plant_fmu: Path, controller: dict, message: str
+) -> None:
+    """What the command checks without running the user's code: one line, exit 2, nothing written."""
+    path = _bad_scenario(tmp_path, controller)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(path), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2, result.output
+    assert len(lines) == 1 and lines[0].startswith(f"error: {path}: ") and message in lines[0], lines
+    assert "Traceback" not in result.output and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("controller", "message"),
+    [
         ({"python": "user_laws:nothing"}, "key controller.python: module 'user_laws' has no 'nothing'"),
         ({"python": "user_laws:raises"}, "user_laws:raises raised RuntimeError: the gains file is missing"),
         ({"python": "user_laws:fails", "parameters": {"Kp": 1.0}}, "raised TypeError"),
@@ -215,20 +239,24 @@ def _bad_scenario(folder: Path, controller: dict, **extra) -> Path:
         ({"python": "user_laws:wrong_dt", "error": {"output": "x_B"}}, "dt = 0.001 s, not the run's T_s = 0.0005 s"),
         ({"python": "user_laws:wrong_dt"}, "key controller.error: missing"),
         ({"python": "user_laws:no_step", "error": {"output": "x_B"}}, "the error is for python-control systems only"),
-        ({"error": {"output": "x_B"}}, "key controller.error: only with controller.python"),
-        ({"python": "not a module"}, "key controller.python"),
     ],
 )
-def test_bad_controller_is_one_line_exit_2_before_any_run(
+def test_a_controller_that_cannot_be_built_fails_its_run_in_one_line(
     tmp_path: Path, plant_fmu: Path, controller: dict, message: str
 ) -> None:
+    """What only the user's code can tell (its factory's result, the protocol) is found in the
+    run's child, which builds the controller: the run fails with the reason (exit 1), no sample
+    recorded, and the command's own process never imported the module."""
     path = _bad_scenario(tmp_path, controller)
     out = tmp_path / "out"
+    before = set(sys.modules)
     result = CliRunner().invoke(main, ["run", str(path), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
-    lines = result.output.strip().splitlines()
-    assert result.exit_code == 2, result.output
-    assert len(lines) == 1 and lines[0].startswith(f"error: {path}: ") and message in lines[0], lines
-    assert "Traceback" not in result.output and not out.exists()
+    assert not any(name.startswith(("user_laws", "toggle_cosim_scenario_")) for name in set(sys.modules) - before)
+    assert result.exit_code == 1, result.output
+    assert "Traceback" not in result.output and message in result.output
+    record = json.loads((out / "user_controllers" / "run" / "run.json").read_text(encoding="utf-8"))
+    assert record["status"] == "failed" and record["reason"].startswith("controller: ") and message in record["reason"]
+    assert record["samples"] == 0
 
 
 def test_bad_controller_in_a_sweep_is_exit_2_before_any_case(tmp_path: Path, plant_fmu: Path, capsys) -> None:

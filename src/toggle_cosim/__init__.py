@@ -31,6 +31,7 @@ _PUBLIC = {
     "compare": "toggle_cosim.api.comparison",
     "Comparison": "toggle_cosim.api.comparison",
     "CompareInputError": "toggle_cosim.api.comparison",
+    "plot": "toggle_cosim.api.plotting",
     "sweep": "toggle_cosim.api.sweeping",
     "SweepError": "toggle_cosim.api.sweeping",
     "shipped_scenarios": "toggle_cosim.api.project",

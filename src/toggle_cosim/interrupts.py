@@ -29,6 +29,17 @@ _starting = False  # the program is still importing: nothing is written yet, so 
 _program = False  # running as the toggle-cosim program (not imported by a test or a notebook)
 _in_hook = False  # inside _unraisable, where a raised interrupt would be dropped again
 _lost = signal.SIGINT  # the interrupt _unraisable is sending again
+_child = False  # a child process (`as_child`): SIGINT is ignored, so no KeyboardInterrupt is an interrupt
+
+
+def raised_by_code(error: BaseException) -> bool:
+    """True if `error`, caught around a user's code (a controller, its factory, its import), is
+    that code's failure: any Exception, SystemExit, and a KeyboardInterrupt raised in a child
+    process (where SIGINT is ignored: the code raised it itself). False for an interrupt of the
+    command (KeyboardInterrupt in the command's own process) and GeneratorExit."""
+    if isinstance(error, (Exception, SystemExit)):
+        return True
+    return isinstance(error, KeyboardInterrupt) and _child
 
 
 def _handler(signum: int, frame: object) -> None:
@@ -178,6 +189,8 @@ def as_child(on_terminate: object = signal.SIG_DFL) -> None:
     """The signals of a child process started by a toggle-cosim command: SIGINT is the parent's
     to handle (ignored here, a pending one discarded), SIGTERM does `on_terminate` (the parent
     stopping this child); then both are unblocked (`starting_children()` blocked them)."""
+    global _child
+    _child = True
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, on_terminate)  # type: ignore[arg-type]
     signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)

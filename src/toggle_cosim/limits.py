@@ -1,8 +1,8 @@
 """Every number a user gives outside a scenario file, checked in one place.
 
 Options (`--time-limit`, `--case-timeout`: seconds) and environment variables
-(`TOGGLE_COSIM_MAX_OUTPUT`: bytes; `TOGGLE_COSIM_PLANT_MEMORY`: bytes with an optional K/M/G
-suffix) must be finite, positive and within a range that means something: NaN, infinity,
+(`TOGGLE_COSIM_MAX_OUTPUT`: bytes; `TOGGLE_COSIM_PLANT_MEMORY` and `TOGGLE_COSIM_MAX_LOG`: bytes
+with an optional K/M/G suffix) must be finite, positive and within a range that means something: NaN, infinity,
 1e300 or a negative size are refused with one line naming the option or variable, the value
 and what to give instead (exit 2, before any run). `check_environment()` reads all the
 variables at once: the run commands call it before the first run, so a bad value is never
@@ -19,6 +19,7 @@ MAX_BYTES = 1 << 50  # 1 PiB
 SIZE_SUFFIXES = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 DEFAULT_MAX_OUTPUT = 2_000_000_000  # bytes a run's trace buffer or CSV may take
 DEFAULT_PLANT_MEMORY = 4 << 30  # bytes a plant may allocate beyond the process as forked
+DEFAULT_MAX_LOG = 64 << 10  # bytes of a run's own printing (plant, controller) relayed to the console
 FLAGS = ("TOGGLE_COSIM_KERNEL", "TOGGLE_COSIM_FAST_CSV", "TOGGLE_COSIM_SUPERVISE")  # "0" or "1"
 
 
@@ -59,6 +60,13 @@ def max_output() -> int:
     return byte_size(text, "TOGGLE_COSIM_MAX_OUTPUT") if text.strip() else DEFAULT_MAX_OUTPUT
 
 
+def max_log() -> int:
+    """TOGGLE_COSIM_MAX_LOG (bytes), default DEFAULT_MAX_LOG: what a run's child may print that
+    the command relays (`relay`); the rest is counted and dropped."""
+    text = os.environ.get("TOGGLE_COSIM_MAX_LOG", "")
+    return byte_size(text, "TOGGLE_COSIM_MAX_LOG", suffixes=True) if text.strip() else DEFAULT_MAX_LOG
+
+
 def plant_memory() -> int:
     """TOGGLE_COSIM_PLANT_MEMORY (bytes, or with a K/M/G/T suffix), default DEFAULT_PLANT_MEMORY."""
     text = os.environ.get("TOGGLE_COSIM_PLANT_MEMORY", "")
@@ -68,6 +76,7 @@ def plant_memory() -> int:
 def check_environment() -> None:
     """Every variable above, and the on/off FLAGS ("0" or "1", or unset); LimitError for the first bad one."""
     max_output()
+    max_log()
     plant_memory()
     for name in FLAGS:
         value = os.environ.get(name)
@@ -75,4 +84,4 @@ def check_environment() -> None:
             raise LimitError(f"{name}={value!r}: give 0 (off) or 1 (on), or leave it unset")
 
 
-__all__ = ["LimitError", "byte_size", "check_environment", "max_output", "plant_memory", "seconds"]
+__all__ = ["LimitError", "byte_size", "check_environment", "max_log", "max_output", "plant_memory", "seconds"]

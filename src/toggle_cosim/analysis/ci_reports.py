@@ -19,7 +19,7 @@ from pathlib import Path
 from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
 from toggle_cosim.analysis.invariants import InvariantResult
 from toggle_cosim.analysis.solver_stats import SolverCheck
-from toggle_cosim.files.outputs import replacing, write_text
+from toggle_cosim.files.outputs import JUNIT, MARKDOWN, replacing, write_text
 
 __all__ = ["CheckedTrace", "failure_message", "markdown_summary", "write_junit", "write_markdown_summary"]
 
@@ -86,7 +86,7 @@ def write_junit(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
         report.add_testsuite(suite)
     report.update_statistics()
     path = Path(path)
-    with replacing(path, "JUnit report") as temporary:
+    with replacing(path, "JUnit report", kind=JUNIT) as temporary:
         report.write(str(temporary), pretty=True)
     return path
 
@@ -140,5 +140,5 @@ def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = No
 def write_markdown_summary(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
     path = Path(path)
     text = markdown_summary(checks, link_base=path.resolve().parent)
-    write_text(path, text, "Markdown summary")
+    write_text(path, text, "Markdown summary", kind=MARKDOWN)
     return path

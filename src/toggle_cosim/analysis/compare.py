@@ -51,7 +51,7 @@ import numpy as np
 
 from toggle_cosim.analysis.csv_traces import CompareInputError, check_trace, float_or_none
 from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
-from toggle_cosim.files.outputs import replacing, write_file
+from toggle_cosim.files.outputs import CSV, PNG, replacing, write_file
 from toggle_cosim.files.traces import Trace, write_csv
 
 __all__ = [
@@ -396,7 +396,7 @@ def _plot(variable: VariableResult, reference: Trace, path: Path) -> None:
     bottom.grid(True, alpha=0.3)
     when = "-" if variable.time_of_max_error is None else f"{variable.time_of_max_error:.6g} s"
     figure.suptitle(f"{variable.name}: FAIL, max error {variable.max_error:.3e} at t = {when}")
-    with replacing(path) as temporary:
+    with replacing(path, "figure", kind=PNG) as temporary:
         figure.savefig(temporary, format="png", dpi=100)
 
 
@@ -445,7 +445,7 @@ def write_report(
                 ]
             )
 
-    write_file(out / "summary.csv", summary)
+    write_file(out / "summary.csv", summary, kind=CSV)
     written.append(out / "summary.csv")
     taken: set[str] = {"summary"}
     for v in result.variables:

@@ -25,7 +25,7 @@ from toggle_cosim.analysis.solver_stats import (
 from toggle_cosim.analysis.tolerance_files import tolerances_for_reference
 from toggle_cosim.analysis.trace_formats import read_any_trace
 from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
-from toggle_cosim.files.outputs import OutputError, check_destination
+from toggle_cosim.files.outputs import JUNIT, MARKDOWN, OutputError, OutputKind, check_destination
 from toggle_cosim.files.traces import Trace
 
 __all__ = ["FileComparison", "compare_with_file", "plots_of", "run_compare", "solver_check", "trace_label"]
@@ -54,11 +54,11 @@ def _result_statistics(result_path: Path) -> dict[str, int] | str | None:
         raise CompareInputError(f"{record}: is not a readable run record ({error}); rerun or remove it") from error
 
 
-def _check_output(path: Path | None, what: str) -> None:
+def _check_output(path: Path | None, what: str, kind: OutputKind) -> None:
     if path is None:
         return
     try:
-        check_destination(path, what)
+        check_destination(path, what, kind)
     except OutputError as error:
         raise CompareInputError(str(error)) from error
 
@@ -152,8 +152,8 @@ def run_compare(
         reference_path, result_path = Path(reference_path), Path(result_path)
         if out_dir is not None and Path(out_dir).exists() and not Path(out_dir).is_dir():
             raise CompareInputError(f"{out_dir}: exists and is not a directory; give a folder for the report")
-        _check_output(None if junit is None else Path(junit), "JUnit report")
-        _check_output(None if summary is None else Path(summary), "Markdown summary")
+        _check_output(None if junit is None else Path(junit), "JUnit report", JUNIT)
+        _check_output(None if summary is None else Path(summary), "Markdown summary", MARKDOWN)
         reference = read_any_trace(reference_path)
         options = _reference_options(reference, reference_path)
         result = read_any_trace(result_path)

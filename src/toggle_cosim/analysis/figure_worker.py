@@ -23,7 +23,9 @@ class FigureWorker:
     def __init__(self) -> None:
         with interrupts.starting_children():  # a Ctrl-C cannot hit the child in its imports
             self._process = subprocess.Popen(
-                [sys.executable, "-m", "toggle_cosim.analysis.figure_worker"],
+                # -P: the current folder is not put first on sys.path (a toggle_cosim.py or copyreg.py
+                # there never runs); the environment (PYTHONPATH, the user's site-packages) is kept
+                [sys.executable, "-P", "-m", "toggle_cosim.analysis.figure_worker"],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 text=True,

@@ -27,7 +27,7 @@ import yaml
 
 from toggle_cosim.analysis.csv_traces import CompareInputError
 from toggle_cosim.cosim.summary import VscMetrics, vsc_metrics
-from toggle_cosim.files.outputs import write_text
+from toggle_cosim.files.outputs import INVARIANTS, write_text
 from toggle_cosim.files.traces import Trace
 
 __all__ = [
@@ -154,4 +154,4 @@ def update_invariants(path: Path, trace: Trace) -> Path | None:
         entry = {"value": float(measured[name])}
         entry.update({k: getattr(invariant, k) for k in ("atol", "rtol") if getattr(invariant, k)})
         document["invariants"][name] = entry
-    return write_text(path, yaml.safe_dump(document, sort_keys=False))
+    return write_text(path, yaml.safe_dump(document, sort_keys=False), "invariants", kind=INVARIANTS)

@@ -10,7 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from toggle_cosim.files.outputs import replacing  # noqa: E402
+from toggle_cosim.files.outputs import PNG, replacing  # noqa: E402
 from toggle_cosim.files.traces import Trace  # noqa: E402
 
 PANELS = (
@@ -61,7 +61,7 @@ def nine_panel_figure(traces: Mapping[str, Trace], title: str, output: Path, tar
     figure.suptitle(title)
     output = Path(output)
     try:
-        with replacing(output) as temporary:  # a unique temporary name, renamed into place
+        with replacing(output, "figure", kind=PNG) as temporary:  # a unique temporary name, renamed into place
             figure.savefig(temporary, dpi=110, format="png")
     finally:
         plt.close(figure)

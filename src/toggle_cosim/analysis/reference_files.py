@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from toggle_cosim.analysis.csv_traces import CompareInputError, check_trace, float_or_none, read_trace
-from toggle_cosim.files.outputs import write_text
+from toggle_cosim.files.outputs import SETTINGS, write_text
 from toggle_cosim.files.traces import Trace, write_csv
 
 __all__ = ["read_options", "read_reference", "write_reference"]
@@ -57,7 +57,7 @@ def write_reference(
         f"StepSize, {float(step)!r}",
         f"RelTol, {float(reltol)!r}",
     ]
-    write_text(opt_path, "\n".join(lines) + "\n")
+    write_text(opt_path, "\n".join(lines) + "\n", "reference settings", kind=SETTINGS)
     return csv_path, opt_path
 
 

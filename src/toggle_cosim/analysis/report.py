@@ -9,7 +9,7 @@ import numpy as np
 
 from toggle_cosim.analysis.friction_claims import CLAIM_COLUMNS, missing_columns
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.files.outputs import write_text
+from toggle_cosim.files.outputs import MARKDOWN, write_text
 
 
 def _cell(value: float | None, scale: float = 1.0, fmt: str = ".3f") -> str:
@@ -44,7 +44,7 @@ def write_summary(outcomes: Sequence[RunOutcome], path: Path) -> Path:
     text = "# Results of the paper's runs\n\n" + summary_table(paper_runs) + "\n" + paper_claims(paper_runs)
     if len(paper_runs) < len(outcomes):
         text += "\n" + friction_claims(outcomes)
-    write_text(path, text, "summary")
+    write_text(path, text, "summary", kind=MARKDOWN)
     return Path(path)
 
 

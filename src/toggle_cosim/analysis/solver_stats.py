@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toggle_cosim.files.bounded import JSON_LIMIT, read_text_bounded
-from toggle_cosim.files.outputs import write_text
+from toggle_cosim.files.outputs import JSON, write_text
 
 __all__ = [
     "SolverCheck",
@@ -41,7 +41,7 @@ def statistics_path(reference_csv: Path | str) -> Path:
 
 
 def write_statistics_file(path: Path, counts: Mapping[str, int]) -> Path:
-    write_text(path, json.dumps(dict(counts), indent=2) + "\n")
+    write_text(path, json.dumps(dict(counts), indent=2) + "\n", "solver statistics", kind=JSON)
     return Path(path)
 
 

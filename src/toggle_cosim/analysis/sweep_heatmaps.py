@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import PNG, replacing
 
 HEATMAP_DIR = "heatmaps"
 
@@ -20,7 +20,8 @@ PANELS = (
 )
 
 
-def _label(value: Any) -> str:
+def value_label(value: Any) -> str:
+    """A sweep value as the maps label it: a float to 4 significant digits."""
     if isinstance(value, float):
         return f"{value:.4g}"
     return str(value)
@@ -64,7 +65,7 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
     groups = table.groupby(others, sort=True, dropna=False) if others else [((), table)]
     for key, group in groups:
         key = key if isinstance(key, tuple) else (key,)
-        tag = ", ".join(f"{k} = {_label(v)}" for k, v in zip(others, key, strict=True))
+        tag = ", ".join(f"{k} = {value_label(v)}" for k, v in zip(others, key, strict=True))
         xs = sorted(group[x].dropna().unique(), key=lambda v: (isinstance(v, str), v))
         ys = sorted(group[y].dropna().unique(), key=lambda v: (isinstance(v, str), v))
         xi = {v: i for i, v in enumerate(xs)}
@@ -105,8 +106,8 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
                         ax.text(j, i, "n/s", ha="center", va="center", fontsize=6, color="0.3")
             step_x = max(1, len(xs) // 12)
             step_y = max(1, len(ys) // 12)
-            ax.set_xticks(range(0, len(xs), step_x), [_label(v) for v in xs[::step_x]], rotation=45, fontsize=8)
-            ax.set_yticks(range(0, len(ys), step_y), [_label(v) for v in ys[::step_y]], fontsize=8)
+            ax.set_xticks(range(0, len(xs), step_x), [value_label(v) for v in xs[::step_x]], rotation=45, fontsize=8)
+            ax.set_yticks(range(0, len(ys), step_y), [value_label(v) for v in ys[::step_y]], fontsize=8)
             ax.set_xlabel(x)
             ax.set_ylabel(y)
             ax.set_title(title)
@@ -116,11 +117,11 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
             " grey: no value / never settled)"
         )
         name = "heatmap" + (
-            "_" + _slug("_".join(f"{k}={_label(v)}" for k, v in zip(others, key, strict=True))) if others else ""
+            "_" + _slug("_".join(f"{k}={value_label(v)}" for k, v in zip(others, key, strict=True))) if others else ""
         )
         path = folder / f"{name}.png"
         try:
-            with replacing(path) as temporary:  # a unique temporary name, renamed into place
+            with replacing(path, "heat map", kind=PNG) as temporary:  # a unique temporary name, renamed into place
                 figure.savefig(temporary, dpi=100, format="png")
         finally:
             plt.close(figure)

@@ -50,6 +50,14 @@ class Comparison:
         solver: the plant solver's counts against those stored with the reference (None when
             neither has any); a change is reported, not a failure.
         tolerance_files: the tolerance files that applied (none: the built-in defaults).
+
+    Example:
+        ```python
+        check = tc.compare(result, tc.stored_reference(result.run))
+        assert check, check.failed             # the variables outside their funnel, if any
+        check.to_dataframe()                   # passed, max_deviation, tolerance, outside, at_time, unit
+        check["x_B"].passed                    # one variable's verdict
+        ```
     """
 
     funnel: ComparisonResult
@@ -141,9 +149,19 @@ def compare(result: TraceLike, reference: TraceLike, *, tolerances: str | Path |
         tolerances: a tolerance file (YAML: `default:` and per-variable atol, rtol, ttol) that
             replaces the ones found by place.
 
+    Returns:
+        The `Comparison`: true when every variable lies inside its funnel.
+
     Raises:
         CompareInputError: one line naming the input and the problem (a missing file, a variable
             the result lacks, time spans that do not match).
+
+    Example:
+        ```python
+        result = tc.simulate(tc.load_scenario("scenarios/fig4_nominal.yaml")["friction"], tc.plant_fmu())
+        check = tc.compare(result, tc.stored_reference(result.run))
+        loose = tc.compare("out/fig4_nominal/friction/trace.csv", "my_ref.csv", tolerances="tolerances.yaml")
+        ```
     """
     result_trace = _trace(result, "result")
     label = _label(result, "result")

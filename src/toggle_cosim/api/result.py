@@ -6,11 +6,12 @@ record (what run.json holds) and the figures of merit.
     result.reason             # why it failed (None when complete)
     result.summary            # RunSummary: final error [m], peak |i_q*| [A], T_h [s], ...
     df = result.to_dataframe()     # indexed by time [s]; df.attrs["units"] = {column: unit}
+    result.plot(["x_B", "iq_ref"])  # a matplotlib Figure, one panel per variable
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -22,6 +23,7 @@ from toggle_cosim.runs.definition import Run
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.figure import Figure
 
 __all__ = ["Result", "RunInterrupted", "Status"]
 
@@ -50,6 +52,16 @@ class Result:
         record: the run record, what `toggle-cosim run` writes to run.json (the resolved
             scenario, the FMU's path and SHA-256, the loop that ran, wall time, solver counts).
         units: {column: unit} from the plant FMU's modelDescription and the controller (`units`).
+
+    Example:
+        ```python
+        result = tc.simulate(tc.load_scenario("scenarios/fig4_nominal.yaml")["friction"], tc.plant_fmu())
+        if not result.ok:
+            print(result.status, result.reason)
+        df = result.to_dataframe()             # indexed by time [s]
+        df["x_B"].plot()                       # df.attrs["units"]["x_B"] == "m"
+        result.write("out/mine/friction")      # trace.csv and run.json, as `toggle-cosim run` writes them
+        ```
     """
 
     run: Run
@@ -97,6 +109,19 @@ class Result:
         frame.attrs["units"] = {name: self.units[name] for name in names if name in self.units}
         frame.attrs["run"] = self.label
         return frame
+
+    def plot(
+        self,
+        vars: Sequence[str] | str | None = None,  # noqa: A002 - the name the command line's --vars has
+        reference: Any = None,
+        *,
+        out: str | Path | None = None,
+    ) -> Figure:
+        """This run's `vars` (default: every column), one panel each, around `reference`'s
+        funnel band when one is given (a trace file, `Result` or `Trace`): `tc.plot(self, ...)`."""
+        from toggle_cosim.api.plotting import plot
+
+        return plot(self, vars, reference, title=self.label, out=out)
 
     def write(self, folder: str | Path) -> Path:
         """Write trace.csv and run.json into `folder` as `toggle-cosim run` writes them into

@@ -100,7 +100,25 @@ def _build(document: dict[str, Any], source: Path | None) -> Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file (YAML). Raises ScenarioError, one line: 'FILE: problem'."""
+    """Read and validate a scenario file (YAML).
+
+    Args:
+        path: the scenario file; its relative `fmu:` and controller paths are relative to it.
+
+    Returns:
+        The `Scenario`: its runs by variant name.
+
+    Raises:
+        ScenarioError: one line, 'FILE: problem and fix' (a missing or misspelt key, a value out
+            of range, bad YAML).
+
+    Example:
+        ```python
+        fig4 = tc.load_scenario("scenarios/fig4_nominal.yaml")
+        list(fig4)                                           # ['friction', 'no_friction']
+        short = fig4.updated({"t_end": 0.3})["friction"]     # a Run
+        ```
+    """
     path = Path(path)
     document, runs = read_scenario(path)
     return Scenario(str(document["name"]), path, copy.deepcopy(document), tuple(runs))

@@ -65,16 +65,20 @@ def _one_run(run: Run | Scenario) -> Run:
     return run
 
 
-def _checks(run: Run, plant: PlantInterface) -> None:
+def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> None:
     """What the command line checks before a run starts: the settings against the plant's
-    variables and the size of the trace buffer (ScenarioError, one line)."""
+    variables, the user's controller without running its code (`check_user_controller`) and the
+    size of the trace buffer (ScenarioError, one line)."""
+    from toggle_cosim.cosim.controllers import check_user_controller
     from toggle_cosim.experiments.resources import ResourceError, check_runs
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     try:
         check_settings(run, plant)
+        if own_controller:  # the scenario's, not one given to simulate
+            check_user_controller(run, plant.recorded_outputs)
         check_runs([(run, plant)], None)
-    except SettingError as error:
+    except (SettingError, ControllerError) as error:
         raise ScenarioError(f"{run.source or run.label}: {error}") from None
     except ResourceError as error:
         raise ScenarioError(f"{run.source or run.label}: {error.message}") from None
@@ -90,13 +94,14 @@ def _outcome(
 ) -> RunOutcome:
     """The one place a run starts, supervised or in this process."""
     if not supervised:
-        return master.simulate(run, plant, progress, controller=controller)
+        from toggle_cosim.cosim.supervision import in_process_folder
+
+        with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
+            return master.simulate(run, plant, progress, controller=controller)
     from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
 
     remove_stale_folders()
-    return simulate_supervised(
-        run, plant, time_limit=time_limit, progress=progress, capture_log=True, controller=controller
-    )
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, controller=controller)
 
 
 def simulate(
@@ -116,6 +121,9 @@ def simulate(
     the measured x_B, v_B and holds i_q* until the next sample, as `toggle-cosim run` does.
 
     Args:
+        run: a `Run` (`tc.load_scenario(path)["friction"]`), or a `Scenario` with one variant.
+        fmu: the plant FMU's path (default: the run's `fmu:` key); it is checked against the
+            plant contract and its binary probed once while the file is unchanged.
         supervised: run in a forked child (default): a plant crash or hang fails the run, not
             this process. False: in this process, without a time limit.
         time_limit: wall-clock limit of a supervised run in s (default: the scenario's
@@ -136,6 +144,17 @@ def simulate(
         ContractError: the FMU is missing or does not meet the plant's interface contract.
         RunInterrupted: an interrupt (Ctrl-C, the notebook's stop button) stopped the run; the
             partial result is its `.result`.
+        ValueError: a `coupling` or `time_limit` that is not one of the allowed values.
+
+    Example:
+        ```python
+        import toggle_cosim as tc
+
+        fig4 = tc.load_scenario("scenarios/fig4_nominal.yaml")
+        result = tc.simulate(fig4["friction"], tc.plant_fmu())
+        print(result.status, result.summary.final_error_m)   # complete 6.4e-05
+        jacobi = tc.simulate(fig4["friction"], "fmus/ToggleLSM.fmu", coupling="jacobi")
+        ```
     """
     run = _one_run(run)
     if coupling is not None:
@@ -148,7 +167,7 @@ def simulate(
     if time_limit is not None and not time_limit > 0:
         raise ValueError(f"time_limit: give a positive number of seconds, not {time_limit!r}")
     plant = checked_plant(os.fspath(chosen))
-    _checks(run, plant)
+    _checks(run, plant, own_controller=controller is None)
     if controller is not None:
         try:
             check_controller(controller, plant.recorded_outputs)

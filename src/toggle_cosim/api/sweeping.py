@@ -46,6 +46,7 @@ def sweep(
     figures of merit (`RunSummary`: final_error_m, peak_iq_ref_A, hitting_time_s, ...).
 
     Args:
+        path: the sweep file (YAML: base, axes or samples, output, heatmap; docs/sweeps.md).
         fmu: the plant FMU (default: the sweep's or its base scenario's fmu: key).
         output: the output folder (default: the sweep's output: key, else out/sweeps/<name>).
         workers: local pool size (default: all cores); scheduler: a Dask scheduler's address.
@@ -53,11 +54,20 @@ def sweep(
         case_timeout: wall-clock limit per case in s.
         progress: a progress bar on stderr.
 
-    The table's `attrs` hold "output" (the folder) and "heatmaps" (the figures written).
+    Returns:
+        The results table (a pandas DataFrame, one row per case in case order); its `attrs` hold
+        "output" (the folder) and "heatmaps" (the figures written).
 
     Raises:
         SweepError: one line naming the file, the key and the fix; nothing has run.
         KeyboardInterrupt: interrupted; the finished cases are kept (call again to finish).
+
+    Example:
+        ```python
+        table = tc.sweep("scenarios/sweep_FE_mB.yaml", fmu=tc.plant_fmu(), workers=2)
+        ok = table[table.status == "ok"]
+        ok.pivot_table("final_error_m", index="plant.F_E", columns="plant.m_B")
+        ```
     """
     try:
         spec = load_sweep(Path(path), Path(output) if output is not None else None)

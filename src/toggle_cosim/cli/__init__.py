@@ -1,4 +1,4 @@
-"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep | tune | ssp`.
+"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep | tune | ssp | report`.
 
 The only package that knows about files, exit codes and progress display. Exit status:
 0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
@@ -12,6 +12,7 @@ The only package that knows about files, exit codes and progress display. Exit s
     sweep_command.py   sweep
     tune_command.py    tune
     ssp_command.py     ssp, and the SSPs that run reads
+    report_command.py  report (the HTML page), and plot --vars/--reference
 
 Each command imports what it needs when it runs: `toggle-cosim --help` imports click only.
 """
@@ -35,6 +36,7 @@ from toggle_cosim.cli import (  # noqa: E402, F401 - they add the commands
     check_commands,
     init_command,
     linearize_command,
+    report_command,
     run_commands,
     ssp_command,
     sweep_command,

@@ -22,7 +22,7 @@ from toggle_cosim.experiments.shipped import (  # noqa: F401 - the commands' def
     SHIPPED_SCENARIO_FOLDER,
     SHIPPED_SCENARIOS,
 )
-from toggle_cosim.files.outputs import OutputError, check_destination
+from toggle_cosim.files.outputs import OutputError, OutputKind, check_destination
 
 DEFAULT_OUT = Path("out")
 # The optional extras (pyproject.toml) and the top-level modules that each brings.
@@ -37,6 +37,7 @@ EXTRAS = {
     "matplotlib": "plot",
     "control": "design",
     "scipy": "design",
+    "plotly": "report",
     "optuna": "tune",
     "cmaes": "tune",
 }
@@ -157,12 +158,14 @@ def main() -> None:
     """Co-simulation of the PMLSM-driven toggle mechanism (Fung, Wu and Chen 2001)."""
 
 
-def check_output(path: Path | None, what: str) -> None:
-    """A one-line refusal (InputError) when something that is not a regular file lies at the
-    output `path` (`files.outputs.check_destination`; `what` names it); nothing when `path` is None."""
+def check_output(path: Path | None, what: str, kind: OutputKind) -> None:
+    """A one-line refusal (InputError), before any work, when something that is not a regular
+    file, or a file that is not of the output's `kind`, lies at the output `path`
+    (`files.outputs.check_destination`, the one rule every writer applies again; `what` names
+    the output); nothing when `path` is None."""
     if path is not None:
         try:
-            check_destination(path, what)
+            check_destination(path, what, kind)
         except OutputError as error:
             raise InputError(str(error)) from error
 

@@ -20,6 +20,7 @@ from toggle_cosim.cli.app import (
     out_file_option,
     require,
 )
+from toggle_cosim.files.outputs import FMU
 
 CONTROLLER = CONTROLLER_MODEL  # --model of the controller FMU (no Modelica source)
 
@@ -27,23 +28,10 @@ CONTROLLER = CONTROLLER_MODEL  # --model of the controller FMU (no Modelica sour
 INTERFACE_TAGS = {"both": "", "cs": "_CS", "me": "_ME"}
 
 
-def _is_fmu(path: Path) -> bool:
-    """A zip archive with a modelDescription.xml: a file the build may replace."""
-    import zipfile
-
-    try:
-        with zipfile.ZipFile(path) as archive:
-            return "modelDescription.xml" in archive.namelist()
-    except (OSError, zipfile.BadZipFile):
-        return False
-
-
 def _check_fmu_output(output: Path) -> None:
-    check_output(output, "FMU (--out)")  # a link there is refused, not followed
+    check_output(output, "FMU (--out)", FMU)  # a link there is refused, not followed; only an FMU is replaced
     if output.suffix != ".fmu":
         raise InputError(f"{output}: an FMU file name must end in .fmu (fix --out)")
-    if output.is_dir() or (output.exists() and not _is_fmu(output)):
-        raise InputError(f"{output}: exists and is not an FMU; the build replaces only an FMU (give another --out)")
 
 
 def build_plant(source: Path, model: str, output: Path, fmi_version: str = "2.0", interfaces: str = "both") -> None:

@@ -19,6 +19,7 @@ from toggle_cosim.cli.app import (
     require,
 )
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of
+from toggle_cosim.files.outputs import HTML, JUNIT, MARKDOWN
 
 
 @main.command()
@@ -97,6 +98,11 @@ def compare(
 @click.option(
     "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
 )
+@click.option(
+    "--html",
+    is_flag=True,
+    help="Also write OUT/report.html: each run against its reference (funnel band), runs overlaid.",
+)
 @TIME_LIMIT_OPTION
 @JOBS_OPTION
 def references(
@@ -108,6 +114,7 @@ def references(
     junit: Path | None,
     summary: Path | None,
     fail_on_solver_change: bool,
+    html: bool,
     time_limit: float | None,
     jobs: int | None,
 ) -> None:
@@ -116,12 +123,18 @@ def references(
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim.experiments import references as refs
 
-    check_output(junit, "JUnit report")
-    check_output(summary, "Markdown summary")
+    check_output(junit, "JUnit report", JUNIT)
+    check_output(summary, "Markdown summary", MARKDOWN)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
     if not update:
-        require("junitparser", "matplotlib")
+        require("junitparser", "matplotlib", *(("plotly",) if html else ()))
+    if html and update:
+        raise InputError("--html reports a check against the references; --update rewrites them: give one of the two")
+    if html:
+        from toggle_cosim.cli.report_command import REPORT_FILE
+
+        check_output(out / REPORT_FILE, "HTML report", HTML)
     files = list(scenarios) or [Path("scenarios") / f"{name}.yaml" for name in SHIPPED_SCENARIOS]
     if not scenarios and not Path("scenarios").is_dir():
         raise InputError(
@@ -130,13 +143,20 @@ def references(
     pairs = load_runs(files, fmu)
     failures: list[str] = []
     checks = []
+    finished = []  # the runs, for the HTML report
     with contextlib.closing(outcomes_of(pairs, folder if update else None, True, time_limit, jobs)) as results:
         for outcome in results:
             failures += _check_reference(outcome, refs, folder, update, fail_on_solver_change, checks)
+            if html and outcome.complete:
+                finished.append(outcome)
     if not update:
         written = write_reference_reports(
             checks, out, junit or out / "junit.xml", summary or out / "summary.md", fail_on_solver_change
         )
+        if html:
+            from toggle_cosim.cli.report_command import write_checks_report
+
+            written.append(write_checks_report(out / REPORT_FILE, checks, finished))
         click.echo(f"reports: {', '.join(str(path) for path in written)}")
     if failures:
         raise RunFailed("; ".join(failures))

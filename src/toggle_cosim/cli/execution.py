@@ -60,17 +60,19 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 click.echo(note, err=True)
     pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     noted: set[str] = set()
     for run, plant in pairs:  # every name and value the run sets, and its controller, before any run starts
         try:
             check_settings(run, plant)
-            controller = controller_for(run, plant.recorded_outputs)
+            if run.controller.python is None and run.controller.fmu is None:
+                controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
+            # a user's controller: checked without running its code, which runs in the run's child alone
+            fmu = check_user_controller(run, plant.recorded_outputs)
         except (SettingError, ControllerError) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
-        fmu = getattr(controller, "fmu", None) if run.controller.fmu is not None else None
         for warning in getattr(fmu, "warnings", ()):  # a controller FMU's missing units, once per file
             if f"{fmu.path}: {warning}" not in noted:
                 noted.add(f"{fmu.path}: {warning}")
@@ -78,17 +80,46 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
     return pairs
 
 
-def _write_outcome(outcome, out: Path) -> Path:  # noqa: ANN001
+def _write_outcome(outcome, out: Path) -> tuple[Path, bool]:  # noqa: ANN001
+    """Write the run's trace.csv and run.json into OUT/`Run.folder`; the folder, and whether an
+    earlier run's files there were replaced."""
     from toggle_cosim.files.naming import naming
     from toggle_cosim.files.traces import write_csv, write_json
 
-    folder = out / outcome.run.scenario / (outcome.run.variant or "run")
+    folder = out / outcome.run.folder
+    replaced = (folder / "run.json").is_file() or (folder / "trace.csv").is_file()
     with interrupts.deferred():  # both files whole, or an interrupt waits for them
         with naming(folder / "trace.csv"):  # a full disk names the file it could not write
             write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
         with naming(folder / "run.json"):
             write_json(folder / "run.json", outcome.record)
-    return folder
+    return folder, replaced
+
+
+def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
+    """Before any run: no two runs write the same folder (`runs.definition.results_folder`: one
+    per source and setting), and their trace.csv and run.json may be written there (the output
+    rule of `files.outputs`: only a CSV table and a JSON object of an earlier run are replaced)."""
+    from toggle_cosim.cli.app import check_output
+    from toggle_cosim.files.outputs import CSV, JSON
+
+    seen: dict = {}
+    for run, _ in pairs:
+        if run.folder in seen:
+            other = seen[run.folder]
+            raise InputError(
+                f"{other.source or other.label} and {run.source or run.label}: both runs would write "
+                f"{Path(out) / run.folder}; run them into different --out folders"
+            )
+        seen[run.folder] = run
+        folder = Path(out) / run.folder
+        try:
+            exists = folder.is_dir()
+        except OSError:  # e.g. a name too long: check_runs reports the output folder in one line
+            exists = False
+        if exists:  # a folder that is not one (an output folder that is a file) is check_runs' to report
+            check_output(folder / "trace.csv", "trace", CSV)
+            check_output(folder / "run.json", "run record", JSON)
 
 
 def _status_text(outcome) -> str:  # noqa: ANN001
@@ -104,10 +135,12 @@ def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN
     the working directory is restored after it, whatever the plant did with it)."""
     if not _supervised():
         from toggle_cosim.cosim.master import simulate
+        from toggle_cosim.cosim.supervision import in_process_folder
 
         here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         try:
-            return simulate(run, plant, progress)
+            with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
+                return simulate(run, plant, progress)
         finally:  # a plant that changed directory must not move the relative paths that follow
             with contextlib.suppress(OSError):
                 os.fchdir(here)
@@ -180,11 +213,13 @@ def execute_runs(  # noqa: ANN201
     if `keep_traces`, else without them, so that any number of runs holds no descriptor or
     scratch space once written."""
     target = Path(out).absolute()  # before any plant runs: one that changes directory must not move it
+    check_folders(pairs, out)
     outcomes = []
     with contextlib.closing(outcomes_of(pairs, out, quiet, time_limit, jobs)) as results:
         for number, outcome in enumerate(results, start=1):
             label = f"[{number}/{len(pairs)}] {outcome.run.label}"
-            folder = Path(out) / _write_outcome(outcome, target).relative_to(target)  # as the user named it
+            written, replaced = _write_outcome(outcome, target)
+            folder = Path(out) / written.relative_to(target)  # as the user named it
             s = outcome.summary
             detail = (
                 f"final error {s.final_error_m * 1e3:+.4f} mm, peak |i_q*| {s.peak_iq_ref_A:.1f} A"
@@ -194,6 +229,7 @@ def execute_runs(  # noqa: ANN201
             )
             click.echo(
                 f"{label}: {_status_text(outcome)}; {detail}; RTF {outcome.record['real_time_factor']:.0f}; -> {folder}"
+                + (" (replaced the earlier run's files there)" if replaced else "")
             )
             for warning in outcome.warnings:  # plausibility flags (`cosim.plausibility`)
                 click.echo(f"{label}: warning: {warning}")
@@ -210,10 +246,18 @@ def execute_runs(  # noqa: ANN201
     return outcomes
 
 
+SUMMARY_RUNS = 5  # the failed runs the closing line names; each run's line and run.json say the rest
+
+
 def raise_if_failed(outcomes) -> None:  # noqa: ANN001
-    failed = [f"{o.run.label} ({o.reason})" for o in outcomes if not o.complete]
+    """RunFailed naming the failed runs (the first SUMMARY_RUNS, each reason bounded), if any."""
+    from toggle_cosim.messages import bounded_text
+
+    failed = [f"{o.run.label} ({bounded_text(o.reason or '', 200)})" for o in outcomes if not o.complete]
     if failed:
-        raise RunFailed(f"{len(failed)} run(s) failed: {'; '.join(failed)}")
+        more = f"; and {len(failed) - SUMMARY_RUNS} more (each run's line and run.json say why)"
+        named = "; ".join(failed[:SUMMARY_RUNS]) + (more if len(failed) > SUMMARY_RUNS else "")
+        raise RunFailed(f"{len(failed)} run(s) failed: {named}")
 
 
 JOBS_OPTION = click.option(

@@ -52,7 +52,7 @@ def linearize(
     """Trim SCENARIO's plant with slider B at rest at --x-B and write its linear model (A, B, C, D,
     names, units, the operating point) to --out."""
     from toggle_cosim.cli.execution import load_runs
-    from toggle_cosim.design.files import SUFFIXES, write_linear_model
+    from toggle_cosim.design.files import KINDS, SUFFIXES, write_linear_model
     from toggle_cosim.design.linearize import linearize as linearize_plant
     from toggle_cosim.design.model_exchange import ModelExchangeError
     from toggle_cosim.design.trim import TrimError, trim
@@ -61,7 +61,7 @@ def linearize(
         raise InputError(f"{output}: --out must end in .npz or .mat (the linear model's file)")
     if output.suffix == ".mat":
         require("scipy")
-    check_output(output, "linear model (--out)")
+    check_output(output, "linear model (--out)", KINDS[output.suffix])
     run, plant = _variant(load_runs([scenario], fmu), variant, scenario)
     try:
         point = trim(run, x_B, plant)

@@ -25,6 +25,7 @@ from toggle_cosim.cli.app import (
 )
 from toggle_cosim.cli.build_command import build_plant
 from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, execute_runs, load_runs, raise_if_failed
+from toggle_cosim.files.outputs import MARKDOWN, PNG
 from toggle_cosim.runs.definition import COUPLINGS
 
 
@@ -64,7 +65,8 @@ def run(
     jobs: int | None,
 ) -> None:
     """Run scenario files (or SSP archives, .ssp); write trace.csv and run.json per run under
-    OUT/<scenario>/<variant>/."""
+    OUT/<scenario>/<variant>/ (an SSP's under OUT/<archive>_ssp/<set>/; with a --coupling the
+    scenario does not give, OUT/<scenario>_<coupling>/<variant>/)."""
     from toggle_cosim.cli.ssp_command import is_ssp, ssp_runs
 
     ssps = [path for path in scenarios if is_ssp(path)]
@@ -92,15 +94,43 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
 
 @main.command()
 @click.argument("results", nargs=-1, required=True, type=click.Path(path_type=Path))
-@out_file_option("PNG to write (default: RESULTS/figure.png); only with one RESULTS folder.")
-def plot(results: tuple[Path, ...], output: Path | None) -> None:
-    """Draw the paper's nine-panel figure for each scenario results folder (variants overlaid)."""
+@out_file_option("PNG to write (default: RESULTS/figure.png; with --vars or --reference RESULTS/variables.png).")
+@click.option(
+    "--vars",
+    "variables",
+    default=None,
+    metavar="NAMES",
+    help="Variables to draw, comma-separated (x_B,iq_ref): every RESULTS overlaid, one panel each.",
+)
+@click.option(
+    "--reference",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="A reference trace drawn with its funnel band (tolerance files by place, as compare).",
+)
+def plot(results: tuple[Path, ...], output: Path | None, variables: str | None, reference: Path | None) -> None:
+    """Draw results folders or trace files: the paper's nine-panel figure per scenario folder (variants
+    overlaid), or with --vars/--reference every run overlaid variable by variable (any scenario or plant)."""
+    from toggle_cosim.cli.report_command import is_paper_plant, parse_vars, plot_variables
+
     require("matplotlib")
+    names = parse_vars(variables)
+    if names is not None or reference is not None:
+        check_output(output, "figure (--out)", PNG)
+        click.echo(f"wrote {plot_variables(results, names, reference, output)}")
+        return
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")
-    check_output(output, "figure (--out)")
+    check_output(output, "figure (--out)", PNG)
     for folder in results:
-        click.echo(f"wrote {_plot_scenario(folder, output)}")
+        if not folder.is_file() and is_paper_plant(folder):
+            click.echo(f"wrote {_plot_scenario(folder, output)}")
+        else:  # a plant of one's own, or a trace file: the variables it has
+            click.echo(f"wrote {plot_variables([folder], None, None, output or _figure_path(folder))}")
+
+
+def _figure_path(result: Path) -> Path:
+    return (result if result.is_dir() else result.parent) / "figure.png"
 
 
 @main.command()
@@ -122,6 +152,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
     from toggle_cosim.analysis.report import write_summary
 
     require("matplotlib", *(() if skip_build else ("modelica",)))
+    check_output(out / "summary.md", "summary", MARKDOWN)
 
     started = time.perf_counter()
     if not skip_build:
@@ -138,12 +169,14 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
 
     figures = FigureWorkers(min(2, default_jobs(len(PAPER_SCENARIOS))))
     try:
-        left = {name: sum(1 for run, _ in pairs if run.scenario == name) for name in PAPER_SCENARIOS}
+        left: dict = {}
+        for run, _ in pairs:
+            left[run.folder.parent] = left.get(run.folder.parent, 0) + 1
 
         def written(outcome) -> None:  # noqa: ANN001 - a scenario's figure once all its runs are written
-            left[outcome.run.scenario] -= 1
-            if left[outcome.run.scenario] == 0:
-                figures.submit(out / outcome.run.scenario)
+            left[outcome.run.folder.parent] -= 1
+            if left[outcome.run.folder.parent] == 0:
+                figures.submit(out / outcome.run.folder.parent)
 
         outcomes = execute_runs(
             pairs, out, quiet=False, time_limit=time_limit, on_written=written, jobs=jobs, keep_traces=True

@@ -10,6 +10,7 @@ from pathlib import Path
 import click
 
 from toggle_cosim.cli.app import DEFAULT_CONTROLLER, InputError, check_output, main
+from toggle_cosim.files.outputs import SSP
 
 
 @main.command()
@@ -39,7 +40,7 @@ def ssp(scenario: Path, output: Path, plant: Path | None, controller: Path, vari
     from toggle_cosim.ssp.checks import SspError
     from toggle_cosim.ssp.writer import write_ssp
 
-    check_output(output, "SSP (--out)")
+    check_output(output, "SSP (--out)", SSP)
     try:
         written = write_ssp(scenario, output, plant, controller, variants)
     except (ScenarioError, SspError) as error:

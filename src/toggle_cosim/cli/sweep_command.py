@@ -8,8 +8,22 @@ from pathlib import Path
 import click
 
 from toggle_cosim import interrupts
-from toggle_cosim.cli.app import main, require
+from toggle_cosim.cli.app import check_output, main, require
 from toggle_cosim.cli.execution import Seconds
+from toggle_cosim.files.outputs import HTML
+
+
+def _check_report_output(sweep_file: Path, out: Path | None) -> None:
+    """Refuse, before any case runs, a report path that must not be written (a link, a folder);
+    a sweep file that cannot be read is left to the sweep, which says why."""
+    from toggle_cosim.cli.report_command import REPORT_FILE
+    from toggle_cosim.experiments.sweep_spec import SweepError, load_sweep
+
+    try:
+        folder = load_sweep(sweep_file, out).output
+    except (SweepError, OSError, ValueError):
+        return
+    check_output(folder / REPORT_FILE, "HTML report (--html)", HTML)
 
 
 @main.command()
@@ -40,6 +54,11 @@ from toggle_cosim.cli.execution import Seconds
     help="Store every case's whole trace in OUTPUT/traces/ (compressed Parquet, by case_id).",
 )
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@click.option(
+    "--html",
+    is_flag=True,
+    help="Also write OUTPUT/report.html: the heat maps in a browser page (cells open kept traces).",
+)
 def sweep(
     sweep_file: Path,
     out: Path | None,
@@ -50,9 +69,12 @@ def sweep(
     case_timeout: float | None,
     keep_traces: bool,
     quiet: bool,
+    html: bool,
 ) -> None:
     """Parameter sweep: one co-simulation per case -> results.parquet and heat maps (resumable)."""
-    require("pyarrow", "pandas", "distributed", "tqdm", "matplotlib")
+    require("pyarrow", "pandas", "distributed", "tqdm", "matplotlib", *(("plotly",) if html else ()))
+    if html:
+        _check_report_output(sweep_file, out)
     from toggle_cosim.experiments.sweep_run import run_sweep
 
     code = run_sweep(
@@ -68,4 +90,10 @@ def sweep(
     )
     if code == interrupts.EXIT_INTERRUPTED:
         interrupts.exit_interrupted()
+    if html and code in (0, 1):  # a table to show: every case ran, some may have failed
+        from toggle_cosim.cli.report_command import REPORT_FILE, write_sweep_report
+        from toggle_cosim.experiments.sweep_spec import load_sweep
+
+        folder = load_sweep(sweep_file, out).output
+        click.echo(f"wrote {write_sweep_report(folder, folder / REPORT_FILE)}")
     sys.exit(code)

@@ -1,6 +1,8 @@
 """Discrete two-phase variable-structure controller, eqs. (19)-(25) of the paper.
 
-Switching function S = C e + ė with e = x* − x (constant target, so ė = −ẋ). The nominal plant
+Switching function S = C e + ė with e = x* − x (constant target, so ė = −ẋ; with a reference
+trajectory (`reference`, `control.trajectory`) e = x*(t) − x, ė = ẋ*(t) − ẋ and ẍ*(t) enters the
+equivalent control: `control.laws.law_step`). The nominal plant
 ẍ = f + G u + d with u = i_q* is the controller's own model of the mechanism (μ = 0, F_E = 0,
 nominal masses, ideal current loop, d = 0); it never sees the true plant's parameters.
 
@@ -45,6 +47,7 @@ from toggle_cosim.control.parameters import (
     mechanism_terms,
 )
 from toggle_cosim.control.protocol import ControlStep
+from toggle_cosim.control.trajectory import SampledReference
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters, MotorParameters
@@ -97,11 +100,18 @@ class ControlOutput(ControlStep):
         q, qd: the sample's measured coordinate and rate (x_B, v_B or θ1, ω1).
         law: the law's parameters, from which edot, f and G are evaluated on demand (the
             master's loop never needs them).
+        reference: the sample's (q*, q̇*, q̈*) when the law tracks a trajectory (None: the
+            constant target, law.target).
     """
 
     q: float = 0.0
     qd: float = 0.0
     law: LawParameters | None = field(default=None, repr=False)
+    reference: tuple[float, float, float] | None = field(default=None, repr=False)
+
+    def _terms(self) -> tuple[float, float, float, float]:
+        r, rd = (self.law.target, 0.0) if self.reference is None else self.reference[:2]
+        return error_terms(self.q, self.qd, r, rd, self.law)
 
     @property
     def u(self) -> float:
@@ -130,18 +140,18 @@ class ControlOutput(ControlStep):
 
     @property
     def edot(self) -> float:
-        """ė = −q̇."""
-        return error_terms(self.q, self.qd, self.law)[1]
+        """ė = q̇* − q̇."""
+        return self._terms()[1]
 
     @property
     def f(self) -> float:
         """Drift of the nominal model (m/s² or rad/s²)."""
-        return error_terms(self.q, self.qd, self.law)[2]
+        return self._terms()[2]
 
     @property
     def G(self) -> float:
         """Input gain of the nominal model (m/s² per A or rad/s² per A)."""
-        return error_terms(self.q, self.qd, self.law)[3]
+        return self._terms()[3]
 
 
 @dataclass(frozen=True)
@@ -161,6 +171,8 @@ class VSCController:
         K_I: integral gain of the integral law [1/s²]; C_I = 2λ, K_I = λ² put a double pole at −λ.
         i_max: current limit of the integral law [A].
         T_s: sample time [s] (the integral law's integrator).
+        reference: the trajectory the law tracks, sampled on the run's grid
+            (`control.trajectory`; x_B objective only); None: the constant `target`.
     """
 
     diagnostics: ClassVar[tuple[str, ...]] = ("S", "phase", "e")
@@ -175,6 +187,7 @@ class VSCController:
     K_I: float = 64.0
     i_max: float = 10.0
     T_s: float = 0.0005
+    reference: SampledReference | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.objective not in ("x_B", "theta1"):
@@ -190,6 +203,12 @@ class VSCController:
         if not (self.K_f > 0 and math.isfinite(self.K_f)):
             raise ValueError(f"K_f: must be positive and finite, got {self.K_f!r}")
         theta1_from_xB(self.target, self.nominal)  # raises ValueError if out of reach
+        if self.reference is not None and self.objective != "x_B":
+            raise ValueError("reference: a trajectory is tracked by the x_B objective only (use objective x_B)")
+
+    def reference_at(self, t: float, law: LawParameters) -> tuple[float, float, float]:
+        """(q*, q̇*, q̈*) at t: the sampled trajectory's, or (target, 0, 0) for a constant target."""
+        return (law.target, 0.0, 0.0) if self.reference is None else self.reference.at(t)
 
     @property
     def target_theta1(self) -> float:
@@ -216,6 +235,7 @@ class VSCController:
             t0=float(t0),
             T_h=float(T_h),
             **mechanism_terms(p),
+            tracking=0.0 if self.reference is None else 1.0,
         )
 
     @property
@@ -225,7 +245,9 @@ class VSCController:
 
     def switching_function(self, q: float, qd: float) -> float:
         """S = C e + ė for the measured coordinate and rate (with ∫e dt = 0, as at the first sample)."""
-        e, edot, _, _ = error_terms(q, qd, self.law_parameters())
+        law = self.law_parameters()
+        r, rd, _ = self.reference_at(0.0, law)
+        e, edot, _, _ = error_terms(q, qd, r, rd, law)
         return self.gains.C * e + edot
 
     def start(self, t0: float, measurement: Mapping[str, float]) -> ControllerState:
@@ -244,7 +266,9 @@ class VSCController:
                 f" the measurement has no {missing[0]}"
             )
         q, qd = (float(measurement[name]) for name in self.measured)
-        S0, T_h, z0 = law_start(q, qd, self.law_parameters())
+        law = self.law_parameters()
+        r, rd, _ = self.reference_at(float(t0), law)
+        S0, T_h, z0 = law_start(q, qd, r, rd, law)
         return ControllerState(t0=float(t0), S0=S0, T_h=T_h, law=self.law_parameters(float(t0), T_h), z=z0)
 
     def phase(self, state: ControllerState, t: float) -> Phase:
@@ -266,6 +290,13 @@ class VSCController:
         coordinate, rate = self.measured
         q, qd = float(measurement[coordinate]), float(measurement[rate])
         law = state.law if state.law is not None else self.law_parameters(state.t0, state.T_h)
-        u, S, phase, e, z_next = law_step(t, q, qd, state.z, law)
+        if self.reference is None:
+            u, S, phase, e, z_next = law_step(t, q, qd, state.z, law.target, 0.0, 0.0, law)
+            reference = None
+        else:
+            reference = self.reference.at(t)
+            u, S, phase, e, z_next = law_step(t, q, qd, state.z, *reference, law)
         following = state if z_next == state.z else replace(state, z=z_next)
-        return ControlOutput(command=u, diagnostics=(S, phase, e), state=following, q=q, qd=qd, law=law)
+        return ControlOutput(
+            command=u, diagnostics=(S, phase, e), state=following, q=q, qd=qd, law=law, reference=reference
+        )

@@ -6,22 +6,57 @@ and its output is the command i_q* [A]::
 
     x[0] = 0,    u[k] = C x[k] + D e[k],    x[k+1] = A x[k] + B e[k]
 
-evaluated by python-control itself (`output` and `dynamics` of the system's state-space form;
-a transfer function is converted by `control.ss`). The diagnostic recorded in the trace is e.
-python-control is imported by whoever built the system; this module only uses it then.
+on the matrices of the system's state-space form (a transfer function is converted by
+`control.ss`, the realisation python-control gives). The products are evaluated by `lti_step`
+as explicit sums in a fixed order (row by row, column 0 first, the D or B term last) rather than
+by numpy's matmul, whose BLAS may sum in another order: the compiled loop
+(`cosim.compiled_loop`) runs the same sums in C, so both loops give the same bits. The
+command is not clipped or saturated. The diagnostic recorded in the trace is e; the state is
+a tuple of floats. python-control is imported by whoever built the system; this module only
+uses it then.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, ClassVar
-
-import numpy as np
 
 from toggle_cosim.control.protocol import ControlStep
 
-__all__ = ["DiscreteSystemController"]
+__all__ = ["DiscreteSystemController", "LtiMatrices", "lti_step"]
+
+
+@dataclass(frozen=True)
+class LtiMatrices:
+    """A SISO discrete-time realisation as Python floats: A row by row (n × n), B, C (n each), D."""
+
+    A: tuple[tuple[float, ...], ...]
+    B: tuple[float, ...]
+    C: tuple[float, ...]
+    D: float
+
+    @property
+    def n(self) -> int:
+        """The number of states."""
+        return len(self.B)
+
+
+def lti_step(m: LtiMatrices, x: tuple[float, ...], e: float) -> tuple[float, tuple[float, ...]]:
+    """(u, x_next): u = C x + D e, x_next = A x + B e, each sum from 0.0, column 0 first, the input
+    term last (the order loop_skeleton.c's lti_control sums in)."""
+    u = 0.0
+    for c, xj in zip(m.C, x, strict=True):
+        u += c * xj
+    u += m.D * e
+    following = []
+    for row, b in zip(m.A, m.B, strict=True):
+        acc = 0.0
+        for a, xj in zip(row, x, strict=True):
+            acc += a * xj
+        following.append(acc + b * e)
+    return u, tuple(following)
 
 
 class DiscreteSystemController:
@@ -58,14 +93,21 @@ class DiscreteSystemController:
             )
         self.system = control.ss(system) if isinstance(system, control.TransferFunction) else system
         self.output, self.target = output, float(target)
+        self.measured = (output,)  # the plant output the error is formed from
+        s = self.system
+        self.matrices = LtiMatrices(
+            tuple(tuple(float(a) for a in row) for row in s.A),
+            tuple(float(b) for b in s.B[:, 0]),
+            tuple(float(c) for c in s.C[0, :]),
+            float(s.D[0, 0]),
+        )
 
-    def start(self, t0: float, measurement: Mapping[str, float]) -> np.ndarray:
+    def start(self, t0: float, measurement: Mapping[str, float]) -> tuple[float, ...]:
         """The system's state at rest, x = 0."""
-        return np.zeros(self.system.nstates)
+        return (0.0,) * self.matrices.n
 
-    def step(self, state: np.ndarray, t: float, measurement: Mapping[str, float]) -> ControlStep:
-        """u = C x + D e and x ← A x + B e, for e = target − measurement[output]."""
+    def step(self, state: tuple[float, ...], t: float, measurement: Mapping[str, float]) -> ControlStep:
+        """u = C x + D e and x ← A x + B e, for e = target − measurement[output] (`lti_step`)."""
         e = self.target - measurement[self.output]
-        u = self.system.output(t, state, e)
-        following = self.system.dynamics(t, state, e)
-        return ControlStep(float(np.asarray(u).reshape(-1)[0]), (e,), following)
+        u, following = lti_step(self.matrices, state, e)
+        return ControlStep(u, (e,), following)

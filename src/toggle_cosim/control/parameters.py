@@ -52,6 +52,9 @@ class LawParameters:
         t0, T_h: first sample time and hitting time of eq. (21) [s].
         r1 .. g: the nominal mechanism; J3 = m3 r3²/12 and J5 = m5 r5²/12 as the nominal model
             evaluates them.
+        tracking: 0 the law regulates to `target`; 1 it tracks a trajectory (q*, q̇*, q̈*) given
+            per sample (the laws take it as arguments; the controller FMU reads it from its
+            inputs x_ref, v_ref, a_ref when tracking is 1).
     """
 
     law: float = field(
@@ -98,6 +101,12 @@ class LawParameters:
     J3: float = field(metadata=described("kg.m2", "nominal centroidal inertia of link A-B, m3 r3^2/12"))
     J5: float = field(metadata=described("kg.m2", "nominal centroidal inertia of link D-C, m5 r5^2/12"))
     g: float = field(metadata=described("m/s2", "gravitational acceleration"))
+    tracking: float = field(
+        default=0.0,
+        metadata=described(
+            "", "0 the constant target; 1 a trajectory: the controller FMU reads x_ref, v_ref, a_ref", 0.0, 1.0
+        ),
+    )
 
 
 # The fields the law's start sets at its first sample (`laws.law_start`): t0 and T_h. A law that

@@ -22,6 +22,7 @@ from toggle_cosim.physics.parameters import MechanismParameters
 __all__ = [
     "CODES",
     "PAPER_X_START",
+    "REFERENCE_INPUTS",
     "FmuVariable",
     "inputs",
     "markdown_table",
@@ -32,7 +33,7 @@ __all__ = [
 
 Causality = Literal["input", "output", "parameter"]
 
-CODES = ("law", "objective")  # parameters that are integer codes (0 or 1)
+CODES = ("law", "objective", "tracking")  # parameters that are integer codes (0 or 1)
 PAPER_X_START = 0.2329  # the paper's stroke start x_B(0) [m]: the inputs' start values
 
 
@@ -57,12 +58,16 @@ _INPUTS = (
     ("v_B", "m/s", "measured velocity of slider B (the x_B objective reads it)"),
     ("theta1", "rad", "measured lever angle theta1 (the theta1 objective reads it)"),
     ("omega1", "rad/s", "measured lever rate omega1 (the theta1 objective reads it)"),
+    ("x_ref", "m", "reference position x_B*(t) of slider B (read when tracking = 1)"),
+    ("v_ref", "m/s", "reference velocity dx_B*/dt (read when tracking = 1)"),
+    ("a_ref", "m/s2", "reference acceleration d2x_B*/dt2, the feed-forward (read when tracking = 1)"),
 )
+REFERENCE_INPUTS = ("x_ref", "v_ref", "a_ref")  # the law's reference (q*, q̇*, q̈*), in this order
 _OUTPUTS = (
     ("iq_ref", "A", "the command i_q* of eq. (25), held until the next sample"),
     ("S", "", "switching function S of the sample [m/s, or rad/s]"),
     ("phase", "", "0 reaching (eq. (23)), 1 sliding (eq. (24))"),
-    ("e", "", "tracking error e = target - q [m, or rad]"),
+    ("e", "", "tracking error e = target - q (x_ref - x_B when tracking) [m, or rad]"),
     ("z", "", "the integral law's state z = integral of e dt at the next sample [m s, or rad s]"),
 )
 
@@ -74,6 +79,9 @@ def input_starts() -> dict[str, float]:
         "v_B": 0.0,
         "theta1": theta1_from_xB(PAPER_X_START, MechanismParameters(mu=0.0)),
         "omega1": 0.0,
+        "x_ref": VSCController().target,
+        "v_ref": 0.0,
+        "a_ref": 0.0,
     }
 
 

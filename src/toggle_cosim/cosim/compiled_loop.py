@@ -4,10 +4,12 @@ A step in Python (read outputs, controller, set inputs, doStep, record) costs se
 the FMU's own doStep, most of it the controller's nominal model. `CompiledLoop` runs whole
 stretches of the loop in C: it calls the FMU's functions through their pointers, evaluates the
 control law and writes each sample into the master's preallocated trace. The controller is one
-of two kinds: the generated law, or a controller FMU (`ControllerCalls`), whose functions the
+of three kinds: the generated law; a controller FMU (`ControllerCalls`), whose functions the
 loop calls through their pointers in the order `fmu_controller.FmuController.step` calls them
 (its doStep from the previous sample, deferred to this one; its inputs set from the row; its
-command and diagnostics read), so the trace has the Python loop's bits.
+command and diagnostics read); or a discrete LTI system (`LtiCalls`, a python-control system
+adapted by `control.lti`), whose matrices the loop multiplies in the order `control.lti.lti_step`
+sums in. Each way the trace has the Python loop's bits.
 
 Nothing of the law is written twice. The C source is assembled here from
 * the struct `law_t`, generated from the fields of `control.parameters.LawParameters`;
@@ -43,6 +45,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from toggle_cosim.control.lti import LtiMatrices
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.native import CachedLibrary, cached_library_from, load_library_from
 
@@ -52,19 +55,33 @@ if TYPE_CHECKING:
 KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
 _FMU_POINTERS = ("get", "set", "step", "component", "out_vr", "in_vr")
-_POINTERS = ("data", "ctrl_cols", "ctrl_in", "ctrl_out")
-_LONGS = (
-    *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "k", "fault", "status", "no_prior"),
-    *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due"),
+_POINTERS = (
+    "data",
+    "load",
+    "ref",
+    "plant_in",
+    "ctrl_cols",
+    "ctrl_in",
+    "ctrl_out",
+    "lti_a",
+    "lti_b",
+    "lti_c",
+    "lti_x",
+    "lti_xn",
 )
-_DOUBLES = ("T_s", "F_E", "z", "ctrl_t")
-CTRL_LAW, CTRL_FMU = 0, 1  # the controller kinds of the skeleton
+_LONGS = (
+    *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "n_load", "col_x", "k", "fault", "status", "no_prior"),
+    *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due", "lti_n", "lti_col"),
+)
+_DOUBLES = ("T_s", "z", "ctrl_t", "lti_d", "lti_target")
+CTRL_LAW, CTRL_FMU, CTRL_LTI = 0, 1, 2  # the controller kinds of the skeleton
 
 
 @dataclass(frozen=True)
 class ControllerCalls:
     """A controller FMU as the compiled loop calls it (`fmu_controller.FmuController`): its
-    functions, the trace columns of its inputs (in its input order), the number of its outputs
+    functions, the trace columns of its inputs (in its input order; -1 - i: value i of the
+    reference's row, the built-in law's x_ref, v_ref, a_ref), the number of its outputs
     (iq_ref, then the diagnostics), and the time of its last sample (None before the first),
     whose deferred doStep the loop makes at its next sample."""
 
@@ -72,6 +89,18 @@ class ControllerCalls:
     columns: tuple[int, ...]
     n_out: int
     t: float | None
+
+
+@dataclass(frozen=True)
+class LtiCalls:
+    """A discrete LTI controller as the compiled loop runs it (`control.lti.DiscreteSystemController`):
+    its matrices, the trace column of the output its error is formed from, that output's target,
+    and its state at the first sample the loop runs."""
+
+    matrices: LtiMatrices
+    column: int
+    target: float
+    x: tuple[float, ...]
 
 
 @functools.cache
@@ -171,10 +200,7 @@ def kernel_library() -> ctypes.CDLL | None:
             library.kernel_run.restype = ctypes.c_int
             library.kernel_control.argtypes = [
                 ctypes.POINTER(kernel),
-                ctypes.c_double,
-                ctypes.c_double,
-                ctypes.c_double,
-                ctypes.c_double,
+                *(ctypes.c_double,) * 7,
                 ctypes.POINTER(ctypes.c_double),
             ]
             library.kernel_control.restype = ctypes.c_int
@@ -200,13 +226,19 @@ class CompiledLoop:
     """Samples k .. k_end - 1 of the master loop in one C call (see the module docstring).
 
     `data` is the master's preallocated (n + 1, ncols) float64 trace: column 0 time, columns
-    1 .. n_out the FMU outputs, col_u .. col_u + 1 (iq_ref, F_E), then the diagnostics. With
+    1 .. n_out the FMU outputs, col_u .. col_u + 1 (iq_ref, F_E), then the diagnostics, then the
+    plant's other inputs (its last m - 1 columns); `load` the (n + 1, m) float64 array of what
+    sample k sends besides the command, load[k] = (F_E, the other inputs), recorded in its row. With
     `controller` None the controller is the generated law: it reads the columns i_q and i_qd
     (x_B and v_B, or theta1 and omega1 for the θ1 objective) and writes (S, phase, e); `law` is
     the controller's `LawParameters` (with t0 and T_h of its first sample), `z` the law's state
-    at the first sample the loop runs. With `controller` (a controller FMU's calls) the loop
-    calls it instead, in the order `FmuController.step` does, and hands a sample whose columns
-    i_q, i_qd (x_B, v_B) are not finite back before calling it; `law` and `z` are unused.
+    at the first sample the loop runs, `reference` the law's (n + 1, 3) float64 reference
+    (q*, q̇*, q̈*) per sample (`control.trajectory`; None: the constant law.target). With
+    `controller` (a controller FMU's calls) the loop calls it instead, in the order
+    `FmuController.step` does, and hands a sample whose columns i_q, i_qd (x_B, v_B) are not
+    finite back before calling it; `law`, `z` and `reference` are unused. With an `LtiCalls` the
+    loop runs that system (diagnostic e), handing back a sample where i_q, i_qd, e, the command or
+    the next state is not finite; `lti_state()` is its state.
     """
 
     def __init__(
@@ -220,26 +252,50 @@ class CompiledLoop:
         col_u: int,
         n: int,
         T_s: float,
-        F_E: float,
+        load: np.ndarray,
         law: LawParameters | None,
         z: float = 0.0,
-        controller: ControllerCalls | None = None,
+        controller: ControllerCalls | LtiCalls | None = None,
+        reference: np.ndarray | None = None,
     ) -> None:
         if data.dtype != np.float64 or not data.flags.c_contiguous or data.shape[0] < n + 1:
             raise ValueError("the trace must be a C-contiguous float64 array of n + 1 rows")
+        if load.dtype != np.float64 or not load.flags.c_contiguous or load.ndim != 2 or load.shape[0] != n + 1:
+            raise ValueError("the load must be a C-contiguous float64 array of n + 1 rows")
+        if reference is not None and (
+            reference.dtype != np.float64 or not reference.flags.c_contiguous or reference.shape != (n + 1, 3)
+        ):
+            raise ValueError("the reference must be a C-contiguous float64 array of n + 1 rows of 3")
+        n_load = load.shape[1]
+        if not 1 <= n_load <= data.shape[1] - col_u - 1:
+            raise ValueError("the load needs F_E and a trace column for each other input")
         self._library = library
         k = _kernel_struct()()
         _point_at(k.plant, fmu)
-        k.data = data.ctypes.data
+        plant_in = (ctypes.c_double * (1 + n_load))()  # the plant's inputs: the command, then the load row
+        k.data, k.load, k.plant_in = data.ctypes.data, load.ctypes.data, ctypes.addressof(plant_in)
+        k.ref = None if reference is None else reference.ctypes.data
+        k.n_load, k.col_x = n_load, data.shape[1] - (n_load - 1)
         k.n_out, k.ncols, k.i_q, k.i_qd, k.col_u, k.n = n_out, data.shape[1], i_q, i_qd, col_u, n
-        k.T_s, k.F_E, k.z = float(T_s), float(F_E), float(z)
+        k.T_s, k.z = float(T_s), float(z)
         k.no_prior = 0  # the FMU keeps its history unless a policy that never restores says so
         if law is not None:
             for name in LawParameters.__dataclass_fields__:
                 setattr(k.law, name, float(getattr(law, name)))
         buffers: tuple[object, ...] = ()
         k.kind = CTRL_LAW
-        if controller is not None:
+        self._x: ctypes.Array[ctypes.c_double] | None = None
+        if isinstance(controller, LtiCalls):
+            m, size = controller.matrices, max(controller.matrices.n, 1)
+            a = (ctypes.c_double * max(m.n * m.n, 1))(*(value for row in m.A for value in row))
+            b, c = (ctypes.c_double * size)(*m.B), (ctypes.c_double * size)(*m.C)
+            x, xn = (ctypes.c_double * size)(*controller.x), (ctypes.c_double * size)()
+            buffers = (a, b, c, x, xn)
+            k.lti_a, k.lti_b, k.lti_c, k.lti_x, k.lti_xn = (ctypes.addressof(v) for v in buffers)
+            k.kind, k.lti_n, k.lti_col = CTRL_LTI, m.n, controller.column
+            k.lti_d, k.lti_target = m.D, controller.target
+            self._x = x
+        elif controller is not None:
             n_in = len(controller.columns)
             if data.shape[1] < col_u + 1 + controller.n_out:
                 raise ValueError("the trace has fewer columns than the controller FMU's outputs")
@@ -251,7 +307,7 @@ class CompiledLoop:
             k.ctrl_cols, k.ctrl_in, k.ctrl_out = (ctypes.addressof(b) for b in (columns, values, outputs))
             k.ctrl_due, k.ctrl_t = (0, 0.0) if controller.t is None else (1, float(controller.t))
             self._outputs = outputs
-        self._keep = (fmu, data, buffers)  # everything the C side points into stays alive
+        self._keep = (fmu, data, load, reference, plant_in, buffers)  # everything the C side points into stays alive
         self._state = k
         self._pointer = ctypes.pointer(k)
         self._out = (ctypes.c_double * 5)()
@@ -278,14 +334,22 @@ class CompiledLoop:
         """The controller FMU's state: the time of its last sample, whose doStep is deferred."""
         return float(self._state.ctrl_t)
 
+    def lti_state(self) -> tuple[float, ...]:
+        """The LTI controller's state at the next sample (`LtiCalls`)."""
+        assert self._x is not None, "not an LTI controller"
+        return tuple(self._x[: self._state.lti_n])
+
     def controller_outputs(self) -> tuple[float, ...]:
         """The controller FMU's outputs read at its last sample (iq_ref, then the diagnostics)."""
         return tuple(self._outputs)
 
-    def control(self, t: float, q: float, qd: float, z: float = 0.0) -> tuple[float, float, float, float, float] | None:
-        """(u, S, phase, e, z_next) of the compiled law at the measured (q, qd), or None where it
-        defers to Python."""
-        if self._library.kernel_control(self._pointer, t, q, qd, z, self._out):
+    def control(
+        self, t: float, q: float, qd: float, z: float = 0.0, reference: tuple[float, float, float] | None = None
+    ) -> tuple[float, float, float, float, float] | None:
+        """(u, S, phase, e, z_next) of the compiled law at the measured (q, qd) and the reference
+        (q*, q̇*, q̈*) (None: law.target, 0, 0), or None where it defers to Python."""
+        r, rd, rdd = (self._state.law.target, 0.0, 0.0) if reference is None else reference
+        if self._library.kernel_control(self._pointer, t, q, qd, z, r, rd, rdd, self._out):
             return None
         return tuple(self._out)
 

@@ -4,7 +4,7 @@ controller protocol (`control.protocol`) before the run.
 A scenario names a user's controller by a factory::
 
     controller:
-      python: "my_controllers:make_pid"    # module:callable, imported from the scenario's folder or sys.path
+      python: "my_controllers:make_pid"    # module:callable, beside the scenario file or on sys.path (`user_code`)
       parameters: {Kp: 40.0, Ki: 5.0}       # passed to the factory as keyword arguments
       error: {output: x_B}                  # python-control systems only: e = target − output
       command: iq_ref                       # python-control systems only: the input the system drives
@@ -22,19 +22,28 @@ checked by `plant.controller_contract` and run by `fmu_controller.FmuController`
 built-in law's parameters (`controller_contract.LAW_PARAMETERS`) first gets the scenario's own
 controller settings. Every failure is a `ControllerError` whose message names the key and
 the fix; the run commands prefix the scenario file.
+
+`controller_for` runs the user's code (imports the module, calls the factory, loads the FMU):
+the run commands call it only in the run's supervised child (`supervision`); before any run
+they call `check_user_controller`, which runs none of it.
 """
 
 from __future__ import annotations
 
-import importlib
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim import interrupts
+from toggle_cosim.control import trajectory
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
+from toggle_cosim.control.trajectory import SampledReference
+from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
+from toggle_cosim.cosim import user_code
+from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
@@ -42,11 +51,20 @@ from toggle_cosim.plant.contract import ContractError
 from toggle_cosim.plant.controller_contract import ControllerFmu, check_controller_fmu
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["builtin_controller", "controller_for", "controller_record", "fmu_settings", "load_factory"]
+__all__ = [
+    "builtin_controller",
+    "check_user_controller",
+    "controller_for",
+    "controller_record",
+    "fmu_settings",
+    "load_factory",
+    "one_line",
+]
 
 
 def builtin_controller(run: Run) -> VSCController:
-    """The scenario's built-in controller, with its own nominal model (never the plant's parameters)."""
+    """The scenario's built-in controller, with its own nominal model (never the plant's parameters),
+    tracking the run's trajectory (stroke.trajectory, sampled on the run's grid) if it has one."""
     nominal = MechanismParameters(mB=run.controller.nominal_m_B, mu=0.0)
     return VSCController(
         gains=run.controller.gains,
@@ -59,45 +77,63 @@ def builtin_controller(run: Run) -> VSCController:
         K_I=run.controller.K_I,
         i_max=run.controller.i_max,
         T_s=run.T_s,
+        reference=None
+        if run.trajectory is None
+        else SampledReference.of(trajectory.build(run.trajectory), run.steps, run.T_s),
     )
 
 
-def _one_line(error: BaseException) -> str:
-    return " ".join(f"{type(error).__name__}: {error}".split())
+def one_line(error: BaseException) -> str:
+    """An exception as one bounded line: its type and message (`messages.error_text`)."""
+    return error_text(error)
 
 
 def load_factory(spec: str, folder: Path | None) -> Callable[..., Any]:
-    """The callable named by "package.module:attribute", imported from `folder` (the scenario's)
-    first, then sys.path. Raises ControllerError naming key controller.python and the fix."""
+    """The callable named by "package.module:attribute": the module beside the scenario file in
+    `folder` (imported from its file under a name of its own, `user_code`), else from sys.path.
+    Runs the user's module: call it in the run's supervised child. Raises ControllerError naming
+    key controller.python and the fix."""
     module_name, _, attribute = spec.partition(":")
     where = f"beside the scenario file ({folder}) or on sys.path (PYTHONPATH)" if folder else "on sys.path (PYTHONPATH)"
-    entry = str(folder) if folder is not None else None
-    added = entry is not None and entry not in sys.path
-    if added:
-        sys.path.insert(0, entry)
+    found = user_code.locate(module_name, folder)
     try:
-        importlib.invalidate_caches()
-        module = importlib.import_module(module_name)
-    except (Exception, SystemExit) as error:  # noqa: BLE001 - the user's module: any failure is the message
+        module = user_code.import_module(found)
+    except BaseException as error:  # noqa: BLE001 - the user's module: any failure (SystemExit too) is the message
+        if not interrupts.raised_by_code(error):
+            raise
         raise ControllerError(
-            f"key controller.python: cannot import {module_name!r} ({_one_line(error)}); put the module {where}"
+            f"key controller.python: cannot import {module_name!r} ({one_line(error)}); put the module {where}"
         ) from None
-    finally:
-        if added:
-            sys.path.remove(entry)
-    found: Any = module
+    attr: Any = module
     for part in attribute.split("."):
         try:
-            found = getattr(found, part)
+            attr = getattr(attr, part)
         except AttributeError:
             raise ControllerError(
                 f"key controller.python: module {module_name!r} has no {attribute!r} (name a factory in it as {module_name}:NAME)"
             ) from None
-    if not callable(found):
+    if not callable(attr):
         raise ControllerError(
-            f"key controller.python: {spec} is a {type(found).__name__}, not a callable (name a factory function or class)"
+            f"key controller.python: {spec} is a {type(attr).__name__}, not a callable (name a factory function or class)"
         )
-    return found
+    return attr
+
+
+def check_user_controller(run: Run, outputs: Sequence[str] = ()) -> ControllerFmu | None:
+    """The checks of a run's user controller that run none of its code (the command makes them
+    before any run): controller.python's module found (`user_code.locate`) and, beside the
+    scenario file, owned by the user; controller.fmu's archive checked against the protocol,
+    owned by the user, and controller.parameters that it has, of its types. The checked FMU
+    (its warnings are the command's to print), or None. Raises ControllerError."""
+    settings = run.controller
+    if settings.python is not None:
+        user_code.locate(settings.python.partition(":")[0], run.source.parent if run.source is not None else None)
+        return None
+    if settings.fmu is None:
+        return None
+    fmu = _checked_fmu(run, outputs)
+    fmu_settings(run, fmu)
+    return fmu
 
 
 def _context(run: Run, outputs: Sequence[str]) -> ControllerContext:
@@ -140,7 +176,11 @@ def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
     for a parameter the FMU does not have."""
     settings: dict[str, Any] = {}
     if fmu.law_parameters:
-        settings.update(settable_values(builtin_controller(run).law_parameters()))
+        settings.update(
+            (name, value)
+            for name, value in settable_values(builtin_controller(run).law_parameters())
+            if name in fmu.parameters  # an FMU built before the parameter tracking has none
+        )
     for name, value in run.controller.parameters.items():
         if name not in fmu.parameters:
             known = ", ".join(fmu.parameters) or "none"
@@ -148,19 +188,67 @@ def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
                 f"key controller.parameters.{name}: the controller FMU {fmu.path.name} has no parameter {name!r}"
                 f" (its parameters: {known})"
             )
+        wanted = _value_kind(fmu.types.get(name, "Real"))
+        if not _fits(wanted, value):
+            raise ControllerError(
+                f"key controller.parameters.{name}: the controller FMU {fmu.path.name}'s parameter {name!r} is of"
+                f" type {fmu.types.get(name, 'Real')}, so give {wanted}, not {bounded_text(repr(value), 60)}"
+            )
         settings[name] = value
     return list(settings.items())
 
 
-def _fmu_controller(run: Run, outputs: Sequence[str]) -> Any:
-    """The controller FMU of controller.fmu, checked against the plant's outputs and T_s."""
-    from toggle_cosim.cosim.fmu_controller import FmuController
+_INTEGER_TYPES = ("Integer", "Int8", "Int16", "Int32", "Int64", "UInt8", "UInt16", "UInt32", "UInt64", "Enumeration")
 
+
+def _value_kind(fmi_type: str) -> str:
+    """What a scenario value for an FMU variable of `fmi_type` must be, in words."""
+    if fmi_type == "Boolean":
+        return "true or false"
+    if fmi_type == "String":
+        return "a string"
+    return "an integer" if fmi_type in _INTEGER_TYPES else "a number"
+
+
+def _fits(kind: str, value: object) -> bool:
+    if kind == "true or false":
+        return isinstance(value, bool)
+    if kind == "a string":
+        return isinstance(value, str)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return float(value).is_integer() if kind == "an integer" else True
+
+
+def _checked_fmu(run: Run, outputs: Sequence[str]) -> ControllerFmu:
+    """controller.fmu's archive checked against the protocol, the plant's outputs and T_s, and
+    owned by the user running (`user_code.check_owned`); its binary is not loaded."""
+    assert run.controller.fmu is not None
+    if Path(run.controller.fmu).exists():  # a missing file: the contract check's message
+        user_code.check_owned(Path(run.controller.fmu), "key controller.fmu")
     try:
-        fmu = check_controller_fmu(run.controller.fmu, outputs, run.T_s)
+        return check_controller_fmu(run.controller.fmu, outputs, run.T_s)
     except ContractError as error:
         raise ControllerError(f"key controller.fmu: {error}") from None
-    return FmuController(fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}")
+
+
+def _fmu_controller(run: Run, outputs: Sequence[str]) -> Any:
+    """The controller FMU of controller.fmu, checked, its binary loaded (`FmuController`)."""
+    from toggle_cosim.cosim.fmu_controller import FmuController
+
+    fmu = _checked_fmu(run, outputs)
+    reference = None
+    if run.trajectory is not None:
+        if fmu.reference_inputs != REFERENCE_INPUTS or "tracking" not in fmu.parameters:
+            raise ControllerError(
+                f"key controller.fmu: {fmu.path.name} has no inputs {', '.join(REFERENCE_INPUTS)} and parameter"
+                " tracking, so it cannot track stroke.trajectory (build the built-in law's FMU with toggle-cosim build,"
+                " or remove stroke.trajectory)"
+            )
+        reference = builtin_controller(run).reference
+    return FmuController(
+        fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}", reference=reference
+    )
 
 
 def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
@@ -168,6 +256,13 @@ def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
     (a python-control system adapted), checked against the protocol; `outputs` are the plant's
     recorded outputs (the measurement's names, which diagnostics may not reuse). Raises
     ControllerError with the one-line reason."""
+    try:
+        return _controller_for(run, outputs)
+    except ControllerError as error:  # the scenario's module names, as the scenario gave them
+        raise ControllerError(user_code.shown(str(error))) from None
+
+
+def _controller_for(run: Run, outputs: Sequence[str]) -> Controller:
     settings = run.controller
     if settings.fmu is not None:
         controller: Any = _fmu_controller(run, outputs)
@@ -177,10 +272,12 @@ def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
         factory = load_factory(settings.python, run.source.parent if run.source is not None else None)
         try:
             controller = factory(_context(run, outputs), **dict(settings.parameters))
-        except Exception as error:  # noqa: BLE001 - the user's factory: any failure is the message
+        except BaseException as error:  # noqa: BLE001 - the user's factory: any failure is the message
+            if not interrupts.raised_by_code(error):
+                raise
             names = ", ".join(settings.parameters) or "none"
             raise ControllerError(
-                f"key controller.python: {settings.python} raised {_one_line(error)} (called with the context and"
+                f"key controller.python: {settings.python} raised {one_line(error)} (called with the context and"
                 f" controller.parameters: {names}; fix the factory or the parameters)"
             ) from None
         if _is_python_control_system(controller):
@@ -222,7 +319,7 @@ def controller_record(run: Run, controller: object) -> dict[str, Any]:
     record = {
         "python": run.controller.python,
         "parameters": dict(run.controller.parameters) if run.controller.python or run.controller.fmu else {},
-        "class": f"{kind.__module__}.{kind.__qualname__}",
+        "class": f"{user_code.shown(kind.__module__)}.{kind.__qualname__}",
         "diagnostics": list(getattr(controller, "diagnostics", ())),
     }
     fmu = getattr(controller, "fmu", None)

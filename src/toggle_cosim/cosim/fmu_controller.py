@@ -34,9 +34,19 @@ from typing import Any
 from fmpy import extract
 
 from toggle_cosim.control.protocol import ControlStep
+from toggle_cosim.control.trajectory import SampledReference
+from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.cosim.session import CFunctions, FunctionNames, bound_function
 from toggle_cosim.plant.controller_contract import COMMAND, ControllerFmu
-from toggle_cosim.plant.fmi_calls import FMU2SlaveChecked, FMU3SlaveChecked, failed, last_log_line, logger3, quiet
+from toggle_cosim.plant.fmi_calls import (
+    FATAL,
+    FMU2SlaveChecked,
+    FMU3SlaveChecked,
+    failed,
+    last_log_line,
+    logger3,
+    quiet,
+)
 
 __all__ = ["ControllerFmuError", "FmuController"]
 
@@ -53,9 +63,6 @@ _SETTERS = {  # fmpy's setter per FMI type, FMI 2.0 then 3.0
 }
 
 
-FATAL = 4  # fmi2Fatal, fmi3Fatal
-
-
 class ControllerFmuError(Exception):
     """The controller FMU refused a call; str() names the call, the status and its last log line."""
 
@@ -69,6 +76,9 @@ class FmuController:
         T_s: the sample time [s]: every doStep is T_s long.
         t_end: the end of the run [s] (setupExperiment's stop time).
         instance_name: the FMU instance's name (its log lines are printed under it).
+        reference: the trajectory the FMU tracks (the built-in law's FMU with tracking = 1): each
+            sample also sets its inputs x_ref, v_ref, a_ref to the reference's row at t (the
+            rows the compiled loop reads); None: they are left at their start values.
     """
 
     def __init__(
@@ -78,8 +88,10 @@ class FmuController:
         T_s: float,
         t_end: float,
         instance_name: str = "controller",
+        reference: SampledReference | None = None,
     ) -> None:
         self.fmu = fmu
+        self.reference = reference
         self.settings = tuple(settings)
         self.T_s, self.t_end = float(T_s), float(t_end)
         self.instance_name = instance_name
@@ -133,6 +145,8 @@ class FmuController:
             raise ControllerFmuError(f"{fmu.path.name}: the library does not export {', '.join(self._names)}")
         self._is_fmi3 = is_fmi3
         inputs, outputs = fmu.inputs, (COMMAND, *fmu.diagnostics)
+        if self.reference is not None:  # then x_ref, v_ref, a_ref, from the reference
+            inputs = (*inputs, *REFERENCE_INPUTS)
         self._in_vr = (ctypes.c_uint32 * len(inputs))(*(fmu.references[name] for name in inputs))
         self._in_val = (ctypes.c_double * len(inputs))()
         self._n_in = len(inputs)
@@ -257,6 +271,9 @@ class FmuController:
         values = self._in_val
         for j, name in enumerate(self.measured):
             values[j] = measurement[name]
+        if self.reference is not None:
+            j = len(self.measured)
+            values[j], values[j + 1], values[j + 2] = self.reference.at(t)
         n_in, n_out, out = self._n_in, self._n_out, self._out_val
         if n_in:
             status = (

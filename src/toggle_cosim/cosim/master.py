@@ -15,6 +15,11 @@ every exit path. A plant fault (an error status, non-finite outputs) or a contro
 ends the run early: the trace up to the fault is kept and the run is marked failed with the
 reason. A controller with a `close()` (a controller FMU) is closed on every exit path too.
 
+The load F_E (`Run.plant.F_E`) and the plant's other inputs (`Run.plant.inputs`), each a number
+or a signal in time (`signals`), are sampled once before the loop at every communication point
+t_k = k·T_s (`input_samples`); sample k sends row k in both loops and both couplings and records
+it (F_E's column, and one column per other input after the diagnostics); initialisation sends row 0.
+
 Coupling (`Run.coupling`, or simulate's `coupling`): "gauss-seidel" (the default) drives the
 plant over [t_k, t_k+1] with the command the controller computed from the plant's outputs at t_k;
 "jacobi" drives it with the command of sample k - 1 (sample 0's at k = 0), as a master that steps
@@ -35,6 +40,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import controller_for, controller_record
@@ -54,16 +60,20 @@ from toggle_cosim.cosim.stepper import (
 )
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.messages import bounded_text
 from toggle_cosim.physics.mechanism import working_range
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import COUPLINGS, Run
+from toggle_cosim.signals.definitions import as_signal, sample
 
 __all__ = [
     "JACOBI_REASON",
     "RunOutcome",
     "close_controller",
+    "input_samples",
+    "other_inputs",
     "open_session",
     "plant_settings",
     "refused_outcome",
@@ -99,10 +109,18 @@ def plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | b
     return settings
 
 
-def trace_names(plant: PlantInterface, diagnostics: tuple[str, ...] = VSCController.diagnostics) -> tuple[str, ...]:
+def trace_names(
+    plant: PlantInterface, diagnostics: tuple[str, ...] = VSCController.diagnostics, inputs: tuple[str, ...] = ()
+) -> tuple[str, ...]:
     """The columns of a run's trace: time, the plant's recorded outputs, the inputs (iq_ref,
-    F_E), the controller's diagnostics (the built-in law's by default)."""
-    return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics)
+    F_E), the controller's diagnostics (the built-in law's by default), then the plant's other
+    inputs the run sets (`inputs`: `other_inputs(run)`)."""
+    return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics, *inputs)
+
+
+def other_inputs(run: Run) -> tuple[str, ...]:
+    """The plant inputs a run sets besides iq_ref and F_E (`plant.inputs`), in the scenario's order."""
+    return tuple(run.plant.inputs)
 
 
 def _number(value: object) -> float | None:
@@ -116,13 +134,24 @@ def _diagnostics(trace: Trace, names: tuple[str, ...]) -> tuple[np.ndarray | Non
     return tuple(None for _ in names)
 
 
-def open_session(plant: PlantInterface, instance_name: str) -> PlantSession:
-    """A session of `plant` with the master's outputs and inputs: the FMU unzipped and its binary
-    loaded, no instance yet. `simulate(..., session=)` runs on it, run after run."""
-    return PlantSession(plant, instance_name, list(plant.recorded_outputs), list(INPUTS))
+def open_session(plant: PlantInterface, instance_name: str, inputs: tuple[str, ...] = ()) -> PlantSession:
+    """A session of `plant` with the master's outputs and inputs (iq_ref, F_E, then `inputs`, the
+    plant's other inputs a run sets): the FMU unzipped and its binary loaded, no instance yet.
+    `simulate(..., session=)` runs on it, run after run (runs with those other inputs)."""
+    return PlantSession(plant, instance_name, list(plant.recorded_outputs), [*INPUTS, *inputs])
 
 
-def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
+def input_samples(run: Run, n: int) -> np.ndarray:
+    """What each sample k = 0 .. n sends besides the command: F_E, then the plant's other inputs
+    (`other_inputs`), each sampled once from its signal at t_k = k·T_s (`signals`): an (n + 1, m)
+    float64 array in C order. A number gives n + 1 copies of it, so a constant run keeps its bits."""
+    signals = [run.plant.F_E, *run.plant.inputs.values()]
+    columns = [sample(as_signal(signal), n, run.T_s) for signal in signals]
+    return np.ascontiguousarray(np.column_stack(columns), dtype=np.float64)
+
+
+def _initialise(session: PlantSession, run: Run, plant: PlantInterface, sent: tuple[float, ...]) -> None:
+    """Instantiate, set the parameters, and initialise with the inputs (0, then u(0) of the others)."""
     session.instantiate(0.0, run.t_end)
     for name, value in plant_settings(run, plant):
         try:
@@ -130,7 +159,7 @@ def _initialise(session: PlantSession, run: Run, plant: PlantInterface) -> None:
         except Exception as error:  # noqa: BLE001 - name the variable and the value
             raise RuntimeError(f"setting {name} = {value!r} failed ({error})") from None
     session.enter_initialization()
-    session.write_inputs((0.0, run.plant.F_E))
+    session.write_inputs((0.0, *sent))
     session.exit_initialization()
 
 
@@ -184,19 +213,22 @@ def simulate(
     except ControllerError as error:
         close_controller(controller)
         return refused_outcome(run, plant, str(error), started)
-    n = run.steps
-    recorder = Recorder(trace_names(plant, diagnostics), n, buffer)
+    n, others = run.steps, other_inputs(run)
+    if session is not None and session.inputs != (*INPUTS, *others):
+        close_controller(controller)
+        raise ValueError(f"the session sets the inputs {session.inputs}, the run {(*INPUTS, *others)}")
+    recorder = Recorder(trace_names(plant, diagnostics, others), n, buffer, extra=len(others))
     own_session = session is None
     if session is None:
-        session = open_session(plant, run.label)
-    timing, state = Timing(n, run.T_s, run.plant.F_E), LoopState()
+        session = open_session(plant, run.label, others)
+    timing, state = Timing(n, run.T_s, input_samples(run, n)), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
     policy = CheckpointPolicy(saving=session.can_save_state)
     loop = {"kind": "python", "reason": "the run ended before the second sample"}
     interrupted = False
     loop_started = loop_finished = clock.perf_counter()
     try:
-        _initialise(session, run, plant)
+        _initialise(session, run, plant, tuple(float(value) for value in timing.load[0]))
         policy.configure(session)
         python = PythonStepper(session, controller, recorder, timing, state, hooks, jacobi=jacobi)
         loop_started = clock.perf_counter()
@@ -206,7 +238,16 @@ def simulate(
             compiled = (
                 law
                 if isinstance(law, str)
-                else CompiledStepper.build(session, recorder, timing, state, law, controller.measured, hooks)
+                else CompiledStepper.build(
+                    session,
+                    recorder,
+                    timing,
+                    state,
+                    law,
+                    controller.measured,
+                    hooks,
+                    controller.reference if isinstance(controller, VSCController) else None,
+                )
             )
             stepper = HandOver(python, compiled)
             if stepper.compiled is not None:
@@ -236,6 +277,7 @@ def simulate(
     if state.reason is not None and not interrupted:
         state.reason = _cut_at_first_failure(state.reason, recorder, policy.first_failure, run.T_s)
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
+    reason = bounded_text(reason) if reason is not None else None  # one line, whatever the plant or controller said
     complete = reason is None and rows == n + 1
     summary, warnings = None, []
     if rows > 1:
@@ -251,6 +293,7 @@ def simulate(
             _number(getattr(state.controller, "T_h", None)),
             _number(getattr(state.controller, "S0", None)),
             *_diagnostics(trace, ("S", "phase")),
+            None if run.x_final == run.x_target else run.x_final,
         )
         limits = run.plant.working_range or working_range(MechanismParameters())
         warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
@@ -282,16 +325,17 @@ def close_controller(controller: object) -> None:
     if callable(close):
         try:
             close()
-        except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
-            pass
+        except BaseException as error:  # noqa: BLE001 - freeing never changes a run's outcome
+            if not interrupts.raised_by_code(error):  # SystemExit, or KeyboardInterrupt in a run's child
+                raise
 
 
 def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:
     """The outcome of a run whose controller could not be built (`reason`, a ControllerError's
     message): failed, no sample; `started` is the run's perf_counter() start."""
-    names = trace_names(plant)
+    names = trace_names(plant, inputs=other_inputs(run))
     trace = Trace(names, np.empty((0, len(names))))
-    reason = f"controller: {reason}"
+    reason = bounded_text(reason if reason.startswith("controller: ") else f"controller: {reason}")
     loop = {"kind": "none", "reason": "the controller could not be built"}
     wall = clock.perf_counter() - started
     record = run_record(

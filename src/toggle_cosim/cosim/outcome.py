@@ -15,6 +15,7 @@ from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
+from toggle_cosim.signals.definitions import as_signal, describe
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,9 @@ def run_record(
     """What run.json says about a run: status is "complete", "failed" or "interrupted"; `loop` says
     which loop ran and why, `solver_statistics` the plant integrator's counts (None: not read, e.g.
     when the supervised child died before reporting them), `warnings` its plausibility flags,
-    `plant_contract` the optional contract variables the plant does not have, `controller` which
+    `plant_contract` the optional contract variables the plant does not have, `inputs` each
+    signal-driven input's definition (`signals.definitions.describe`: a table's CSV with its
+    path and SHA-256), `controller` which
     controller ran (`controllers.controller_record`; None: not known, e.g. it could not be built)."""
     return {
         "scenario": run.scenario,
@@ -112,6 +115,10 @@ def run_record(
         "retries": retries or [],
         "controller": controller,
         "coupling": run.coupling,
+        "inputs": {
+            "F_E": describe(as_signal(run.plant.F_E)),
+            **{name: describe(as_signal(value)) for name, value in run.plant.inputs.items()},
+        },
         "loop": loop or {"kind": "unknown", "reason": "the run did not report its loop"},
         "wall_time_s": wall,
         "loop_time_s": loop_seconds,

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import faulthandler
+import functools
 import gc
 import math
 import mmap
@@ -39,14 +40,16 @@ from typing import Any
 import numpy as np
 
 from toggle_cosim import interrupts, process_tree
+from toggle_cosim.cosim.exit_reasons import exit_reason
 from toggle_cosim.cosim.supervision import (
     FOLDER_PREFIX,
-    exit_reason,
     fork_child,
     limit_memory,
     rows_recorded,
     seconds_text,
 )
+from toggle_cosim.messages import error_text
+from toggle_cosim.relay import OutputRelay
 
 _HEADER = struct.Struct("<Q")  # the length of the pickled message that follows
 Serve = Callable[[Any, np.ndarray], Any]  # (request, trace buffer) -> answer, in the child
@@ -88,19 +91,31 @@ def _serve_forever(serve: Serve, buffer: np.ndarray, requests: int, answers: int
         try:
             answer: tuple = ("answer", serve(pickle.loads(body), buffer))
         except Exception as error:  # noqa: BLE001 - the request's failure goes back to the parent
-            answer = ("error", " ".join(f"{type(error).__name__}: {error}".split()))
+            answer = ("error", error_text(error))
         _write_message(answers, answer)
         sys.stdout.flush()
+        if getattr(serve, "retired", False):  # it may not serve again (a plant that answered Fatal)
+            return
 
 
 def _host_child(serve: Serve, buffer: np.ndarray, workdir: Path, requests: int, answers: int, parent: int) -> None:
-    """The child's whole life: serve requests until the parent closes the pipe, exit without cleanup."""
-    code = 0
+    """The child's whole life: lead its group, then serve requests in a grandchild it keeps
+    (`process_tree.run_kept`: a plant or controller that kills its parent kills this keeper, not
+    the command) until the parent closes the pipe; end as the grandchild ended."""
     try:
         faulthandler.disable()  # a plant's crash is reported by the parent, not dumped here
         interrupts.as_child()  # the parent decides about interrupts
         process_tree.become_leader()  # its own group, and the adoptive parent of its plant's orphans
         process_tree.die_with(parent)
+    except BaseException:  # noqa: BLE001 - the parent sees the exit status
+        os._exit(4)
+    process_tree.run_kept(functools.partial(_host_work, serve, buffer, workdir, requests, answers))
+
+
+def _host_work(serve: Serve, buffer: np.ndarray, workdir: Path, requests: int, answers: int) -> None:
+    """The grandchild: serve requests until the parent closes the pipe, exit without cleanup."""
+    code = 0
+    try:
         limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the host's folder
         gc.freeze()  # a collection never touches (and so copies) the heap inherited from the parent
@@ -110,8 +125,7 @@ def _host_child(serve: Serve, buffer: np.ndarray, workdir: Path, requests: int, 
     with contextlib.suppress(BaseException):
         sys.stdout.flush()
         sys.stderr.flush()
-        process_tree.end_descendants()  # what the plant started ends with the host
-    os._exit(code)
+    os._exit(code)  # the keeper then ends what the plant started
 
 
 class PlantHost:
@@ -137,6 +151,7 @@ class PlantHost:
         self._request_fd = self._answer_fd = self._pidfd = -1
         self._pending = bytearray()
         self._status: int | None = None
+        self.relay: OutputRelay | None = None
         self._map = mmap.mmap(-1, self.rows * columns * 8)  # anonymous and shared with the child
         self.buffer = np.frombuffer(self._map, dtype=np.float64).reshape(self.rows, columns)
         self.buffer.fill(np.nan)
@@ -150,10 +165,12 @@ class PlantHost:
         """Fork the child (inside `starting_children`: an interrupt waits until its pid is known)."""
         request_read, request_write = os.pipe()
         answer_read, answer_write = os.pipe()
+        self.relay = OutputRelay()  # the host's stdout and stderr, relayed after each request, capped
 
         def child(parent: int) -> None:
             os.close(request_write)
             os.close(answer_read)
+            self.relay.in_child()
             _host_child(self.serve, self.buffer, self._workdir, request_read, answer_write, parent)
 
         try:
@@ -161,6 +178,7 @@ class PlantHost:
         finally:
             os.close(request_read)
             os.close(answer_write)
+            self.relay.after_fork()
             self._request_fd, self._answer_fd = request_write, answer_read
         try:
             self._pidfd = os.pidfd_open(self.pid)
@@ -190,12 +208,21 @@ class PlantHost:
         """The descriptors to select on while busy: the answer pipe and the child's pidfd."""
         if not self.busy:
             return []
-        return [self._answer_fd] + ([self._pidfd] if self._pidfd >= 0 else [])
+        relayed = self.relay.fds() if self.relay is not None else []
+        return [self._answer_fd] + ([self._pidfd] if self._pidfd >= 0 else []) + relayed
 
     def service(self, ready: Sequence[int] | set[int]) -> HostAnswer | None:
         """Read what the child wrote, notice its death or the deadline; the answer once over."""
         if not self.busy:
             return None
+        if self.relay is not None:
+            self.relay.drain(ready)
+        answer = self._service(ready)
+        if answer is not None and self.relay is not None:
+            self.relay.relay()  # what the request printed, capped (`relay`)
+        return answer
+
+    def _service(self, ready: Sequence[int] | set[int]) -> HostAnswer | None:
         if self._answer_fd in ready:
             chunk = os.read(self._answer_fd, 1 << 20)
             self._pending += chunk
@@ -263,6 +290,8 @@ class PlantHost:
         self._request_fd = self._answer_fd = self._pidfd = -1
         if self.alive:  # idle: it reads end-of-file and exits; do not wait on a plant's destructors
             self.kill()
+        if self.relay is not None:
+            self.relay.close()
         shutil.rmtree(self._workdir, ignore_errors=True)
 
 

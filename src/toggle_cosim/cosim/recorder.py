@@ -19,10 +19,10 @@ from toggle_cosim.files.traces import Trace
 
 
 class Recorder:
-    """Columns: time, the plant outputs, the inputs iq_ref and F_E, then the controller's
-    diagnostics; one row per sample 0 .. n."""
+    """Columns: time, the plant outputs, the inputs iq_ref and F_E, the controller's diagnostics,
+    then the plant's `extra` other inputs (`Run.plant.inputs`, col_x on); one row per sample 0 .. n."""
 
-    def __init__(self, names: Sequence[str], n: int, buffer: np.ndarray | None = None) -> None:
+    def __init__(self, names: Sequence[str], n: int, buffer: np.ndarray | None = None, extra: int = 0) -> None:
         self.names = tuple(names)
         self.n = n
         shape = (n + 1, len(self.names))
@@ -33,16 +33,17 @@ class Recorder:
         self.col_u = self.names.index("iq_ref")
         self.n_out = self.col_u - 1
         self.i_x, self.i_v = self.names.index("x_B"), self.names.index("v_B")
+        self.col_x = len(self.names) - extra  # the first of the other inputs' columns
         self.rows = 0
 
     def outputs(self, k: int) -> np.ndarray:
         """The plant-output cells of row k (a view: the session reads the FMU's outputs into it)."""
         return self.data[k, 1 : 1 + self.n_out]
 
-    def inputs(self, k: int) -> tuple[float, float]:
-        """The inputs (iq_ref, F_E) sent to the plant after sample k, as recorded."""
+    def inputs(self, k: int) -> tuple[float, ...]:
+        """The inputs (iq_ref, F_E, then the other inputs) sent to the plant after sample k, as recorded."""
         row = self.data[k]
-        return row[self.col_u], row[self.col_u + 1]
+        return (row[self.col_u], row[self.col_u + 1], *row[self.col_x :])
 
     def truncate(self, rows: int) -> None:
         """Keep the first `rows` samples: the later ones are unset (NaN) again, in the buffer

@@ -41,7 +41,7 @@ class Restorable(Protocol):
 
 
 class RecordedInputs(Protocol):
-    def inputs(self, k: int) -> tuple[float, float]: ...
+    def inputs(self, k: int) -> tuple[float, ...]: ...
 
 
 @dataclass

@@ -35,7 +35,7 @@ from fmpy import extract
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.plant.contract import PlantInterface
-from toggle_cosim.plant.fmi_calls import FMU2SlaveChecked, FMU3SlaveChecked, failed
+from toggle_cosim.plant.fmi_calls import FATAL, FMU2SlaveChecked, FMU3SlaveChecked, failed
 
 _VR, _DOUBLES = ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_double)
 _BOOL_OUT = ctypes.POINTER(ctypes.c_bool)
@@ -143,11 +143,13 @@ class PlantSession:
             raise
         self._instantiated = False
         self._was_reset = False  # an instance kept by release(reuse=True), in the state instantiation leaves
+        self.fatal = False  # the FMU answered Fatal to reset: FMI allows no further call to its binary
         ref = plant.references
         self._out_vr = (ctypes.c_uint32 * len(outputs))(*(ref[n] for n in outputs))
         self._out_val = (ctypes.c_double * len(outputs))()
         self._out_view = np.frombuffer(self._out_val, dtype=np.float64)
         self._n_out = len(outputs)
+        self.inputs = tuple(inputs)  # the names write_inputs sets, in order
         self._in_vr = (ctypes.c_uint32 * len(inputs))(*(ref[n] for n in inputs))
         self._in_val = (ctypes.c_double * len(inputs))()
         self._n_in = len(inputs)
@@ -267,8 +269,12 @@ class PlantSession:
                 self.fmu.reset()
                 self._was_reset = True
                 return
-            except Exception:  # noqa: BLE001 - an FMU that cannot reset gets a new instance
-                pass
+            except Exception as error:  # noqa: BLE001 - an FMU that cannot reset gets a new instance
+                if getattr(error, "status", None) == FATAL:  # no call of any kind to this binary again
+                    self.fatal = True
+                    self._instantiated = False
+                    self._component = None
+                    return
         try:
             self.fmu.terminate()
         except Exception:  # noqa: BLE001 - an FMU in error state may refuse terminate
@@ -284,9 +290,11 @@ class PlantSession:
             self.fmu.fmi2FreeInstance(component)
 
     def close(self) -> None:
-        """Terminate and free the instance, whatever state it is in, and delete the unzipped copy."""
+        """Terminate and free the instance, whatever state it is in, and delete the unzipped copy
+        (after a Fatal status nothing is called: the binary stays loaded until the process ends)."""
         try:
-            self.release(reuse=False, unload=True)
+            if not self.fatal:
+                self.release(reuse=False, unload=True)
         finally:
             shutil.rmtree(self._unzipped, ignore_errors=True)
 

@@ -5,9 +5,10 @@ one can take over from another at any sample.
 * `PythonStepper`: the loop in Python over the `PlantSession` and any controller that meets
   the protocol (`control.protocol`).
 * `CompiledStepper`: the same loop in C (`compiled_loop`, generated from `control.laws`),
-  stopping at every sample a step hook wants to see. It runs the built-in law, or calls a
-  controller FMU's C functions in the order `FmuController.step` calls them
-  (`compiled_controller` says which, or why neither). A controller FMU's failure in C raises
+  stopping at every sample a step hook wants to see. It runs the built-in law, calls a
+  controller FMU's C functions in the order `FmuController.step` calls them, or runs a
+  python-control system's matrices as `control.lti` does (`compiled_controller` says which, or
+  why none). A controller FMU's failure in C raises
   the `ControllerFailed` the Python loop raises for it, at the same sample.
 * `HandOver`: the compiled stepper while it can, then, from a sample the C hands back (non-
   finite outputs, a law that raises there), the Python stepper. It says which loop ran, and why.
@@ -23,11 +24,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
+import numpy as np
 from fmpy.fmi1 import FMICallException
 
+from toggle_cosim import interrupts
 from toggle_cosim.control.controller import ControllerState, VSCController
+from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
+from toggle_cosim.control.trajectory import SampledReference
 from toggle_cosim.cosim.compiled_loop import (
     COMMAND_REJECTED,
     CONTROLLER_FAILED,
@@ -35,12 +40,14 @@ from toggle_cosim.cosim.compiled_loop import (
     HAND_BACK,
     CompiledLoop,
     ControllerCalls,
+    LtiCalls,
     kernel_library,
     kernel_reason,
 )
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.recorder import Recorder, StepHook
 from toggle_cosim.cosim.session import PlantSession
+from toggle_cosim.messages import error_text
 
 
 class StepFailed(Exception):
@@ -99,10 +106,26 @@ def compiled_law(controller: object, state: object) -> LawParameters | str:
     return state.law
 
 
-def compiled_controller(controller: object, state: object) -> LawParameters | FmuController | str:
+def compiled_controller(
+    controller: object, state: object
+) -> LawParameters | FmuController | DiscreteSystemController | str:
     """What the compiled loop may run in place of `controller`: the built-in law (`compiled_law`),
     a controller FMU whose C functions it can call (an `FmuController` whose step is
-    `FmuController.step`, loaded), or why neither."""
+    `FmuController.step`, loaded), a python-control system's adapter whose start and step are
+    `DiscreteSystemController`'s (with its diagnostics and a state its start made), or why none."""
+    if isinstance(controller, DiscreteSystemController):
+        for method in ("step", "start"):
+            if _replaced(controller, DiscreteSystemController, method):
+                own = getattr(type(controller), method, None)
+                return (
+                    f"the controller's {method} is {_name(own)}, not {_name(getattr(DiscreteSystemController, method))}: "
+                    "the compiled loop runs only the latter's sums"
+                )
+        if controller.diagnostics != DiscreteSystemController.diagnostics:
+            return "the controller's diagnostics are not DiscreteSystemController's: the compiled loop records only e"
+        if not (isinstance(state, tuple) and len(state) == controller.matrices.n):
+            return "the controller's state is not a tuple of its system's states"
+        return controller
     if not isinstance(controller, FmuController):
         return compiled_law(controller, state)
     if _replaced(controller, FmuController, "step"):
@@ -124,11 +147,13 @@ class Stepper(Protocol):
 
 @dataclass
 class Timing:
-    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; F_E the constant load input."""
+    """The sampling of a run: n + 1 samples 0 .. n, T_s apart; `load` the inputs besides the
+    command that sample k sends, load[k] = (F_E, then the plant's other inputs): an (n + 1, m)
+    float64 array, C order (`master.input_samples`)."""
 
     n: int
     T_s: float
-    F_E: float
+    load: np.ndarray
 
 
 class PythonStepper:
@@ -149,12 +174,15 @@ class PythonStepper:
         self.session, self.controller, self.recorder = session, controller, recorder
         self.timing, self.state, self.hooks = timing, state, tuple(hooks)
         self.jacobi = jacobi
+        self.load = timing.load.tolist()  # row k: what sample k sends besides the command, as Python floats
         self.index = {name: j for j, name in enumerate(recorder.names[1 : 1 + recorder.n_out], start=1)}
 
     def _start(self, t: float, measurement: Measurement) -> Any:
         try:
             return self.controller.start(t, measurement)
-        except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run with the reason
+        except BaseException as error:  # noqa: BLE001 - the user's code: its failure ends the run with the reason
+            if not interrupts.raised_by_code(error):
+                raise
             raise ControllerFailed(f"the controller's start raised at t = {t:.6g} s: {_error(error)}") from None
 
     def advance(self, k0: int, k_end: int, read_first: bool = True) -> int:
@@ -162,11 +190,15 @@ class PythonStepper:
         already (read by the compiled loop before it handed the sample back)."""
         rec, st = self.recorder, self.state
         data, n_out, i_x, i_v, col_u = rec.data, rec.n_out, rec.i_x, rec.i_v, rec.col_u
-        T_s, n, F_E = self.timing.T_s, self.timing.n, self.timing.F_E
+        T_s, n, load = self.timing.T_s, self.timing.n, self.load
+        col_x = rec.col_x
+        others = col_x < len(rec.names)  # the plant has inputs besides iq_ref and F_E
         read_outputs, write_inputs, do_step = self.session.read_outputs, self.session.write_inputs, self.session.do_step
         control_step, isfinite, hooks, index = self.controller.step, math.isfinite, self.hooks, self.index
         jacobi = self.jacobi
-        n_diagnostics = len(rec.names) - col_u - 2
+        n_diagnostics = col_x - col_u - 2
+        col_d = col_u + 2  # the first diagnostic's column
+        outputs = data[:, 1 : 1 + n_out]  # row k's outputs: outputs[k], a view the session reads into
         state = st.controller
         try:
             for k in range(k0, k_end):
@@ -174,7 +206,7 @@ class PythonStepper:
                 row = data[k]
                 row[0] = t
                 if read_first or k != k0:
-                    read_outputs(row[1 : 1 + n_out])
+                    read_outputs(outputs[k])
                 if not (isfinite(row[i_x]) and isfinite(row[i_v])):
                     st.reason = f"plant outputs became non-finite at t = {t:.6g} s"
                     return -1
@@ -183,7 +215,9 @@ class PythonStepper:
                     state = self._start(t, measurement)
                 try:
                     result = control_step(state, t, measurement)
-                except Exception as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                except BaseException as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                    if not interrupts.raised_by_code(error):
+                        raise
                     raise step_raised(t, error) from None
                 try:
                     u, diagnostics, state = checked_command(result, n_diagnostics, t)
@@ -193,20 +227,27 @@ class PythonStepper:
                     held = st.held if st.held is not None else (u, diagnostics)
                     st.held = (u, diagnostics)
                     u, diagnostics = held
+                sent = load[k]  # F_E, then the other inputs
                 row[col_u] = u
-                row[col_u + 1] = F_E
-                row[col_u + 2 :] = diagnostics
+                row[col_u + 1] = sent[0]
+                if n_diagnostics == 1:
+                    row[col_d] = diagnostics[0]
+                elif n_diagnostics:
+                    row[col_d:col_x] = diagnostics
+                if others:
+                    row[col_x:] = sent[1:]
                 rec.rows = k + 1
                 if k == n:
                     return k + 1
-                write_inputs((u, F_E))
+                write_inputs((u, *sent))
                 try:
                     do_step(t, T_s)
                 except FMICallException as error:
                     raise StepFailed(k, error) from None
-                for hook in hooks:
-                    if k % hook.every == 0:
-                        hook(k)
+                if hooks:
+                    for hook in hooks:
+                        if k % hook.every == 0:
+                            hook(k)
             return k_end
         finally:
             st.controller = state
@@ -218,7 +259,7 @@ def step_raised(t: float, error: BaseException) -> ControllerFailed:
 
 
 def _error(error: BaseException) -> str:
-    return " ".join(f"{type(error).__name__}: {error}".split())
+    return error_text(error, 300)  # with the sentence around it, within the reason's bound
 
 
 class CompiledStepper:
@@ -233,7 +274,7 @@ class CompiledStepper:
         timing: Timing,
         state: LoopState,
         hooks: Sequence[StepHook] = (),
-        controller: FmuController | None = None,
+        controller: FmuController | DiscreteSystemController | None = None,
     ) -> None:
         self.loop, self.recorder, self.timing, self.state = loop, recorder, timing, state
         self.names = session.function_names
@@ -241,12 +282,18 @@ class CompiledStepper:
         self.every = min((hook.every for hook in self.hooks), default=0)
         self.handed_back = False
         self.controller = controller
-        self.reason = (
-            "the built-in law, generated from control.laws; C compiler available"
-            if controller is None
-            else f"the controller FMU {controller.fmu.path.name}, called from C through its function pointers; "
-            "C compiler available"
-        )
+        if controller is None:
+            self.reason = "the built-in law, generated from control.laws; C compiler available"
+        elif isinstance(controller, DiscreteSystemController):
+            self.reason = (
+                f"the python-control system ({controller.matrices.n} states) as matrices in C, summed as "
+                "control.lti sums them; C compiler available"
+            )
+        else:
+            self.reason = (
+                f"the controller FMU {controller.fmu.path.name}, called from C through its function pointers; "
+                "C compiler available"
+            )
 
     @classmethod
     def build(
@@ -255,24 +302,38 @@ class CompiledStepper:
         recorder: Recorder,
         timing: Timing,
         state: LoopState,
-        law: LawParameters | FmuController,
+        law: LawParameters | FmuController | DiscreteSystemController,
         measured: tuple[str, ...],
         hooks: Sequence[StepHook] = (),
+        reference: SampledReference | None = None,
     ) -> CompiledStepper | str:
         """The compiled stepper from the current sample on, or why there is none. `law` is the
-        built-in law to run, or the controller FMU to call (`compiled_controller`), `measured`
-        the plant outputs it reads."""
+        built-in law to run, the controller FMU to call, or the python-control system's adapter
+        (`compiled_controller`), `measured` the plant outputs it reads, `reference` the trajectory
+        the built-in law tracks (its `VSCController.reference`; None: the constant target; a
+        controller FMU's is its own)."""
+        if isinstance(law, FmuController):
+            reference = law.reference
+        if reference is not None and (reference.T_s != timing.T_s or reference.values.shape != (timing.n + 1, 3)):
+            return "the law's reference is not sampled on the run's grid (T_s, t_end): the Python loop evaluates it"
+
         library = kernel_library()
         functions = session.c_functions()
         if library is None or functions is None:
             return kernel_reason() or "the FMU's C functions are not reachable"
         names = recorder.names
-        if isinstance(law, FmuController):
+        controller: ControllerCalls | LtiCalls | None
+        if isinstance(law, DiscreteSystemController):
+            controller = LtiCalls(law.matrices, names.index(law.output), law.target, state.controller)
+            i_q, i_qd, parameters, z = recorder.i_x, recorder.i_v, None, 0.0
+        elif isinstance(law, FmuController):
             calls = law.c_functions()
             if calls is None:
                 return "the controller FMU's C functions are not reachable"
+            # the reference inputs x_ref, v_ref, a_ref: columns -1, -2, -3 (the reference's row k)
+            feed = (-1, -2, -3) if reference is not None else ()
             controller = ControllerCalls(
-                calls, tuple(names.index(name) for name in measured), 1 + len(law.diagnostics), state.controller
+                calls, (*(names.index(name) for name in measured), *feed), 1 + len(law.diagnostics), state.controller
             )
             i_q, i_qd, parameters, z = recorder.i_x, recorder.i_v, None, 0.0
         else:
@@ -288,16 +349,20 @@ class CompiledStepper:
             recorder.col_u,
             timing.n,
             timing.T_s,
-            timing.F_E,
+            timing.load,
             parameters,
             z,
             controller,
+            None if reference is None else reference.values,
         )
         return cls(loop, session, recorder, timing, state, hooks, law if controller is not None else None)
 
     def _sync(self) -> None:
-        """The shared controller state from the C's: the law's integrator, or the controller
-        FMU's last sample."""
+        """The shared controller state from the C's: the law's integrator, the LTI system's
+        state, or the controller FMU's last sample."""
+        if isinstance(self.controller, DiscreteSystemController):
+            self.state.controller = self.loop.lti_state()
+            return
         if self.controller is not None:
             self.state.controller = self.loop.controller_time
             return

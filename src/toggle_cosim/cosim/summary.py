@@ -24,7 +24,7 @@ import numpy as np
 class RunSummary:
     """What the results table (`summary.md`, docs/paper.md) reports for a run."""
 
-    final_error_m: float  # x_B* - x_B at t_end
+    final_error_m: float  # x_B* - x_B at t_end (x_B*: where the reference ends)
     settling_time_s: float | None  # last entry into the 2 % band of the stroke, None if never settled
     overshoot_percent: float  # max(x_B - x_B*, 0) over the stroke, in %
     peak_iq_ref_A: float  # max |i_q*|
@@ -101,10 +101,13 @@ def summarize(
     S0: float | None,
     S: np.ndarray | None = None,
     phase: np.ndarray | None = None,
+    x_final: float | None = None,
 ) -> RunSummary:
-    """The run's figures of merit; S and phase: the controller's diagnostics columns, if it has them."""
+    """The run's figures of merit; S and phase: the controller's diagnostics columns, if it has them;
+    x_final: where the reference ends, if not at x_target (a cycle's, at x_start): the final error
+    and the settling band are measured from it."""
     stroke = x_target - x_start
-    error = x_target - x_B
+    error = (x_target if x_final is None else x_final) - x_B
     band = 0.02 * abs(stroke)
     outside = np.nonzero(np.abs(error) > band)[0]
     if outside.size == 0:

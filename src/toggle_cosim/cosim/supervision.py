@@ -35,19 +35,18 @@ import contextlib
 import faulthandler
 import functools
 import gc
-import io
 import math
 import mmap
 import os
 import pickle
 import select
 import shutil
-import signal
+import struct
 import sys
 import tempfile
 import time as clock
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -58,8 +57,17 @@ from toggle_cosim.control.protocol import Controller, ControllerError, check_con
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
 from toggle_cosim.cosim.controllers import controller_for, controller_record
+from toggle_cosim.cosim.exit_reasons import (
+    building_reason,
+    controller_words,
+    exit_reason,
+    in_controller_reason,
+    stopped_in_controller,
+)
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.relay import OutputRelay
 from toggle_cosim.runs.definition import Run
 
 TIME_LIMIT_FLOOR_S = 30.0  # the default wall-clock limit is max(30 s, 20 x t_end)
@@ -93,6 +101,23 @@ def remove_stale_folders(scratch: Path | None = None) -> list[Path]:
         shutil.rmtree(path, ignore_errors=True)
         removed.append(path)
     return removed
+
+
+@contextlib.contextmanager
+def in_process_folder(scratch: Path | None = None) -> Iterator[Path]:
+    """For a run in this process (`simulate(supervised=False)`, TOGGLE_COSIM_SUPERVISE=0): a run
+    folder named as a supervised run's (so that, if a plant's crash ends this process, the next
+    command's `remove_stale_folders` removes it), where the FMUs are unzipped while the block runs
+    (`tempfile.tempdir`, restored after), removed when it ends."""
+    remove_stale_folders(scratch)
+    folder = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=scratch))
+    previous = tempfile.tempdir
+    tempfile.tempdir = str(folder)
+    try:
+        yield folder
+    finally:
+        tempfile.tempdir = previous
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def default_time_limit(t_end: float) -> float:
@@ -182,53 +207,138 @@ def _child(parent: int, plant_process: Callable[[], None]) -> None:
     process_tree.run_kept(plant_process)
 
 
+_FRAME = struct.Struct("<Q")  # the length of the pickled message that follows on the answer pipe
+
+
+def _send(fd: int, message: tuple) -> None:
+    data = pickle.dumps(message)
+    view = memoryview(_FRAME.pack(len(data)) + data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def _messages(chunks: list[bytes]) -> list[tuple]:
+    """The whole messages the child sent, in order (a message cut short by its death is left out)."""
+    data, found, at = b"".join(chunks), [], 0
+    while at + _FRAME.size <= len(data):
+        size = _FRAME.unpack_from(data, at)[0]
+        if at + _FRAME.size + size > len(data):
+            break
+        try:
+            message = pickle.loads(data[at + _FRAME.size : at + _FRAME.size + size])
+        except Exception:  # noqa: BLE001 - a child that died while writing
+            break
+        if isinstance(message, tuple) and message:
+            found.append(message)
+        at += _FRAME.size + size
+    return found
+
+
+def _build_controller(
+    run: Run, plant: PlantInterface, buffer_fd: int, write_fd: int
+) -> tuple[Controller, np.ndarray | None]:
+    """In the child: the run's user controller (controller.python imported and its factory called,
+    or controller.fmu), checked; its trace columns and record sent to the parent ("columns"), and
+    the trace buffer sized for them in the file the parent opened (`buffer_fd`). A controller that
+    cannot be built raises ControllerError (the run is refused with the reason)."""
+    try:
+        controller = controller_for(run, plant.recorded_outputs)
+        diagnostics = check_controller(controller, plant.recorded_outputs)
+    except ControllerError:
+        raise
+    except BaseException as error:  # noqa: BLE001 - the user's code: SystemExit, KeyboardInterrupt included
+        raise ControllerError(f"building the controller raised {error_text(error)}") from None
+    names = master.trace_names(plant, diagnostics, master.other_inputs(run))
+    size = (run.steps + 1) * len(names) * 8
+    if size > limits.max_output():
+        raise ControllerError(
+            f"the controller's {len(diagnostics)} diagnostics make the trace {run.steps + 1} samples x {len(names)}"
+            f" columns, about {size / 1e9:.2f} GB, over the {limits.max_output() / 1e9:.2f} GB output limit"
+            " (record fewer diagnostics, or raise TOGGLE_COSIM_MAX_OUTPUT)"
+        )
+    if buffer_fd < 0:  # a probe (`probe_columns`): the columns alone
+        _send(write_fd, ("columns", names, controller_record(run, controller)))
+        return controller, None
+    size = max((run.steps + 1) * len(names) * 8, 8)
+    os.ftruncate(buffer_fd, size)
+    if hasattr(os, "posix_fallocate"):
+        os.posix_fallocate(buffer_fd, 0, size)
+    mapped = mmap.mmap(buffer_fd, size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
+    buffer = np.frombuffer(mapped, dtype=np.float64, count=(run.steps + 1) * len(names)).reshape(-1, len(names))
+    buffer.fill(np.nan)
+    _send(write_fd, ("columns", names, controller_record(run, controller)))
+    return controller, buffer
+
+
 def _plant_process(
     run: Run,
     plant: PlantInterface,
-    buffer: np.ndarray,
+    buffer: np.ndarray | None,
     progress_slot: np.ndarray | None,
     workdir: Path,
     write_fd: int,
-    capture_log: bool,
-    controller: Controller,
+    controller: Controller | None,
+    buffer_fd: int,
 ) -> None:
-    """The plant's process: run, send the outcome (no trace) back, exit without cleanup."""
+    """The plant's process: build the user's controller if the parent has none (`_build_controller`),
+    run, send the outcome (no trace) back, exit without cleanup. Its stdout and stderr are the
+    parent's relay (`relay.OutputRelay`)."""
     code = 0
     try:
         limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the run's folder
-        log = None
-        if capture_log:
-            log = io.StringIO()
-            sys.stdout = log
+        here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))  # restored after the user's code
 
         def progress(fraction: float) -> None:
             progress_slot[0] = fraction
 
+        if controller is None:
+            try:
+                controller, buffer = _build_controller(run, plant, buffer_fd, write_fd)
+            except ControllerError as error:
+                _send(write_fd, ("refused", bounded_text(str(error))))
+                os._exit(0)
+            finally:
+                with contextlib.suppress(OSError):
+                    os.fchdir(here)  # a module that changed directory at import moves nothing of the run's
+            if buffer is None:  # a probe: built and checked, nothing to run
+                master.close_controller(controller)
+                _send(write_fd, ("probed",))
+                os._exit(0)
         outcome = master.simulate(
             run, plant, progress if progress_slot is not None else None, buffer=buffer, controller=controller
         )
-        answer = (
-            "outcome",
-            outcome.complete,
-            outcome.reason,
-            outcome.wall_seconds,
-            outcome.loop_seconds,
-            outcome.summary,
-            outcome.record,
-            outcome.interrupted,
-            log.getvalue() if log else "",
-        )
+        if outcome.interrupted:  # SIGINT is ignored here: user code raised KeyboardInterrupt itself
+            reason = "the run's code raised KeyboardInterrupt (not an interrupt of the command)"
+            outcome.record.update(status="failed", reason=reason)
+            answer = (
+                "outcome",
+                False,
+                reason,
+                outcome.wall_seconds,
+                outcome.loop_seconds,
+                outcome.summary,
+                outcome.record,
+                False,
+            )
+        else:
+            answer = (
+                "outcome",
+                outcome.complete,
+                outcome.reason,
+                outcome.wall_seconds,
+                outcome.loop_seconds,
+                outcome.summary,
+                outcome.record,
+                outcome.interrupted,
+            )
     except BaseException as error:  # noqa: BLE001 - everything goes back to the parent
         if isinstance(error, OSError) and error.filename is None:
             error.filename = str(workdir)  # e.g. no space to unzip the FMU: say where
-        answer = ("error", " ".join(f"{type(error).__name__}: {error}".split()))
+        answer = ("error", error_text(error))
         code = 3
     try:
-        data = pickle.dumps(answer)
-        view = memoryview(data)
-        while view:
-            view = view[os.write(write_fd, view) :]
+        _send(write_fd, answer)
         sys.stdout.flush()
         sys.__stdout__.flush()
         sys.stderr.flush()
@@ -275,9 +385,16 @@ class SupervisedRun:
     descriptors and folder; both are safe to call at any moment and more than once. Several
     children may run at once (`supervised_batch`), each under its own deadline.
 
-    The controller (`controller`, else the run's own, `controllers.controller_for`) is built
-    here, in the parent, since its diagnostics are columns of the trace buffer; the child
-    inherits it. One that cannot be built fails the run before any child starts."""
+    The controller given (`controller`), or the scenario's built-in law, is built here, in the
+    parent, and the child inherits it; one that cannot be built fails the run before any child
+    starts. A user's controller (controller.python, controller.fmu) is built in the child alone,
+    under the run's time limit: the parent never runs the user's code. Its diagnostics are
+    columns of the trace, so the child sizes the trace buffer (a file the parent opened before the
+    fork, with no name) and sends the columns first; whatever ends the child before that (an exit,
+    a crash, SystemExit, the time limit) fails the run as the controller's failure.
+
+    The child's stdout and stderr are pipes the parent reads while it waits and relays, capped,
+    once the run is over (`relay`)."""
 
     def __init__(
         self,
@@ -286,21 +403,30 @@ class SupervisedRun:
         *,
         time_limit: float | None = None,
         scratch: Path | None = None,
-        capture_log: bool = False,
         with_progress: bool = False,
         controller: Controller | None = None,
+        probe: bool = False,
     ) -> None:
+        self._probe = probe  # only build the user's controller and send its columns (`probe_columns`)
         self.run = run
         self.plant = plant
         self.limit = time_limit_of(run, time_limit)
         self.started = clock.perf_counter()
         self.refused: str | None = None  # why the controller could not be built
-        try:
-            self.controller = controller if controller is not None else controller_for(run, plant.recorded_outputs)
-            diagnostics = check_controller(self.controller, plant.recorded_outputs)
-        except ControllerError as error:
-            self.controller, diagnostics, self.refused = None, VSCController.diagnostics, str(error)
-        self.names = master.trace_names(plant, diagnostics)
+        self.controller: Controller | None = None
+        # a user's controller is built in the child (`_build_controller`): its columns come from there
+        self.deferred = controller is None and (run.controller.python is not None or run.controller.fmu is not None)
+        diagnostics = VSCController.diagnostics
+        if not self.deferred:
+            try:
+                self.controller = controller if controller is not None else controller_for(run, plant.recorded_outputs)
+                diagnostics = check_controller(self.controller, plant.recorded_outputs)
+            except ControllerError as error:
+                self.controller, self.refused = None, str(error)
+        self.names = master.trace_names(plant, diagnostics, master.other_inputs(run))
+        self._buffer_fd = -1  # deferred: the trace buffer's file, sized by the child
+        self._built: tuple | None = None  # deferred: the child's ("columns", names, controller record)
+        self.relay: OutputRelay | None = None
         self.pid = -1
         self.status: int | None = None
         self.reason: str | None = None
@@ -312,7 +438,6 @@ class SupervisedRun:
         self.buffer = np.full((0, len(self.names)), np.nan)
         self.progress_slot: np.ndarray | None = None
         self.deadline = math.inf
-        self._capture_log = capture_log
         self._with_progress = with_progress
         self._scratch = Path(scratch) if scratch is not None else Path(tempfile.gettempdir())
         self._workdir: Path | None = None
@@ -337,7 +462,10 @@ class SupervisedRun:
     def _fork(self) -> None:
         try:
             self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=self._scratch))
-            _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
+            if self.deferred and not self._probe:
+                self._buffer_fd = _unnamed_file(self._workdir)
+            else:
+                _, self.buffer = _map_buffer(self._workdir, self.run.steps + 1, len(self.names))
         except OSError as error:
             self.reason = (
                 f"no scratch space for the run's trace buffer in {self._scratch} ({error.strerror or error}; "
@@ -348,19 +476,21 @@ class SupervisedRun:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
+        self.relay = OutputRelay()
 
         def child(parent: int) -> None:
             os.close(read_fd)
+            self.relay.in_child()
             plant_process = functools.partial(
                 _plant_process,
                 self.run,
                 self.plant,
-                self.buffer,
+                None if self.deferred else self.buffer,
                 self.progress_slot,
                 self._workdir,
                 write_fd,
-                self._capture_log,
                 self.controller,
+                self._buffer_fd,
             )
             _child(parent, plant_process)
 
@@ -368,6 +498,7 @@ class SupervisedRun:
             fork_child(child, lambda pid: setattr(self, "pid", pid))
         finally:
             os.close(write_fd)
+            self.relay.after_fork()
         os.set_blocking(read_fd, False)  # a helper the plant forked may hold the pipe open: never wait on it
         self.deadline = clock.monotonic() + self.limit
         try:
@@ -377,8 +508,9 @@ class SupervisedRun:
         self._watch = [self._read_fd] + ([self._pidfd] if self._pidfd >= 0 else [])
 
     def watched(self) -> list[int]:
-        """The descriptors to select on: the answer pipe, and the child's pidfd where there is one."""
-        return [] if self.done else list(self._watch)
+        """The descriptors to select on: the answer pipe, the child's pidfd where there is one, and
+        the pipes of its stdout and stderr."""
+        return [] if self.done else list(self._watch) + (self.relay.fds() if self.relay is not None else [])
 
     @property
     def polls(self) -> bool:
@@ -396,6 +528,8 @@ class SupervisedRun:
             self.reason = f"time limit {seconds_text(self.limit)} exceeded"
             self._kill()
             return True
+        if self.relay is not None:
+            self.relay.drain(ready)
         if self._read_fd in ready and self._read_fd in self._watch:
             self._drain()
         if (self._pidfd in ready or self._pidfd < 0) and process_tree.has_ended(self.pid):
@@ -430,42 +564,93 @@ class SupervisedRun:
         self._kill()
 
     def close(self) -> None:
-        for fd in (self._read_fd, self._pidfd):
+        self._drain()
+        if self.deferred and self._buffer_fd >= 0:
+            self._map_built()
+        for fd in (self._read_fd, self._pidfd, self._buffer_fd):
             if fd >= 0:
                 with contextlib.suppress(OSError):
                     os.close(fd)
-        self._read_fd = self._pidfd = -1
+        self._read_fd = self._pidfd = self._buffer_fd = -1
+        if self.relay is not None:
+            self.relay.drain()
+            self.relay.close()
         if self._workdir is not None:
             shutil.rmtree(self._workdir, ignore_errors=True)  # the map outlives its file
 
+    def messages(self) -> list[tuple]:
+        """The whole messages the child sent so far, in order."""
+        return _messages(self._chunks)
+
+    def _map_built(self) -> None:
+        """Deferred: the trace buffer the child sized, mapped here once its columns came."""
+        built = next((message for message in self.messages() if message[0] == "columns"), None)
+        if built is None or self._built is not None:
+            return
+        names = tuple(built[1])
+        size = max((self.run.steps + 1) * len(names) * 8, 8)
+        try:
+            if os.fstat(self._buffer_fd).st_size < size:
+                return
+            mapped = mmap.mmap(self._buffer_fd, size, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE)
+        except (OSError, ValueError):
+            return
+        self._built = built
+        self.names = names
+        count = (self.run.steps + 1) * len(names)
+        self.buffer = np.frombuffer(mapped, dtype=np.float64, count=count).reshape(-1, len(names))
+
     def outcome(self) -> outcomes.RunOutcome:
         """The run's outcome (call once done, after close()): the child's, or failed/interrupted
-        with the reason and the trace up to the last sample the child recorded."""
+        with the reason and the trace up to the last sample the child recorded. What the child
+        printed is relayed first (capped)."""
         run, plant = self.run, self.plant
-        answer = _answer(self._chunks)
+        if self.relay is not None:
+            self.relay.relay()
+        answer = _answer(self.messages())
         rows = rows_recorded(self.buffer)
         trace = Trace(self.names, self.buffer[:rows])
         wall = clock.perf_counter() - self.started
         reason = self.reason
         if self.refused is not None:
             return master.refused_outcome(run, plant, self.refused, self.started)
+        if answer is not None and answer[0] == "refused" and reason is None:
+            return master.refused_outcome(run, plant, answer[1], self.started)
         if answer is not None and answer[0] == "outcome" and reason is None:
-            _, complete, child_reason, _, loop_s, summary, record, child_interrupted, log = answer
-            if log:
-                sys.stdout.write(log)
+            _, complete, child_reason, _, loop_s, summary, record, child_interrupted = answer
             record["wall_time_s"] = wall
             # the trace is a view of the map, which it keeps alive
             return outcomes.RunOutcome(
                 run, trace, complete, child_reason, wall, loop_s, summary, record, child_interrupted
             )
-        if reason is None:
-            reason = self._exit_reason(answer)
-        at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
-        reason = f"{reason}{at}"
+        if self.deferred and self._built is None and not self.interrupted:
+            # the child ended (or was ended) while it imported or built the user's controller
+            reason = building_reason(run, reason, answer, self.status)
+        else:
+            if reason is None:
+                reason = self._exit_reason(answer)
+            at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
+            users = self.deferred or (self.controller is not None and type(self.controller) is not VSCController)
+            in_controller = (
+                users  # the built-in law neither crashes nor hangs: a stop there is the plant's
+                and not self.interrupted
+                and self.status is not None
+                and stopped_in_controller(self.buffer, rows, len(plant.recorded_outputs), self.names)
+            )
+            if in_controller:  # the plant's outputs of the next sample read, no command yet
+                words = controller_words(run.controller.python, run.controller.fmu)
+                reason = in_controller_reason(reason, words, rows * run.T_s, by_limit=self.reason is not None)
+            else:
+                reason = f"{reason}{at}"
+        reason = bounded_text(reason)
         status_word = "interrupted" if self.interrupted else "failed"
-        record = outcomes.run_record(
-            run, plant, status_word, reason, rows, wall, wall, controller=controller_record(run, self.controller)
-        )
+        if self._built is not None:
+            controller = self._built[2]
+        elif self.deferred:
+            controller = None
+        else:
+            controller = controller_record(run, self.controller)
+        record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall, controller=controller)
         return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
 
     def _exit_reason(self, answer: tuple | None) -> str:
@@ -474,15 +659,11 @@ class SupervisedRun:
         return exit_reason(self.status)
 
 
-def exit_reason(status: int | None) -> str:
-    """Why a plant process ended without answering, from its wait status."""
-    if status is not None and os.WIFSIGNALED(status):
-        number = os.WTERMSIG(status)
-        name = signal.Signals(number).name if number in set(signal.Signals) else f"signal {number}"
-        return f"the plant process was killed by {name}"
-    if status is not None:
-        return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
-    return "the plant process ended without an answer"
+def _unnamed_file(folder: Path) -> int:
+    """A read-write file in `folder` that never has a name (O_TMPFILE; create-and-unlink
+    elsewhere): the descriptor, which the child inherits."""
+    with tempfile.TemporaryFile(dir=folder) as stream:
+        return os.dup(stream.fileno())
 
 
 def wait_for(children: list[SupervisedRun], poll: float | None = None) -> None:
@@ -506,11 +687,12 @@ def simulate_supervised(
     time_limit: float | None = None,
     progress: Callable[[float], None] | None = None,
     scratch: Path | None = None,
-    capture_log: bool = False,
     controller: Controller | None = None,
 ) -> outcomes.RunOutcome:
     """`master.simulate` in a supervised child process; never raises for anything the plant or
-    the controller does. `controller`: as for `master.simulate` (the child inherits it).
+    the controller does. `controller`: as for `master.simulate` (the child inherits it); None:
+    the run's own, built in the child. What the child prints is written to this process's
+    sys.stdout and sys.stderr once the run is over, capped (`relay`).
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
     interrupted (`outcome.interrupted`); the caller stops after writing it."""
@@ -519,7 +701,6 @@ def simulate_supervised(
         plant,
         time_limit=time_limit,
         scratch=scratch,
-        capture_log=capture_log,
         with_progress=progress is not None,
         controller=controller,
     )
@@ -537,11 +718,35 @@ def simulate_supervised(
     return child.outcome()
 
 
-def _answer(chunks: list[bytes]) -> tuple | None:
-    if not chunks:
-        return None
+def probe_columns(run: Run, plant: PlantInterface, time_limit: float | None = None) -> tuple[str, ...]:
+    """The trace columns of `run` with its user's controller (controller.python or controller.fmu),
+    found by building and checking the controller in a supervised child (under the run's time
+    limit, or `time_limit`), never in this process. Raises ControllerError with the one-line
+    reason: the controller's own refusal, or what ended the child (an exit, a crash, the limit)."""
+    child = SupervisedRun(run, plant, time_limit=time_limit, probe=True)
     try:
-        answer = pickle.loads(b"".join(chunks))
-    except Exception:  # noqa: BLE001 - a child that died while writing
-        return None
-    return answer if isinstance(answer, tuple) and answer else None
+        child.start()
+        while not child.done:
+            wait_for([child])
+    finally:
+        child.stop()
+        child.close()
+        if child.relay is not None:
+            child.relay.relay()
+    messages = child.messages()
+    built = next((message for message in messages if message[0] == "columns"), None)
+    if built is not None:
+        return tuple(built[1])
+    if child.refused is not None:
+        raise ControllerError(child.refused)
+    refused = next((message for message in messages if message[0] == "refused"), None)
+    if refused is not None:
+        raise ControllerError(refused[1])
+    reason = building_reason(run, child.reason, _answer(child.messages()), child.status)
+    raise ControllerError(bounded_text(reason.removeprefix("controller: ")))
+
+
+def _answer(messages: list[tuple]) -> tuple | None:
+    """The child's last word: its outcome, error or refusal (None if it sent none whole)."""
+    final = [message for message in messages if message[0] in ("outcome", "error", "refused")]
+    return final[-1] if final else None

@@ -71,7 +71,13 @@ class OperatingPoint:
 
 
 def external_force(run: Run) -> float:
-    """The run's external force F_E [N] at the operating point (the one place trim reads it)."""
+    """The run's external force F_E [N] at the operating point (the one place trim reads it); a
+    load that varies in time has no one value to hold against, and is refused."""
+    if not isinstance(run.plant.F_E, (int, float)):
+        raise TrimError(
+            f"key plant.F_E: the load is a {run.plant.F_E.kind} in time; an operating point needs one value"
+            " (give F_E a number in the scenario, e.g. a variant with the load you want to trim at)"
+        )
     return float(run.plant.F_E)
 
 

@@ -60,9 +60,10 @@ class TraceEstimate:
 
 
 def estimate(run, plant) -> TraceEstimate:  # noqa: ANN001
-    from toggle_cosim.cosim.master import trace_names
+    from toggle_cosim.cosim.master import other_inputs, trace_names
 
-    return TraceEstimate(run.steps + 1, len(trace_names(plant)), int(run.resolved.get("record_every", 1)))
+    columns = len(trace_names(plant, inputs=other_inputs(run)))
+    return TraceEstimate(run.steps + 1, columns, int(run.resolved.get("record_every", 1)))
 
 
 def _gb(value: int) -> str:

@@ -11,8 +11,11 @@ say (a target beyond the toggle position) are checked after it.
     t_end: 1.5                          # s
     T_s: 0.0005                         # s, controller sample time
     stroke: {x_start: 0.2329, x_target: 0.3199}
+    # the built-in law may track a profile instead of the constant x_target (control/trajectory.py):
+    # stroke: {x_start: .., x_target: .., trajectory: {kind: trapezoid, v_max: 0.2, a_max: 2.0}}
     plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, current_loop: first_order, parameters: {},
             friction_model: paper, mu_s: 0.2}     # friction_model: paper | dissipative | stick_slip
+    # F_E may be a signal in time: {kind: step, start_time: 0.25, height: 100.0}, ... (`signals.schema`)
     controller: {objective: x_B, gains: {C: 5, Q: 4, P: 50, delta: 0.25, beta: 65}}
     # or a user's controller: {python: "module:factory", parameters: {...}} (docs/controllers.md)
     # or a controller FMU: {fmu: controllers/MyLaw.fmu, parameters: {...}}
@@ -32,10 +35,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from toggle_cosim.control.trajectory import KINDS as TRAJECTORY_KINDS
+from toggle_cosim.control.trajectory import ProfileSpec, build
 from toggle_cosim.limits import MAX_SECONDS
 from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import COUPLINGS, ControllerSettings, ErrorSignal, PlantSettings, Run
+from toggle_cosim.signals.definitions import Signal, SignalError, Table
+from toggle_cosim.signals.schema import signal_from_document, signal_schema
 
 if TYPE_CHECKING:
     import jsonschema
@@ -47,12 +54,7 @@ _PLANT = {
     "type": "object",
     "additionalProperties": False,
     "properties": {
-        "F_E": {
-            "type": "number",
-            "minimum": -10000,
-            "maximum": 10000,
-            "description": "external force on slider B in N, >= 0 resists the stroke",
-        },
+        "F_E": signal_schema(-10000, 10000, "external force on slider B in N, >= 0 resists the stroke"),
         "m_B": {"type": "number", "exclusiveMinimum": 0, "maximum": 1000},
         "mu": {"type": "number", "minimum": 0, "maximum": 1},
         "current_loop": {"enum": ["first_order", "ideal"]},
@@ -76,6 +78,12 @@ _PLANT = {
             "type": "object",
             "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_.\[\]]*\Z"},
             "additionalProperties": {"type": ["number", "boolean"]},
+        },
+        "inputs": {
+            "type": "object",
+            "propertyNames": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\Z"},
+            "additionalProperties": signal_schema(-1e6, 1e6, "an input of the plant FMU, in its unit"),
+            "description": "the plant FMU's other inputs by name: a number or a signal each",
         },
     },
 }
@@ -132,11 +140,26 @@ _CONTROLLER = {
         "command": {"enum": ["iq_ref"]},
     },
 }
+_TRAJECTORY = {
+    "type": "object",
+    "additionalProperties": False,
+    "required": ["kind", "v_max", "a_max"],
+    "description": "the reference the built-in law tracks from x_start to x_target (control/trajectory.py)",
+    "properties": {
+        "kind": {"enum": list(TRAJECTORY_KINDS)},
+        "v_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 100, "description": "velocity limit in m/s"},
+        "a_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e5, "description": "acceleration limit, m/s2"},
+        "j_max": {"type": "number", "exclusiveMinimum": 0, "maximum": 1e8, "description": "jerk limit in m/s3"},
+        "dwell": {"type": "number", "minimum": 0, "maximum": 100, "description": "a cycle's dwell at each end, s"},
+        "repeat": {"type": "integer", "minimum": 1, "maximum": 10000, "description": "a cycle's number of cycles"},
+        "t_start": {"type": "number", "minimum": 0, "maximum": 100, "description": "when the first move starts, s"},
+    },
+}
 _STROKE = {
     "type": "object",
     "additionalProperties": False,
     "required": ["x_start", "x_target"],
-    "properties": {"x_start": _POSITIVE, "x_target": _POSITIVE},
+    "properties": {"x_start": _POSITIVE, "x_target": _POSITIVE, "trajectory": _TRAJECTORY},
 }
 _OVERRIDE = {
     "type": "object",
@@ -219,6 +242,9 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
     if error.validator in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
         relation = {"minimum": ">=", "exclusiveMinimum": ">", "maximum": "<=", "exclusiveMaximum": "<"}
         return f"key {key}: {error.instance!r} is out of range (must be {relation[error.validator]} {error.validator_value})"
+    if error.validator == "type" and isinstance(error.validator_value, list):
+        kinds = " or ".join("mapping" if kind == "object" else kind for kind in error.validator_value)
+        return f"key {key}: {error.instance!r} is not of type {kinds} (write a {kinds})"
     if error.validator == "type":
         return f"key {key}: {error.instance!r} is not of type {error.validator_value} (write a {error.validator_value})"
     if error.validator == "enum":
@@ -292,10 +318,16 @@ def validate_document(document: Any) -> None:
 
 
 def merge_documents(base: dict[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
-    """`base` with `override` applied key by key, nested mappings merged (a variant, a sweep case)."""
+    """`base` with `override` applied key by key, nested mappings merged (a variant, a sweep case);
+    a signal of another kind (plant.F_E: {kind: ...}) replaces the base's, never merges with it."""
     merged = copy.deepcopy(base)
     for key, value in override.items():
-        if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
+        old = merged.get(key)
+        if (
+            isinstance(value, Mapping)
+            and isinstance(old, dict)
+            and value.get("kind", old.get("kind")) == old.get("kind")
+        ):
             merged[key] = merge_documents(merged[key], value)
         else:
             merged[key] = copy.deepcopy(value)
@@ -363,6 +395,85 @@ def _user_controller(controller_doc: Mapping[str, Any], suffix: str, source: Pat
     }
 
 
+def _input_signal(
+    value: Any, name: str, t_end: float, suffix: str, source: Path | None, key: str | None = None
+) -> float | Signal:
+    """The plant input `name` from its scenario value at `key` (default plant.NAME; `signals.schema`):
+    a number stays a float; a table must cover [0, t_end]. Raises ScenarioError naming the key."""
+    try:
+        signal = signal_from_document(value, name, None if source is None else source.parent)
+        if isinstance(signal, Table):
+            signal.check_covers(t_end)
+    except SignalError as error:
+        raise ScenarioError(f"key {key or f'plant.{name}'}{suffix}: {error}") from None
+    return signal
+
+
+OWN_INPUTS = {"F_E": "it has its own key; set plant.F_E instead", "iq_ref": "it is the controller's command"}
+
+
+def _other_inputs(given: Mapping[str, Any], t_end: float, suffix: str, source: Path | None) -> dict[str, Any]:
+    """plant.inputs: the plant's other inputs by name, each a float or a Signal."""
+    inputs = {}
+    for name, value in given.items():
+        if name in OWN_INPUTS:
+            raise ScenarioError(f"key plant.inputs.{name}{suffix}: {name} cannot be set here: {OWN_INPUTS[name]}")
+        inputs[name] = _input_signal(value, name, t_end, suffix, source, key=f"plant.inputs.{name}")
+    return inputs
+
+
+_ONLY_FOR = {"j_max": ("scurve", "cycle"), "dwell": ("cycle",), "repeat": ("cycle",)}
+
+
+def _trajectory(
+    stroke: Mapping[str, Any], controller: ControllerSettings, t_end: float, suffix: str
+) -> ProfileSpec | None:
+    """stroke.trajectory as a `ProfileSpec`, checked: its keys fit its kind, the built-in law
+    on the x_B objective tracks it, and it ends by t_end. Raises ScenarioError naming the key."""
+    doc = stroke.get("trajectory")
+    if doc is None:
+        return None
+    key = f"key stroke.trajectory{suffix}"
+    kind = doc["kind"]
+    for name, kinds in _ONLY_FOR.items():
+        if name in doc and kind not in kinds:
+            raise ScenarioError(
+                f"key stroke.trajectory.{name}{suffix}: only for kind {' or '.join(kinds)} (remove it, or change the kind)"
+            )
+    if kind == "scurve" and "j_max" not in doc:
+        raise ScenarioError(f"{key}: an S-curve needs a jerk limit (add j_max in m/s3, or use kind: trapezoid)")
+    if controller.python is not None:
+        raise ScenarioError(
+            f"{key}: only the built-in law (or its controller FMU) tracks a trajectory (remove stroke.trajectory,"
+            " or controller.python)"
+        )
+    if controller.objective != "x_B":
+        raise ScenarioError(
+            f"{key}: the theta1 objective tracks a constant target only (use controller.objective: x_B, or remove"
+            " stroke.trajectory)"
+        )
+    spec = ProfileSpec(
+        kind=kind,
+        x_start=float(stroke["x_start"]),
+        x_target=float(stroke["x_target"]),
+        v_max=float(doc["v_max"]),
+        a_max=float(doc["a_max"]),
+        j_max=float(doc["j_max"]) if "j_max" in doc else None,
+        dwell=float(doc.get("dwell", 0.0)),
+        repeat=int(doc.get("repeat", 1)),
+        t_start=float(doc.get("t_start", 0.0)),
+    )
+    end = build(spec).end
+    if end > t_end:
+        raise ScenarioError(
+            f"{key}: the profile ends at t = {end:.6g} s, after t_end = {t_end:g} s (raise v_max or a_max"
+            + (", j_max" if spec.j_max is not None else "")
+            + (", shorten dwell or repeat" if kind == "cycle" else "")
+            + ", or lengthen t_end)"
+        )
+    return spec
+
+
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
     stroke = document["stroke"]
     geometry = MechanismParameters()
@@ -395,7 +506,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
     plant_doc = document.get("plant", {})
     controller_doc = document.get("controller", {})
     plant = PlantSettings(
-        F_E=float(plant_doc.get("F_E", 0.0)),
+        F_E=_input_signal(plant_doc.get("F_E", 0.0), "F_E", t_end, suffix, source),
         m_B=float(plant_doc.get("m_B", 4.43)),
         mu=float(plant_doc.get("mu", 0.2)),
         current_loop=plant_doc.get("current_loop", "first_order"),
@@ -405,6 +516,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         rated_current=float(plant_doc.get("rated_current", PlantSettings.rated_current)),
         working_range=_working_range(plant_doc.get("working_range"), geometry, suffix),
         parameters=dict(plant_doc.get("parameters", {})),
+        inputs=_other_inputs(plant_doc.get("inputs") or {}, t_end, suffix, source),
     )
     controller = ControllerSettings(
         objective=controller_doc.get("objective", "x_B"),
@@ -416,6 +528,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         i_max=float(controller_doc.get("i_max", ControllerSettings.i_max)),
         **_user_controller(controller_doc, suffix, source),
     )
+    trajectory = _trajectory(stroke, controller, t_end, suffix)
     fmu = document.get("fmu")
     fmu_path = None
     if fmu is not None:
@@ -430,6 +543,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         T_s=T_s,
         x_start=float(stroke["x_start"]),
         x_target=float(stroke["x_target"]),
+        trajectory=trajectory,
         plant=plant,
         controller=controller,
         resolved={k: v for k, v in document.items() if k != "variants"},

@@ -25,7 +25,14 @@ DEFAULT_CONTROLLER = Path(f"fmus/{CONTROLLER_MODEL}.fmu")
 SCENARIOS = Path("scenarios")
 DEFAULT_REFERENCES = SCENARIOS / "references"
 PAPER_SCENARIOS = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
-SHIPPED_SCENARIOS = (*PAPER_SCENARIOS, "swap_no_gravity", "integral_load", "friction_models")
+SHIPPED_SCENARIOS = (
+    *PAPER_SCENARIOS,
+    "swap_no_gravity",
+    "integral_load",
+    "friction_models",
+    "step_load",
+    "measured_load",
+)
 
 
 def project_folder(start: Path | None = None) -> Path | None:

@@ -25,7 +25,7 @@ import numpy as np
 
 from toggle_cosim import interrupts
 from toggle_cosim.experiments.sweep_spec import Case, SweepError
-from toggle_cosim.experiments.sweep_worker import CaseRunner, case_samples, run_cases
+from toggle_cosim.experiments.sweep_worker import CaseRunner, case_samples, crash_row, run_cases
 
 OnRow = Callable[[dict[str, Any], "np.ndarray | None"], None]
 CONNECT_TIMEOUT_S = 20.0  # a scheduler that does not answer as Dask within this is not one
@@ -203,9 +203,13 @@ def _run_dask(
                     with interrupts.deferred():
                         results = future.result(timeout=RESULT_TIMEOUT_S)
                 except Exception as error:  # noqa: BLE001 - KilledWorker, CancelledError, a lost connection
-                    loss.cases += len(chunk)
-                    loss.reasons.append(" ".join(f"{type(error).__name__}: {error}".split()).split(". ")[0][:200])
-                    continue
+                    reason = _one_line(error)
+                    if not _is_loss(error):  # the task itself raised on a worker: its cases failed, for this reason
+                        results = [(crash_row(case, sha, f"on a Dask worker: {reason}"), None) for case in chunk]
+                    else:
+                        loss.cases += len(chunk)
+                        loss.reasons.append(reason)
+                        continue
                 for row, trace in results:
                     on_row(row, trace)
             submit_more()
@@ -221,6 +225,27 @@ def _run_dask(
 
 class _Lost(Exception):
     pass
+
+
+REASON_CHARACTERS = 2000  # a reason longer than this is cut, and says so
+
+
+def _one_line(error: BaseException) -> str:
+    """The error as one line, whole up to REASON_CHARACTERS (never cut mid-sentence unsaid)."""
+    text = " ".join(f"{type(error).__name__}: {error}".split())
+    return text if len(text) <= REASON_CHARACTERS else text[:REASON_CHARACTERS] + " [... cut]"
+
+
+def _is_loss(error: BaseException) -> bool:
+    """True for a worker or the scheduler gone (the cases did not run: a re-run does them), False
+    for an exception the task raised (the cases failed, and a re-run would fail them again)."""
+    import asyncio
+    import concurrent.futures
+
+    names = {cls.__name__ for cls in type(error).__mro__}
+    return bool(names & {"KilledWorker", "CommClosedError", "CancelledError", "FutureCancelledError"}) or isinstance(
+        error, (concurrent.futures.CancelledError, asyncio.CancelledError, TimeoutError, ConnectionError)
+    )
 
 
 def execute(

@@ -46,6 +46,7 @@ class SweepResult:
     lost: int = 0  # cases a Dask cluster lost (not run)
     lost_reason: str = ""
     wall_seconds: float = 0.0
+    started_at: float | None = None  # the Unix time the cases started running
     worker_peak_rss_mb: float = 0.0  # the largest peak RSS a worker reported
     results: Path | None = None
     figures: list[Path] = field(default_factory=list)
@@ -82,7 +83,9 @@ def check_address_space() -> None:
         )
 
 
-def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) -> tuple[Path, Any]:
+def _resolve_plant(
+    sweep: Sweep, fmu: Path | None, keep_traces: bool = False, case_timeout: float | None = None
+) -> tuple[Path, Any]:
     from toggle_cosim.plant.contract import ContractError, check_plant
 
     chosen = fmu if fmu is not None else sweep.fmu
@@ -102,7 +105,10 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
         path = split_key(key)
         if path[:2] == ["plant", "parameters"] and path[2] not in plant.references:
             raise SweepError(f"{sweep.path}: axis {key}: the plant FMU has no variable {path[2]!r}")
-    names = {name for case in sweep.cases for name in (case.document.get("plant", {}).get("parameters") or {})}
+    firsts = {
+        case.variant: case for case in reversed(sweep.cases)
+    }.values()  # every case of a variant sets the same keys
+    names = {name for case in firsts for name in (case.document.get("plant", {}).get("parameters") or {})}
     for name in sorted(names):
         if name not in plant.references:
             raise SweepError(f"{sweep.base}: key plant.parameters.{name}: the plant FMU has no variable {name!r}")
@@ -131,18 +137,14 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
                 " output limit; sweep fewer cases, raise T_s, shorten t_end or raise TOGGLE_COSIM_MAX_OUTPUT"
             )
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
 
     seen = set()
-    for (
-        case
-    ) in sweep.cases:  # each distinct setting of the plant (all but F_E and m_B) and controller, before any case runs
-        plant_doc = case.document.get("plant") or {}
-        key = (
-            case.variant,
-            repr(sorted(((k, v) for k, v in plant_doc.items() if k not in ("F_E", "m_B")), key=repr)),
-            repr(case.document.get("controller")),
-        )
+    # the axes that change the plant (all but F_E and m_B) or the controller: a variant and their
+    # values make one setting, checked before any case runs
+    setting = [key for key in sweep.axes if _sets_plant_or_controller(key)]
+    for case in sweep.cases:
+        key = (case.variant, *((type(case.values[name]), case.values[name]) for name in setting))
         if key in seen:
             continue
         seen.add(key)
@@ -151,8 +153,16 @@ def _resolve_plant(sweep: Sweep, fmu: Path | None, keep_traces: bool = False) ->
             check_settings(run, plant)
             if run.controller.python is None and run.controller.fmu is None:
                 controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
-            # a controller.python's or controller.fmu's: built and checked once here, its columns kept for the cases
-            columns = case_columns(case.payload(), plant)
+            check_user_controller(run, plant.recorded_outputs)  # without running the user's code
+            # a controller.python's or controller.fmu's: built and checked once in a supervised child
+            # (`supervision.probe_columns`), never in this process; its columns kept for the cases
+            columns = case_columns(case.payload(), plant, case_timeout)
+            if keep_traces and run.plant.inputs:
+                raise SweepError(
+                    f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
+                    f"law's columns, and this case also records the plant inputs {', '.join(run.plant.inputs)} "
+                    "(plant.inputs); sweep it without --keep-traces (its table row is kept)"
+                )
             if keep_traces and columns != trace_names(plant):
                 raise SweepError(
                     f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
@@ -197,7 +207,7 @@ def execute_sweep(
         rows_per_batch = batch_rows()
     except ValueError as error:
         raise SweepError(str(error)) from error
-    fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces)
+    fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces, case_timeout)
     from toggle_cosim.cosim.supervision import remove_stale_folders
 
     remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
@@ -247,7 +257,11 @@ def _execute_sweep(
             say(f"warning: unreadable result files, their cases run again: {', '.join(store.unreadable[:5])}")
         if retry_failed:
             store.forget_failed()
-        todo = [c for c in sweep.cases if c.case_id not in store.done]
+        untraced = set()
+        if keep_traces:  # a finished case whose trace is not stored (an earlier run without --keep-traces) runs again
+            traced = store.traced()
+            untraced = {c for c, ok in store.done.items() if ok and c not in traced}
+        todo = [c for c in sweep.cases if c.case_id not in store.done or c.case_id in untraced]
         if keep_traces:
             store.drop_traces(c.case_id for c in todo)
         result = SweepResult(total=len(sweep.cases), skipped=len(sweep.cases) - len(todo))
@@ -259,6 +273,8 @@ def _execute_sweep(
             f"sweep {sweep.name}: {result.total} cases; skipped {result.skipped} already done; "
             f"running {len(todo)} on the {backend}"
         )
+        if untraced:
+            say(f"--keep-traces: {len(untraced)} finished cases have no stored trace; they run again to store it")
         if other_fmu:
             say(
                 f"warning: {other_fmu} finished cases were computed with a different FMU; "
@@ -278,6 +294,7 @@ def _execute_sweep(
                 mininterval=0.2 if sys.stderr.isatty() else 5.0,
             )
         run_started = time.perf_counter()
+        result.started_at = time.time()
 
         def on_row(row: dict[str, Any], trace: Any = None) -> None:
             nonlocal failed_now
@@ -317,6 +334,12 @@ def _execute_sweep(
     return result
 
 
+def _sets_plant_or_controller(key: str) -> bool:
+    """Whether an axis key lies in the plant's settings other than F_E and m_B, or the controller's."""
+    path = split_key(key)
+    return path[0] == "controller" or (path[0] == "plant" and len(path) > 1 and path[1] not in ("F_E", "m_B"))
+
+
 def _write_manifest(
     sweep: Sweep, result: SweepResult, fmu: Path, sha: str, scheduler: str | None, workers: int | None
 ) -> None:
@@ -339,6 +362,7 @@ def _write_manifest(
                 "failed_in_table": result.failed,
                 "done_in_table": result.done,
                 "interrupted": result.interrupted,
+                "started_at_unix": result.started_at,
                 "wall_s": result.wall_seconds,
                 "cases_per_s": result.rate,
                 "peak_rss_mb": {"sweep": peak_rss_mb(), "worker": result.worker_peak_rss_mb},

@@ -11,13 +11,20 @@
       plant.m_B: {values: [4.43, 6.645, 8.86]}
       controller.gains.beta: {random: {low: 40, high: 90, n: 5, seed: 1}}
       plant.parameters.mechanism.r3: {values: [0.27, 0.28]}   # after plant.parameters. the rest is one FMU name
+      # plant.F_E.start_time: {values: [0.2, 0.3]}             # a key of the base's signal (plant.F_E: {kind: step, ...})
     output: ../out/sweeps/sweep_FE_mB      # relative to this file; default out/sweeps/<name>
     heatmap: {x: plant.F_E, y: plant.m_B}  # optional, default: the first two axes
 
 Cases are the base's variants (all, or those `variant:` names) times the axis combinations
 (grid: every combination, first axis outermost; zip: the i-th value of every axis together).
 Every case document is the base scenario with the variant and the case's values applied, and is
-validated by the scenario loader before anything runs: one bad case is bad input.
+valid before anything runs: one bad case is bad input, refused with the message of the first bad
+case. The scenario loader's checks are made per axis value, not per case: the axes fall into
+groups whose keys the checks read together (`check_group`: the sampling and every input signal,
+the stroke, the controller, the rest of the plant; a key of its own otherwise), and each
+combination of one group's values is checked once, as the variant's document with those values
+set. No check reads keys of two groups, so a case is valid when each of its groups' combinations
+is; a 400 × 250 grid is 650 checks, not 100,000.
 
 Each case has a stable id, a hash of its resolved scenario document (the base's content, the
 variant and the case's values), so a re-run finds the cases already done and skips them.
@@ -42,6 +49,7 @@ from typing import Any
 from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
+from toggle_cosim.signals.schema import signal_keys
 
 STANDARD_PARAMETERS = ("plant.F_E", "plant.m_B", "plant.mu", "T_s", "t_end")
 METRICS = (*RunSummary.__dataclass_fields__, "fric_share_end")
@@ -131,7 +139,9 @@ class Case:
             "variant": self.variant,
             "document": self.document,
             "parameters": self.parameters,
-            "source": self.source,
+            # absolute: a worker (a Dask worker in another folder) finds the base scenario's
+            # folder, and the controller.python module and controller.fmu beside it, as we do
+            "source": None if self.source is None else os.path.abspath(self.source),
         }
 
 
@@ -169,7 +179,7 @@ def check_axis_key(key: str, what: str = "axis ") -> None:
         raise SweepError(f"{what}{key}: {path[0]} cannot be swept (sweep a physical or numerical key)")
     schema: Mapping[str, Any] = SCENARIO_SCHEMA
     for depth, part in enumerate(path):
-        properties = schema.get("properties", {})
+        properties = schema.get("properties", {}) or signal_keys(schema)  # a signal's: plant.F_E.start_time
         if part in properties:
             schema = properties[part]
         elif "additionalProperties" in schema and isinstance(schema["additionalProperties"], Mapping):
@@ -203,6 +213,65 @@ def get_key(document: Mapping[str, Any], key: str) -> Any:
             return None
         node = node[part]
     return node
+
+
+def check_group(key: str) -> str:
+    """The group of an axis key: keys that the scenario's checks (`scenario.validate_document`'s
+    schema and `scenario._build_run`) read together share one. T_s, t_end and the plant's input
+    signals (a table must cover t_end; a signal's keys are checked together) are "sampling"; the
+    stroke's ends, the controller's keys and the plant's other keys are one group each."""
+    path = split_key(key)
+    if key in ("T_s", "t_end") or path[:2] in (["plant", "F_E"], ["plant", "inputs"]):
+        return "sampling"
+    return path[0] if path[0] in ("stroke", "controller", "plant") and len(path) > 1 else key
+
+
+def with_values(document: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
+    """`document` with the axis values set (as `set_key` sets them), sharing the subtrees no axis
+    key passes through: the mappings along each key's path are copied, the rest is not. Neither
+    the result nor `document` may be changed in place afterwards."""
+    result = dict(document)
+    for key, value in values.items():
+        node = result
+        path = split_key(key)
+        for part in path[:-1]:
+            child = node.get(part)
+            child = dict(child) if isinstance(child, dict) else {}
+            node[part] = child
+            node = child
+        node[path[-1]] = value
+    return result
+
+
+class _CaseIds:
+    """case_id() of a variant's cases, fast: the canonical JSON of the variant's document is
+    written once with a placeholder at each axis key, and a case's text is that with the case's
+    values in place (the same text case_id hashes). Falls back to case_id where an axis key does
+    not hold its placeholder in the text (a key under another axis key)."""
+
+    def __init__(self, resolved: Mapping[str, Any], variant: str | None, keys: list[str]) -> None:
+        self.variant, self.resolved = variant, resolved
+        marks = {key: f"\x00axis{i}\x00" for i, key in enumerate(keys)}
+        text = _id_text(with_values(resolved, marks), variant)
+        quoted = {key: json.dumps(mark) for key, mark in marks.items()}
+        where = sorted((text.find(q), key) for key, q in quoted.items())
+        self.parts: list[str] | None = None
+        if all(text.count(q) == 1 for q in quoted.values()):
+            parts, at = [], 0
+            for position, key in where:
+                parts.append(text[at:position])
+                at = position + len(quoted[key])
+            parts.append(text[at:])
+            self.parts, self.order = parts, [key for _, key in where]
+
+    def __call__(self, values: Mapping[str, Any], document: Mapping[str, Any]) -> str:
+        if self.parts is None:
+            return case_id(document, self.variant)
+        pieces = [self.parts[0]]
+        for key, part in zip(self.order, self.parts[1:], strict=True):
+            pieces.append(json.dumps(_canonical(values[key])))
+            pieces.append(part)
+        return hashlib.sha256("".join(pieces).encode("utf-8")).hexdigest()[:16]
 
 
 def _axis_values(key: str, spec: Mapping[str, Any]) -> list[Any]:
@@ -242,9 +311,13 @@ def _canonical(node: Any) -> Any:
 
 def case_id(document: Mapping[str, Any], variant: str | None) -> str:
     """Stable id of a case: a hash of what it computes (its resolved scenario document and variant)."""
+    return hashlib.sha256(_id_text(document, variant).encode("utf-8")).hexdigest()[:16]
+
+
+def _id_text(document: Mapping[str, Any], variant: str | None) -> str:
+    """The text case_id hashes: the canonical JSON of the variant and the document's content."""
     content = {k: v for k, v in document.items() if k not in _IGNORED_IN_ID}
-    text = json.dumps({"variant": variant, "scenario": _canonical(content)}, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+    return json.dumps({"variant": variant, "scenario": _canonical(content)}, sort_keys=True, separators=(",", ":"))
 
 
 def schema_message(error: Any) -> str:  # a jsonschema.ValidationError
@@ -281,6 +354,97 @@ def _column_type(values: Iterable[Any]) -> str:
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         return "float"
     return "string"
+
+
+_OWNER = {"plant.F_E": "sampling", "T_s": "sampling", "t_end": "sampling", "plant.m_B": "plant", "plant.mu": "plant"}
+
+
+def _standard_parameters(run: Any) -> dict[str, Any]:
+    return {
+        "plant.F_E": run.plant.F_E if isinstance(run.plant.F_E, float) else math.nan,  # NaN: a signal
+        "plant.m_B": run.plant.m_B,
+        "plant.mu": run.plant.mu,
+        "T_s": run.T_s,
+        "t_end": run.t_end,
+    }
+
+
+def _assemble_cases(
+    base: dict[str, Any],
+    variants_doc: Mapping[str, Any],
+    variants: list[str | None],
+    axes: dict[str, list[Any]],
+    combos: list[tuple[Any, ...]],
+    base_path: Path,
+) -> list[Case]:
+    """The cases, in order, each checked through its groups' combinations (module docstring):
+    each combination of a group's values is checked once per variant; a case holding a bad one,
+    or repeating an earlier case, is refused with the message the whole case's check gives."""
+    keys = list(axes)
+    groups: dict[str, list[int]] = {}
+    for i, key in enumerate(keys):
+        groups.setdefault(check_group(key), []).append(i)
+    cases: list[Case] = []
+    seen: dict[str, int] = {}
+    source = str(base_path)
+    for variant in variants:
+        resolved = merge_documents(base, variants_doc[variant]) if variant is not None else copy.deepcopy(base)
+        (base_run,) = runs_from_document(copy.deepcopy(resolved), base_path)  # valid: the base loaded
+        checked: dict[str, dict[tuple[Any, ...], dict[str, Any] | None]] = {}
+        for group, members in groups.items():
+            results: dict[tuple[Any, ...], dict[str, Any] | None] = {}
+            for combo in combos:
+                part = tuple(combo[i] for i in members)
+                key = tuple(map(_identity, part))
+                if key in results:
+                    continue
+                document = with_values(resolved, {keys[i]: value for i, value in zip(members, part, strict=True)})
+                try:
+                    (run,) = runs_from_document(copy.deepcopy(document), base_path)
+                    results[key] = _standard_parameters(run)
+                except ScenarioError:
+                    results[key] = None
+            checked[group] = results
+        standard = _standard_parameters(base_run)
+        ids = _CaseIds(resolved, variant, keys)
+        for combo in combos:
+            index = len(cases)
+            values = dict(zip(keys, combo, strict=True))
+            document = with_values(resolved, values)
+            parameters = dict(standard)
+            for group, members in groups.items():
+                found = checked[group][tuple(_identity(combo[i]) for i in members)]
+                if found is None:
+                    _refuse(document, variant, values, index, base_path)
+                parameters.update((name, found[name]) for name, owner in _OWNER.items() if owner == group)
+            identifier = ids(values, document)
+            if identifier in seen:
+                label = ", ".join(f"{k}={v!r}" for k, v in values.items())
+                raise SweepError(
+                    f"cases {seen[identifier]} and {index} are the same co-simulation ({label}); "
+                    "remove the repeated axis value"
+                )
+            seen[identifier] = index
+            for key, value in values.items():
+                parameters[key] = float(value) if isinstance(value, int) and not isinstance(value, bool) else value
+            cases.append(Case(index, identifier, variant, values, document, parameters, source))
+    return cases
+
+
+def _identity(value: Any) -> tuple[type, Any]:
+    """An axis value as a lookup key: 1, 1.0 and True stay apart (they may check differently)."""
+    return (type(value), value)
+
+
+def _refuse(document: dict[str, Any], variant: str | None, values: Mapping[str, Any], index: int, base: Path) -> None:
+    """Raise the error of the case `index` as the whole case's check gives it."""
+    label = ", ".join(f"{k}={v!r}" for k, v in values.items())
+    where = f"variant {variant}, " if variant else ""
+    try:
+        runs_from_document(copy.deepcopy(document), base)
+    except ScenarioError as error:
+        raise SweepError(f"case {index} ({where}{label}): {error}") from error
+    raise SweepError(f"case {index} ({where}{label}): one of its values fails the scenario's checks")
 
 
 def load_sweep(path: Path, output: Path | None = None) -> Sweep:
@@ -350,41 +514,7 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
     combos = list(combos)
 
     base_clean = {k: v for k, v in base_doc.items() if k not in ("variants", "fmu")}
-    cases: list[Case] = []
-    seen: dict[str, int] = {}
-    for variant in variants:
-        resolved = (
-            merge_documents(base_clean, variants_doc[variant]) if variant is not None else copy.deepcopy(base_clean)
-        )
-        for combo in combos:
-            values = dict(zip(axes, combo, strict=True))
-            case_doc = copy.deepcopy(resolved)
-            for key, value in values.items():
-                set_key(case_doc, key, value)
-            index = len(cases)
-            label = ", ".join(f"{k}={v!r}" for k, v in values.items())
-            try:
-                (run,) = runs_from_document(case_doc, base_path)
-            except ScenarioError as error:
-                where = f"variant {variant}, " if variant else ""
-                raise SweepError(f"case {index} ({where}{label}): {error}") from error
-            identifier = case_id(case_doc, variant)
-            if identifier in seen:
-                raise SweepError(
-                    f"cases {seen[identifier]} and {index} are the same co-simulation ({label}); "
-                    "remove the repeated axis value"
-                )
-            seen[identifier] = index
-            parameters: dict[str, Any] = {
-                "plant.F_E": run.plant.F_E,
-                "plant.m_B": run.plant.m_B,
-                "plant.mu": run.plant.mu,
-                "T_s": run.T_s,
-                "t_end": run.t_end,
-            }
-            for key, value in values.items():
-                parameters[key] = float(value) if isinstance(value, int) and not isinstance(value, bool) else value
-            cases.append(Case(index, identifier, variant, values, case_doc, parameters, str(base_path)))
+    cases = _assemble_cases(base_clean, variants_doc, variants, axes, combos, base_path)
 
     parameter_columns = [*STANDARD_PARAMETERS, *(k for k in axes if k not in STANDARD_PARAMETERS)]
     parameter_types = {k: "float" for k in STANDARD_PARAMETERS}

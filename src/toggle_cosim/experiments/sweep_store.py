@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.experiments.sweep_spec import METRICS, Sweep
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.experiments.sweep_spec import METRICS, Sweep, SweepError
+from toggle_cosim.files.outputs import PARQUET, replacing
 
 RESULTS_FILE = "results.parquet"
 PARTS_DIR = "parts"
@@ -103,7 +103,7 @@ def _write_parquet(table: Any, path: Path, compression: str) -> None:
     import pyarrow.parquet as pq
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    with replacing(path) as temporary:  # a unique temporary name, synced and renamed into place
+    with replacing(path, kind=PARQUET) as temporary:  # a unique temporary name, synced and renamed into place
         pq.write_table(table, str(temporary), compression=compression)
 
 
@@ -216,6 +216,21 @@ class ResultStore:
             else:
                 part.unlink(missing_ok=True)
 
+    def traced(self) -> set[str]:
+        """The ids of the cases whose trace is stored in OUTPUT/traces/ (its case_id column only)."""
+        import pyarrow.parquet as pq
+
+        found: set[str] = set()
+        if not self.traces.is_dir():
+            return found
+        for part in sorted(self.traces.glob("*.parquet")):
+            try:
+                column = pq.read_table(part, columns=["case_id"], use_threads=False).column("case_id")
+            except Exception:  # noqa: BLE001 - an unreadable part stores no trace: its cases run again
+                continue
+            found.update(str(value) for value in column.unique().to_pylist())
+        return found
+
     # -- recording -----------------------------------------------------------------------------
     def add(self, row: dict[str, Any], trace: np.ndarray | None = None) -> None:
         """Record a finished case; its batch is written once it is full or old enough."""
@@ -310,12 +325,26 @@ def read_results(path: Path, columns: Sequence[str] | None = None) -> Any:
     return pd.read_parquet(path / RESULTS_FILE if path.is_dir() else path, columns=list(columns) if columns else None)
 
 
-def read_trace(folder: Path, case_id: str) -> Any:
+def read_trace(folder: Path | str, case_id: str) -> Any:
     """One case's whole trace from a sweep run with keep_traces, as a pandas DataFrame (time,
-    the plant's outputs, the controller's columns); empty if the case has none."""
+    the plant's outputs, the controller's columns).
+
+    Raises SweepError (one line naming the folder and the fix) when the folder holds no traces
+    (the sweep ran without --keep-traces) or none of the case `case_id`."""
     import pyarrow.dataset as ds
 
     _arrow()
-    dataset = ds.dataset(Path(folder) / TRACES_DIR, format="parquet")
+    traces = Path(folder) / TRACES_DIR
+    if not traces.is_dir() or not any(traces.glob("*.parquet")):
+        raise SweepError(
+            f"{folder}: no traces stored here; run the sweep again with --keep-traces (finished cases "
+            "without a trace run again to store it)"
+        )
+    dataset = ds.dataset(traces, format="parquet")
     table = dataset.to_table(filter=ds.field("case_id") == case_id)
+    if table.num_rows == 0:
+        raise SweepError(
+            f"{folder}: no trace of case {case_id!r} in {TRACES_DIR}/ (a case id of results.parquet's "
+            "case_id column; a failed case may have none); run the sweep again with --keep-traces"
+        )
     return table.drop_columns(["case_id"]).to_pandas()

@@ -31,8 +31,12 @@ import numpy as np
 
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
+from toggle_cosim.messages import bounded_text, error_text
 
 PEAK_RSS_KEY = "_peak_rss_mb"  # in a row from a worker: its peak RSS (not stored in the table)
+RETIRED_KEY = "_host_retired"  # in a row from a plant host: its plant answered Fatal, the host has ended
+COLUMNS_KEY = "_columns"  # in a request to a plant host: the case's trace columns, known to the runner
+LOG_LINES_KEPT, LOG_CHARS_KEPT = 2000, 2000  # what a case's captured FMU log keeps, at most
 _capture = threading.local()
 _workers = threading.local()  # a Dask worker thread's CaseRunner, kept from task to task
 _plants: dict[str, Any] = {}  # SHA-256 -> the checked PlantInterface (this process)
@@ -50,7 +54,8 @@ class _ThreadLogTee:
     def write(self, text: str) -> int:
         buffer = getattr(_capture, "buffer", None)
         if buffer is not None:
-            buffer.append(text)
+            if len(buffer) < LOG_LINES_KEPT:  # a case that prints without end keeps its first writes only
+                buffer.append(text[:LOG_CHARS_KEPT])
             return len(text)
         return self._stream.write(text)
 
@@ -90,27 +95,30 @@ def case_time_limit(payload: Mapping[str, Any], override: float | None = None) -
     return float(own) if own is not None else default_time_limit(payload["parameters"]["t_end"])
 
 
-_columns: dict[tuple[str, str | None, str], tuple[str, ...]] = {}
+_columns: dict[tuple[str, str | None, str, tuple[str, ...]], tuple[str, ...]] = {}
 
 
-def case_columns(payload: Mapping[str, Any], plant: Any) -> tuple[str, ...]:
+def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | None = None) -> tuple[str, ...]:
     """The trace columns of a case: time, the plant's outputs, the inputs and its controller's
     diagnostics (the built-in law's, or those a controller.python factory's controller or a
-    controller FMU declares; built once per controller setting in this process)."""
+    controller FMU declares: that controller built and checked in a supervised child,
+    `supervision.probe_columns`, once per controller setting in this process, which never runs
+    the user's code itself). Raises ControllerError when the controller cannot be built."""
     from toggle_cosim.cosim.master import trace_names
 
+    if COLUMNS_KEY in payload:
+        return tuple(payload[COLUMNS_KEY])
     controller_doc = payload["document"].get("controller") or {}
+    inputs = tuple((payload["document"].get("plant") or {}).get("inputs") or {})  # the plant's other inputs
     if "python" not in controller_doc and "fmu" not in controller_doc:
-        return trace_names(plant)
+        return trace_names(plant, inputs=inputs)
     source = payload.get("source")
-    key = (repr(controller_doc), source, plant.sha256)
+    key = (repr(controller_doc), source, plant.sha256, inputs)
     if key not in _columns:
-        from toggle_cosim.control.protocol import check_controller
-        from toggle_cosim.cosim.controllers import controller_for
+        from toggle_cosim.cosim.supervision import probe_columns
 
         (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
-        controller = controller_for(run, plant.recorded_outputs)
-        _columns[key] = trace_names(plant, check_controller(controller, plant.recorded_outputs))
+        _columns[key] = probe_columns(run, plant, case_time_limit(payload, time_limit))
     return _columns[key]
 
 
@@ -216,16 +224,20 @@ class CaseServer:
         self.plant = plant
         self.sha256 = fmu_sha256
         self.session: Any = None
+        self.sessions: dict[tuple[str, ...], Any] = {}  # by the plant's other inputs the cases set
+        self.retired = False  # the plant answered Fatal: this host serves no more (`plant_host`)
 
-    def _session(self) -> Any:
-        """The plant's session, opened at the first case: the FMU's bytes checked against the
-        sweep's SHA-256, copied into this host's own folder and loaded from there."""
-        if self.session is None:
+    def _session(self, inputs: tuple[str, ...] = ()) -> Any:
+        """The plant's session for cases that set the other inputs `inputs` (`plant.inputs`), opened
+        at the first such case: the FMU's bytes checked against the sweep's SHA-256, copied into
+        this host's own folder and loaded from there."""
+        if inputs not in self.sessions:
             from toggle_cosim.cosim.master import open_session
 
             copy_path = _private_copy(_verified_bytes(self.plant.path, self.sha256), Path(tempfile.gettempdir()))
             plant = dataclasses.replace(self.plant, path=copy_path)
-            self.session = open_session(plant, plant.model_identifier)
+            self.sessions[inputs] = open_session(plant, plant.model_identifier, inputs)
+        self.session = self.sessions[inputs]
         return self.session
 
     def __call__(self, payload: Mapping[str, Any], buffer: np.ndarray) -> dict[str, Any]:
@@ -241,10 +253,10 @@ class CaseServer:
                     source = payload.get("source")  # the base scenario: controller.python is imported from its folder
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
-                    outcome = simulate(run, self.plant, buffer=view, session=self._session())
+                    outcome = simulate(run, self.plant, buffer=view, session=self._session(tuple(run.plant.inputs)))
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
-                    row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
+                    row["reason"] = error_text(error)
             messages = [line.strip() for line in "".join(log).splitlines() if line.startswith(("[ERROR]", "[FATAL]"))]
             if outcome is not None:
                 _fill_row(row, outcome)
@@ -253,10 +265,13 @@ class CaseServer:
 
                     row["samples"] = rows_recorded(view)
             if row["status"] == "failed" and messages:
-                row["reason"] = f"{row['reason']} [FMU log: {' | '.join(messages[:3])}]"
+                row["reason"] = bounded_text(f"{row['reason']} [FMU log: {' | '.join(messages[:3])}]")
         except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row
             row["status"] = "failed"
-            row["reason"] = " ".join(f"{type(error).__name__}: {error}".split())
+            row["reason"] = error_text(error)
+        if self.session is not None and self.session.fatal:  # FMI: no further call to that binary
+            self.retired = True
+            row[RETIRED_KEY] = True
         row["wall_s"] = time.perf_counter() - started
         row[PEAK_RSS_KEY] = peak_rss_mb()
         return row
@@ -330,20 +345,23 @@ class CaseRunner:
         """Start the case on this slot's host (a new one if there is none, it died idle, or its
         trace buffer is too small for this case)."""
         rows = case_samples(payload)
-        columns = len(case_columns(payload, self.plant))
+        names = case_columns(payload, self.plant, self.time_limit)
+        columns = len(names)
         limit = case_time_limit(payload, self.time_limit)
+        request = {**payload, COLUMNS_KEY: names}  # the host never builds a controller to learn them
         host = self.host
         small = host is not None and host.buffer.size < rows * columns
-        if host is None or not host.alive or small or not host.submit(payload, limit):
+        if host is None or not host.alive or small or not host.submit(request, limit):
             self.columns = max(self.columns, columns)
             host = self._new_host(rows)
-            if not host.submit(payload, limit):
+            if not host.submit(request, limit):
                 raise RuntimeError("a new plant host died before its first case")
         self.payload = payload
         self.cases_run += 1
 
     def service(self, answer: Any) -> tuple[dict[str, Any], np.ndarray | None]:
         """The row (and, with keep_traces, the trace) of the case this slot ran, from the host's answer."""
+        from toggle_cosim.cosim.exit_reasons import controller_words, in_controller_reason, stopped_in_controller
         from toggle_cosim.cosim.supervision import rows_recorded
 
         payload, self.payload = self.payload, None
@@ -353,10 +371,21 @@ class CaseRunner:
             trace = None
             if self.keep_traces and row.get("samples") and view is not None:
                 trace = np.array(view[: row["samples"]])
+            if row.pop(RETIRED_KEY, False):
+                self.close()  # its plant answered Fatal and the host has ended: the next case gets a new one
             return row, trace
         rows = rows_recorded(view) if view is not None else answer.rows  # the samples the case recorded
         self.close()  # a host that failed a case is gone (or dying): the next case gets a new one
         T_s = payload["parameters"]["T_s"]
+        names = case_columns(payload, self.plant)
+        controller = payload["document"].get("controller") or {}
+        users = "python" in controller or "fmu" in controller  # the built-in law neither crashes nor hangs
+        if users and view is not None and stopped_in_controller(view, rows, len(self.plant.recorded_outputs), names):
+            words = controller_words(controller.get("python"), controller.get("fmu"))
+            limited = answer.failure.startswith("time limit")
+            return crash_row(
+                payload, self.sha256, in_controller_reason(answer.failure, words, rows * T_s, limited), rows
+            ), None
         at = f" at t = {max(rows - 1, 0) * T_s:.6g} s" if rows else " before the first sample"
         return crash_row(payload, self.sha256, f"{answer.failure}{at}", rows), None
 
@@ -402,7 +431,11 @@ def run_cases(
         _open_runners.append(runner)
     results = []
     for payload in payloads:
-        runner.submit(payload)
+        try:
+            runner.submit(payload)
+        except Exception as error:  # noqa: BLE001 - e.g. its controller cannot be built here: the case fails
+            results.append((crash_row(payload, fmu_sha256, " ".join(f"{type(error).__name__}: {error}".split())), None))
+            continue
         while runner.busy:
             for _, answer in wait_for_hosts([runner.host]):
                 results.append(runner.service(answer))

@@ -1,6 +1,6 @@
 """Reading an input file: it must be a regular file, and only so much of it is read.
 
-Every file the tool reads (scenario, sweep, tolerances, trace CSV, run.json) goes through
+Every file the tool reads (scenario, sweep, tolerances, trace CSV, input table, run.json) goes through
 `read_bounded`, which opens without blocking (a FIFO or a device is refused, never waited on),
 checks that it is a regular file, and reads at most its limit: a larger file is refused with a
 message that names the limit. The limits are generous for real files and small against
@@ -18,6 +18,7 @@ MiB = 1 << 20
 YAML_LIMIT = 1 * MiB  # scenario, sweep and tolerance files: a few KB in practice
 JSON_LIMIT = 16 * MiB  # run.json
 CSV_LIMIT = 1024 * MiB  # trace CSV files (a 2 GB output limit applies when writing them: resources)
+TABLE_LIMIT = 64 * MiB  # an input's CSV table (time and value columns: a run of 100 s at 1 kHz is ~4 MB)
 MODEL_DESCRIPTION_LIMIT = 16 * MiB  # modelDescription.xml inside an FMU (ours is ~0.5 MB)
 
 

@@ -14,4 +14,9 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-__all__ = ["file_sha256"]
+def bytes_sha256(data: bytes) -> str:
+    """The SHA-256 of bytes already read (a file's, hashed as it was parsed: no second read)."""
+    return hashlib.sha256(data).hexdigest()
+
+
+__all__ = ["bytes_sha256", "file_sha256"]

@@ -8,6 +8,11 @@
 * A destination that exists and is not a regular file (a folder, a symbolic link, a FIFO, a
   socket, a block device) is refused with one line (`OutputError`, exit 2 in the CLI): a link
   is neither followed nor replaced.
+* A regular file is replaced only when it is of the output's own kind (`OutputKind`: an FMU
+  over an FMU, an SSP over an SSP, a PNG over a PNG, a CSV table over a CSV table, ...), told by
+  its content, not its name, or when it is empty. Anything else (a scenario file, notes, an FMU
+  where an SSP goes) is refused with one line naming the path, the kind and the fix: a re-run
+  replaces its own results and nothing the user wrote.
 * Written through, by design: the paths /dev/stdout and /dev/stderr (the command's own output
   streams, whatever they are connected to) and a character device named directly (/dev/null,
   a terminal), opened without creating or truncating anything and without following a link.
@@ -19,10 +24,13 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import stat
 import sys
 import tempfile
+import zipfile
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
@@ -41,6 +49,94 @@ class OutputError(OSError):
 
     def __str__(self) -> str:
         return f"{self.filename}: {self.strerror}"
+
+
+SNIFF_BYTES = 65536  # how much of an existing file is read to tell its kind
+
+
+@dataclass(frozen=True)
+class OutputKind:
+    """What an output is (`name`, as the messages say it) and how an existing file is told to
+    be one (`recognize`, on its path: a bounded read of its content), so that a re-run may
+    replace it."""
+
+    name: str
+    recognize: Callable[[Path], bool]
+
+
+def _head(path: Path) -> bytes:
+    try:
+        with open(path, "rb") as stream:
+            return stream.read(SNIFF_BYTES)
+    except OSError:
+        return b""
+
+
+def _zip_with(member: str) -> Callable[[Path], bool]:
+    def recognize(path: Path) -> bool:
+        try:
+            with zipfile.ZipFile(path) as archive:
+                return member in archive.namelist()
+        except (OSError, zipfile.BadZipFile, ValueError):
+            return False
+
+    return recognize
+
+
+def _zip_of(suffix: str) -> Callable[[Path], bool]:
+    def recognize(path: Path) -> bool:
+        try:
+            with zipfile.ZipFile(path) as archive:
+                names = archive.namelist()
+        except (OSError, zipfile.BadZipFile, ValueError):
+            return False
+        return bool(names) and all(name.endswith(suffix) for name in names)
+
+    return recognize
+
+
+def _starts(*signatures: bytes) -> Callable[[Path], bool]:
+    return lambda path: _head(path).lstrip().startswith(signatures)
+
+
+_CSV_NAME = re.compile(r'^"?[A-Za-z_][^",\s]*"?$')
+
+
+def _csv_table(path: Path) -> bool:
+    """A header line of two or more comma-separated column names (quoted or not)."""
+    line = _head(path).split(b"\n", 1)[0].rstrip(b"\r")
+    try:
+        fields = line.decode("utf-8").split(",")
+    except UnicodeDecodeError:
+        return False
+    return len(fields) >= 2 and all(_CSV_NAME.match(field.strip()) for field in fields)
+
+
+def _markdown_summary(path: Path) -> bool:
+    """A Markdown summary as this project writes them: a heading or a table row first, and a
+    table (a `|---` row) in it."""
+    head = _head(path)
+    return head.startswith((b"# ", b"| ")) and any(line.startswith(b"|---") for line in head.splitlines())
+
+
+FMU = OutputKind("an FMU (a zip archive with a modelDescription.xml)", _zip_with("modelDescription.xml"))
+SSP = OutputKind("an SSP (a zip archive with a SystemStructure.ssd)", _zip_with("SystemStructure.ssd"))
+PNG = OutputKind("a PNG image", _starts(b"\x89PNG\r\n\x1a\n"))
+PARQUET = OutputKind("a Parquet table", _starts(b"PAR1"))
+CSV = OutputKind("a CSV table (a header of column names)", _csv_table)
+JSON = OutputKind("a JSON object", _starts(b"{"))
+JUNIT = OutputKind("a JUnit XML report", lambda path: b"<testsuite" in _head(path))
+MARKDOWN = OutputKind("a Markdown summary (a '# ' heading or a '| ' table row first, and a table)", _markdown_summary)
+HTML = OutputKind("an HTML page", _starts(b"<!DOCTYPE html", b"<!doctype html", b"<html"))
+NPZ = OutputKind("a NumPy .npz archive", _zip_of(".npy"))
+MAT = OutputKind("a MATLAB .mat file (version 5)", _starts(b"MATLAB 5.0 MAT-file"))
+INVARIANTS = OutputKind(
+    "a reference's invariants file (an 'invariants:' mapping)",
+    lambda path: any(line.startswith(b"invariants:") for line in _head(path).splitlines()),
+)
+SETTINGS = OutputKind(
+    "a reference's settings file (StartTime, ... lines)", _starts(b"StartTime,", b"StopTime,", b"StepSize,")
+)
 
 
 def _umask() -> int:
@@ -70,10 +166,11 @@ def _written_through(path: Path) -> bool:
         return False
 
 
-def check_destination(path: Path | str, what: str = "output") -> None:
+def check_destination(path: Path | str, what: str = "output", kind: OutputKind | None = None) -> None:
     """Raise OutputError if something that is not a regular file lies at `path` (a character
-    device and /dev/stdout, /dev/stderr are written through; see the module docstring); `what`
-    names the output in the message."""
+    device and /dev/stdout, /dev/stderr are written through; see the module docstring), or, given
+    the output's `kind`, a non-empty regular file that is not of that kind; `what` names the
+    output in the message."""
     path = Path(path)
     if str(path) in STREAMS:
         return
@@ -87,11 +184,19 @@ def check_destination(path: Path | str, what: str = "output") -> None:
                 path, f"cannot be written ({error.strerror}); give another file name for the {what}"
             ) from error
         raise
-    if stat.S_ISREG(mode) or stat.S_ISCHR(mode):
+    if stat.S_ISCHR(mode):
         return
-    kind = next((name for test, name in _KINDS if test(mode)), "something else")
+    if stat.S_ISREG(mode):
+        if kind is not None and os.lstat(path).st_size > 0 and not kind.recognize(path):
+            raise OutputError(
+                path,
+                f"exists and is not {kind.name}, so it is not replaced; give another file name for the {what} "
+                "(or move the file away)",
+            )
+        return
+    shape = next((name for test, name in _KINDS if test(mode)), "something else")
     note = " (a link is not followed)" if stat.S_ISLNK(mode) else ""
-    raise OutputError(path, f"is {kind}, not a regular file{note}; give another file name for the {what}")
+    raise OutputError(path, f"is {shape}, not a regular file{note}; give another file name for the {what}")
 
 
 @contextlib.contextmanager
@@ -123,15 +228,15 @@ def _write_all(fd: int, data: bytes, path: Path, what: str) -> None:
 
 
 @contextlib.contextmanager
-def replacing(path: Path | str, what: str = "output") -> Iterator[Path]:
+def replacing(path: Path | str, what: str = "output", *, kind: OutputKind) -> Iterator[Path]:
     """The name of a fresh, empty temporary file in `path`'s folder (made by mkstemp) for a
     writer that wants a file name (matplotlib, junitparser, pyarrow); when the block ends
     without an exception, the file gets the usual mode, is synced and renamed over `path`;
     otherwise it is removed. OutputError (naming `what`) before anything is written if `path` is
-    not a regular file or missing; for a path that is written through, the temporary file's
-    bytes are copied there instead."""
+    not missing, empty or a regular file of the output's `kind`; for a path that is written
+    through, the temporary file's bytes are copied there instead."""
     path = Path(path)
-    check_destination(path, what)
+    check_destination(path, what, kind)
     through = _written_through(path)
     folder = Path(tempfile.gettempdir()) if through else path.parent
     folder.mkdir(parents=True, exist_ok=True)
@@ -148,27 +253,29 @@ def replacing(path: Path | str, what: str = "output") -> Iterator[Path]:
         with open(temporary, "rb+") as stream:
             os.fchmod(stream.fileno(), FILE_MODE)
             os.fsync(stream.fileno())
-        check_destination(path, what)  # a link put there meanwhile is refused, not replaced
+        check_destination(path, what, kind)  # a link (or another file) put there meanwhile is refused, not replaced
         os.replace(temporary, path)
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
 
 
-def write_file(path: Path | str, write: Callable[[IO[Any]], Any], binary: bool = False, what: str = "output") -> Path:
+def write_file(
+    path: Path | str, write: Callable[[IO[Any]], Any], binary: bool = False, what: str = "output", *, kind: OutputKind
+) -> Path:
     """Call `write(stream)` on a stream whose bytes end at `path` as `replacing` says (UTF-8 text
     with "\\n" line ends, or bytes if `binary`), and return `path`."""
     path = Path(path)
-    with replacing(path, what) as temporary:
+    with replacing(path, what, kind=kind) as temporary:
         opened = open(temporary, "wb") if binary else open(temporary, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
         with opened as stream:
             write(stream)
     return path
 
 
-def write_text(path: Path | str, text: str, what: str = "output") -> Path:
+def write_text(path: Path | str, text: str, what: str = "output", *, kind: OutputKind) -> Path:
     """`write_file` of a whole text."""
-    return write_file(path, lambda stream: stream.write(text), what=what)
+    return write_file(path, lambda stream: stream.write(text), what=what, kind=kind)
 
 
 @contextlib.contextmanager
@@ -199,9 +306,23 @@ def folder_lock(folder: Path | str) -> Iterator[bool]:
 
 
 __all__ = [
+    "CSV",
     "FILE_MODE",
+    "FMU",
+    "HTML",
+    "INVARIANTS",
+    "JSON",
+    "JUNIT",
+    "MARKDOWN",
+    "MAT",
+    "NPZ",
+    "PARQUET",
+    "PNG",
+    "SETTINGS",
+    "SSP",
     "STREAMS",
     "OutputError",
+    "OutputKind",
     "check_destination",
     "folder_lock",
     "replacing",

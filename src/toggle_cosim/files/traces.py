@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.files.outputs import write_file
+from toggle_cosim.files.outputs import CSV, JSON, write_file
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,7 @@ def write_csv(path: Path, trace: Trace, every: int = 1) -> None:
             )
             np.savetxt(stream, chunk, fmt=ROW_FORMAT, delimiter=",")
 
-    write_file(Path(path), write)
+    write_file(Path(path), write, kind=CSV)
 
 
 def read_csv(path: Path) -> Trace:
@@ -82,7 +82,7 @@ def read_csv(path: Path) -> Trace:
 
 
 def write_json(path: Path, record: dict[str, Any]) -> None:
-    write_file(Path(path), lambda stream: json.dump(record, stream, indent=2, sort_keys=False, default=str))
+    write_file(Path(path), lambda stream: json.dump(record, stream, indent=2, sort_keys=False, default=str), kind=JSON)
 
 
 def select(trace: Trace, names: Sequence[str]) -> Trace:

@@ -15,7 +15,7 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import FMU, replacing
 from toggle_cosim.native import c_compiler
 
 
@@ -134,7 +134,7 @@ def compile_binary(name: str, sources: Path, units: tuple[str, ...], flags: tupl
 def zip_folder(folder: Path, output: Path) -> None:
     """Zip every file under `folder` (sorted, paths relative to it) into `output`, atomically:
     a unique temporary name, renamed into place."""
-    with replacing(output) as partial, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+    with replacing(output, "FMU", kind=FMU) as partial, zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
         for file in sorted(folder.rglob("*")):
             if file.is_file():
                 archive.write(file, file.relative_to(folder).as_posix())

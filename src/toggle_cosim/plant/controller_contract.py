@@ -10,7 +10,10 @@ the master runs it as one more controller (`cosim.fmu_controller`). Before any r
 * has no output ``iq_ref`` (the command, Real/Float64 in A: a missing unit is a warning, as for
   plants), or an output that is not Real/Float64 (the others are its diagnostics);
 * has an input that is not a recorded output of the plant, or whose unit differs from that
-  output's (the plant contract's unit, `contract.yaml`; a missing unit is a warning).
+  output's (the plant contract's unit, `contract.yaml`; a missing unit is a warning). The
+  inputs x_ref, v_ref, a_ref are the exception: the built-in law's reference trajectory
+  (`controller_fmu.variables.REFERENCE_INPUTS`), read by the FMU only when its parameter
+  tracking is 1; the master leaves them at their start values.
 
 Parameters: any; those of `control.parameters.LawParameters` (but t0 and T_h) mark an FMU that
 runs the built-in law (``law_parameters``), whose settings the scenario's controller keys give.
@@ -25,6 +28,7 @@ from pathlib import Path
 
 from toggle_cosim.control.parameters import settable
 from toggle_cosim.control.protocol import COMMAND_COLUMNS
+from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.plant.contract import CONTRACT, ContractError, declared_unit, read_fmu
 
 __all__ = ["COMMAND", "ControllerFmu", "LAW_PARAMETERS", "check_controller_fmu"]
@@ -35,6 +39,7 @@ REALS = ("Real", "Float64")
 # the LawParameters fields a controller FMU of the built-in law takes as parameters (it computes
 # t0 and T_h itself, at its first sample)
 LAW_PARAMETERS = settable()
+OPTIONAL_LAW_PARAMETERS = ("tracking",)  # an FMU of the built-in law built before the reference inputs lacks it
 _UNITS = {v.name: v.unit for v in CONTRACT if v.causality == "output"}
 _FIX = "see docs/controllers.md, 'A controller FMU'"
 
@@ -44,7 +49,9 @@ class ControllerFmu:
     """A checked controller FMU: where it is, what it reads and gives, and its value references.
 
     Attributes:
-        inputs: its inputs, in model-description order (each a plant output of the same name).
+        inputs: its inputs, in model-description order (each a plant output of the same name),
+            but the reference inputs.
+        reference_inputs: which of x_ref, v_ref, a_ref it has (the built-in law's reference).
         diagnostics: its outputs other than iq_ref, in model-description order.
         parameters: its variables of causality parameter, by name (value reference, type).
         law_parameters: it has every LawParameters parameter but t0 and T_h (the built-in law's).
@@ -62,6 +69,7 @@ class ControllerFmu:
     parameters: tuple[str, ...]
     law_parameters: bool
     warnings: tuple[str, ...] = ()
+    reference_inputs: tuple[str, ...] = ()
 
     @property
     def model_identifier(self) -> str:
@@ -112,7 +120,7 @@ def _checked(path: Path, _key: object, outputs: tuple[str, ...], T_s: float | No
             " (set T_s to its step, or rebuild it for T_s)"
         )
     warnings: list[str] = []
-    inputs, diagnostics, parameters = [], [], []
+    inputs, diagnostics, parameters, reference_inputs = [], [], [], []
     references: dict[str, int] = {}
     types: dict[str, str] = {}
     command = None
@@ -121,6 +129,8 @@ def _checked(path: Path, _key: object, outputs: tuple[str, ...], T_s: float | No
         types[variable.name] = variable.type
         if variable.causality == "parameter":
             parameters.append(variable.name)
+        elif variable.causality == "input" and variable.name in REFERENCE_INPUTS:
+            reference_inputs.append(variable.name)
         elif variable.causality == "input":
             inputs.append(variable.name)
             if variable.name not in outputs:
@@ -160,6 +170,7 @@ def _checked(path: Path, _key: object, outputs: tuple[str, ...], T_s: float | No
         references=references,
         types=types,
         parameters=tuple(parameters),
-        law_parameters=set(LAW_PARAMETERS) <= set(parameters),
+        law_parameters=set(LAW_PARAMETERS) - set(OPTIONAL_LAW_PARAMETERS) <= set(parameters),
         warnings=tuple(warnings),
+        reference_inputs=tuple(reference_inputs),
     )

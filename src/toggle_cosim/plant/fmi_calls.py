@@ -25,6 +25,7 @@ from fmpy.fmi3 import FMU3Slave
 
 SUCCESS = (0, 1)  # fmi2OK/fmi3OK, fmi2Warning/fmi3Warning
 LABELS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
+FATAL = LABELS.index("FATAL")  # fmi2Fatal, fmi3Fatal: no further call to any instance of the FMU
 
 
 def failed(status: int) -> bool:

@@ -4,13 +4,14 @@
 (causality parameter, variability fixed or tunable), with a value of their type (a number for a
 Real/Float64, true/false for a Boolean); `current_loop: ideal` needs the parameter
 idealCurrentLoop; the built-in controller's objective needs the optional outputs the contract
-names for it (theta1: theta1 and omega1). Each failure is one `SettingError` line naming the key
-and the variable.
+names for it (theta1: theta1 and omega1); `plant.inputs` names must be Real inputs of the FMU, and
+an input table's unit (its CSV header's) must be the input's unit in the FMU. Each failure is
+one `SettingError` line naming the key and the variable.
 """
 
 from __future__ import annotations
 
-from toggle_cosim.plant.contract import PlantInterface, objective_requirements
+from toggle_cosim.plant.contract import CONTRACT, PlantInterface, declared_unit, objective_requirements
 from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import Run
 
@@ -19,8 +20,46 @@ class SettingError(Exception):
     """A setting the plant cannot take; str() is the one-line reason."""
 
 
+def input_unit(plant: PlantInterface, name: str) -> str | None:
+    """The unit of the plant input `name`: the FMU's declared one, else the contract's."""
+    variable = next((v for v in plant.model_description.modelVariables if v.name == name), None)
+    unit = declared_unit(variable) if variable is not None else None
+    return unit or next((v.unit for v in CONTRACT if v.name == name), None)
+
+
+def check_inputs(run: Run, plant: PlantInterface) -> None:
+    """Each of plant.inputs must be a Real input of the FMU; a table's unit (its CSV header's) must
+    be the input's unit in the FMU (an FMU input without a unit takes the table's values as they are)."""
+    variant = f" (variant {run.variant})" if run.variant else ""
+    variables = {v.name: v for v in plant.model_description.modelVariables}
+    given = [("F_E", "plant.F_E", run.plant.F_E)]
+    given += [(name, f"plant.inputs.{name}", value) for name, value in run.plant.inputs.items()]
+    for name, key, _ in given[1:]:
+        variable = variables.get(name)
+        if variable is None:
+            inputs = [v.name for v in plant.model_description.modelVariables if v.causality == "input"]
+            raise SettingError(
+                f"key {key}{variant}: the plant FMU {plant.path} has no variable {name!r} (its inputs: {', '.join(inputs)})"
+            )
+        if variable.causality != "input" or variable.type not in ("Real", "Float64"):
+            raise SettingError(
+                f"key {key}{variant}: {name!r} is a {variable.type} {variable.causality} of the plant FMU, not a Real input"
+            )
+    for name, key, value in given:
+        source = getattr(value, "source", None)
+        if source is None or source.unit is None:
+            continue
+        unit = input_unit(plant, name)
+        if unit is not None and source.unit != unit:
+            raise SettingError(
+                f"key {key}{variant}: {source.path} gives column {source.column} in {source.unit!r}, the plant FMU's "
+                f"{name} is in {unit!r} (convert the table to {unit}, or write its header as '{source.column} [{unit}]')"
+            )
+
+
 def check_settings(run: Run, plant: PlantInterface) -> None:
     variables = {v.name: v for v in plant.model_description.modelVariables}
+    check_inputs(run, plant)
     try:  # a friction model the plant cannot run
         friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, plant.references, plant.path)
     except ValueError as error:

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any, Literal
 
+from toggle_cosim.control.trajectory import ProfileSpec
 from toggle_cosim.physics.parameters import ControllerGains
+from toggle_cosim.signals.definitions import Signal
 
 COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples plant and controller
 
@@ -21,7 +23,7 @@ COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples p
 class PlantSettings:
     """What the master sets on the plant FMU before initialisation (and holds as inputs)."""
 
-    F_E: float = 0.0
+    F_E: float | Signal = 0.0  # N: a number (constant) or a signal in time (`signals`), applied at every sample
     m_B: float = 4.43
     mu: float = 0.2
     current_loop: Literal["first_order", "ideal"] = "first_order"
@@ -33,6 +35,9 @@ class PlantSettings:
     rated_current: float = 10.0  # A
     working_range: tuple[float, float] | None = None  # m, slider B; None: the linkage's (scenario)
     parameters: Mapping[str, float | bool] = field(default_factory=dict)
+    # The plant FMU's other inputs by name (a user's plant: a disturbance, a temperature), each a
+    # number or a signal, applied at every sample as F_E is; recorded after the diagnostics
+    inputs: Mapping[str, float | Signal] = field(default_factory=dict)
     # Explicit (name, value) settings in order, e.g. an SSP's parameter set (`ssp.reader`): the
     # master sets exactly these instead of the ones it derives from the fields above
     fmu_values: tuple[tuple[str, float | bool | int], ...] | None = None
@@ -86,11 +91,43 @@ class Run:
     # how the master couples plant and controller (`cosim.master`): gauss-seidel, the command of
     # sample k drives the plant over [t_k, t_k+1]; jacobi, the command of sample k - 1 does
     coupling: Literal["gauss-seidel", "jacobi"] = "gauss-seidel"
+    # the profile the built-in law tracks from x_start to x_target (stroke.trajectory); None: the
+    # constant target x_target
+    trajectory: ProfileSpec | None = None
+
+    @property
+    def x_final(self) -> float:
+        """Where the reference ends: x_target, or x_start after a cycle."""
+        return self.x_start if self.trajectory is not None and self.trajectory.kind == "cycle" else self.x_target
 
     @property
     def label(self) -> str:
         return self.scenario if self.variant is None else f"{self.scenario}/{self.variant}"
 
     @property
+    def folder(self) -> PurePosixPath:
+        """Where `toggle-cosim run` writes this run's files under OUT (`results_folder`)."""
+        return results_folder(self)
+
+    @property
     def steps(self) -> int:
         return int(round(self.t_end / self.T_s))
+
+
+SSP_FOLDER_TAG = "_ssp"  # OUT/<archive>_ssp/<set>/: an SSP's runs
+
+
+def results_folder(run: Run) -> PurePosixPath:
+    """The folder, relative to the output folder, of a run's trace.csv and run.json: one per
+    source and setting, so that no run replaces another's results.
+
+    * a scenario file's run as the file says it: <scenario>/<variant>
+    * an SSP's run: <the archive's name without .ssp>_ssp/<set>
+    * a run whose coupling is not the one its file gives (`--coupling`): _<coupling> after the
+      first part, e.g. fig4_nominal_jacobi/friction
+    """
+    source = Path(run.source) if run.source is not None else None
+    top = f"{source.stem}{SSP_FOLDER_TAG}" if source is not None and source.suffix.lower() == ".ssp" else run.scenario
+    if run.coupling != run.resolved.get("coupling", "gauss-seidel"):
+        top += f"_{run.coupling}"
+    return PurePosixPath(top) / (run.variant or "run")

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.plant.contract import declared_unit
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import SspError
@@ -57,8 +58,14 @@ class FmuVariables:
         return None
 
     def inputs(self) -> list[str]:
-        """The FMU's inputs, in model-description order."""
-        return [v.name for v in self.model_description.modelVariables if v.causality == "input"]
+        """The FMU's inputs another FMU drives, in model-description order: all but the built-in
+        law's reference inputs x_ref, v_ref, a_ref (`controller_fmu.variables.REFERENCE_INPUTS`),
+        which an SSP leaves at their start values (the law's parameter tracking is 0 there)."""
+        return [
+            v.name
+            for v in self.model_description.modelVariables
+            if v.causality == "input" and v.name not in REFERENCE_INPUTS
+        ]
 
     def value_type(self, name: str, value: object) -> str:
         """The SSV element of a parameter: the FMU variable's type (Real, Integer, Boolean)."""

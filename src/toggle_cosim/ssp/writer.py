@@ -26,7 +26,7 @@ from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import SSP, replacing
 from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
@@ -252,8 +252,8 @@ def _refuse_sweep(path: Path) -> None:
 
 
 def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
-    """SspError for a scenario an SSP cannot hold: a controller in Python, variants that differ
-    in t_end or T_s (an SSP has one experiment)."""
+    """SspError for a scenario an SSP cannot hold: a controller in Python, a load that varies in
+    time, variants that differ in t_end or T_s (an SSP has one experiment)."""
     for run in runs:
         if run.controller.fmu is not None:
             raise SspError(
@@ -264,6 +264,22 @@ def refuse_unwritable(path: Path, runs: Sequence[Run]) -> None:
             raise SspError(
                 f"{path}: key controller.python: an SSP's controller is an FMU, so a Python controller cannot be "
                 "written into it (use the built-in law, or run the scenario with toggle-cosim run)"
+            )
+        if run.plant.inputs:
+            raise SspError(
+                f"{path}: key plant.inputs: the SSP connects the plant's iq_ref and F_E only, so its other inputs "
+                f"({', '.join(run.plant.inputs)}) cannot be written into it (run the scenario with toggle-cosim run)"
+            )
+        if run.trajectory is not None:
+            raise SspError(
+                f"{path}: key stroke.trajectory: an SSP's controller FMU regulates to the constant target (its"
+                " reference inputs are left unconnected), so a trajectory cannot be written into it (remove"
+                " stroke.trajectory, or run the scenario with toggle-cosim run)"
+            )
+        if not isinstance(run.plant.F_E, (int, float)):
+            raise SspError(
+                f"{path}: key plant.F_E: the load is a {run.plant.F_E.kind} in time, and an SSP's parameter set holds"
+                " one value per input (give F_E a number, or run the scenario with toggle-cosim run)"
             )
     for key in ("t_end", "T_s"):
         values = {getattr(run, key) for run in runs}
@@ -340,7 +356,7 @@ def write_ssp(
         ):
             member = layout.ssv_member(parameter_set.name, component)
             texts[member] = _checked(_ssv(parameter_set.name, values, variables), "ssv", member)
-    with replacing(output, "SSP (--out)") as temporary:
+    with replacing(output, "SSP (--out)", kind=SSP) as temporary:
         with zipfile.ZipFile(temporary, "w", compression=zipfile.ZIP_DEFLATED) as archive:
             for member, text in texts.items():
                 archive.writestr(member, text)

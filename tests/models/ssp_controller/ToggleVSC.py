@@ -1,11 +1,12 @@
 """A stand-in for the controller FMU ToggleVSC (PythonFMU, FMI 2.0 CS), for the SSP tests: the
 same variables (inputs x_B, v_B, theta1, omega1; outputs iq_ref, S, phase, e, z; the parameters of
-LawParameters but t0 and T_h), with a proportional law in place of the VSC."""
+LawParameters but t0 and T_h; not the reference inputs x_ref, v_ref, a_ref, which an SSP leaves
+unconnected), with a proportional law in place of the VSC."""
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 PARAMETERS = (
-    "law objective target C Q P delta beta C_I K_I i_max T_s K_f r1 r3 r4 r5 f h phi m3 m5 mB mC J2 J3 J5 g"
+    "law objective target C Q P delta beta C_I K_I i_max T_s K_f r1 r3 r4 r5 f h phi m3 m5 mB mC J2 J3 J5 g tracking"
 ).split()
 
 

@@ -131,7 +131,7 @@ static int evaluate(vsc_core *c, const char *function) {
     int failed;
     if (d->k == 0) {
         double S0, T_h, z0;
-        failed = vsc_law_start(q, qd, &d->law, &S0, &T_h, &z0) || !isfinite(S0) || !isfinite(T_h) || !isfinite(z0);
+        failed = vsc_law_start(q, qd, d->inputs + VSC_REF_IN, &d->law, &S0, &T_h, &z0) || !isfinite(S0) || !isfinite(T_h) || !isfinite(z0);
         if (!failed) {
             VSC_SET_START(&d->law, t, T_h);
             d->z = z0;
@@ -139,7 +139,7 @@ static int evaluate(vsc_core *c, const char *function) {
     } else {
         failed = 0;
     }
-    failed = failed || vsc_law_step(t, q, qd, d->z, &d->law, out);
+    failed = failed || vsc_law_step(t, q, qd, d->z, d->inputs + VSC_REF_IN, &d->law, out);
     for (i = 0; i < VSC_NOUT && !failed; i++) { failed = !isfinite(out[i]); }
     if (failed) {
         return vsc_log(c, VSC_ERROR, "%s: the law cannot be evaluated at t = %.17g s (sample %lld) from "
