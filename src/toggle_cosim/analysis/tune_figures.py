@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim.analysis.sweep_heatmaps import PANELS
-from toggle_cosim.files.outputs import replacing
+from toggle_cosim.files.outputs import PNG, replacing
 
 # the metrics of a tuning (tune_spec.METRICS) that the sweep heat maps draw: their panel
 _PANEL_OF = {"settling_time": "settling_time_s", "final_error": "final_error_m", "peak_command": "peak_iq_ref_A"}
@@ -75,7 +75,7 @@ def write_maps_side_by_side(start: Path, tuned: Path, sweep: Any, metrics: list[
             ax.set_ylabel(y)
     figure.suptitle(f"{title}: the starting controller (left) and the tuned one (right)")
     try:
-        with replacing(path, "figure") as temporary:
+        with replacing(path, "figure", kind=PNG) as temporary:
             figure.savefig(temporary, dpi=90, format="png")
     finally:
         plt.close(figure)
@@ -104,7 +104,7 @@ def write_pareto(history: Any, tuning: Any, path: Path) -> Path:
     ax.set_title(f"{tuning.name}: {len(done)} trials")
     ax.legend()
     try:
-        with replacing(path, "figure") as temporary:
+        with replacing(path, "figure", kind=PNG) as temporary:
             figure.savefig(temporary, dpi=100, format="png")
     finally:
         plt.close(figure)

@@ -11,7 +11,18 @@ from typing import Any
 
 from toggle_cosim.experiments.sweep_spec import get_key, read_yaml, set_key
 from toggle_cosim.experiments.tune_spec import Tuning
-from toggle_cosim.files.outputs import write_text
+from toggle_cosim.files.outputs import OutputKind, write_text
+
+_MARK = "# written by toggle-cosim tune"  # the first line of every YAML file a tuning writes
+
+
+def _ours(path: Path) -> bool:
+    with open(path, "rb") as stream:
+        return stream.read(len(_MARK)) == _MARK.encode()
+
+
+# the kind of the YAML files a tuning writes: a re-run replaces them, never a file the user wrote
+TUNE_YAML = OutputKind(f"a YAML file a tuning wrote (its first line '{_MARK} ...')", _ours)
 
 
 def _relative(target: Path, folder: Path) -> str:
@@ -22,19 +33,28 @@ def _relative(target: Path, folder: Path) -> str:
 def _dump(document: dict[str, Any], header: str) -> str:
     import yaml
 
+    if not header.startswith(_MARK.removeprefix("# ")):  # the first line tells the file is ours (TUNE_YAML)
+        header = f"{_MARK.removeprefix('# ')}\n{header}"
     lines = "".join(f"# {line}\n" for line in header.splitlines())
     return lines + yaml.safe_dump(document, sort_keys=False, allow_unicode=True, width=120)
 
 
-def map_sweep(tuning: Tuning, base: Path, folder: Path, name: str, fmu: Path | None) -> dict[str, Any]:
-    """A sweep file's document for the tuning's map with `base` as its scenario: the fixed keys as
-    one-value axes (the base holds them already for a tuned scenario: the same cases), then the
-    map's other axes with their values; written in `folder` (its paths are relative to it)."""
+def map_sweep(
+    tuning: Tuning, folder: Path, name: str, fmu: Path | None, point: dict[str, float] | None = None
+) -> dict[str, Any]:
+    """A sweep file's document for the tuning's map over its base scenario: the fixed keys and the
+    tuned values `point` (none: the starting controller) as one-value axes, then the map's other
+    axes with their values; written in `folder` (its paths are relative to it). Its cases are the
+    trial's, and a controller.python module is found beside the base scenario, as in the trials."""
     sweep = tuning.sweep
-    axes: dict[str, Any] = {key: {"values": [value]} for key, value in tuning.fixed.items()}
-    for key, values in sweep.axes.items():
-        if key not in tuning.fixed:
-            axes[key] = {"values": list(values)}
+    base = sweep.base
+    values = {**tuning.fixed, **(point or {})}
+    # zip mode pairs the i-th values of every axis: a one-value axis repeats its value
+    repeat = len(next(iter(sweep.axes.values()))) if sweep.mode == "zip" else 1
+    axes: dict[str, Any] = {key: {"values": [value] * repeat} for key, value in values.items()}
+    for key, spec in sweep.axes.items():
+        if key not in values:
+            axes[key] = {"values": list(spec)}
     document: dict[str, Any] = {"name": name, "description": f"{tuning.name}: the map of {sweep.name}"}
     document["base"] = _relative(base, folder)
     if sweep.variants != [None]:
@@ -50,7 +70,7 @@ def map_sweep(tuning: Tuning, base: Path, folder: Path, name: str, fmu: Path | N
 
 def write_map_sweep(path: Path, document: dict[str, Any], header: str) -> Path:
     """Write a sweep file of `map_sweep` (atomically)."""
-    return write_text(path, _dump(document, header), what="sweep file")
+    return write_text(path, _dump(document, header), what="sweep file", kind=TUNE_YAML)
 
 
 def tuned_scenario(tuning: Tuning, point: dict[str, float], folder: Path) -> dict[str, Any]:
@@ -86,4 +106,4 @@ def tuned_scenario(tuning: Tuning, point: dict[str, float], folder: Path) -> dic
 
 def write_scenario(path: Path, document: dict[str, Any], header: str) -> Path:
     """Write a scenario document (atomically)."""
-    return write_text(path, _dump(document, header), what="tuned scenario")
+    return write_text(path, _dump(document, header), what="tuned scenario", kind=TUNE_YAML)

@@ -257,7 +257,7 @@ def _execute(
     options = {"scheduler": scheduler, "workers": workers, "progress": False, "log": say, "case_timeout": case_timeout}
     study = _open_study(tuning, output)
     # 1. the starting controller's map, by the sweep engine (it checks the plant and the controller first)
-    start_doc = map_sweep(tuning, tuning.sweep.base, output, f"{tuning.name}_start", chosen)
+    start_doc = map_sweep(tuning, output, f"{tuning.name}_start", chosen)
     start_score, start_sweep, _ = _run_map(tuning, start_doc, output / START_SWEEP, output / START_MAP, chosen, options)
     start_point = {p.key: p.start for p in tuning.parameters}
     result.start = {"parameters": start_point, **_attrs(start_score)}
@@ -377,7 +377,7 @@ def _execute(
             f"  toggle-cosim run {scenario_path}\n  toggle-cosim sweep {output / TUNED_SWEEP}",
         )
     )
-    tuned_doc = map_sweep(tuning, scenario_path, output, f"{tuning.name}_tuned", chosen)
+    tuned_doc = map_sweep(tuning, output, f"{tuning.name}_tuned", chosen, dict(best.params))
     try:
         rerun, _, _ = _run_map(tuning, tuned_doc, output / TUNED_SWEEP, output / TUNED_MAP, chosen, options)
     except BaseException as error:
@@ -468,10 +468,12 @@ def _history(study: Any, tuning: Tuning) -> Any:
 
 
 def _write_history(study: Any, tuning: Tuning, output: Path) -> Path:
-    from toggle_cosim.files.outputs import write_file
+    from toggle_cosim.files.outputs import CSV, write_file
 
     table = _history(study, tuning)
-    return write_file(output / HISTORY_FILE, lambda stream: table.to_csv(stream, index=False), what="trial history")
+    return write_file(
+        output / HISTORY_FILE, lambda stream: table.to_csv(stream, index=False), what="trial history", kind=CSV
+    )
 
 
 def _write_manifest(tuning: Tuning, result: TuneResult, sha: str) -> None:

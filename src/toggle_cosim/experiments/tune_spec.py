@@ -285,6 +285,10 @@ def _fixed_cases(sweep: Sweep, fixed: dict[str, Any]) -> list[Case]:
     scenario key is set in every case (and checked as the sweep checks its cases)."""
     cases = list(sweep.cases)
     for key, value in fixed.items():
+        if key in sweep.axes and sweep.mode == "zip":
+            raise TuneError(
+                f"key fix.{key}: an axis of a zip sweep (its values pair with the others'); write a sweep without it"
+            )
         if key in sweep.axes:
             kept = [case for case in cases if case.values[key] == value]
             if not kept:
