@@ -25,7 +25,7 @@ from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith("sweep"))
+SCENARIOS = sorted(p for p in (ROOT / "scenarios").glob("*.yaml") if not p.name.startswith(("sweep", "tune_")))
 
 
 def _runs() -> list:

@@ -45,7 +45,7 @@ TRACKING = ("press_cycle",)  # a reference trajectory: refused too (the SSP's co
 SCENARIOS = sorted(
     p
     for p in (ROOT / "scenarios").glob("*.yaml")
-    if not p.name.startswith("sweep_") and p.stem not in VARYING + TRACKING
+    if not p.name.startswith(("sweep_", "tune_")) and p.stem not in VARYING + TRACKING
 )
 NS = layout.NAMESPACES
 UNITS = {"x_B": "m", "v_B": "m/s", "theta1": "rad", "omega1": "rad/s", "iq_ref": "A"}

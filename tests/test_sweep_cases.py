@@ -55,7 +55,7 @@ def _per_case(path: Path) -> list[tuple[str, str | None, dict, dict]]:
             values = dict(zip(axes, combo, strict=True))
             document = copy.deepcopy(resolved)
             for key, value in values.items():
-                sweep_spec._set_key(document, key, value)
+                sweep_spec.set_key(document, key, value)
             label = ", ".join(f"{k}={v!r}" for k, v in values.items())
             index = len(out)
             try:
@@ -179,7 +179,7 @@ def test_with_values_copies_only_the_paths_it_sets() -> None:
     result = with_values(document, {"plant.F_E": 9.0, "plant.parameters.mechanism.r3": 0.3, "stroke.x_start": 0.25})
     reference = copy.deepcopy(document)
     for key, value in {"plant.F_E": 9.0, "plant.parameters.mechanism.r3": 0.3, "stroke.x_start": 0.25}.items():
-        sweep_spec._set_key(reference, key, value)
+        sweep_spec.set_key(reference, key, value)
     assert result == reference and list(result) == list(reference)
     assert document["plant"] == {"F_E": 0.0, "parameters": {"a": 1.0}}  # the original is unchanged
     assert result["controller"] is document["controller"]  # shared: no axis passes through it

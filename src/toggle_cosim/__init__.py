@@ -45,6 +45,9 @@ _PUBLIC = {
     "OperatingPoint": "toggle_cosim.api.design",
     "LinearModel": "toggle_cosim.api.design",
     "TrimError": "toggle_cosim.api.design",
+    "tune": "toggle_cosim.api.tuning",
+    "TuneError": "toggle_cosim.api.tuning",
+    "TuneResult": "toggle_cosim.api.tuning",
 }
 __all__ = ["__version__", *_PUBLIC]
 

@@ -12,4 +12,5 @@ imports that module on first use, so `import toggle_cosim` (and the command line
 * `sweeping.py`   `sweep`: a parameter sweep's results table as a DataFrame
 * `design.py`     `trim`, `linearize`: an operating point and the linear model there (python-control)
 * `plotting.py`   `plot`: chosen variables of any runs overlaid, around a reference's funnel
+* `tuning.py`     `tune`: a controller's parameters tuned for the worst case of a robustness map
 """

@@ -1,4 +1,4 @@
-"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep | ssp | report`.
+"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep | tune | ssp | report`.
 
 The only package that knows about files, exit codes and progress display. Exit status:
 0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
@@ -10,6 +10,7 @@ The only package that knows about files, exit codes and progress display. Exit s
     run_commands.py    run, plot, paper
     check_commands.py  compare, references
     sweep_command.py   sweep
+    tune_command.py    tune
     ssp_command.py     ssp, and the SSPs that run reads
     report_command.py  report (the HTML page), and plot --vars/--reference
 
@@ -39,6 +40,7 @@ from toggle_cosim.cli import (  # noqa: E402, F401 - they add the commands
     run_commands,
     ssp_command,
     sweep_command,
+    tune_command,
 )
 from toggle_cosim.cli.app import main  # noqa: E402
 

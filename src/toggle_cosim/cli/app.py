@@ -38,6 +38,8 @@ EXTRAS = {
     "control": "design",
     "scipy": "design",
     "plotly": "report",
+    "optuna": "tune",
+    "cmaes": "tune",
 }
 
 

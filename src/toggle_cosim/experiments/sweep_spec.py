@@ -171,11 +171,12 @@ def split_key(key: str) -> list[str]:
     return parts
 
 
-def _check_axis_key(key: str) -> None:
-    """Refuse keys the scenario schema does not have (and keys that do not hold one value)."""
+def check_axis_key(key: str, what: str = "axis ") -> None:
+    """Refuse keys the scenario schema does not have (and keys that do not hold one value);
+    `what` names the key in the message ("axis ", or a tuning file's "key parameters.")."""
     path = split_key(key)
     if path[0] in ("name", "description", "fmu", "variants"):
-        raise SweepError(f"axis {key}: {path[0]} cannot be swept (sweep a physical or numerical key)")
+        raise SweepError(f"{what}{key}: {path[0]} cannot be swept (sweep a physical or numerical key)")
     schema: Mapping[str, Any] = SCENARIO_SCHEMA
     for depth, part in enumerate(path):
         properties = schema.get("properties", {}) or signal_keys(schema)  # a signal's: plant.F_E.start_time
@@ -186,12 +187,13 @@ def _check_axis_key(key: str) -> None:
         else:
             where = ".".join(path[:depth]) or "(top level)"
             allowed = ", ".join(sorted(properties)) or "none"
-            raise SweepError(f"axis {key}: unknown scenario key {part!r} under {where} (allowed there: {allowed})")
+            raise SweepError(f"{what}{key}: unknown scenario key {part!r} under {where} (allowed there: {allowed})")
     if schema.get("type") == "object" or "properties" in schema:
-        raise SweepError(f"axis {key}: a group of keys, not one value (name one key inside it, e.g. {key}.<key>)")
+        raise SweepError(f"{what}{key}: a group of keys, not one value (name one key inside it, e.g. {key}.<key>)")
 
 
-def _set_key(document: dict[str, Any], key: str, value: Any) -> None:
+def set_key(document: dict[str, Any], key: str, value: Any) -> None:
+    """Set the dotted scenario key `key` (`split_key`) in `document`, making its groups as needed."""
     node = document
     path = split_key(key)
     for part in path[:-1]:
@@ -203,7 +205,8 @@ def _set_key(document: dict[str, Any], key: str, value: Any) -> None:
     node[path[-1]] = value
 
 
-def _get_key(document: Mapping[str, Any], key: str) -> Any:
+def get_key(document: Mapping[str, Any], key: str) -> Any:
+    """The value of the dotted scenario key `key` in `document`, None where it is not set."""
     node: Any = document
     for part in split_key(key):
         if not isinstance(node, Mapping) or part not in node:
@@ -224,7 +227,7 @@ def check_group(key: str) -> str:
 
 
 def with_values(document: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
-    """`document` with the axis values set (as `_set_key` sets them), sharing the subtrees no axis
+    """`document` with the axis values set (as `set_key` sets them), sharing the subtrees no axis
     key passes through: the mappings along each key's path are copied, the rest is not. Neither
     the result nor `document` may be changed in place afterwards."""
     result = dict(document)
@@ -317,7 +320,7 @@ def _id_text(document: Mapping[str, Any], variant: str | None) -> str:
     return json.dumps({"variant": variant, "scenario": _canonical(content)}, sort_keys=True, separators=(",", ":"))
 
 
-def _schema_message(error: Any) -> str:  # a jsonschema.ValidationError
+def schema_message(error: Any) -> str:  # a jsonschema.ValidationError
     key = ".".join(str(p) for p in error.absolute_path) or "(top level)"
     if error.validator == "additionalProperties":
         extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
@@ -335,7 +338,7 @@ def _schema_message(error: Any) -> str:  # a jsonschema.ValidationError
     return f"key {key}: {' '.join(error.message.split())}"
 
 
-def _read_yaml(path: Path, what: str) -> Any:
+def read_yaml(path: Path, what: str) -> Any:
     from toggle_cosim.files.yaml_loader import YamlError, load_yaml
 
     try:
@@ -455,7 +458,7 @@ def load_sweep(path: Path, output: Path | None = None) -> Sweep:
 
 
 def _load_sweep(path: Path, output: Path | None) -> Sweep:
-    document = _read_yaml(path, "sweep file")
+    document = read_yaml(path, "sweep file")
     if document is None:
         raise SweepError("the file is empty (a sweep needs base: and axes:)")
     if not isinstance(document, dict):
@@ -467,14 +470,14 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
         validator.iter_errors(document), key=lambda e: (len(e.absolute_path), list(map(str, e.absolute_path)))
     )
     if errors:
-        raise SweepError(_schema_message(errors[0]))
+        raise SweepError(schema_message(errors[0]))
     folder = path.parent
     base_path = Path(os.path.normpath(folder / document["base"]))
     try:
         load_scenario(base_path)  # the base alone must be a valid scenario
     except ScenarioError as error:
         raise SweepError(f"key base: {error}") from error
-    base_doc = _read_yaml(base_path, "base scenario")
+    base_doc = read_yaml(base_path, "base scenario")
     variants_doc: dict[str, Any] = base_doc.get("variants") or {}
     wanted = document.get("variant")
     if wanted is None:
@@ -490,7 +493,7 @@ def _load_sweep(path: Path, output: Path | None) -> Sweep:
     for key, spec in document["axes"].items():
         if key == "variant":
             raise SweepError("axis variant: choose variants with the variant: key, not as an axis")
-        _check_axis_key(key)
+        check_axis_key(key)
         axes[key] = _axis_values(key, spec)
     mode = document.get("mode", "grid")
     if mode == "zip":
