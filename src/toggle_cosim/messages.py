@@ -39,13 +39,13 @@ _short = reprlib.Repr(maxlevel=3, maxlist=8, maxtuple=8, maxdict=8, maxset=8, ma
 
 def short_repr(value: object, limit: int = 120) -> str:
     """repr() of a value a user's code gave (a command, diagnostics), short whatever its size: a
-    10-million-element list is shown by its first elements, never printed whole."""
+    10-million-element list is shown by its first elements and its length, never printed whole."""
     try:
         text = _short.repr(value)
     except Exception:  # noqa: BLE001 - a user's object whose __repr__ fails
         text = f"<{type(value).__name__}>"
     size = getattr(value, "__len__", None)
-    if callable(size) and not isinstance(value, str):
+    if callable(size) and not isinstance(value, str) and "..." in text:  # shortened: say how long it is
         try:
             text = f"{text} (a {type(value).__name__} of {len(value)})"  # type: ignore[arg-type]
         except Exception:  # noqa: BLE001, S110
