@@ -328,6 +328,16 @@ class CompiledLoop:
         self._state.no_prior = 1 if value else 0
 
     @property
+    def pointer(self) -> object:
+        """The ctypes pointer to the loop's struct, for the library's functions."""
+        return self._pointer
+
+    @property
+    def status(self) -> int:
+        """The status field of the struct: the last failed FMI call's status."""
+        return int(self._state.status)
+
+    @property
     def z(self) -> float:
         """The law's state at the next sample."""
         return float(self._state.z)
@@ -396,7 +406,7 @@ class PlantExchange:
         """`data`, `n_out`, `col_u`, `n`, `T_s`, `load`: as `CompiledLoop`'s (no law, no controller)."""
         self._loop = CompiledLoop(library, fmu, data, n_out, 0, 0, col_u, n, T_s, load, None)
         self.call = library.plant_exchange
-        self.pointer = self._loop._pointer
+        self.pointer = self._loop.pointer
         self.names = fmu.names
 
     @property
@@ -411,7 +421,7 @@ class PlantExchange:
     @property
     def status(self) -> int:
         """The status of the failed call."""
-        return int(self._loop._state.status)
+        return self._loop.status
 
     def failure(self, code: int) -> FMICallException:
         """The exception the session raises for the failed call `code` (named as it names it)."""
