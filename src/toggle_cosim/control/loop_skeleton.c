@@ -8,7 +8,8 @@
    cosim/fmu_controller.py's FmuController.step calls it: the previous sample's doStep (deferred
    to this sample), set its inputs from the row, get iq_ref and its diagnostics; or a discrete
    LTI system (CTRL_LTI), u = C x + D e, x <- A x + B e on the error e of one plant output, summed
-   in the order of control/lti.py's lti_step. */
+   in the order of control/lti.py's lti_step. plant_exchange is the plant's part of one sample
+   for the Python loop (cosim/stepper.py's PythonStepper). */
 #include <stdbool.h>
 #include <stddef.h>
 

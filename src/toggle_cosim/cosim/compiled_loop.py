@@ -26,6 +26,10 @@ the master raises the same exception the Python path raises: for the controller 
 sample and call where the Python loop raises it (the sample not recorded), as for a command
 that is not finite.
 
+The Python loop uses the same library for the plant's part of its samples (`PlantExchange`:
+set, doStep and the next sample's get in one call), so a controller in Python pays one ctypes
+call per sample for the plant, not three.
+
 The library is compiled once per machine with the C compiler the FMU build uses and kept in
 the user's private cache by a hash of the generated source (``$XDG_CACHE_HOME/toggle-cosim`` or
 ``~/.cache/toggle-cosim``; ``TOGGLE_COSIM_CACHE`` overrides; see `native` for the checks made

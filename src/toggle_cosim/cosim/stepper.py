@@ -3,7 +3,10 @@ inputs, doStep). Every stepper writes into the same `Recorder` and shares one `L
 one can take over from another at any sample.
 
 * `PythonStepper`: the loop in Python over the `PlantSession` and any controller that meets
-  the protocol (`control.protocol`).
+  the protocol (`control.protocol`). Where the compiled loop's library is there, the plant's
+  set, doStep and the next sample's get are one C call per sample (`PlantExchange`: the same
+  FMI calls with the same values, a failure raised as the session raises it); else, or when
+  the session's own calls are replaced, the session's three calls.
 * `CompiledStepper`: the same loop in C (`compiled_loop`, generated from `control.laws`),
   stopping at every sample a step hook wants to see. It runs the built-in law, calls a
   controller FMU's C functions in the order `FmuController.step` calls them, or runs a
