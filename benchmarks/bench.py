@@ -22,8 +22,9 @@ What is measured (benchmarks/README.md says more):
   law) when `toggle_cosim.controller_fmu` is there, else a PD law built here with PythonFMU;
 * controllers in the loop: the shipped example's python-control PID with its matrices in the
   compiled loop against the built-in law on the same run (and in the Python loop), and the
-  Python loop's own cost per sample around a step that returns a constant (the loop minus the
-  plant's share of the same samples, replayed by the C driver);
+  Python loop's own cost per sample around a step that returns a constant (the loop, which calls
+  the plant once per sample from C, minus the plant's share of the same samples replayed by the C
+  driver; beside it the same loop with the session's three ctypes calls);
 * the cost per step and per simulated second for T_s = 2 ms ... 0.05 ms;
 * the throughput of a batch of runs on 1 and 2 worker processes;
 * sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the
