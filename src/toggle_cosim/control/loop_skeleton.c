@@ -8,7 +8,8 @@
    cosim/fmu_controller.py's FmuController.step calls it: the previous sample's doStep (deferred
    to this sample), set its inputs from the row, get iq_ref and its diagnostics; or a discrete
    LTI system (CTRL_LTI), u = C x + D e, x <- A x + B e on the error e of one plant output, summed
-   in the order of control/lti.py's lti_step. */
+   in the order of control/lti.py's lti_step. plant_exchange is the plant's part of one sample
+   for the Python loop (cosim/stepper.py's PythonStepper). */
 #include <stdbool.h>
 #include <stddef.h>
 
@@ -201,4 +202,27 @@ int kernel_run(kernel_t *s, long k_end) {
     }
     s->k = k_end;
     return DONE;
+}
+
+/* The plant's part of one sample k of the Python loop in one call (cosim/stepper.py's
+   PythonStepper): set the inputs (the command u, then the load row k), doStep from t_k over T_s
+   with s->no_prior, then, if `read_next`, get the outputs of sample k + 1 into the trace row
+   k + 1. Returns 0, or the failed call (2 set, 3 step, 1 get) with its status in s->status, as
+   kernel_run's s->fault does; nothing after a failed call is made. */
+int plant_exchange(kernel_t *s, long k, double u, int read_next) {
+    const double *load = s->load + k * s->n_load;
+    double *in = s->plant_in;
+    long j;
+    int status;
+    in[0] = u;
+    for (j = 0; j < s->n_load; j++) { in[1 + j] = load[j]; }
+    status = fmu_set(&s->plant, (size_t)(1 + s->n_load), in);
+    if (FAILED(status)) { s->status = status; return 2; }
+    status = fmu_step(&s->plant, (double)k * s->T_s, s->T_s, s->no_prior != 0);
+    if (FAILED(status)) { s->status = status; return 3; }
+    if (read_next) {
+        status = fmu_get(&s->plant, (size_t)s->n_out, s->data + (k + 1) * s->ncols + 1);
+        if (FAILED(status)) { s->status = status; return 1; }
+    }
+    return 0;
 }

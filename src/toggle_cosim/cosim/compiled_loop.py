@@ -26,6 +26,10 @@ the master raises the same exception the Python path raises: for the controller 
 sample and call where the Python loop raises it (the sample not recorded), as for a command
 that is not finite.
 
+The Python loop uses the same library for the plant's part of its samples (`PlantExchange`:
+set, doStep and the next sample's get in one call), so a controller in Python pays one ctypes
+call per sample for the plant, not three.
+
 The library is compiled once per machine with the C compiler the FMU build uses and kept in
 the user's private cache by a hash of the generated source (``$XDG_CACHE_HOME/toggle-cosim`` or
 ``~/.cache/toggle-cosim``; ``TOGGLE_COSIM_CACHE`` overrides; see `native` for the checks made
@@ -44,6 +48,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.lti import LtiMatrices
 from toggle_cosim.control.parameters import LawParameters
@@ -204,6 +209,8 @@ def kernel_library() -> ctypes.CDLL | None:
                 ctypes.POINTER(ctypes.c_double),
             ]
             library.kernel_control.restype = ctypes.c_int
+            library.plant_exchange.argtypes = [ctypes.POINTER(kernel), ctypes.c_long, ctypes.c_double, ctypes.c_int]
+            library.plant_exchange.restype = ctypes.c_int
             _library = library
         except Exception as error:  # noqa: BLE001 - no kernel: the Python loop runs instead
             _library_reason = str(error)
@@ -325,6 +332,16 @@ class CompiledLoop:
         self._state.no_prior = 1 if value else 0
 
     @property
+    def pointer(self) -> object:
+        """The ctypes pointer to the loop's struct, for the library's functions."""
+        return self._pointer
+
+    @property
+    def status(self) -> int:
+        """The status field of the struct: the last failed FMI call's status."""
+        return int(self._state.status)
+
+    @property
     def z(self) -> float:
         """The law's state at the next sample."""
         return float(self._state.z)
@@ -365,6 +382,56 @@ class CompiledLoop:
             self.fault_function = self._names[state.fault]
             self.fault_status = int(state.status)
         return code, int(state.k)
+
+
+class PlantExchange:
+    """The plant's part of a sample of the Python loop in one C call (`plant_exchange` in the
+    loop skeleton): set the inputs (the command, then the load row k), doStep from t_k over T_s,
+    and optionally get the outputs of sample k + 1 into the trace row k + 1. The same FMI calls
+    with the same values as `PlantSession.write_inputs`, `do_step` and `read_outputs`, so the
+    trace has their bits; a failed call is reported as they report it (`failure`).
+
+    `call` and `pointer` are pre-bound for the loop: ``call(pointer, k, u, read_next)`` returns
+    0, or the failed call (GET, SET or STEP), whose status is then `status`."""
+
+    GET, SET, STEP = 1, 2, 3
+
+    def __init__(
+        self,
+        library: ctypes.CDLL,
+        fmu: CFunctions,
+        data: np.ndarray,
+        n_out: int,
+        col_u: int,
+        n: int,
+        T_s: float,
+        load: np.ndarray,
+    ) -> None:
+        """`data`, `n_out`, `col_u`, `n`, `T_s`, `load`: as `CompiledLoop`'s (no law, no controller)."""
+        self._loop = CompiledLoop(library, fmu, data, n_out, 0, 0, col_u, n, T_s, load, None)
+        self.call = library.plant_exchange
+        self.pointer = self._loop.pointer
+        self.names = fmu.names
+
+    @property
+    def no_set_state_prior_to_current_point(self) -> bool:
+        """The flag passed to every doStep (the session's, copied before each stretch)."""
+        return self._loop.no_set_state_prior_to_current_point
+
+    @no_set_state_prior_to_current_point.setter
+    def no_set_state_prior_to_current_point(self, value: bool) -> None:
+        self._loop.no_set_state_prior_to_current_point = value
+
+    @property
+    def status(self) -> int:
+        """The status of the failed call."""
+        return self._loop.status
+
+    def failure(self, code: int) -> FMICallException:
+        """The exception the session raises for the failed call `code` (named as it names it)."""
+        names = self.names
+        function = {self.GET: names.get, self.SET: names.set, self.STEP: names.step}[code]
+        return FMICallException(function=function, status=self.status)
 
 
 def _point_at(target: ctypes.Structure, functions: CFunctions) -> None:

@@ -3,7 +3,10 @@ inputs, doStep). Every stepper writes into the same `Recorder` and shares one `L
 one can take over from another at any sample.
 
 * `PythonStepper`: the loop in Python over the `PlantSession` and any controller that meets
-  the protocol (`control.protocol`).
+  the protocol (`control.protocol`). Where the compiled loop's library is there, the plant's
+  set, doStep and the next sample's get are one C call per sample (`PlantExchange`: the same
+  FMI calls with the same values, a failure raised as the session raises it); else, or when
+  the session's own calls are replaced, the session's three calls.
 * `CompiledStepper`: the same loop in C (`compiled_loop`, generated from `control.laws`),
   stopping at every sample a step hook wants to see. It runs the built-in law, calls a
   controller FMU's C functions in the order `FmuController.step` calls them, or runs a
@@ -41,6 +44,7 @@ from toggle_cosim.cosim.compiled_loop import (
     CompiledLoop,
     ControllerCalls,
     LtiCalls,
+    PlantExchange,
     kernel_library,
     kernel_reason,
 )
@@ -176,6 +180,24 @@ class PythonStepper:
         self.jacobi = jacobi
         self.load = timing.load.tolist()  # row k: what sample k sends besides the command, as Python floats
         self.index = {name: j for j, name in enumerate(recorder.names[1 : 1 + recorder.n_out], start=1)}
+        self._exchange: PlantExchange | None | bool = False  # False: not looked for yet
+
+    def exchange(self) -> PlantExchange | None:
+        """The plant's part of a sample in one C call (`PlantExchange`), or None: no compiled loop
+        library, the FMU's C functions not reachable, or a session whose read_outputs,
+        write_inputs or do_step is not `PlantSession`'s own (then the loop calls those)."""
+        if self._exchange is False:
+            self._exchange = None
+            session, library = self.session, kernel_library()
+            if library is not None and isinstance(session, PlantSession):
+                if not any(_replaced(session, PlantSession, m) for m in ("read_outputs", "write_inputs", "do_step")):
+                    functions = session.c_functions()
+                    if functions is not None:
+                        rec, timing = self.recorder, self.timing
+                        self._exchange = PlantExchange(
+                            library, functions, rec.data, rec.n_out, rec.col_u, timing.n, timing.T_s, timing.load
+                        )
+        return self._exchange
 
     def _start(self, t: float, measurement: Measurement) -> Any:
         try:
@@ -200,12 +222,19 @@ class PythonStepper:
         col_d = col_u + 2  # the first diagnostic's column
         outputs = data[:, 1 : 1 + n_out]  # row k's outputs: outputs[k], a view the session reads into
         state = st.controller
+        exchange = self.exchange()
+        if exchange is not None:
+            exchange.no_set_state_prior_to_current_point = self.session.no_set_state_prior_to_current_point
+            call, pointer, STEP = exchange.call, exchange.pointer, exchange.STEP
+        ahead = False  # the outputs of sample k are in the trace already (read by the exchange)
         try:
             for k in range(k0, k_end):
                 t = k * T_s
                 row = data[k]
                 row[0] = t
-                if read_first or k != k0:
+                if ahead:
+                    ahead = False
+                elif read_first or k != k0:
                     read_outputs(outputs[k])
                 if not (isfinite(row[i_x]) and isfinite(row[i_v])):
                     st.reason = f"plant outputs became non-finite at t = {t:.6g} s"
@@ -239,15 +268,22 @@ class PythonStepper:
                 rec.rows = k + 1
                 if k == n:
                     return k + 1
-                write_inputs((u, *sent))
-                try:
-                    do_step(t, T_s)
-                except FMICallException as error:
-                    raise StepFailed(k, error) from None
-                if hooks:
-                    for hook in hooks:
-                        if k % hook.every == 0:
-                            hook(k)
+                due = [hook for hook in hooks if k % hook.every == 0] if hooks else ()
+                if exchange is None:
+                    write_inputs((u, *sent))
+                    try:
+                        do_step(t, T_s)
+                    except FMICallException as error:
+                        raise StepFailed(k, error) from None
+                else:  # sample k + 1's outputs read here too, unless a hook sees sample k first
+                    ahead = not due and k + 1 < k_end
+                    code = call(pointer, k, u, ahead)
+                    if code:
+                        if code == STEP:
+                            raise StepFailed(k, exchange.failure(code))
+                        raise exchange.failure(code)  # set: at sample k; get: of sample k + 1, as read there
+                for hook in due:
+                    hook(k)
             return k_end
         finally:
             st.controller = state
