@@ -338,6 +338,28 @@ def schema_message(error: Any) -> str:  # a jsonschema.ValidationError
     return f"key {key}: {' '.join(error.message.split())}"
 
 
+def checked_document(
+    path: Path, what: str, schema: dict, error: type[Exception], needs: str, keys: str
+) -> dict[str, Any]:
+    """A YAML file (a sweep's, a tuning's) read and checked against its JSON schema: the mapping,
+    or `error` with one line: the file is empty (`needs` says what it needs), not a mapping
+    (`keys` names its keys), or the schema's first error, the outermost first."""
+    document = read_yaml(path, what)
+    if document is None:
+        raise error(f"the file is empty ({needs})")
+    if not isinstance(document, dict):
+        raise error(f"the file must hold a YAML mapping ({keys})")
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(schema)
+    errors = sorted(
+        validator.iter_errors(document), key=lambda e: (len(e.absolute_path), list(map(str, e.absolute_path)))
+    )
+    if errors:
+        raise error(schema_message(errors[0]))
+    return document
+
+
 def read_yaml(path: Path, what: str) -> Any:
     from toggle_cosim.files.yaml_loader import YamlError, load_yaml
 
@@ -458,19 +480,14 @@ def load_sweep(path: Path, output: Path | None = None) -> Sweep:
 
 
 def _load_sweep(path: Path, output: Path | None) -> Sweep:
-    document = read_yaml(path, "sweep file")
-    if document is None:
-        raise SweepError("the file is empty (a sweep needs base: and axes:)")
-    if not isinstance(document, dict):
-        raise SweepError("the file must hold a YAML mapping (base, axes, mode, output, heatmap, ...)")
-    import jsonschema
-
-    validator = jsonschema.Draft202012Validator(SCHEMA)
-    errors = sorted(
-        validator.iter_errors(document), key=lambda e: (len(e.absolute_path), list(map(str, e.absolute_path)))
+    document = checked_document(
+        path,
+        "sweep file",
+        SCHEMA,
+        SweepError,
+        "a sweep needs base: and axes:",
+        "base, axes, mode, output, heatmap, ...",
     )
-    if errors:
-        raise SweepError(schema_message(errors[0]))
     folder = path.parent
     base_path = Path(os.path.normpath(folder / document["base"]))
     try:

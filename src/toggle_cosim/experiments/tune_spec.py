@@ -39,10 +39,9 @@ from toggle_cosim.experiments.sweep_spec import (
     SweepError,
     case_id,
     check_axis_key,
+    checked_document,
     get_key,
     load_sweep,
-    read_yaml,
-    schema_message,
     set_key,
 )
 
@@ -222,19 +221,14 @@ def load_tuning(path: Path, output: Path | None = None) -> Tuning:
 
 
 def _load_tuning(path: Path, output: Path | None) -> Tuning:
-    document = read_yaml(path, "tuning file")
-    if document is None:
-        raise TuneError("the file is empty (a tuning needs sweep:, parameters: and objective:)")
-    if not isinstance(document, dict):
-        raise TuneError("the file must hold a YAML mapping (sweep, parameters, objective, constraints, ...)")
-    import jsonschema
-
-    validator = jsonschema.Draft202012Validator(SCHEMA)
-    errors = sorted(
-        validator.iter_errors(document), key=lambda e: (len(e.absolute_path), list(map(str, e.absolute_path)))
+    document = checked_document(
+        path,
+        "tuning file",
+        SCHEMA,
+        TuneError,
+        "a tuning needs sweep:, parameters: and objective:",
+        "sweep, parameters, objective, constraints, ...",
     )
-    if errors:
-        raise TuneError(schema_message(errors[0]))
     folder = path.parent
     sweep_path = Path(os.path.normpath(folder / document["sweep"]))
     try:
