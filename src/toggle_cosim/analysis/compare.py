@@ -353,6 +353,23 @@ def _file_stem(name: str, taken: set[str]) -> str:
     return candidate
 
 
+def draw_funnel_band(ax: Any, variable: VariableResult, color: str, alpha: float) -> None:
+    """Shade a compared variable's funnel on a matplotlib axis: the band between its lower and
+    upper envelopes on their common time grid, labelled with the funnel's half-height and width."""
+    envelope = variable.envelope
+    assert envelope is not None
+    grid = np.union1d(envelope.lower_time, envelope.upper_time)
+    ax.fill_between(
+        grid,
+        np.interp(grid, envelope.lower_time, envelope.lower),
+        np.interp(grid, envelope.upper_time, envelope.upper),
+        color=color,
+        alpha=alpha,
+        linewidth=0,
+        label=f"funnel (±{variable.half_height:.3g}, ±{variable.half_width:.3g} s)",
+    )
+
+
 def _plot(variable: VariableResult, reference: Trace, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -362,16 +379,7 @@ def _plot(variable: VariableResult, reference: Trace, path: Path) -> None:
     figure = Figure(figsize=(10, 6.5), layout="constrained")
     FigureCanvasAgg(figure)
     top, bottom = figure.subplots(2, 1, sharex=True, height_ratios=(3, 1.4))
-    grid = np.union1d(envelope.lower_time, envelope.upper_time)
-    top.fill_between(
-        grid,
-        np.interp(grid, envelope.lower_time, envelope.lower),
-        np.interp(grid, envelope.upper_time, envelope.upper),
-        color="C0",
-        alpha=0.18,
-        linewidth=0,
-        label=f"funnel (±{variable.half_height:.3g}, ±{variable.half_width:.3g} s)",
-    )
+    draw_funnel_band(top, variable, "C0", 0.18)
     top.plot(envelope.lower_time, envelope.lower, color="C0", linewidth=0.6)
     top.plot(envelope.upper_time, envelope.upper, color="C0", linewidth=0.6)
     top.plot(reference.time, reference.column(variable.name), color="k", linewidth=1.0, label="reference")

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from toggle_cosim.analysis.compare import ComparisonResult
+from toggle_cosim.analysis.compare import ComparisonResult, draw_funnel_band
 from toggle_cosim.analysis.display_points import thin
 from toggle_cosim.analysis.run_files import LoadedRun
 from toggle_cosim.files.outputs import PNG, replacing
@@ -51,16 +51,7 @@ def _draw_band(ax, band: ReferenceBand, name: str) -> None:  # noqa: ANN001 - a 
     envelope = variable.envelope
     if envelope is None:
         return
-    grid = np.union1d(envelope.lower_time, envelope.upper_time)
-    ax.fill_between(
-        grid,
-        np.interp(grid, envelope.lower_time, envelope.lower),
-        np.interp(grid, envelope.upper_time, envelope.upper),
-        color="0.5",
-        alpha=0.25,
-        linewidth=0,
-        label=f"funnel (±{variable.half_height:.3g}, ±{variable.half_width:.3g} s)",
-    )
+    draw_funnel_band(ax, variable, "0.5", 0.25)
     outside = envelope.error > 0
     if np.any(outside):
         ax.plot(
