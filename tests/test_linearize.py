@@ -285,13 +285,17 @@ def test_the_command_writes_npz_and_mat_and_refuses_bad_input(plant_fmu, tmp_pat
     for args, message in [
         ([*common[:-1], "0.5", "--out", str(tmp_path / "far.npz")], "outside the working range"),
         ([*common, "--out", str(tmp_path / "lin.txt")], "must end in .npz or .mat"),
-        ([*common[:3], "--x-B", "0.28", "--out", str(tmp_path / "v.npz")], "choose one with --variant"),
+        ([*common[:3], "--variant", "nope", "--x-B", "0.28", "--out", str(tmp_path / "v.npz")], "no variant 'nope'"),
         ([*common, "--out", str(tmp_path / "o.npz"), "--output", "nope"], "not a recorded output"),
     ]:
         result = CliRunner().invoke(main, ["linearize", *args])
         assert result.exit_code == 2 and message in result.output, result.output
         assert len(result.output.strip().splitlines()) <= 2  # a warning line at most, then the error
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lin.mat", "lin.npz"]  # nothing half-written
+    first = tmp_path / "first.npz"  # without --variant: the scenario's first variant (friction), named
+    result = CliRunner().invoke(main, ["linearize", *common[:3], "--x-B", "0.28", "--out", str(first)])
+    assert result.exit_code == 0 and "fig5_external_force/friction at x_B = 0.28 m" in result.output, result.output
+    assert np.array_equal(np.load(first)["A"], saved["A"])
 
 
 def test_without_python_control_the_model_names_the_extra(plant, base_run, monkeypatch):

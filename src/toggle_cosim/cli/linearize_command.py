@@ -12,9 +12,7 @@ from toggle_cosim.cli.app import InputError, check_output, main, require
 
 def _variant(pairs: list, variant: str | None, scenario: Path):  # noqa: ANN202 - a (Run, PlantInterface)
     names = [run.variant for run, _ in pairs]
-    if variant is None:
-        if len(pairs) > 1:
-            raise InputError(f"{scenario}: it has the variants {', '.join(map(str, names))}; choose one with --variant")
+    if variant is None:  # the first variant, as an SSP's default SSD; the result line names it
         return pairs[0]
     for pair in pairs:
         if pair[0].variant == variant:
@@ -28,7 +26,7 @@ def _variant(pairs: list, variant: str | None, scenario: Path):  # noqa: ANN202 
 @click.option(
     "--out", "-o", "output", type=click.Path(path_type=Path), required=True, help="The .npz or .mat file to write."
 )
-@click.option("--variant", default=None, help="The scenario's variant (needed when it has several).")
+@click.option("--variant", default=None, help="The scenario's variant (default: its first).")
 @click.option(
     "--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (default: the scenario's fmu: key)."
 )
