@@ -153,7 +153,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("native", "interrupts", "limits", "process_tree"),
     ("messages", "relay"),
     ("files",),
-    ("physics", "fmu_export", "signals"),
+    ("physics", "fmu_export", "signals", "system"),
     ("control",),
     ("controller_fmu",),
     ("runs",),

@@ -1,0 +1,149 @@
+"""A system's stepping plan: every value of a sample in one flat buffer, and the tables that say
+which slot feeds which (`build_plan`). The Python execution (`cosim.execution`) and the C loop
+(`cosim.system_loop`) both run a plan, so they make the same calls with the same values.
+
+The buffer holds, per component in stepping order, its outputs and then its inputs. Each fed
+input slot has one feed: another slot (an output, times `factor` plus `offset`, or copied when
+the connection is the identity) or a column of the run's signal table (a number or a signal in
+time sampled at every t_k, `signals`).
+
+One sample k under Gauss-Seidel (`coupling: gauss-seidel`):
+
+    for each component c in order:  compute and set c's early inputs;  get c's outputs
+    compute the late inputs;  record row k;  if k < n: set the late inputs;  doStep every c
+
+An input is early when its feed is a signal or an output of a component before c in the order,
+late otherwise (its component reads its outputs before that value exists; it has no direct
+feedthrough, `system.graph`). Under Jacobi every input is late: each component's outputs at
+t_k are read with the inputs it stepped with, and all inputs are then set from them, as
+libcosim's fixed-step algorithm does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from toggle_cosim.system.model import Connection, Interface, Port
+
+__all__ = ["Plan", "build_plan", "SIGNAL"]
+
+SIGNAL = -1  # feed_source[i] = SIGNAL - j: column j of the signal table
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The tables of one system's run (module docstring). Per component, in stepping order:
+    `outputs[c]` and `inputs[c]` the buffer slots of its outputs and of its fed inputs (their
+    names in `output_names[c]`, `input_names[c]`), `early[c]` the positions in inputs[c] set
+    before its outputs are read. `feed_source[s]`, `feed_factor[s]`, `feed_offset[s]` feed the
+    input slot s (an output slot, or SIGNAL - j for signal column j; factor 1 and offset 0: a
+    copy). `record` are the slots recorded in trace columns 1 .., named `names[1:]`."""
+
+    order: tuple[str, ...]
+    output_names: tuple[tuple[str, ...], ...]
+    input_names: tuple[tuple[str, ...], ...]
+    outputs: tuple[tuple[int, ...], ...]
+    inputs: tuple[tuple[int, ...], ...]
+    early: tuple[tuple[int, ...], ...]
+    feed_source: np.ndarray  # int64, one per buffer slot (unused for output slots: 0)
+    feed_factor: np.ndarray  # float64
+    feed_offset: np.ndarray  # float64
+    signals: tuple[Port, ...]  # the input each signal column feeds
+    record: tuple[int, ...]
+    names: tuple[str, ...]
+    size: int
+    jacobi: bool
+
+    def late(self, c: int) -> tuple[int, ...]:
+        """Positions in inputs[c] set after every output of the sample is known."""
+        early = set(self.early[c])
+        return tuple(i for i in range(len(self.inputs[c])) if i not in early)
+
+    def slot(self, port: Port) -> int:
+        """The buffer slot of a component's output or fed input."""
+        c = self.order.index(port.component)
+        if port.variable in self.output_names[c]:
+            return self.outputs[c][self.output_names[c].index(port.variable)]
+        return self.inputs[c][self.input_names[c].index(port.variable)]
+
+
+def build_plan(
+    order: Sequence[str],
+    interfaces: Mapping[str, Interface],
+    connections: Sequence[Connection],
+    signals: Sequence[Port],
+    record: Sequence[Port] | None,
+    jacobi: bool,
+) -> Plan:
+    """The plan of a system stepped in `order` (`system.graph.gauss_seidel_order`; for Jacobi any
+    order). `signals` are the inputs fed by the signal table's columns, in its column order;
+    `record` the ports recorded (None: every output and fed input of every component, in
+    stepping order). Raises ValueError for an input fed twice (the caller has checked names)."""
+    fed: dict[Port, object] = {}
+    for connection in connections:
+        if connection.end in fed:
+            raise ValueError(f"{connection.end} is fed twice ({fed[connection.end]} and {connection})")
+        fed[connection.end] = connection
+    for j, port in enumerate(signals):
+        if port in fed:
+            raise ValueError(f"{port} is fed twice (a connection and a signal)")
+        fed[port] = j
+    output_names, input_names, outputs, inputs = [], [], [], []
+    slots: dict[Port, int] = {}
+    size = 0
+    for name in order:
+        interface = interfaces[name]
+        output_names.append(tuple(interface.outputs))
+        outputs.append(tuple(range(size, size + len(interface.outputs))))
+        for variable in interface.outputs:
+            slots[Port(name, variable)] = size
+            size += 1
+        own = tuple(v for v in interface.inputs if Port(name, v) in fed)
+        input_names.append(own)
+        inputs.append(tuple(range(size, size + len(own))))
+        for variable in own:
+            slots[Port(name, variable)] = size
+            size += 1
+    position = {name: c for c, name in enumerate(order)}
+    source = np.zeros(size, dtype=np.int64)
+    factor = np.ones(size, dtype=np.float64)
+    offset = np.zeros(size, dtype=np.float64)
+    early = []
+    for c, name in enumerate(order):
+        own_early = []
+        for i, variable in enumerate(input_names[c]):
+            port = Port(name, variable)
+            feed, slot = fed[port], slots[port]
+            if isinstance(feed, Connection):
+                source[slot] = slots[feed.start]
+                factor[slot], offset[slot] = feed.factor, feed.offset
+                is_early = position[feed.start.component] < c
+            else:
+                source[slot] = SIGNAL - feed
+                is_early = True
+            if is_early and not jacobi:
+                own_early.append(i)
+        early.append(tuple(own_early))
+    if record is None:
+        chosen = [Port(name, v) for c, name in enumerate(order) for v in (*output_names[c], *input_names[c])]
+    else:
+        chosen = list(record)
+    return Plan(
+        order=tuple(order),
+        output_names=tuple(output_names),
+        input_names=tuple(input_names),
+        outputs=tuple(outputs),
+        inputs=tuple(inputs),
+        early=tuple(early),
+        feed_source=source,
+        feed_factor=factor,
+        feed_offset=offset,
+        signals=tuple(signals),
+        record=tuple(slots[port] for port in chosen),
+        names=("time", *(str(port) for port in chosen)),
+        size=size,
+        jacobi=jacobi,
+    )
