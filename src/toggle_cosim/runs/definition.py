@@ -15,6 +15,7 @@ from typing import Any, Literal
 from toggle_cosim.control.trajectory import ProfileSpec
 from toggle_cosim.physics.parameters import ControllerGains
 from toggle_cosim.signals.definitions import Signal
+from toggle_cosim.system.model import Wiring
 
 COUPLINGS = ("gauss-seidel", "jacobi")  # Run.coupling: how the master couples plant and controller
 
@@ -94,6 +95,9 @@ class Run:
     # the profile the built-in law tracks from x_start to x_target (stroke.trajectory); None: the
     # constant target x_target
     trajectory: ProfileSpec | None = None
+    # the parts around the plant and controller, the connections and what to record (`system`);
+    # the default is the plain pair, which the master's fixed loop runs
+    system: Wiring = field(default_factory=Wiring)
 
     @property
     def x_final(self) -> float:

@@ -78,11 +78,13 @@ class Wiring:
     """What a run adds to the plant + controller pair to make it a system: more components,
     the connections (None: the pair's own wiring, each controller input from the plant output
     of its name and the command to the plant's iq_ref), and the ports to record (None: every
-    connector of every component)."""
+    connector of every component). A scenario names its plant and controller `plant` and `controller`."""
 
     parts: tuple[Part, ...] = ()
     connections: tuple[Connection, ...] | None = None
     record: tuple[Port, ...] | None = None
+    plant: str = "plant"  # the plant's and the controller's component names (an SSD's own)
+    controller: str = "controller"
 
     @property
     def is_pair(self) -> bool:
