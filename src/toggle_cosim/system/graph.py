@@ -8,12 +8,16 @@ order of calls gives every value before it is needed (`AlgebraicLoop` names it).
 Gauss-Seidel steps components in an order where every component comes after those whose
 outputs feed one of its direct-feedthrough inputs; among components free to go, the system's
 own order (the plant first) decides. An input with no direct feedthrough may be fed by a
-component later in the order: it is set after every output of the sample is known.
+component later in the order: it is set after every output of the sample is known. Where no
+such order exists only because of outputs nothing is connected to (the plant's electrical
+power depends directly on its current command, which the controller computes from the plant's
+position), only the connected outputs count: the others are recorded as read, before the
+inputs that come later in the sample are set (as the plant + controller loop always has).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 from toggle_cosim.system.model import Connection, Interface
 
@@ -82,22 +86,44 @@ def gauss_seidel_order(
             f"an algebraic loop {' -> '.join(cycle)} (through the connections and the components' direct "
             "dependencies): break it, e.g. with a component without direct feedthrough in the loop",
         )
+    connected = {(c.start.component, c.start.variable) for c in connections}
+    strict = _order(components, connections, interfaces, lambda _component, _output: True)
+    if strict is not None:
+        return strict
+    loose = _order(components, connections, interfaces, lambda component, output: (component, output) in connected)
+    if loose is not None:
+        return loose
+    waiting = [name for name in components]
+    raise AlgebraicLoop(
+        waiting,
+        f"the components {', '.join(waiting)} each need another's output first through direct feedthrough "
+        "(no Gauss-Seidel order serves them; use coupling: jacobi or break the chain)",
+    )
+
+
+def _order(
+    components: Sequence[str],
+    connections: Sequence[Connection],
+    interfaces: Mapping[str, Interface],
+    counts: Callable[[str, str], bool],
+) -> tuple[str, ...] | None:
+    """Components in an order where each comes after every component feeding an input on which an
+    output of it that `counts` depends directly; None if there is none."""
     before: dict[str, set[str]] = {name: set() for name in components}
     for connection in connections:
         start, end = connection.start.component, connection.end.component
-        if start != end and interfaces[end].feedthrough(connection.end.variable):
+        interface = interfaces[end]
+        if start != end and any(
+            connection.end.variable in interface.depends.get(output, ()) and counts(end, output)
+            for output in interface.outputs
+        ):
             before[end].add(start)
     order: list[str] = []
     done: set[str] = set()
     while len(order) < len(components):
         ready = [name for name in components if name not in done and before[name] <= done]
         if not ready:
-            waiting = [name for name in components if name not in done]
-            raise AlgebraicLoop(
-                waiting,
-                f"the components {', '.join(waiting)} each need another's output first through direct feedthrough "
-                "(no Gauss-Seidel order serves them; use coupling: jacobi or break the chain)",
-            )
+            return None
         order.append(ready[0])
         done.add(ready[0])
     return tuple(order)

@@ -56,10 +56,15 @@ class Plan:
     names: tuple[str, ...]
     size: int
     jacobi: bool
+    # the early inputs of the Gauss-Seidel order, whatever the coupling: initialisation runs one
+    # Gauss-Seidel pass, so every connected input starts from its source's initial output (the
+    # fixed point libcosim's initialisation iterates to)
+    init_early: tuple[tuple[int, ...], ...] = ()
 
-    def late(self, c: int) -> tuple[int, ...]:
-        """Positions in inputs[c] set after every output of the sample is known."""
-        early = set(self.early[c])
+    def late(self, c: int, initial: bool = False) -> tuple[int, ...]:
+        """Positions in inputs[c] set after every output of the sample (initial: of the
+        initialisation pass) is known."""
+        early = set(self.init_early[c] if initial else self.early[c])
         return tuple(i for i in range(len(self.inputs[c])) if i not in early)
 
     def slot(self, port: Port) -> int:
@@ -78,8 +83,8 @@ def build_plan(
     record: Sequence[Port] | None,
     jacobi: bool,
 ) -> Plan:
-    """The plan of a system stepped in `order` (`system.graph.gauss_seidel_order`; for Jacobi any
-    order). `signals` are the inputs fed by the signal table's columns, in its column order;
+    """The plan of a system stepped in `order` (`system.graph.gauss_seidel_order`, for Jacobi too:
+    its initialisation pass follows it). `signals` are the inputs fed by the signal table's columns, in its column order;
     `record` the ports recorded (None: every output and fed input of every component, in
     stepping order). Raises ValueError for an input fed twice (the caller has checked names)."""
     fed: dict[Port, object] = {}
@@ -111,7 +116,7 @@ def build_plan(
     source = np.zeros(size, dtype=np.int64)
     factor = np.ones(size, dtype=np.float64)
     offset = np.zeros(size, dtype=np.float64)
-    early = []
+    early, init_early = [], []
     for c, name in enumerate(order):
         own_early = []
         for i, variable in enumerate(input_names[c]):
@@ -124,9 +129,10 @@ def build_plan(
             else:
                 source[slot] = SIGNAL - feed
                 is_early = True
-            if is_early and not jacobi:
+            if is_early:
                 own_early.append(i)
-        early.append(tuple(own_early))
+        init_early.append(tuple(own_early))
+        early.append(() if jacobi else tuple(own_early))
     if record is None:
         chosen = [Port(name, v) for c, name in enumerate(order) for v in (*output_names[c], *input_names[c])]
     else:
@@ -146,4 +152,5 @@ def build_plan(
         names=("time", *(str(port) for port in chosen)),
         size=size,
         jacobi=jacobi,
+        init_early=tuple(init_early),
     )

@@ -1,0 +1,153 @@
+"""An execution: a system's slaves stepped by one algorithm, with observers (after libcosim's
+execution, algorithm and observers).
+
+* `Execution` owns the slaves (`slaves`), in the plan's stepping order, the plan
+  (`system.plan`: the buffer, the feeds, which inputs are set early and which late) and the
+  signal table (the inputs fed by signals, sampled at every t_k). `initialize` instantiates
+  every slave, sets its values, enters initialisation, runs one Gauss-Seidel pass at t = 0
+  whatever the coupling (so every connected input starts from its source's initial output, the
+  fixed point libcosim's initialisation iterates to) and exits initialisation;
+  `advance(k, stop)` runs samples k .. stop - 1.
+* The algorithm is the plan's: Gauss-Seidel (its order, early and late inputs) or Jacobi (every
+  input late). Both are the sample procedure of `system.plan`, which the C loop
+  (`cosim.system_loop`) runs too.
+* Observers see every sample after it is complete: `TraceObserver` writes row k of the trace
+  (the plan's recorded slots), a progress hook reports.
+
+A failed call raises `SlaveError` (the component, the call, the time); the samples before it are
+in the trace.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import numpy as np
+
+from toggle_cosim.cosim.slaves import Slave
+from toggle_cosim.system.plan import SIGNAL, Plan
+
+__all__ = ["Execution", "Observer", "TraceObserver"]
+
+
+class Observer(Protocol):
+    def observe(self, k: int, t: float, values: np.ndarray) -> None:
+        """Sample k at t is complete: `values` is the plan's buffer."""
+        ...
+
+
+class TraceObserver:
+    """Records the plan's recorded slots into row k of `data` ((n + 1) x (1 + len(record)),
+    column 0 the time); `rows` counts the samples recorded."""
+
+    def __init__(self, plan: Plan, data: np.ndarray) -> None:
+        self.data, self.columns, self.rows = data, np.asarray(plan.record, dtype=np.int64), 0
+
+    def observe(self, k: int, t: float, values: np.ndarray) -> None:
+        row = self.data[k]
+        row[0] = t
+        row[1:] = values[self.columns]
+        self.rows = k + 1
+
+
+class Execution:
+    """The slaves of a plan (in its order), the signal table ((n + 1) x m: column j feeds
+    plan.signals[j]), n samples of T_s, and the observers (module docstring)."""
+
+    def __init__(
+        self,
+        plan: Plan,
+        slaves: Sequence[Slave],
+        signals: np.ndarray,
+        n: int,
+        T_s: float,
+        t_end: float,
+        observers: Sequence[Observer] = (),
+        hooks: Sequence[Callable[[int], None]] = (),
+    ) -> None:
+        self.plan, self.slaves, self.signals = plan, tuple(slaves), signals
+        self.n, self.T_s, self.t_end = n, float(T_s), float(t_end)
+        self.observers, self.hooks = tuple(observers), tuple(hooks)
+        self.values = np.zeros(plan.size, dtype=np.float64)
+        for c, slave in enumerate(self.slaves):
+            slave.bind(plan.input_names[c], plan.output_names[c])
+        self._out = [(ctypes.c_double * max(len(slots), 1))() for slots in plan.outputs]
+        source = plan.feed_source
+        self._feeds = [
+            [(slot, int(source[slot]), float(plan.feed_factor[slot]), float(plan.feed_offset[slot])) for slot in slots]
+            for slots in plan.inputs
+        ]
+        self._early = plan.early
+        self._late = tuple(plan.late(c) for c in range(len(self.slaves)))
+
+    def _feed(self, c: int, positions: Sequence[int], k: int) -> list[float]:
+        """Compute the inputs `positions` of component c at sample k into the buffer; their values."""
+        values, feeds, out = self.values, self._feeds[c], []
+        for i in positions:
+            slot, source, factor, offset = feeds[i]
+            if source <= SIGNAL:
+                value = float(self.signals[k, SIGNAL - source])
+            else:
+                value = float(values[source])
+                if factor != 1.0 or offset != 0.0:
+                    value = factor * value + offset
+            values[slot] = value
+            out.append(value)
+        return out
+
+    def _read(self, c: int, t: float) -> None:
+        slots, out = self.plan.outputs[c], self._out[c]
+        self.slaves[c].get(out, t)
+        if slots:
+            self.values[slots[0] : slots[0] + len(slots)] = out[: len(slots)]
+
+    def _pass(self, k: int, t: float, early: Sequence[tuple[int, ...]], late: Sequence[tuple[int, ...]]) -> None:
+        """Every component in order: its early inputs set, its outputs read; then the late inputs computed."""
+        for c, slave in enumerate(self.slaves):
+            if early[c]:
+                slave.set(early[c], self._feed(c, early[c], k), t)
+            self._read(c, t)
+        self._late_values = [self._feed(c, late[c], k) for c in range(len(self.slaves))]
+
+    def _set_late(self, t: float, late: Sequence[tuple[int, ...]]) -> None:
+        for c, slave in enumerate(self.slaves):
+            if late[c]:
+                slave.set(late[c], self._late_values[c], t)
+
+    def initialize(self) -> None:
+        """Instantiate, set values, initialise every slave with its inputs from one pass at t = 0."""
+        for slave in self.slaves:
+            slave.instantiate(self.t_end)
+        for slave in self.slaves:
+            slave.enter_initialization()
+        late = tuple(self.plan.late(c, initial=True) for c in range(len(self.slaves)))
+        self._pass(0, 0.0, self.plan.init_early, late)
+        self._set_late(0.0, late)
+        for slave in self.slaves:
+            slave.exit_initialization()
+
+    def advance(self, k: int, stop: int) -> int:
+        """Samples k .. stop - 1 (the last, n, is read and recorded, not stepped); the next sample."""
+        T_s, n, slaves, observers, hooks = self.T_s, self.n, self.slaves, self.observers, self.hooks
+        early, late = self._early, self._late
+        while k < stop:
+            t = k * T_s
+            self._pass(k, t, early, late)
+            for observer in observers:
+                observer.observe(k, t, self.values)
+            if k == n:
+                return k + 1
+            self._set_late(t, late)
+            for slave in slaves:
+                slave.do_step(t, T_s)
+            for hook in hooks:
+                hook(k)
+            k += 1
+        return k
+
+    def close(self) -> None:
+        """Close every slave (each closes whatever it holds; safe to call more than once)."""
+        for slave in self.slaves:
+            slave.close()

@@ -1,0 +1,381 @@
+"""The components of a system as the master steps them (after libcosim's slaves): one small
+interface, `Slave`, for an FMU (`FmuSlave`, FMI 2.0 or 3.0 Co-Simulation, whatever it models)
+and for a controller of the protocol run natively (`ControllerSlave`: the built-in law, a
+user's Python controller, a python-control system).
+
+    instantiate(t_end) -> enter_initialization() -> [set, get]* -> exit_initialization()
+    per sample t_k:  set(positions, values) -> get(values) -> set(...) -> do_step(t_k, T_s)
+    close()
+
+`set` takes positions in the slave's fed inputs (`Interface.inputs`, the plan's order) and their
+values, `get` fills its outputs. An FMU's call that fails raises `SlaveError` naming the
+component, the FMI function, the time and the FMU's last log line; after a fatal status the
+FMU is not called again (FMI 2.0, 2.1.3).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+from fmpy import extract, read_model_description
+
+from toggle_cosim import interrupts
+from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
+from toggle_cosim.cosim.session import CFunctions, FunctionNames, bound_function
+from toggle_cosim.messages import error_text
+from toggle_cosim.plant.fmi_calls import (
+    FATAL,
+    FMU2SlaveChecked,
+    FMU3SlaveChecked,
+    failed,
+    last_log_line,
+    logger3,
+    quiet,
+)
+from toggle_cosim.system.model import Interface, Value
+
+__all__ = ["ControllerSlave", "FmuSlave", "Slave", "SlaveError", "fmu_interface"]
+
+_REAL = ("Real", "Float64")
+_SETTERS = {
+    "Real": "setReal",
+    "Float64": "setFloat64",
+    "Float32": "setFloat32",
+    "Integer": "setInteger",
+    "Int32": "setInt32",
+    "Int64": "setInt64",
+    "Enumeration": "setInteger",
+    "Boolean": "setBoolean",
+}
+
+
+class SlaveError(Exception):
+    """A component's call failed; str() names the component, the call and why."""
+
+
+class Slave(Protocol):
+    name: str
+    interface: Interface
+
+    def instantiate(self, t_end: float) -> None: ...
+    def enter_initialization(self) -> None: ...
+    def exit_initialization(self) -> None: ...
+    def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None: ...
+    def get(self, values: Any, t: float) -> None: ...
+    def do_step(self, t: float, h: float) -> None: ...
+    def close(self) -> None: ...
+
+
+def _unit(variable: Any) -> str | None:
+    if getattr(variable, "unit", None):
+        return variable.unit
+    declared = getattr(variable, "declaredType", None)
+    return getattr(declared, "unit", None) or None
+
+
+def fmu_interface(description: Any, observed: Sequence[str] = ()) -> Interface:
+    """An FMU's Real inputs and outputs (then `observed`, other variables read as outputs), each
+    output's direct dependencies on inputs from its ModelStructure (none declared: every input),
+    and the units."""
+    variables = {v.name: v for v in description.modelVariables}
+    inputs = tuple(v.name for v in description.modelVariables if v.causality == "input" and v.type in _REAL)
+    outputs = tuple(v.name for v in description.modelVariables if v.causality == "output" and v.type in _REAL)
+    depends: dict[str, tuple[str, ...]] = {}
+    declared = {unknown.variable.name: unknown for unknown in getattr(description, "outputs", None) or ()}
+    for name in outputs:
+        unknown = declared.get(name)
+        if unknown is None or unknown.dependencies is None:
+            depends[name] = inputs
+        else:
+            depends[name] = tuple(v.name for v in unknown.dependencies if v.name in inputs)
+    extra = tuple(name for name in observed if name not in outputs)
+    units = {name: _unit(variables[name]) for name in (*inputs, *outputs, *extra)}
+    return Interface(inputs, (*outputs, *extra), depends, units)
+
+
+class FmuSlave:
+    """An FMU component (module docstring). `values` are set before initialisation, in order;
+    `fed` are the inputs the plan feeds (`Plan.input_names`), `outputs` the variables it reads
+    every sample (`Plan.output_names`), both set by `bind` before `instantiate`."""
+
+    def __init__(self, name: str, path: Path, values: Sequence[tuple[str, Value]] = (), observed: Sequence[str] = ()):
+        self.name, self.path, self.values = name, Path(path), tuple(values)
+        self.description = read_model_description(str(self.path), validate=False)
+        if self.description.coSimulation is None:
+            raise SlaveError(f"component {name!r}: {self.path.name} offers no Co-Simulation interface")
+        self.variables = {v.name: v for v in self.description.modelVariables}
+        self.interface = fmu_interface(self.description, observed)
+        self.fmi3 = self.description.fmiVersion.startswith("3")
+        self._slave: Any = None
+        self._unzipped: Path | None = None
+        self._fatal = False
+        self._instance = f"{name}"
+        self.bind(self.interface.inputs, self.interface.outputs)
+
+    def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
+        """The inputs the plan sets (by position) and the outputs it reads, in its order."""
+        self._fed = tuple(fed)
+        self._read = tuple(outputs)
+        references = {name: v.valueReference for name, v in self.variables.items()}
+        self._in_vr = (ctypes.c_uint32 * max(len(fed), 1))(*(references[n] for n in fed))
+        self._out_vr = (ctypes.c_uint32 * max(len(outputs), 1))(*(references[n] for n in outputs))
+        self._buffer = (ctypes.c_double * max(len(fed), 1))()
+        self._vr_buffer = (ctypes.c_uint32 * max(len(fed), 1))()
+
+    # -- life cycle ---------------------------------------------------------------------------
+    def _fail(self, function: str, t: float | None, status: object) -> SlaveError:
+        if status == FATAL:
+            self._fatal = True
+        line = last_log_line(self._instance)
+        said = f"; it logged {' '.join(line.split())}" if line else ""
+        at = f" at t = {t:.6g} s" if t is not None else ""
+        return SlaveError(f"component {self.name!r} ({self.path.name}): {function}{at} returned status {status}{said}")
+
+    def _call(self, function: str, call: Any) -> None:
+        try:
+            call()
+        except SlaveError:
+            raise
+        except Exception as error:  # noqa: BLE001 - fmpy's FMICallException, or a bad value
+            raise self._fail(function, None, getattr(error, "status", error_text(error))) from None
+
+    def instantiate(self, t_end: float) -> None:
+        """Unzip, load, instantiate, (FMI 2.0: setupExperiment) and set `values`."""
+        description = self.description
+        self._unzipped = Path(extract(str(self.path)))
+        kwargs = dict(
+            unzipDirectory=str(self._unzipped),
+            modelIdentifier=description.coSimulation.modelIdentifier,
+            instanceName=self._instance,
+            guid=description.guid if not self.fmi3 else description.instantiationToken,
+        )
+        slave = (FMU3SlaveChecked if self.fmi3 else FMU2SlaveChecked)(**kwargs)
+        self._slave = slave
+        last_log_line(self._instance, forget=True)
+        quiet(self._instance)
+        if self.fmi3:
+            self._call(
+                "fmi3InstantiateCoSimulation",
+                lambda: slave.instantiate(visible=False, loggingOn=True, logMessage=logger3(self._instance)),
+            )
+        else:
+            self._call("fmi2Instantiate", lambda: slave.instantiate(visible=False, loggingOn=True))
+        prefix = "fmi3" if self.fmi3 else "fmi2"
+        names = (
+            (f"{prefix}SetFloat64", f"{prefix}GetFloat64", f"{prefix}DoStep")
+            if self.fmi3
+            else ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")
+        )
+        self.names = FunctionNames(set=names[0], get=names[1], step=names[2])
+        self._set, self._get, self._step = (bound_function(slave.dll, name) for name in names)
+        if None in (self._set, self._get, self._step):
+            raise SlaveError(f"component {self.name!r}: {self.path.name} does not export {', '.join(names)}")
+        if self.fmi3:
+            self._step_outputs = tuple(ctypes.byref(ctypes.c_bool()) for _ in range(3)) + (
+                ctypes.byref(ctypes.c_double()),
+            )
+        self._t_end = t_end
+        if not self.fmi3:
+            self._call("fmi2SetupExperiment", lambda: slave.setupExperiment(startTime=0.0, stopTime=t_end))
+        for name, value in self.values:
+            self._set_value(name, value)
+
+    def _set_value(self, name: str, value: Value) -> None:
+        variable = self.variables.get(name)
+        if variable is None:
+            raise SlaveError(f"component {self.name!r}: {self.path.name} has no variable {name!r}")
+        setter = getattr(self._slave, _SETTERS.get(variable.type, ""), None)
+        if setter is None:
+            raise SlaveError(f"component {self.name!r}: {name!r} is of type {variable.type}, which cannot be set")
+        if variable.type == "Boolean":
+            value = bool(value)
+        elif variable.type in ("Integer", "Int32", "Int64", "Enumeration"):
+            value = int(value)
+        else:
+            value = float(value)
+        try:
+            setter([variable.valueReference], [value])
+        except Exception as error:  # noqa: BLE001 - name the variable and the value
+            line = last_log_line(self._instance)
+            said = f"; it logged {' '.join(line.split())}" if line else ""
+            raise SlaveError(f"component {self.name!r}: setting {name} = {value!r} failed ({error}){said}") from None
+
+    def enter_initialization(self) -> None:
+        slave = self._slave
+        if self.fmi3:
+            self._call(
+                "fmi3EnterInitializationMode",
+                lambda: slave.enterInitializationMode(startTime=0.0, stopTime=self._t_end),
+            )
+        else:
+            self._call("fmi2EnterInitializationMode", slave.enterInitializationMode)
+
+    def exit_initialization(self) -> None:
+        self._call(f"{'fmi3' if self.fmi3 else 'fmi2'}ExitInitializationMode", self._slave.exitInitializationMode)
+
+    def close(self) -> None:
+        """Terminate and free the instance (not after a fatal status), remove the unzipped copy."""
+        slave, self._slave = self._slave, None
+        folder, self._unzipped = self._unzipped, None
+        try:
+            if slave is not None and not self._fatal:
+                try:
+                    slave.terminate()
+                except Exception:  # noqa: BLE001, S110 - an FMU in error state may refuse terminate
+                    pass
+                slave.freeInstance()
+        except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
+            pass
+        finally:
+            if folder is not None:
+                shutil.rmtree(folder, ignore_errors=True)
+            last_log_line(self._instance, forget=True)
+            quiet(self._instance, on=False)
+
+    # -- the hot calls --------------------------------------------------------------------------
+    def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
+        n = len(positions)
+        if not n:
+            return
+        vr, buffer, own = self._vr_buffer, self._buffer, self._in_vr
+        for j, (i, value) in enumerate(zip(positions, values, strict=True)):
+            vr[j], buffer[j] = own[i], value
+        status = (
+            self._set(self._slave.component, vr, n, buffer, n)
+            if self.fmi3
+            else self._set(self._slave.component, vr, n, buffer)
+        )
+        if failed(status):
+            raise self._fail(self.names.set, t, status)
+
+    def get(self, values: Any, t: float) -> None:
+        """Read the outputs into `values` (a ctypes double array of len(outputs))."""
+        n = len(self._read)
+        if not n:
+            return
+        component = self._slave.component
+        status = (
+            self._get(component, self._out_vr, n, values, n)
+            if self.fmi3
+            else self._get(component, self._out_vr, n, values)
+        )
+        if failed(status):
+            raise self._fail(self.names.get, t, status)
+
+    def do_step(self, t: float, h: float) -> None:
+        component = self._slave.component
+        status = (
+            self._step(component, t, h, False, *self._step_outputs) if self.fmi3 else self._step(component, t, h, 0)
+        )
+        if failed(status):
+            raise self._fail(self.names.step, t, status)
+
+    def c_functions(self) -> CFunctions:
+        """What a C loop calls: the three functions, the instance, the output and fed-input
+        value-reference arrays (in the plan's order)."""
+        return CFunctions.of(
+            (self._get, self._set, self._step),
+            self._slave.component,
+            self._out_vr,
+            self._in_vr,
+            self.fmi3,
+            self.names,
+            self,
+        )
+
+
+class ControllerSlave:
+    """A controller of the protocol (`control.protocol`) as a component: its inputs are the
+    variables it measures (`controller.measured`), its outputs the command and its diagnostics,
+    each depending directly on every input. It samples as a sampled-data controller FMU does: the
+    step is computed from the inputs as set, at the time they were last used (`get` after a
+    `set`, else `do_step` at its start), and `get` without a new `set` returns the held outputs;
+    `do_step` keeps the state that step returned. Its start runs at the first computation."""
+
+    def __init__(self, name: str, controller: Controller, diagnostics: Sequence[str], command: str = "iq_ref"):
+        self.name, self.controller = name, controller
+        measured = tuple(controller.measured)
+        outputs = (command, *diagnostics)
+        self.interface = Interface(measured, outputs, {output: measured for output in outputs}, {})
+        self._index = {name: i for i, name in enumerate(measured)}
+        self._row = [0.0] * len(measured)
+        self._state: Any = None
+        self._next: Any = None
+        self._held: tuple[float, ...] = (0.0,) * len(outputs)
+        self._started = False
+        self._dirty = True
+        self._n_diagnostics = len(diagnostics)
+
+    def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
+        self._positions = tuple(self._index[name] for name in fed)
+        self._outputs = tuple(outputs)
+
+    def instantiate(self, t_end: float) -> None:
+        pass
+
+    def enter_initialization(self) -> None:
+        pass
+
+    def exit_initialization(self) -> None:
+        pass
+
+    def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
+        row, own = self._row, self._positions
+        for i, value in zip(positions, values, strict=True):
+            row[own[i]] = value
+        self._dirty = True
+
+    def _fail(self, what: str, t: float, error: BaseException) -> SlaveError:
+        if not interrupts.raised_by_code(error):
+            raise error
+        return SlaveError(
+            f"component {self.name!r}: the controller's {what} raised at t = {t:.6g} s: {error_text(error, 300)}"
+        )
+
+    def _compute(self, t: float) -> None:
+        """The step at t from the inputs as set: the held outputs and the pending state."""
+        measurement = Measurement(self._index, self._row)
+        if not self._started:
+            try:
+                self._state = self.controller.start(t, measurement)
+            except BaseException as error:  # noqa: BLE001 - the user's code: its failure ends the run
+                raise self._fail("start", t, error) from None
+            self._started = True
+        try:
+            result = self.controller.step(self._state, t, measurement)
+        except BaseException as error:  # noqa: BLE001 - the user's code
+            raise self._fail("step", t, error) from None
+        try:
+            u, diagnostics, self._next = checked_command(result, self._n_diagnostics, t)
+        except ControllerError as error:
+            raise SlaveError(f"component {self.name!r}: {error}") from None
+        self._held = (u, *diagnostics)
+        self._dirty = False
+
+    def get(self, values: Any, t: float) -> None:
+        if self._dirty:
+            self._compute(t)
+        for j, value in enumerate(self._held):
+            values[j] = value
+
+    def do_step(self, t: float, h: float) -> None:
+        if self._dirty:
+            self._compute(t)
+        self._state = self._next
+
+    def close(self) -> None:
+        close = getattr(self.controller, "close", None)
+        if callable(close):
+            try:
+                close()
+            except BaseException as error:  # noqa: BLE001 - freeing never changes the outcome
+                if not interrupts.raised_by_code(error):
+                    raise
+
+
+def values_of(mapping: Mapping[str, Value]) -> tuple[tuple[str, Value], ...]:
+    return tuple(mapping.items())

@@ -1,0 +1,380 @@
+"""A run as a system (`system.model`), and the run of one (`simulate_system`).
+
+A run whose `Run.system` is not the plain pair (`Wiring.is_pair`: it has parts around the
+plant, connections of its own, or a `record:` list) is stepped by an `Execution` (execution.py)
+over these components:
+
+* the plant (component `plant`, or an SSD's name for it): the run's plant FMU with the values
+  the scenario gives it (`master.plant_settings`);
+* the controller (`controller`): a controller FMU as an FMU component, any other controller (the
+  built-in law, a user's Python controller, a python-control system) natively (`ControllerSlave`);
+* the parts (`Wiring.parts`): FMUs with their values;
+* the signals: the plant inputs the scenario gives as numbers or signals in time (F_E,
+  plant.inputs) that no connection feeds, sampled at every t_k (`master.input_samples`).
+
+Connections are the run's own, or the pair's wiring (each controller input from the plant output
+of its name, the command to the plant's iq_ref). Each is checked before anything is loaded:
+both ends exist, it runs from an output to an input, no input is fed twice, the units match or
+convert (`unit_conversion`: the same dimension, factor and offset from the FMUs' unit
+definitions; anything else refused). The order comes from the connections and the components'
+direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle.
+
+The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
+order) or the run's `record:` list, which may name any variable of an FMU component.
+"""
+
+from __future__ import annotations
+
+import time as clock
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
+from toggle_cosim.cosim import master
+from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.execution import Execution, TraceObserver
+from toggle_cosim.cosim.fmu_controller import FmuController
+from toggle_cosim.cosim.outcome import RunOutcome, run_record
+from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
+from toggle_cosim.cosim.summary import summarize
+from toggle_cosim.files.checksums import file_sha256
+from toggle_cosim.files.traces import Trace
+from toggle_cosim.fmu_export.units import UnitError, base_exponents
+from toggle_cosim.messages import bounded_text
+from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.runs.definition import Run
+from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
+from toggle_cosim.system.model import Connection, Interface, Port, Wiring
+from toggle_cosim.system.plan import Plan, build_plan
+
+__all__ = ["SystemError_", "Assembly", "assemble", "simulate_system", "system_columns", "unit_conversion"]
+
+COMMAND = "iq_ref"
+_BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+
+class SystemError_(ValueError):  # noqa: N801 - `SystemError` is a builtin
+    """A system that cannot run as written; str() is one line naming what and the fix."""
+
+
+@dataclass
+class Assembly:
+    """A run's system ready to step: its slaves (in stepping order), plan, signal table and
+    connections, and what run.json says of its components."""
+
+    slaves: list[Slave]
+    plan: Plan
+    signals: np.ndarray
+    connections: tuple[Connection, ...]
+    components: list[dict[str, Any]]
+
+    def close(self) -> None:
+        for slave in self.slaves:
+            slave.close()
+
+
+def _meaning(unit: str, description: Any) -> tuple[float, ...] | None:
+    """(SI exponents of _BASE, factor, offset) of an FMU unit: its UnitDefinitions, else the
+    Modelica unit grammar (factor 1); None when unknown."""
+    for definition in getattr(description, "unitDefinitions", None) or ():
+        if definition.name == unit and definition.baseUnit is not None:
+            base = definition.baseUnit
+            return (
+                *(float(getattr(base, key, 0) or 0) for key in _BASE),
+                float(base.factor if base.factor is not None else 1.0),
+                float(base.offset or 0.0),
+            )
+    try:
+        exponents = base_exponents(unit)
+    except UnitError:
+        return None
+    return (*(float(exponents.get(key, 0)) for key in _BASE), 1.0, 0.0)
+
+
+def unit_conversion(
+    connection: Connection, start: tuple[str | None, Any], end: tuple[str | None, Any]
+) -> tuple[float, float] | None:
+    """The (factor, offset) that turns the start's unit into the end's (None: the same unit, or
+    either has none: the value is passed as it is). `start`, `end`: (unit, the FMU's model
+    description or None). SystemError_ for units of different dimensions or unknown units."""
+    (unit_s, desc_s), (unit_e, desc_e) = start, end
+    if not unit_s or not unit_e or unit_s == unit_e:
+        return None
+    m_s, m_e = _meaning(unit_s, desc_s), _meaning(unit_e, desc_e)
+    if m_s is None or m_e is None:
+        unknown = unit_s if m_s is None else unit_e
+        raise SystemError_(
+            f"the connection {connection} joins the units {unit_s!r} and {unit_e!r}, and {unknown!r} is not defined "
+            "(declare it in the FMU's UnitDefinitions or connect variables of the same unit)"
+        )
+    if m_s[: len(_BASE)] != m_e[: len(_BASE)]:
+        raise SystemError_(
+            f"the connection {connection} joins {unit_s!r} to {unit_e!r}, of different dimensions (connect "
+            "variables of the same quantity)"
+        )
+    (f_s, o_s), (f_e, o_e) = m_s[-2:], m_e[-2:]
+    if f_s == f_e and o_s == o_e:
+        return None
+    return f_s / f_e, (o_s - o_e) / f_e
+
+
+def pair_connections(wiring: Wiring, controller_inputs: Sequence[str]) -> tuple[Connection, ...]:
+    """The pair's wiring: each controller input from the plant output of its name, the command to the plant."""
+    p, c = wiring.plant, wiring.controller
+    return (
+        *(Connection(Port(p, name), Port(c, name)) for name in controller_inputs),
+        Connection(Port(c, COMMAND), Port(p, COMMAND)),
+    )
+
+
+def _check_connections(connections: Sequence[Connection], interfaces: Mapping[str, Interface], where: str) -> None:
+    fed: dict[Port, Connection] = {}
+    for connection in connections:
+        for side, port in (("start", connection.start), ("end", connection.end)):
+            interface = interfaces.get(port.component)
+            if interface is None:
+                raise SystemError_(
+                    f"{where}: the connection {connection} names the component {port.component!r}, which the system "
+                    f"does not have (its components: {', '.join(interfaces)})"
+                )
+            wanted = interface.outputs if side == "start" else interface.inputs
+            if port.variable not in wanted:
+                kind = "output" if side == "start" else "input"
+                known = ", ".join(wanted) or "none"
+                raise SystemError_(
+                    f"{where}: the connection {connection} {'starts' if side == 'start' else 'ends'} at {port}, which "
+                    f"is not a Real {kind} of {port.component!r} (its {kind}s: {known}); a connection runs from an "
+                    "output to an input"
+                )
+        if connection.end in fed:
+            raise SystemError_(
+                f"{where}: the connections {fed[connection.end]} and {connection} both drive {connection.end} "
+                "(an input takes one connection; remove one)"
+            )
+        fed[connection.end] = connection
+
+
+def _controller_slave(run: Run, name: str, controller: Controller | None, outputs: Sequence[str]) -> Slave:
+    """The run's controller as a component: a controller FMU as an FMU, any other natively."""
+    if controller is None:
+        controller = controller_for(run, outputs)
+    if isinstance(controller, FmuController):
+        return FmuSlave(name, controller.fmu.path, controller.settings)
+    diagnostics = check_controller(controller, outputs)
+    return ControllerSlave(name, controller, diagnostics)
+
+
+def assemble(
+    run: Run, plant: PlantInterface, controller: Controller | None = None, coupling: str | None = None
+) -> Assembly:
+    """The run's system, checked and loaded (module docstring). Raises SystemError_ (one line) for
+    a system that cannot run as written, ControllerError for a controller that cannot be built."""
+    wiring, where = run.system, f"scenario {run.scenario}"
+    jacobi = (coupling or run.coupling) == "jacobi"
+    requested: dict[str, list[str]] = {}
+    for port in wiring.record or ():
+        requested.setdefault(port.component, []).append(port.variable)
+    slaves: dict[str, Slave] = {}
+    try:
+        slaves[wiring.plant] = FmuSlave(
+            wiring.plant, plant.path, master.plant_settings(run, plant), requested.get(wiring.plant, ())
+        )
+        slaves[wiring.controller] = _controller_slave(run, wiring.controller, controller, plant.recorded_outputs)
+        for part in wiring.parts:
+            if part.name in slaves:
+                raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
+            slaves[part.name] = FmuSlave(part.name, part.fmu, part.values, requested.get(part.name, ()))
+        interfaces = {name: slave.interface for name, slave in slaves.items()}
+        controller_inputs = interfaces[wiring.controller].inputs
+        connections = (
+            wiring.connections if wiring.connections is not None else pair_connections(wiring, controller_inputs)
+        )
+        _check_connections(connections, interfaces, where)
+        descriptions = {name: getattr(slave, "description", None) for name, slave in slaves.items()}
+        converted = []
+        for connection in connections:
+            conversion = unit_conversion(
+                connection,
+                (
+                    interfaces[connection.start.component].units.get(connection.start.variable),
+                    descriptions[connection.start.component],
+                ),
+                (
+                    interfaces[connection.end.component].units.get(connection.end.variable),
+                    descriptions[connection.end.component],
+                ),
+            )
+            if conversion is not None:
+                factor, offset = conversion
+                connection = Connection(
+                    connection.start,
+                    connection.end,
+                    factor * connection.factor,
+                    factor * connection.offset + offset,
+                )
+            converted.append(connection)
+        connections = tuple(converted)
+        fed = {connection.end for connection in connections}
+        signals = [("F_E", run.plant.F_E), *run.plant.inputs.items()]
+        signal_ports, columns = [], []
+        plant_inputs = interfaces[wiring.plant].inputs
+        for index, (name, _) in enumerate(signals):
+            port = Port(wiring.plant, name)
+            if port in fed or name not in plant_inputs:
+                continue
+            signal_ports.append(port)
+            columns.append(index)
+        for port in wiring.record or ():
+            interface = interfaces.get(port.component)
+            if interface is None or (port.variable not in interface.outputs and port.variable not in interface.inputs):
+                raise SystemError_(
+                    f"{where}: key record: {port} is not a variable of the system (its components: "
+                    f"{', '.join(interfaces)}; an FMU's variables by their names in its modelDescription.xml)"
+                )
+            if port.variable in interface.inputs and port not in fed and port not in signal_ports:
+                raise SystemError_(
+                    f"{where}: key record: {port} is an input nothing feeds (connect it, or record another variable)"
+                )
+        try:
+            order = gauss_seidel_order(list(slaves), connections, interfaces)
+        except AlgebraicLoop as error:
+            raise SystemError_(f"{where}: {error}") from None
+        plan = build_plan(order, interfaces, connections, signal_ports, wiring.record, jacobi)
+        samples = master.input_samples(run, run.steps)
+        table = np.ascontiguousarray(samples[:, columns], dtype=np.float64).reshape(run.steps + 1, len(columns))
+        components = [_component_record(name, slaves[name], order) for name in slaves]
+        return Assembly([slaves[name] for name in order], plan, table, connections, components)
+    except BaseException:
+        for slave in slaves.values():
+            slave.close()
+        raise
+
+
+def _component_record(name: str, slave: Slave, order: Sequence[str]) -> dict[str, Any]:
+    record: dict[str, Any] = {"name": name, "position": order.index(name)}
+    if isinstance(slave, FmuSlave):
+        record.update(fmu=str(slave.path), sha256=file_sha256(slave.path), values=dict(slave.values))
+    else:
+        record.update(kind="native controller", type=type(slave.controller).__qualname__)
+    return record
+
+
+def system_columns(run: Run, plant: PlantInterface, controller: Controller | None = None) -> tuple[str, ...]:
+    """The trace columns of a system run (the plan's recorded ports), without running it."""
+    assembly = assemble(run, plant, controller)
+    try:
+        return assembly.plan.names
+    finally:
+        assembly.close()
+
+
+def _column(trace: Trace, name: str) -> np.ndarray | None:
+    return trace.column(name) if name in trace.names else None
+
+
+def simulate_system(
+    run: Run,
+    plant: PlantInterface,
+    progress: Callable[[float], None] | None = None,
+    buffer: np.ndarray | None = None,
+    controller: Controller | None = None,
+    coupling: str | None = None,
+) -> RunOutcome:
+    """Run a system (module docstring); never raises for a component's failure: the outcome is
+    failed with the reason and the trace up to the last complete sample. SystemError_ or
+    ControllerError for a system that cannot be assembled."""
+    started = clock.perf_counter()
+    if coupling is not None and coupling != run.coupling:
+        import dataclasses
+
+        run = dataclasses.replace(run, coupling=coupling)
+    n = run.steps
+    try:
+        assembly = assemble(run, plant, controller)
+    except ControllerError as error:
+        return master.refused_outcome(run, plant, str(error), started)
+    plan = assembly.plan
+    data = buffer if buffer is not None else np.full((n + 1, len(plan.names)), np.nan)
+    observer = TraceObserver(plan, data)
+    hooks = []
+    if progress is not None:
+        every = max(n // 100, 1)
+        hooks.append(lambda k: progress(k * run.T_s / run.t_end) if k % every == 0 else None)
+    execution = Execution(plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks)
+    reason, interrupted = None, False
+    loop_started = loop_finished = clock.perf_counter()
+    try:
+        execution.initialize()
+        loop_started = clock.perf_counter()
+        execution.advance(0, n + 1)
+        loop_finished = clock.perf_counter()
+    except KeyboardInterrupt:
+        loop_finished, interrupted = clock.perf_counter(), True
+        reason = f"interrupted (SIGINT or SIGTERM) at t = {max(observer.rows - 1, 0) * run.T_s:.6g} s"
+    except SlaveError as error:
+        loop_finished = clock.perf_counter()
+        reason = str(error)
+    finally:
+        assembly.close()
+    rows = observer.rows
+    trace = Trace(plan.names, data[:rows])
+    reason = bounded_text(reason) if reason is not None else None
+    complete = reason is None and rows == n + 1
+    summary = None
+    p, c = run.system.plant, run.system.controller
+    x_B, iq_ref = _column(trace, f"{p}.x_B"), _column(trace, f"{c}.{COMMAND}")
+    if rows > 1 and x_B is not None and iq_ref is not None:
+        summary = summarize(
+            trace.time,
+            x_B,
+            iq_ref,
+            _column(trace, f"{p}.E_in"),
+            _column(trace, f"{p}.E_fric"),
+            run.x_start,
+            run.x_target,
+            None,
+            None,
+            _column(trace, f"{c}.S"),
+            _column(trace, f"{c}.phase"),
+            None if run.x_final == run.x_target else run.x_final,
+        )
+    wall = clock.perf_counter() - started
+    status = "complete" if complete else "interrupted" if interrupted else "failed"
+    coupled = "jacobi" if plan.jacobi else "gauss-seidel"
+    loop = {
+        "kind": "system",
+        "reason": f"{len(assembly.slaves)} components stepped in Python, {coupled}, in the order {', '.join(plan.order)}",
+    }
+    record = run_record(
+        run,
+        plant,
+        status,
+        reason,
+        rows,
+        wall,
+        loop_finished - loop_started,
+        summary,
+        [],
+        loop,
+        None,
+        warnings=[],
+        controller=None,
+    )
+    record["system"] = {
+        "components": assembly.components,
+        "order": list(plan.order),
+        "connections": [
+            {
+                "start": str(c_.start),
+                "end": str(c_.end),
+                **({} if c_.identity else {"factor": c_.factor, "offset": c_.offset}),
+            }
+            for c_ in assembly.connections
+        ],
+        "signals": [str(port) for port in plan.signals],
+        "recorded": list(plan.names[1:]),
+    }
+    return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)
