@@ -3,6 +3,10 @@
     instantiate -> set parameters -> initialise -> every T_s: read outputs, control,
     set inputs, doStep -> terminate, free
 
+A run with parts around the pair, connections of its own or a `record:` list is a system:
+`simulate` hands it to `systems.simulate_system` (an execution of its components). The pair
+itself runs in the fixed loop below, which gives the system execution's values bit for bit.
+
 `simulate` assembles the parts (after FMPy's simulateCS, with its Recorder and step hook):
 a `PlantSession` (session.py), a `Recorder` and step hooks (recorder.py), the controller
 (the one given, else the scenario's: `controllers`), the steppers (stepper.py: the first
@@ -45,6 +49,7 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import controller_for, controller_record
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
+from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
 from toggle_cosim.cosim.plausibility import plausibility_warnings
 from toggle_cosim.cosim.recorder import ProgressHook, Recorder
 from toggle_cosim.cosim.retry import CheckpointPolicy
@@ -59,14 +64,13 @@ from toggle_cosim.cosim.stepper import (
     compiled_controller,
 )
 from toggle_cosim.cosim.summary import summarize
+from toggle_cosim.cosim.systems import simulate_system
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.physics.mechanism import working_range
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
-from toggle_cosim.plant.friction import friction_settings
 from toggle_cosim.runs.definition import COUPLINGS, Run
-from toggle_cosim.signals.definitions import as_signal, sample
 
 __all__ = [
     "JACOBI_REASON",
@@ -84,31 +88,6 @@ JACOBI_REASON = "coupling jacobi: the compiled loop runs gauss-seidel only, so t
 INPUTS = COMMAND_COLUMNS
 
 
-def plant_settings(run: Run, plant: PlantInterface) -> list[tuple[str, float | bool]]:
-    """The plant parameters a run sets before initialisation, in order: run.plant.fmu_values if
-    given (an SSP's parameter set), else those the scenario's settings give."""
-    if run.plant.fmu_values is not None:
-        return list(run.plant.fmu_values)
-    settings: list[tuple[str, float | bool]] = [("m_B", run.plant.m_B), ("mu", run.plant.mu)]
-    available = plant.references
-    if "x_B0" in available:
-        settings.append(("x_B0", run.x_start))
-    if "idealCurrentLoop" in available:
-        settings.append(("idealCurrentLoop", run.plant.current_loop == "ideal"))
-    elif run.plant.current_loop == "ideal":
-        raise ValueError(
-            f"{plant.path}: the plant has no parameter idealCurrentLoop, so plant.current_loop: ideal cannot be set"
-        )
-    if run.plant.K is not None:
-        settings.append(("K", run.plant.K))
-    settings += friction_settings(run.plant.friction_model, run.plant.mu, run.plant.mu_s, available, plant.path)
-    for name, value in run.plant.parameters.items():
-        if name not in available:
-            raise ValueError(f"key plant.parameters.{name}: the plant FMU has no variable {name!r}")
-        settings.append((name, value))
-    return settings
-
-
 def trace_names(
     plant: PlantInterface, diagnostics: tuple[str, ...] = VSCController.diagnostics, inputs: tuple[str, ...] = ()
 ) -> tuple[str, ...]:
@@ -116,11 +95,6 @@ def trace_names(
     F_E), the controller's diagnostics (the built-in law's by default), then the plant's other
     inputs the run sets (`inputs`: `other_inputs(run)`)."""
     return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics, *inputs)
-
-
-def other_inputs(run: Run) -> tuple[str, ...]:
-    """The plant inputs a run sets besides iq_ref and F_E (`plant.inputs`), in the scenario's order."""
-    return tuple(run.plant.inputs)
 
 
 def _number(value: object) -> float | None:
@@ -139,15 +113,6 @@ def open_session(plant: PlantInterface, instance_name: str, inputs: tuple[str, .
     plant's other inputs a run sets): the FMU unzipped and its binary loaded, no instance yet.
     `simulate(..., session=)` runs on it, run after run (runs with those other inputs)."""
     return PlantSession(plant, instance_name, list(plant.recorded_outputs), [*INPUTS, *inputs])
-
-
-def input_samples(run: Run, n: int) -> np.ndarray:
-    """What each sample k = 0 .. n sends besides the command: F_E, then the plant's other inputs
-    (`other_inputs`), each sampled once from its signal at t_k = k·T_s (`signals`): an (n + 1, m)
-    float64 array in C order. A number gives n + 1 copies of it, so a constant run keeps its bits."""
-    signals = [run.plant.F_E, *run.plant.inputs.values()]
-    columns = [sample(as_signal(signal), n, run.T_s) for signal in signals]
-    return np.ascontiguousarray(np.column_stack(columns), dtype=np.float64)
 
 
 def _initialise(session: PlantSession, run: Run, plant: PlantInterface, sent: tuple[float, ...]) -> None:
@@ -200,6 +165,13 @@ def simulate(
     `session`, if given (`open_session`), is a plant already loaded that the caller keeps: the run
     gets an instance of it (reset after a complete run for the next, else freed), not a new copy.
     `coupling`: "gauss-seidel" or "jacobi" (module docstring); None: the run's own (`Run.coupling`)."""
+    if not run.system.is_pair:  # parts around the pair, connections or a record list: a system
+        if session is not None:
+            close_controller(controller)
+            raise ValueError("a system's run loads its own components: simulate it without session=")
+        if coupling is not None and coupling not in COUPLINGS:
+            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
+        return simulate_system(run, plant, progress, buffer, controller, coupling)
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
         if coupling not in COUPLINGS:

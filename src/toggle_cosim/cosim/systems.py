@@ -33,11 +33,11 @@ from typing import Any
 import numpy as np
 
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim import master
 from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
+from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.files.checksums import file_sha256
@@ -180,7 +180,7 @@ def assemble(
     slaves: dict[str, Slave] = {}
     try:
         slaves[wiring.plant] = FmuSlave(
-            wiring.plant, plant.path, master.plant_settings(run, plant), requested.get(wiring.plant, ())
+            wiring.plant, plant.path, plant_settings(run, plant), requested.get(wiring.plant, ())
         )
         slaves[wiring.controller] = _controller_slave(run, wiring.controller, controller, plant.recorded_outputs)
         for part in wiring.parts:
@@ -243,7 +243,7 @@ def assemble(
         except AlgebraicLoop as error:
             raise SystemError_(f"{where}: {error}") from None
         plan = build_plan(order, interfaces, connections, signal_ports, wiring.record, jacobi)
-        samples = master.input_samples(run, run.steps)
+        samples = input_samples(run, run.steps)
         table = np.ascontiguousarray(samples[:, columns], dtype=np.float64).reshape(run.steps + 1, len(columns))
         components = [_component_record(name, slaves[name], order) for name in slaves]
         return Assembly([slaves[name] for name in order], plan, table, connections, components)
@@ -295,7 +295,11 @@ def simulate_system(
     try:
         assembly = assemble(run, plant, controller)
     except ControllerError as error:
-        return master.refused_outcome(run, plant, str(error), started)
+        reason = bounded_text(str(error) if str(error).startswith("controller: ") else f"controller: {error}")
+        wall = clock.perf_counter() - started
+        loop = {"kind": "none", "reason": "the controller could not be built"}
+        record = run_record(run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None)
+        return RunOutcome(run, Trace(("time",), np.empty((0, 1))), False, reason, wall, 0.0, None, record)
     plan = assembly.plan
     data = buffer if buffer is not None else np.full((n + 1, len(plan.names)), np.nan)
     observer = TraceObserver(plan, data)
