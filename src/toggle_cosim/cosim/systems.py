@@ -265,10 +265,10 @@ def _component_record(name: str, slave: Slave, order: Sequence[str]) -> dict[str
 def system_columns(run: Run, plant: PlantInterface, controller: Controller | None = None) -> tuple[str, ...]:
     """The trace columns of a system run (the plan's recorded ports), without running it."""
     assembly = assemble(run, plant, controller)
-    try:
-        return assembly.plan.names
-    finally:
-        assembly.close()
+    for slave in assembly.slaves:  # nothing is loaded yet; the controller stays open for the run
+        if isinstance(slave, FmuSlave):
+            slave.close()
+    return assembly.plan.names
 
 
 def _column(trace: Trace, name: str) -> np.ndarray | None:
