@@ -157,14 +157,17 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
         fed[connection.end] = connection
 
 
-def _controller_slave(run: Run, name: str, controller: Controller | None, outputs: Sequence[str]) -> Slave:
-    """The run's controller as a component: a controller FMU as an FMU, any other natively."""
+def _controller_slave(
+    run: Run, name: str, controller: Controller | None, outputs: Sequence[str], units: Mapping[str, str | None]
+) -> Slave:
+    """The run's controller as a component: a controller FMU as an FMU, any other natively, its
+    connectors in the units of the plant variables of their names (`units`)."""
     if controller is None:
         controller = controller_for(run, outputs)
     if isinstance(controller, FmuController):
         return FmuSlave(name, controller.fmu.path, controller.settings)
     diagnostics = check_controller(controller, outputs)
-    return ControllerSlave(name, controller, diagnostics)
+    return ControllerSlave(name, controller, diagnostics, COMMAND, units)
 
 
 def assemble(
@@ -182,7 +185,9 @@ def assemble(
         slaves[wiring.plant] = FmuSlave(
             wiring.plant, plant.path, plant_settings(run, plant), requested.get(wiring.plant, ())
         )
-        slaves[wiring.controller] = _controller_slave(run, wiring.controller, controller, plant.recorded_outputs)
+        slaves[wiring.controller] = _controller_slave(
+            run, wiring.controller, controller, plant.recorded_outputs, slaves[wiring.plant].interface.units
+        )
         for part in wiring.parts:
             if part.name in slaves:
                 raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
