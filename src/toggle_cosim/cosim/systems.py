@@ -70,6 +70,7 @@ class Assembly:
     signals: np.ndarray
     connections: tuple[Connection, ...]
     components: list[dict[str, Any]]
+    units: dict[str, str]  # {column: unit} of the recorded columns that declare one
 
     def close(self) -> None:
         for slave in self.slaves:
@@ -251,7 +252,13 @@ def assemble(
         samples = input_samples(run, run.steps)
         table = np.ascontiguousarray(samples[:, columns], dtype=np.float64).reshape(run.steps + 1, len(columns))
         components = [_component_record(name, slaves[name], order) for name in slaves]
-        return Assembly([slaves[name] for name in order], plan, table, connections, components)
+        units = {"time": "s"}
+        for column in plan.names[1:]:
+            port = Port.parse(column)
+            unit = interfaces[port.component].units.get(port.variable)
+            if unit:
+                units[column] = unit
+        return Assembly([slaves[name] for name in order], plan, table, connections, components, units)
     except BaseException:
         for slave in slaves.values():
             slave.close()
@@ -386,4 +393,5 @@ def simulate_system(
         "signals": [str(port) for port in plan.signals],
         "recorded": list(plan.names[1:]),
     }
+    record["units"] = assembly.units
     return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)
