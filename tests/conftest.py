@@ -60,3 +60,11 @@ def project_wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
     assert built.returncode == 0, built.stderr
     return next(folder.glob("toggle_cosim-*.whl"))
+
+
+@pytest.fixture(scope="session")
+def vsc_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The built-in law's controller FMU (FMI 2.0 Co-Simulation), built once per session."""
+    from toggle_cosim.controller_fmu import build_controller_fmu
+
+    return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu", "2.0").path

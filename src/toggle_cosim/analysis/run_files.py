@@ -71,7 +71,11 @@ def record_units(
     record: Mapping[str, Any], names: Sequence[str], cache: dict[str, dict[str, str]] | None = None
 ) -> dict[str, str]:
     """{column: unit} of the trace columns `names` of the run that `record` (run.json) describes:
-    time in s, the rest from the plant FMU it names (`fmu_units`)."""
+    time in s, the rest from the plant FMU it names (`fmu_units`); a system's run records its
+    columns' units itself (`units`)."""
+    if isinstance(record.get("units"), Mapping):
+        units = {str(name): str(unit) for name, unit in record["units"].items()}
+        return {name: units[name] for name in names if name in units}
     units = {"time": "s", **fmu_units((record.get("fmu") or {}).get("path"), cache)}
     return {name: units[name] for name in names if name in units}
 

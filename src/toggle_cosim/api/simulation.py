@@ -70,6 +70,7 @@ def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> Non
     variables, the user's controller without running its code (`check_user_controller`) and the
     size of the trace buffer (ScenarioError, one line)."""
     from toggle_cosim.cosim.controllers import check_user_controller
+    from toggle_cosim.cosim.systems import SystemError_, system_columns
     from toggle_cosim.experiments.resources import ResourceError, check_runs
     from toggle_cosim.plant.settings import SettingError, check_settings
 
@@ -77,8 +78,10 @@ def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> Non
         check_settings(run, plant)
         if own_controller:  # the scenario's, not one given to simulate
             check_user_controller(run, plant.recorded_outputs)
+            if not run.system.is_pair and run.controller.python is None:
+                system_columns(run, plant)  # connections, units, order: every check, nothing loaded
         check_runs([(run, plant)], None)
-    except (SettingError, ControllerError) as error:
+    except (SettingError, ControllerError, SystemError_) as error:
         raise ScenarioError(f"{run.source or run.label}: {error}") from None
     except ResourceError as error:
         raise ScenarioError(f"{run.source or run.label}: {error.message}") from None
@@ -175,7 +178,9 @@ def simulate(
             raise ScenarioError(f"controller: {error}") from None
     outcome = _outcome(run, plant, supervised, time_limit, progress, controller)
     units = trace_units(outcome.trace.names, plant, run.controller.objective)
-    if (
+    if isinstance(outcome.record.get("units"), dict):  # a system's run: its columns' own units
+        units = dict(outcome.record["units"])
+    elif (
         controller is not None or run.controller.python is not None or run.controller.fmu is not None
     ):  # e, S, phase: only the built-in law's units
         units = {name: unit for name, unit in units.items() if name not in VSCController.diagnostics}

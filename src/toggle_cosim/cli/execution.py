@@ -61,6 +61,7 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
     pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.controllers import check_user_controller, controller_for
+    from toggle_cosim.cosim.systems import SystemError_, system_columns
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     noted: set[str] = set()
@@ -71,7 +72,9 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
             # a user's controller: checked without running its code, which runs in the run's child alone
             fmu = check_user_controller(run, plant.recorded_outputs)
-        except (SettingError, ControllerError) as error:
+            if not run.system.is_pair and run.controller.python is None:
+                system_columns(run, plant)  # connections, units, order: every check, nothing loaded
+        except (SettingError, ControllerError, SystemError_) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
         for warning in getattr(fmu, "warnings", ()):  # a controller FMU's missing units, once per file
             if f"{fmu.path}: {warning}" not in noted:

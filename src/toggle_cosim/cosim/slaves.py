@@ -92,7 +92,7 @@ def fmu_interface(description: Any, observed: Sequence[str] = ()) -> Interface:
             depends[name] = inputs
         else:
             depends[name] = tuple(v.name for v in unknown.dependencies if v.name in inputs)
-    extra = tuple(name for name in observed if name not in outputs)
+    extra = tuple(name for name in observed if name not in outputs and name not in inputs and name in variables)
     units = {name: _unit(variables[name]) for name in (*inputs, *outputs, *extra)}
     return Interface(inputs, (*outputs, *extra), depends, units)
 
@@ -113,6 +113,7 @@ class FmuSlave:
         self._slave: Any = None
         self._unzipped: Path | None = None
         self._fatal = False
+        self._stepping = False
         self._instance = f"{name}"
         self.bind(self.interface.inputs, self.interface.outputs)
 
@@ -216,6 +217,7 @@ class FmuSlave:
 
     def exit_initialization(self) -> None:
         self._call(f"{'fmi3' if self.fmi3 else 'fmi2'}ExitInitializationMode", self._slave.exitInitializationMode)
+        self._stepping = True
 
     def close(self) -> None:
         """Terminate and free the instance (not after a fatal status), remove the unzipped copy."""
@@ -223,10 +225,11 @@ class FmuSlave:
         folder, self._unzipped = self._unzipped, None
         try:
             if slave is not None and not self._fatal:
-                try:
-                    slave.terminate()
-                except Exception:  # noqa: BLE001, S110 - an FMU in error state may refuse terminate
-                    pass
+                if self._stepping:  # terminate is not allowed before initialisation has ended
+                    try:
+                        slave.terminate()
+                    except Exception:  # noqa: BLE001, S110 - an FMU in error state may refuse terminate
+                        pass
                 slave.freeInstance()
         except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
             pass
@@ -296,11 +299,21 @@ class ControllerSlave:
     `set`, else `do_step` at its start), and `get` without a new `set` returns the held outputs;
     `do_step` keeps the state that step returned. Its start runs at the first computation."""
 
-    def __init__(self, name: str, controller: Controller, diagnostics: Sequence[str], command: str = "iq_ref"):
+    def __init__(
+        self,
+        name: str,
+        controller: Controller,
+        diagnostics: Sequence[str],
+        command: str = "iq_ref",
+        units: Mapping[str, str | None] | None = None,
+    ):
+        """`units`: its connectors' units by name (the plant's variables of those names: what
+        the controller measures and commands), None: none declared."""
         self.name, self.controller = name, controller
         measured = tuple(controller.measured)
         outputs = (command, *diagnostics)
-        self.interface = Interface(measured, outputs, {output: measured for output in outputs}, {})
+        units = {n: (units or {}).get(n) for n in (*measured, command)}
+        self.interface = Interface(measured, outputs, {output: measured for output in outputs}, units)
         self._index = {name: i for i, name in enumerate(measured)}
         self._row = [0.0] * len(measured)
         self._state: Any = None

@@ -64,6 +64,7 @@ from toggle_cosim.cosim.exit_reasons import (
     in_controller_reason,
     stopped_in_controller,
 )
+from toggle_cosim.cosim.systems import SystemError_, system_columns
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.plant.contract import PlantInterface
@@ -248,7 +249,13 @@ def _build_controller(
         raise
     except BaseException as error:  # noqa: BLE001 - the user's code: SystemExit, KeyboardInterrupt included
         raise ControllerError(f"building the controller raised {error_text(error)}") from None
-    names = master.trace_names(plant, diagnostics, master.other_inputs(run))
+    if run.system.is_pair:
+        names = master.trace_names(plant, diagnostics, master.other_inputs(run))
+    else:  # a system: its recorded ports (`systems.system_columns`)
+        try:
+            names = system_columns(run, plant, controller)
+        except SystemError_ as error:
+            raise ControllerError(str(error)) from None
     size = (run.steps + 1) * len(names) * 8
     if size > limits.max_output():
         raise ControllerError(
@@ -415,7 +422,9 @@ class SupervisedRun:
         self.refused: str | None = None  # why the controller could not be built
         self.controller: Controller | None = None
         # a user's controller is built in the child (`_build_controller`): its columns come from there
-        self.deferred = controller is None and (run.controller.python is not None or run.controller.fmu is not None)
+        self.deferred = controller is None and (
+            run.controller.python is not None or run.controller.fmu is not None or not run.system.is_pair
+        )
         diagnostics = VSCController.diagnostics
         if not self.deferred:
             try:

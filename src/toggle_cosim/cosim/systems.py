@@ -70,6 +70,7 @@ class Assembly:
     signals: np.ndarray
     connections: tuple[Connection, ...]
     components: list[dict[str, Any]]
+    units: dict[str, str]  # {column: unit} of the recorded columns that declare one
 
     def close(self) -> None:
         for slave in self.slaves:
@@ -157,14 +158,17 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
         fed[connection.end] = connection
 
 
-def _controller_slave(run: Run, name: str, controller: Controller | None, outputs: Sequence[str]) -> Slave:
-    """The run's controller as a component: a controller FMU as an FMU, any other natively."""
+def _controller_slave(
+    run: Run, name: str, controller: Controller | None, outputs: Sequence[str], units: Mapping[str, str | None]
+) -> Slave:
+    """The run's controller as a component: a controller FMU as an FMU, any other natively, its
+    connectors in the units of the plant variables of their names (`units`)."""
     if controller is None:
         controller = controller_for(run, outputs)
     if isinstance(controller, FmuController):
         return FmuSlave(name, controller.fmu.path, controller.settings)
     diagnostics = check_controller(controller, outputs)
-    return ControllerSlave(name, controller, diagnostics)
+    return ControllerSlave(name, controller, diagnostics, COMMAND, units)
 
 
 def assemble(
@@ -182,7 +186,9 @@ def assemble(
         slaves[wiring.plant] = FmuSlave(
             wiring.plant, plant.path, plant_settings(run, plant), requested.get(wiring.plant, ())
         )
-        slaves[wiring.controller] = _controller_slave(run, wiring.controller, controller, plant.recorded_outputs)
+        slaves[wiring.controller] = _controller_slave(
+            run, wiring.controller, controller, plant.recorded_outputs, slaves[wiring.plant].interface.units
+        )
         for part in wiring.parts:
             if part.name in slaves:
                 raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
@@ -246,7 +252,13 @@ def assemble(
         samples = input_samples(run, run.steps)
         table = np.ascontiguousarray(samples[:, columns], dtype=np.float64).reshape(run.steps + 1, len(columns))
         components = [_component_record(name, slaves[name], order) for name in slaves]
-        return Assembly([slaves[name] for name in order], plan, table, connections, components)
+        units = {"time": "s"}
+        for column in plan.names[1:]:
+            port = Port.parse(column)
+            unit = interfaces[port.component].units.get(port.variable)
+            if unit:
+                units[column] = unit
+        return Assembly([slaves[name] for name in order], plan, table, connections, components, units)
     except BaseException:
         for slave in slaves.values():
             slave.close()
@@ -265,10 +277,10 @@ def _component_record(name: str, slave: Slave, order: Sequence[str]) -> dict[str
 def system_columns(run: Run, plant: PlantInterface, controller: Controller | None = None) -> tuple[str, ...]:
     """The trace columns of a system run (the plan's recorded ports), without running it."""
     assembly = assemble(run, plant, controller)
-    try:
-        return assembly.plan.names
-    finally:
-        assembly.close()
+    for slave in assembly.slaves:  # nothing is loaded yet; the controller stays open for the run
+        if isinstance(slave, FmuSlave):
+            slave.close()
+    return assembly.plan.names
 
 
 def _column(trace: Trace, name: str) -> np.ndarray | None:
@@ -381,4 +393,5 @@ def simulate_system(
         "signals": [str(port) for port in plan.signals],
         "recorded": list(plan.names[1:]),
     }
+    record["units"] = assembly.units
     return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)

@@ -43,6 +43,7 @@ from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import COUPLINGS, ControllerSettings, ErrorSignal, PlantSettings, Run
 from toggle_cosim.signals.definitions import Signal, SignalError, Table
 from toggle_cosim.signals.schema import signal_from_document, signal_schema
+from toggle_cosim.system.model import Connection, Part, Port, Wiring
 
 if TYPE_CHECKING:
     import jsonschema
@@ -161,6 +162,27 @@ _STROKE = {
     "required": ["x_start", "x_target"],
     "properties": {"x_start": _POSITIVE, "x_target": _POSITIVE, "trajectory": _TRAJECTORY},
 }
+_NAME = r"^[A-Za-z_][A-Za-z0-9_]*\Z"
+_PORT = r"^[A-Za-z_][A-Za-z0-9_]*\.[^\s]+\Z"
+_CONNECTION = r"^\s*[A-Za-z_][A-Za-z0-9_]*\.[^\s]+\s*->\s*[A-Za-z_][A-Za-z0-9_]*\.[^\s]+\s*\Z"
+_PART = {
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "fmu": {"type": "string", "minLength": 1, "pattern": r"^[^\x00]*\Z", "description": "relative to this file"},
+        "parameters": {
+            "type": "object",
+            "additionalProperties": {"type": ["number", "boolean"]},
+            "description": "values set before initialisation, by the FMU's variable names",
+        },
+    },
+}
+_COMPONENTS = {
+    "type": "object",
+    "propertyNames": {"pattern": _NAME, "not": {"enum": ["plant", "controller"]}},
+    "additionalProperties": _PART,
+    "description": "FMU components besides the plant and the controller (a sensor, a drive, a load)",
+}
 _OVERRIDE = {
     "type": "object",
     "additionalProperties": False,
@@ -188,6 +210,7 @@ _OVERRIDE = {
             "description": "gauss-seidel (default): sample k's command drives the plant over [t_k, t_k+1]; "
             "jacobi: sample k-1's does (docs/controllers.md); --coupling overrides it",
         },
+        "components": _COMPONENTS,
     },
 }
 SCHEMA: dict[str, Any] = {
@@ -207,6 +230,19 @@ SCHEMA: dict[str, Any] = {
         "time_limit": _OVERRIDE["properties"]["time_limit"],
         "record_every": _OVERRIDE["properties"]["record_every"],
         "coupling": _OVERRIDE["properties"]["coupling"],
+        "components": {**_COMPONENTS, "additionalProperties": {**_PART, "required": ["fmu"]}},
+        "connections": {
+            "type": "array",
+            "minItems": 1,
+            "items": {"type": "string", "pattern": _CONNECTION},
+            "description": "start -> end, e.g. 'plant.x_B -> sensor.x' (docs/systems.md)",
+        },
+        "record": {
+            "type": "array",
+            "minItems": 1,
+            "items": {"type": "string", "pattern": _PORT},
+            "description": "component.variable to record (default: every connector)",
+        },
         "variants": {
             "type": "object",
             "minProperties": 1,
@@ -474,6 +510,57 @@ def _trajectory(
     return spec
 
 
+def _relative(path: str, source: Path | None) -> Path:
+    return Path(path) if source is None or Path(path).is_absolute() else source.parent / path
+
+
+def _wiring(document: Mapping[str, Any], source: Path | None, suffix: str) -> Wiring:
+    """The scenario's system keys (components, connections, record) as a `Wiring`: the plain
+    pair without them. Every port names a component the scenario has; a part's FMU exists; a
+    plant input given a value (plant.F_E) is not also connected."""
+    parts = []
+    for name, given in (document.get("components") or {}).items():
+        fmu = _relative(given["fmu"], source)
+        if not fmu.is_file():
+            raise ScenarioError(
+                f"key components.{name}.fmu{suffix}: no such file {fmu} (build the FMU, or fix the path: it is "
+                "relative to the scenario file)"
+            )
+        parts.append(Part(name, fmu, tuple((given.get("parameters") or {}).items()), given["fmu"]))
+    names = ("plant", "controller", *(part.name for part in parts))
+    connections = None
+    if "connections" in document:
+        connections = []
+        for index, text in enumerate(document["connections"]):
+            start, end = (Port.parse(side.strip()) for side in text.split("->"))
+            for port in (start, end):
+                if port.component not in names:
+                    raise ScenarioError(
+                        f"key connections[{index}]{suffix}: {text.strip()!r} names the component {port.component!r}, "
+                        f"which the scenario does not have (its components: {', '.join(names)})"
+                    )
+            connections.append(Connection(start, end))
+        plant_doc = document.get("plant") or {}
+        for given in ("F_E", *(plant_doc.get("inputs") or {})):
+            fed = [c for c in connections if c.end == Port("plant", given)]
+            if fed and (given in plant_doc or given in (plant_doc.get("inputs") or {})):
+                key = "F_E" if given == "F_E" else f"inputs.{given}"
+                raise ScenarioError(
+                    f"key plant.{key}{suffix}: the connection {fed[0]} feeds plant.{given} too (remove the key or the "
+                    "connection)"
+                )
+    record = None
+    if "record" in document:
+        record = tuple(Port.parse(text) for text in document["record"])
+        for index, port in enumerate(record):
+            if port.component not in names:
+                raise ScenarioError(
+                    f"key record[{index}]{suffix}: {str(port)!r} names the component {port.component!r}, which the "
+                    f"scenario does not have (its components: {', '.join(names)})"
+                )
+    return Wiring(tuple(parts), None if connections is None else tuple(connections), record)
+
+
 def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | None) -> Run:
     stroke = document["stroke"]
     geometry = MechanismParameters()
@@ -548,6 +635,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         controller=controller,
         resolved={k: v for k, v in document.items() if k != "variants"},
         coupling=document.get("coupling", "gauss-seidel"),
+        system=_wiring(document, source, suffix),
     )
 
 

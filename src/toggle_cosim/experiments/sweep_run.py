@@ -138,6 +138,7 @@ def _resolve_plant(
             )
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.controllers import check_user_controller, controller_for
+    from toggle_cosim.cosim.systems import SystemError_
 
     seen = set()
     # the axes that change the plant (all but F_E and m_B) or the controller: a variant and their
@@ -163,13 +164,20 @@ def _resolve_plant(
                     f"law's columns, and this case also records the plant inputs {', '.join(run.plant.inputs)} "
                     "(plant.inputs); sweep it without --keep-traces (its table row is kept)"
                 )
-            if keep_traces and columns != trace_names(plant):
+            if not run.system.is_pair:  # a system's kept traces: its recorded ports, the same in every case
+                if keep_traces and columns != case_columns(sweep.cases[0].payload(), plant, case_timeout):
+                    raise SweepError(
+                        f"{sweep.path}: case {case.index}: --keep-traces stores one trace table, and this case "
+                        f"records other columns than case 0 ({', '.join(columns[1:4])}, ...); sweep it without "
+                        "--keep-traces (its table row is kept)"
+                    )
+            elif keep_traces and columns != trace_names(plant):
                 raise SweepError(
                     f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
                     "law's columns, and this case's controller records other diagnostics; sweep it without "
                     "--keep-traces (its table row is kept) or give the controller the diagnostics S, phase, e"
                 )
-        except (SettingError, ControllerError) as error:
+        except (SettingError, ControllerError, SystemError_) as error:
             raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
     return chosen, plant
 
@@ -251,7 +259,8 @@ def _execute_sweep(
 
     sha = plant.sha256
     with _exclusive(sweep.output):
-        store = ResultStore(sweep, keep_traces=keep_traces, trace_columns=trace_names(plant), batch_rows=rows_per_batch)
+        columns = case_columns(sweep.cases[0].payload(), plant) if sweep.cases else trace_names(plant)
+        store = ResultStore(sweep, keep_traces=keep_traces, trace_columns=columns, batch_rows=rows_per_batch)
         store.load(sha)
         if store.unreadable:
             say(f"warning: unreadable result files, their cases run again: {', '.join(store.unreadable[:5])}")

@@ -98,6 +98,9 @@ def case_time_limit(payload: Mapping[str, Any], override: float | None = None) -
 _columns: dict[tuple[str, str | None, str, tuple[str, ...]], tuple[str, ...]] = {}
 
 
+SYSTEM_KEYS = ("components", "connections", "record")  # a scenario with any of them is a system
+
+
 def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | None = None) -> tuple[str, ...]:
     """The trace columns of a case: time, the plant's outputs, the inputs and its controller's
     diagnostics (the built-in law's, or those a controller.python factory's controller or a
@@ -110,10 +113,11 @@ def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | Non
         return tuple(payload[COLUMNS_KEY])
     controller_doc = payload["document"].get("controller") or {}
     inputs = tuple((payload["document"].get("plant") or {}).get("inputs") or {})  # the plant's other inputs
-    if "python" not in controller_doc and "fmu" not in controller_doc:
+    system = {key: payload["document"][key] for key in SYSTEM_KEYS if key in payload["document"]}
+    if "python" not in controller_doc and "fmu" not in controller_doc and not system:
         return trace_names(plant, inputs=inputs)
-    source = payload.get("source")
-    key = (repr(controller_doc), source, plant.sha256, inputs)
+    source = payload.get("source")  # a system's columns are its recorded ports (`systems.system_columns`)
+    key = (repr(controller_doc), repr(system), source, plant.sha256, inputs)
     if key not in _columns:
         from toggle_cosim.cosim.supervision import probe_columns
 
@@ -253,7 +257,8 @@ class CaseServer:
                     source = payload.get("source")  # the base scenario: controller.python is imported from its folder
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
-                    outcome = simulate(run, self.plant, buffer=view, session=self._session(tuple(run.plant.inputs)))
+                    session = self._session(tuple(run.plant.inputs)) if run.system.is_pair else None
+                    outcome = simulate(run, self.plant, buffer=view, session=session)
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
                     row["reason"] = error_text(error)

@@ -1,0 +1,247 @@
+"""A system is the master's unit: components, connections, the order they are stepped in.
+
+The physics of the pair is checked elsewhere; here the claim is that the system execution makes
+exactly the calls of the plant + controller loop (bit for bit, both couplings, built-in law and
+controller FMU), that connections are followed (a crossed wiring changes the trace), and that
+the order, the algebraic loops, the units and the scenario keys behave as documented.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from toggle_cosim.cosim import master, systems
+from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
+from toggle_cosim.plant.contract import check_plant
+from toggle_cosim.system.graph import AlgebraicLoop, algebraic_loop, gauss_seidel_order
+from toggle_cosim.system.model import Connection, Interface, Port, Wiring
+from toggle_cosim.system.plan import SIGNAL, build_plan
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _c(text: str) -> Connection:
+    start, end = (Port.parse(side.strip()) for side in text.split("->"))
+    return Connection(start, end)
+
+
+# -- order and algebraic loops (pure) ------------------------------------------------------------
+PLANT = Interface(("iq_ref", "F_E"), ("x_B", "v_B", "P"), {"x_B": (), "v_B": (), "P": ("iq_ref",)})
+LAW = Interface(("x",), ("u",), {"u": ("x",)})
+SENSOR = Interface(("x",), ("x_m",), {"x_m": ()})  # a filter: no direct feedthrough
+LOAD = Interface(("x",), ("F",), {"F": ("x",)})  # a contact force: direct feedthrough
+
+
+def test_gauss_seidel_puts_a_feedthrough_component_after_its_sources() -> None:
+    interfaces = {"plant": PLANT, "ctrl": LAW, "load": LOAD}
+    wires = [
+        _c("plant.x_B -> ctrl.x"),
+        _c("ctrl.u -> plant.iq_ref"),
+        _c("plant.x_B -> load.x"),
+        _c("load.F -> plant.F_E"),
+    ]
+    # the plant's power P depends on iq_ref, but nothing is connected to P: the plant goes first
+    assert gauss_seidel_order(["load", "ctrl", "plant"], wires, interfaces) == ("plant", "load", "ctrl")
+
+
+def test_a_sensor_without_feedthrough_may_go_before_its_source() -> None:
+    interfaces = {"plant": PLANT, "sensor": SENSOR, "ctrl": LAW}
+    wires = [_c("plant.x_B -> sensor.x"), _c("sensor.x_m -> ctrl.x"), _c("ctrl.u -> plant.iq_ref")]
+    # the sensor's output is its state: it is read first, the law then has its input, the plant last
+    assert gauss_seidel_order(["sensor", "plant", "ctrl"], wires, interfaces) == ("sensor", "ctrl", "plant")
+
+
+def test_an_algebraic_loop_is_refused_naming_its_cycle() -> None:
+    interfaces = {"a": LOAD, "b": LAW}
+    wires = [_c("a.F -> b.x"), _c("b.u -> a.x")]
+    assert algebraic_loop(wires, interfaces) == ["a.F", "b.x", "b.u", "a.x", "a.F"]
+    with pytest.raises(AlgebraicLoop, match=r"a\.F -> b\.x -> b\.u -> a\.x -> a\.F"):
+        gauss_seidel_order(["a", "b"], wires, interfaces)
+    # the same ring through a component without direct feedthrough is no loop
+    assert (
+        algebraic_loop(
+            [_c("a.F -> b.x"), _c("b.u -> sensor.x"), _c("sensor.x_m -> a.x")], {**interfaces, "sensor": SENSOR}
+        )
+        is None
+    )
+
+
+def test_the_plan_sets_inputs_from_later_components_after_every_output() -> None:
+    interfaces = {"plant": PLANT, "ctrl": LAW}
+    wires = [_c("plant.x_B -> ctrl.x"), _c("ctrl.u -> plant.iq_ref")]
+    plan = build_plan(("plant", "ctrl"), interfaces, wires, [Port("plant", "F_E")], None, jacobi=False)
+    # buffer: plant x_B v_B P | iq_ref F_E | ctrl u | x
+    assert plan.outputs == ((0, 1, 2), (5,)) and plan.inputs == ((3, 4), (6,))
+    assert plan.feed_source[3] == 5 and plan.feed_source[4] == SIGNAL and plan.feed_source[6] == 0
+    assert plan.early == ((1,), (0,))  # F_E (a signal) early; iq_ref late (its source comes later)
+    jacobi = build_plan(("plant", "ctrl"), interfaces, wires, [Port("plant", "F_E")], None, jacobi=True)
+    assert jacobi.early == ((), ()) and jacobi.init_early == plan.early
+    assert plan.names == ("time", "plant.x_B", "plant.v_B", "plant.P", "plant.iq_ref", "plant.F_E", "ctrl.u", "ctrl.x")
+
+
+def test_unit_conversions_come_from_the_units_and_refuse_other_dimensions() -> None:
+    wire = _c("a.y -> b.u")
+    assert systems.unit_conversion(wire, ("m", None), ("m", None)) is None
+    with pytest.raises(systems.SystemError_, match="different dimensions"):
+        systems.unit_conversion(wire, ("m", None), ("m/s", None))
+
+    class Base:
+        def __init__(self, **kw):
+            self.__dict__.update({k: 0 for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")}, factor=1.0, offset=0.0)
+            self.__dict__.update(kw)
+
+    class Unit:
+        def __init__(self, name, **kw):
+            self.name, self.baseUnit = name, Base(**kw)
+
+    class Description:
+        unitDefinitions = [Unit("mm", m=1, factor=0.001), Unit("degC", K=1, offset=273.15)]
+
+    factor, offset = systems.unit_conversion(wire, ("m", Description), ("mm", Description))
+    assert (factor, offset) == (1000.0, 0.0)
+    factor, offset = systems.unit_conversion(wire, ("degC", Description), ("K", Description))
+    assert factor == 1.0 and offset == pytest.approx(273.15, abs=1e-12)
+
+
+# -- the pair as a system -----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def plant(plant_fmu: Path):
+    return check_plant(plant_fmu)
+
+
+def _short(run, **changes):
+    return dataclasses.replace(run, t_end=0.3, **changes)
+
+
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("law", ["built-in", "fmu"])
+def test_the_pair_as_a_system_gives_the_fixed_loops_bits(plant, vsc_fmu: Path, coupling: str, law: str) -> None:
+    run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], coupling=coupling)
+    if law == "fmu":
+        run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
+    fixed = master.simulate(run, plant)
+    wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
+    system = master.simulate(dataclasses.replace(run, system=wired), plant)
+    assert fixed.complete and system.complete, system.reason
+    assert system.record["loop"]["kind"] == "system"
+    for name, column in (
+        ("x_B", "plant.x_B"),
+        ("v_B", "plant.v_B"),
+        ("iq_ref", "controller.iq_ref"),
+        ("F_E", "plant.F_E"),
+    ):
+        assert np.array_equal(fixed.trace.column(name), system.trace.column(column)), name
+    # the phase switch happened inside the window: the comparison covers both phases
+    assert set(np.unique(fixed.trace.column("phase"))) == {0.0, 1.0}
+
+
+def test_a_crossed_wiring_changes_the_trace(plant, vsc_fmu: Path) -> None:
+    """x_B and v_B crossed (both in m and m/s: refused), and the command into F_E: runs, but as wired."""
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    crossed = Wiring(
+        connections=(
+            _c("plant.x_B -> controller.v_B"),
+            _c("plant.v_B -> controller.x_B"),
+            _c("controller.iq_ref -> plant.iq_ref"),
+        )
+    )
+    with pytest.raises(systems.SystemError_, match="different dimensions"):
+        master.simulate(dataclasses.replace(run, system=crossed), plant)
+    # the command wired into the load input (A into N: refused as well)
+    into_load = Wiring(
+        connections=(
+            _c("plant.x_B -> controller.x_B"),
+            _c("plant.v_B -> controller.v_B"),
+            _c("controller.iq_ref -> plant.F_E"),
+        )
+    )
+    with pytest.raises(systems.SystemError_, match="different dimensions"):
+        master.simulate(dataclasses.replace(run, system=into_load), plant)
+    # no command at all: the plant's iq_ref keeps its start value (0 A), the slider never gets there
+    open_loop = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("plant.v_B -> controller.v_B")))
+    outcome = master.simulate(dataclasses.replace(run, system=open_loop), plant)
+    fixed = master.simulate(run, plant)
+    assert outcome.complete
+    assert not np.array_equal(outcome.trace.column("plant.x_B"), fixed.trace.column("x_B"))
+    assert "plant.iq_ref" not in outcome.trace.names  # an input nothing feeds is not a connector of the run
+    assert abs(outcome.trace.column("plant.x_B")[-1] - fixed.trace.column("x_B")[-1]) > 0.01
+
+
+def test_record_selects_variables_of_any_component(plant) -> None:
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    chosen = (Port("plant", "lambda1"), Port("plant", "x_B"), Port("controller", "S"), Port("plant", "theta1"))
+    outcome = master.simulate(dataclasses.replace(run, system=Wiring(record=chosen)), plant)
+    fixed = master.simulate(run, plant)
+    assert outcome.trace.names == ("time", "plant.lambda1", "plant.x_B", "controller.S", "plant.theta1")
+    for name in ("lambda1", "x_B", "S", "theta1"):
+        assert np.array_equal(
+            outcome.trace.column(next(n for n in outcome.trace.names if n.endswith(f".{name}"))),
+            fixed.trace.column(name),
+        )
+    with pytest.raises(systems.SystemError_, match="not a variable of the system"):
+        master.simulate(dataclasses.replace(run, system=Wiring(record=(Port("plant", "nope"),))), plant)
+
+
+# -- the scenario keys --------------------------------------------------------------------------
+def _scenario(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "system.yaml"
+    path.write_text(
+        textwrap.dedent(
+            """\
+            name: system
+            t_end: 0.1
+            T_s: 0.0005
+            stroke: {x_start: 0.2329, x_target: 0.3199}
+            """
+        )
+        + textwrap.dedent(body)
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (
+            "connections: [plant.x_B -> sensor.x]\n",
+            "key connections[0]: 'plant.x_B -> sensor.x' names the component 'sensor'",
+        ),
+        ("components: {sensor: {fmu: nothere.fmu}}\n", "key components.sensor.fmu: no such file"),
+        ("components: {plant: {fmu: x.fmu}}\n", "components"),
+        ("record: [x_B]\n", "key record"),
+        ("record: [ghost.x]\n", "key record[0]: 'ghost.x' names the component 'ghost'"),
+        (
+            "plant: {F_E: 10}\nconnections: [plant.x_B -> controller.x_B, plant.x_B -> plant.F_E]\n",
+            "key plant.F_E: the connection plant.x_B -> plant.F_E feeds plant.F_E too",
+        ),
+    ],
+)
+def test_bad_system_keys_are_one_line_naming_the_key(tmp_path: Path, body: str, message: str) -> None:
+    with pytest.raises(ScenarioError, match=message.replace("[", r"\[").replace(".", r"\.")):
+        load_scenario(_scenario(tmp_path, body))
+
+
+def test_the_run_command_refuses_a_bad_connection_before_any_run(plant_fmu: Path, tmp_path: Path) -> None:
+    path = _scenario(
+        tmp_path,
+        f"""\
+        fmu: {plant_fmu}
+        connections: [plant.x_B -> controller.x_B, plant.v_B -> controller.S, controller.iq_ref -> plant.iq_ref]
+        """,
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "toggle_cosim", "run", str(path), "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "controller.S, which is not a Real input of 'controller'" in done.stderr
+    assert not (tmp_path / "out").exists()
