@@ -2,16 +2,19 @@
 
 A variant is a root SSD (SSP 1.0.1, section 3): `SystemStructure.ssd`, the default, and any other
 `*.ssd` at the archive's top level, each named by its `name` attribute (or its file name). What
-runs is read from the chosen SSD and its .ssv files only: the two components (the controller is
-the FMU with an output iq_ref, the plant the one with an input iq_ref, whatever their names),
-the values their bindings give (`bindings`: every binding, later ones taking priority, then the
+runs is read from the chosen SSD and its .ssv files only: the components (the controller is the
+FMU with an output iq_ref, the plant the one with an input iq_ref, whatever their names; every
+other FMU component a part of the run's system, `Run.system`), the values their bindings give (`bindings`: every binding, later ones taking priority, then the
 system's), the stop time of its DefaultExperiment and the controller's T_s. Annotations are not
 read.
 
 Checked before any run, each failure one SspError line naming the file and the fix: a zip
 archive, safe (`plant.archive`); the variants (`variants`: names, bounds, set names); every .ssv
-within bounds and valid SSP 1.0 (`checks`); exactly two FMU components, Co-Simulation, whose FMUs the
-archive holds; connections exactly the loop our master runs (`wiring`); every bound name a
+within bounds and valid SSP 1.0 (`checks`); two or more FMU components, Co-Simulation, whose FMUs
+the archive holds; the connections (`wiring`: kinds, units, transformations, algebraic loops).
+Connections exactly the pair's loop and no other component: `Run.system` is the plain pair
+(`Wiring()` with the SSD's component names), which the master's fixed loop runs bit for bit;
+anything else: the parts and every connection in document order; every bound name a
 parameter or input of its FMU, of its type, finite; the values within the scenario's ranges
 (`as_scenario`); the experiment starting at 0 and ending at a whole number of samples.
 """
@@ -67,7 +70,8 @@ class SspStudy:
     `plant_values` are what the master sets on the plant before initialisation (F_E, the plant's
     input, apart); `controller_values` the controller FMU's parameters; `run` the run with the
     SSP's t_end, T_s, F_E and plant values, its record naming the SSP, the variant and each
-    component's source, hash and values. `plant_fmu` and `controller_fmu` are extracted copies."""
+    component's source, hash and values, and its `system` (`Run.system`). `plant_fmu`,
+    `controller_fmu` and each part's FMU are extracted copies; `parts` the other components."""
 
     path: Path
     variant: str
