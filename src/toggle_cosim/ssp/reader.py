@@ -4,9 +4,9 @@ A variant is a root SSD (SSP 1.0.1, section 3): `SystemStructure.ssd`, the defau
 `*.ssd` at the archive's top level, each named by its `name` attribute (or its file name). What
 runs is read from the chosen SSD and its .ssv files only: the components (the controller is the
 FMU with an output iq_ref, the plant the one with an input iq_ref, whatever their names; every
-other FMU component a part of the run's system, `Run.system`), the values their bindings give (`bindings`: every binding, later ones taking priority, then the
-system's), the stop time of its DefaultExperiment and the controller's T_s. Annotations are not
-read.
+other FMU component a part of the run's system, `Run.system`), the values their bindings give
+(`bindings`: every binding, later ones taking priority, then the system's), the stop time of its
+DefaultExperiment and the controller's T_s. Annotations are not read.
 
 Checked before any run, each failure one SspError line naming the file and the fix: a zip
 archive, safe (`plant.archive`); the variants (`variants`: names, bounds, set names); every .ssv
