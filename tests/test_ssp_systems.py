@@ -1,13 +1,14 @@
 """SSPs of more than the plant + controller pair (`toggle_cosim.ssp`, docs/ssp.md "Systems").
 
 A three-component study: the plant FMU, a stand-in controller FMU (tests/models/ssp_controller)
-and a sampling position sensor between them (tests/models/ssp_parts/Encoder.py: y = gain·x, in mm
+and a position sensor between them (tests/models/ssp_parts/Encoder.py: y = gain·x, in mm
 where its FMU declares units), the controller reading the sensor's y as its x_B. Written with
 `write_ssp` from a run whose `system` names the sensor and the connections, each root SSD
 validates against the SSP 1.0 schemas and reads back as the same Wiring (parts, values,
 connections and their factors). Unit conversions and LinearTransformations are read in the
 standard's order (unit conversion, then the transformation); different dimensions and an
-algebraic loop are refused in one line naming them. libcosim runs the exported system.
+algebraic loop are refused in one line naming them. libcosim runs the exported system as our
+Jacobi run does, and a scenario file's system runs from its SSP bit for bit as from the file.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 from lxml import etree
@@ -282,12 +284,14 @@ def test_different_dimensions_and_an_algebraic_loop_are_refused_in_one_line(bare
     assert ports[0] == ports[-1] and set(ports) == {"sensor.x", "sensor.y", "controller.x_B", "controller.iq_ref"}
 
 
-def test_libcosim_and_our_master_run_the_exported_system(
+def test_libcosim_runs_the_exported_system_as_our_jacobi_run_does(
     fmus: dict[str, Path], plant_fmu: Path, tmp_path: Path
 ) -> None:
-    """libcosim loads the exported three-component SSD (mm to m said as a LinearTransformation,
-    which it applies) and steps it: the plant's x_B moves from x_start. `toggle-cosim run` steps
-    the same SSP as a system: complete, the sensor's columns recorded, run.json naming the part."""
+    """libcosim loads the exported three-component SSD (mm to m said as a LinearTransformation
+    with suppressUnitConversion, which it applies: its controller.x_B is the plant's x_B, two
+    samples behind in its records) and steps it: the plant's x_B moves from x_start and equals
+    our Jacobi run of the same SSP (`toggle-cosim run --coupling jacobi`) to 1e-12 m, the command
+    to 1e-12 A; our run records the sensor and names the part in run.json."""
     pytest.importorskip("libcosimpy")
     import json
 
@@ -300,14 +304,54 @@ def test_libcosim_and_our_master_run_the_exported_system(
     frame = run_in_libcosim(path, None, run.T_s, T_END)
     x_B = frame["plant.x_B"].to_numpy()
     assert x_B[0] == pytest.approx(run.x_start, abs=1e-12)
-    assert abs(x_B[-1] - run.x_start) > 1e-6
-    # the controller sees the sensor's mm as m: its x_B equals the plant's a sample behind
+    assert abs(x_B[-1] - run.x_start) > 1e-3
     assert frame["controller.x_B"].to_numpy()[2:] == pytest.approx(x_B[:-2], rel=1e-12)
-    result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out"), "-q"])
+    result = CliRunner().invoke(main, ["run", str(path), "--coupling", "jacobi", "--out", str(tmp_path / "out"), "-q"])
     assert result.exit_code == 0, result.output
-    folder = tmp_path / "out" / "sys_ssp" / "friction"
+    folder = tmp_path / "out" / "sys_ssp_jacobi" / "friction"
     trace = read_csv(folder / "trace.csv")
-    assert "sensor.y" in trace.names and abs(trace.column("plant.x_B")[-1] - run.x_start) > 1e-6
+    assert len(trace.time) == len(x_B) and "sensor.y" in trace.names
+    assert np.max(np.abs(trace.column("plant.x_B") - x_B)) < 1e-12
+    assert np.max(np.abs(trace.column("controller.iq_ref") - frame["controller.iq_ref"].to_numpy())) < 1e-12
     record = json.loads((folder / "run.json").read_text())
     assert record["resolved"]["ssp"]["parts"][0]["name"] == "sensor"
     assert [c["name"] for c in record["system"]["components"]] == ["plant", "controller", "sensor"]
+
+
+def test_a_scenarios_system_and_its_ssp_give_one_trace_bit_for_bit(
+    fmus: dict[str, Path], plant_fmu: Path, tmp_path: Path
+) -> None:
+    """A scenario file with `components:` (the sensor, mm) and `connections:`, written with
+    `toggle-cosim ssp` and the real controller FMU ToggleVSC: both variants run from the SSP give
+    the scenario's traces bit for bit on every column both have (the built-in law natively, the
+    same law as an FMU; the sensor's mm converted to the controller's m by the master in both)."""
+    from toggle_cosim.controller_fmu import build_controller_fmu
+    from toggle_cosim.files.traces import read_csv
+
+    vsc = build_controller_fmu(tmp_path / "vsc" / "ToggleVSC.fmu").path
+    text = SCENARIO.read_text().replace("t_end: 1.5", f"t_end: {T_END}")
+    text = re.sub(r"(?m)^fmu: .*$", f"fmu: {plant_fmu}", text)
+    text += (
+        f"components:\n  sensor:\n    fmu: {fmus['mm']}\n    parameters: {{gain: 1000.0}}\n"
+        "connections:\n  - plant.x_B -> sensor.x\n  - sensor.y -> controller.x_B\n"
+        "  - plant.v_B -> controller.v_B\n  - controller.iq_ref -> plant.iq_ref\n"
+    )
+    scenario = tmp_path / "sensed.yaml"
+    scenario.write_text(text)
+    ssp = tmp_path / "sensed.ssp"
+    written = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(ssp), "--controller", str(vsc)])
+    assert written.exit_code == 0, written.output
+    for args, out in (
+        ([str(scenario)], "yaml"),
+        ([str(ssp), "--variant", "friction", "--variant", "no_friction"], "ssp"),
+    ):
+        ran = CliRunner().invoke(main, ["run", *args, "--out", str(tmp_path / out), "-q"])
+        assert ran.exit_code == 0, ran.output
+    for variant in ("friction", "no_friction"):
+        expected = read_csv(tmp_path / "yaml" / "fig4_nominal" / variant / "trace.csv")
+        got = read_csv(tmp_path / "ssp" / "sensed_ssp" / variant / "trace.csv")
+        common = [name for name in expected.names if name in got.names]
+        assert {"plant.x_B", "sensor.y", "controller.x_B", "controller.iq_ref"} <= set(common)
+        for name in common:
+            assert np.array_equal(got.column(name), expected.column(name)), (variant, name)
+        assert abs(expected.column("plant.x_B")[-1] - expected.column("plant.x_B")[0]) > 1e-3
