@@ -66,16 +66,18 @@ def _patched(fmu: Path, target: Path, units: dict[str, str], definitions: str = 
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """The stand-in controller (units on its signals), the sensor bare (no units) and the sensor
-    declaring x in m and y in mm (with mm's definition)."""
+    """The stand-in controller (units on its signals), the sensor bare (no units), the sensor
+    declaring x in m and y in mm (with mm's definition), and the drive (in A)."""
     folder = tmp_path_factory.mktemp("parts")
     controller = _pythonfmu(ROOT / "tests" / "models" / "ssp_controller" / "ToggleVSC.py", folder / "c")
     encoder = _pythonfmu(ROOT / "tests" / "models" / "ssp_parts" / "Encoder.py", folder / "e")
+    drive = _pythonfmu(ROOT / "tests" / "models" / "ssp_parts" / "Drive.py", folder / "d")
     units = {"x_B": "m", "v_B": "m/s", "theta1": "rad", "omega1": "rad/s", "iq_ref": "A"}
     return {
         "controller": _patched(controller, folder / "ToggleVSC.fmu", units),
         "bare": encoder,
         "mm": _patched(encoder, folder / "Encoder.fmu", {"x": "m", "y": "mm"}, MM),
+        "drive": _patched(drive, folder / "Drive.fmu", {"iq_ref": "A", "i": "A"}),
     }
 
 
@@ -251,6 +253,44 @@ def test_unit_conversions_and_linear_transformations_are_read_in_the_standards_o
         got = _connections(study.run.system)[1]
         assert got[:2] == ("sensor.y", "controller.x_B")
         assert got[2:] == pytest.approx(expected, rel=1e-15, abs=0)
+
+
+def test_a_part_with_an_input_iq_ref_is_told_from_the_plant_and_a_boolean_is_not_connected(
+    fmus: dict[str, Path], plant_fmu: Path, tmp_path: Path
+) -> None:
+    """A drive between controller and plant has an input iq_ref as the plant has: the plant is the
+    one with the plant contract's required variables, the drive a part. Connecting the drive's
+    Boolean output is refused in one line naming it (connections join Real variables)."""
+    signals = ("x_B", "v_B", "theta1", "omega1")
+    system = Wiring(
+        parts=(Part("drive", fmus["drive"], (("i_max", 8.0),)),),
+        connections=(
+            *(Connection(Port("plant", s), Port("controller", s)) for s in signals),
+            Connection(Port("controller", "iq_ref"), Port("drive", "iq_ref")),
+            Connection(Port("drive", "i"), Port("plant", "iq_ref")),
+        ),
+    )
+    path = _export(tmp_path / "drive.ssp", plant_fmu, fmus["controller"], system)
+    with open_ssp(path) as study:
+        read = study.run.system
+        assert (read.plant, read.controller, [p.name for p in read.parts]) == ("plant", "controller", ["drive"])
+        assert read.parts[0].values == (("i_max", 8.0),) and read.connections == system.connections
+    boolean = _edit(
+        path,
+        tmp_path / "boolean.ssp",
+        (
+            '<ssd:Connector name="i" kind="output">',
+            '<ssd:Connector name="saturated" kind="output"><ssc:Boolean/></ssd:Connector>'
+            '<ssd:Connector name="i" kind="output">',
+        ),
+        (
+            "</ssd:Connections>",
+            '<ssd:Connection startElement="drive" startConnector="saturated" endElement="plant" endConnector="F_E"/>'
+            "</ssd:Connections>",
+        ),
+    )
+    line = _one_line(boolean, tmp_path / "out")
+    assert "the connection drive.saturated -> plant.F_E joins drive.saturated, a Boolean variable" in line
 
 
 def _one_line(path: Path, out: Path) -> str:
