@@ -4,7 +4,7 @@ A three-component study: the plant FMU, a stand-in controller FMU (tests/models/
 and a position sensor between them (tests/models/ssp_parts/Encoder.py: y = gain·x, in mm
 where its FMU declares units), the controller reading the sensor's y as its x_B. Written with
 `write_ssp` from a run whose `system` names the sensor and the connections, each root SSD
-validates against the SSP 1.0 schemas and reads back as the same Wiring (parts, values,
+validates against the SSP 1.0 schemas (and FMPy's reader reads the default) and reads back as the same Wiring (parts, values,
 connections and their factors). Unit conversions and LinearTransformations are read in the
 standard's order (unit conversion, then the transformation); different dimensions and an
 algebraic loop are refused in one line naming them. libcosim runs the exported system as our
@@ -130,6 +130,8 @@ def test_a_system_round_trips_through_an_ssp(fmus: dict[str, Path], plant_fmu: P
     units): the SSD says it whole (a LinearTransformation of 0.001 with suppressUnitConversion)
     and it reads back as the identity connection written. A connection of its own, x 2.0 + 0.25,
     reads back with the same bits; the run's record names the part, its source, hash and values."""
+    from fmpy.ssp.ssd import read_ssd
+
     written = _system(fmus["mm"], 1000.0)
     path = _export(tmp_path / "sys.ssp", plant_fmu, fmus["controller"], written, gains=(1000.0, 500.0))
     with zipfile.ZipFile(path) as archive:
@@ -140,6 +142,8 @@ def test_a_system_round_trips_through_an_ssp(fmus: dict[str, Path], plant_fmu: P
             if name.endswith(".ssv"):
                 assert schema_problem(etree.fromstring(archive.read(name)), "ssv") is None
     assert sorted(ssds) == ["SystemStructure.ssd", "no_friction.ssd"]
+    described = read_ssd(str(path), validate=True)  # FMPy's reader validates it against its own schemas
+    assert [c.name for c in described.system.elements] == ["plant", "controller", "sensor"]
     for ssd in ssds.values():
         assert schema_problem(ssd, "ssd") is None
         components = ssd.findall("ssd:System/ssd:Elements/ssd:Component", NS)
