@@ -186,6 +186,11 @@ def test_record_selects_variables_of_any_component(plant) -> None:
             outcome.trace.column(next(n for n in outcome.trace.names if n.endswith(f".{name}"))),
             fixed.trace.column(name),
         )
+    # any variable of an FMU component, not only its connectors: a parameter reads back as set
+    chosen = (Port("plant", "x_B"), Port("plant", "m_B"))
+    outcome = master.simulate(dataclasses.replace(run, system=Wiring(record=chosen)), plant)
+    assert np.all(outcome.trace.column("plant.m_B") == run.plant.m_B)
+    assert outcome.record["units"]["plant.m_B"] == "kg" and outcome.record["units"]["plant.x_B"] == "m"
     with pytest.raises(systems.SystemError_, match="not a variable of the system"):
         master.simulate(dataclasses.replace(run, system=Wiring(record=(Port("plant", "nope"),))), plant)
 
