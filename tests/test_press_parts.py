@@ -163,7 +163,7 @@ def test_sensor_quantises_the_position_to_its_resolution_without_events(press_pa
 @pytest.mark.parametrize("version", ["2.0", "3.0"])
 @pytest.mark.parametrize(
     "parameters, x_c, k_c",
-    [({}, 0.31, 2e4), ({"x_c": 0.3, "k_c": 5e4}, 0.3, 5e4)],
+    [({}, 0.31, 1e4), ({"x_c": 0.3, "k_c": 5e4}, 0.3, 5e4)],
     ids=["defaults", "set"],
 )
 def test_die_load_is_zero_before_contact_and_a_spring_after(press_parts, press_parts3, version, parameters, x_c, k_c):
