@@ -36,6 +36,24 @@ def no_gravity_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.PlantNoGravity", output).fmu.path
 
 
+PRESS_SYSTEM = ROOT / "examples" / "press_system"
+PRESS_PARTS = ("PositionSensor", "DieLoad")
+
+
+@pytest.fixture(scope="session")
+def press_parts(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The press example's parts (examples/press_system/*.mo), each built once per session as
+    our build writes it for a user: FMI 2.0, Co-Simulation. Keys: the model names
+    (PositionSensor, DieLoad); about 1 s each."""
+    from toggle_cosim.fmu_export import build_fmu
+
+    folder = tmp_path_factory.mktemp("press-parts")
+    return {
+        name: build_fmu(PRESS_SYSTEM / f"{name}.mo", name, folder / f"{name}.fmu", interfaces="cs").fmu.path
+        for name in PRESS_PARTS
+    }
+
+
 @pytest.fixture(scope="session")
 def shim_fmu(plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The plant behind the fault shim of `fault_plants` (TOGGLE_FAULT_* in the environment

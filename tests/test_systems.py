@@ -9,6 +9,7 @@ the order, the algebraic loops, the units and the scenario keys behave as docume
 from __future__ import annotations
 
 import dataclasses
+import re
 import subprocess
 import sys
 import textwrap
@@ -185,6 +186,11 @@ def test_record_selects_variables_of_any_component(plant) -> None:
             outcome.trace.column(next(n for n in outcome.trace.names if n.endswith(f".{name}"))),
             fixed.trace.column(name),
         )
+    # any variable of an FMU component, not only its connectors: a parameter reads back as set
+    chosen = (Port("plant", "x_B"), Port("plant", "m_B"))
+    outcome = master.simulate(dataclasses.replace(run, system=Wiring(record=chosen)), plant)
+    assert np.all(outcome.trace.column("plant.m_B") == run.plant.m_B)
+    assert outcome.record["units"]["plant.m_B"] == "kg" and outcome.record["units"]["plant.x_B"] == "m"
     with pytest.raises(systems.SystemError_, match="not a variable of the system"):
         master.simulate(dataclasses.replace(run, system=Wiring(record=(Port("plant", "nope"),))), plant)
 
@@ -214,8 +220,11 @@ def _scenario(tmp_path: Path, body: str) -> Path:
             "key connections[0]: 'plant.x_B -> sensor.x' names the component 'sensor'",
         ),
         ("components: {sensor: {fmu: nothere.fmu}}\n", "key components.sensor.fmu: no such file"),
-        ("components: {plant: {fmu: x.fmu}}\n", "components"),
-        ("record: [x_B]\n", "key record"),
+        ("components: {plant: {fmu: x.fmu}}\n", "key components: 'plant' is taken by the scenario's own plant"),
+        ("components: {'1x': {fmu: x.fmu}}\n", "key components: '1x' is not a component name"),
+        ("record: [x_B]\n", "key record.0: 'x_B' is not a port (write 'component.variable'"),
+        ("connections: ['plant.x_B => c.x']\n", "key connections.0: 'plant.x_B => c.x' is not a connection"),
+        ("connections: ['plant.x_B->controller.x_B->plant.iq_ref']\n", "is not one connection"),
         ("record: [ghost.x]\n", "key record[0]: 'ghost.x' names the component 'ghost'"),
         (
             "plant: {F_E: 10}\nconnections: [plant.x_B -> controller.x_B, plant.x_B -> plant.F_E]\n",
@@ -224,7 +233,7 @@ def _scenario(tmp_path: Path, body: str) -> Path:
     ],
 )
 def test_bad_system_keys_are_one_line_naming_the_key(tmp_path: Path, body: str, message: str) -> None:
-    with pytest.raises(ScenarioError, match=message.replace("[", r"\[").replace(".", r"\.")):
+    with pytest.raises(ScenarioError, match=re.escape(message)):
         load_scenario(_scenario(tmp_path, body))
 
 

@@ -165,6 +165,10 @@ _STROKE = {
 _NAME = r"^[A-Za-z_][A-Za-z0-9_]*\Z"
 _PORT = r"^[A-Za-z_][A-Za-z0-9_]*\.[^\s]+\Z"
 _CONNECTION = r"^\s*[A-Za-z_][A-Za-z0-9_]*\.[^\s]+\s*->\s*[A-Za-z_][A-Za-z0-9_]*\.[^\s]+\s*\Z"
+_PATTERN_HINTS = {
+    _CONNECTION: "a connection (write 'component.variable -> component.variable', e.g. 'plant.x_B -> sensor.x')",
+    _PORT: "a port (write 'component.variable', e.g. 'plant.x_B')",
+}
 _PART = {
     "type": "object",
     "additionalProperties": False,
@@ -286,6 +290,15 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
     if error.validator == "enum":
         return (
             f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
+        )
+    if error.validator == "pattern" and error.validator_value in _PATTERN_HINTS:
+        return f"key {key}: {error.instance!r} is not {_PATTERN_HINTS[error.validator_value]}"
+    if error.validator == "not" and error.absolute_path and error.absolute_path[0] == "components":
+        name = _part(error.instance)
+        return f"key {key}: {name!r} is taken by the scenario's own {name} (give the part another name)"
+    if error.validator == "pattern" and error.absolute_path and error.absolute_path[0] == "components":
+        return (
+            f"key {key}: {_part(error.instance)!r} is not a component name (letters, digits and _, not first a digit)"
         )
     return f"key {key}: {error.message}"
 
@@ -532,7 +545,13 @@ def _wiring(document: Mapping[str, Any], source: Path | None, suffix: str) -> Wi
     if "connections" in document:
         connections = []
         for index, text in enumerate(document["connections"]):
-            start, end = (Port.parse(side.strip()) for side in text.split("->"))
+            sides = text.split("->")
+            if len(sides) != 2:
+                raise ScenarioError(
+                    f"key connections[{index}]{suffix}: {text.strip()!r} is not one connection (write one "
+                    "'component.variable -> component.variable' per item)"
+                )
+            start, end = (Port.parse(side.strip()) for side in sides)
             for port in (start, end):
                 if port.component not in names:
                     raise ScenarioError(

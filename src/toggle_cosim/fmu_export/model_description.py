@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import datetime
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from toggle_cosim.fmu_export.compile import GeneratedModel, ModelVariable
@@ -99,6 +100,12 @@ def _unknown(parent: ET.Element, tag: str, key_attribute: str, key: int, depende
     element = ET.SubElement(parent, tag, {key_attribute: str(key)})
     if dependencies is not None:
         element.set("dependencies", dependencies)
+
+
+def _initial_unknowns(*groups: Iterable[tuple[int, str]]) -> list[tuple[int, str]]:
+    """The InitialUnknowns as (key, name), ascending by key, each once: an output that is
+    also a state (a filter whose output is its state) is one unknown, not two."""
+    return sorted(dict(item for group in groups for item in group).items())
 
 
 def _state_variables(model: GeneratedModel) -> list[ModelVariable]:
@@ -288,12 +295,14 @@ def fmi2_model_description(
             _unknown(
                 section, "Unknown", "index", index, _dependency_list(_continuous_dependencies(model, name), knowns)
             )
-    initial: list[tuple[int, str]] = [(index_of[v.name], v.name) for v in (*outputs, *calculated)]
-    initial += [(index_of[name], name) for name in model.states]
-    initial += list(zip(derivative_index, model.derivatives, strict=True))
+    initial = _initial_unknowns(
+        [(index_of[v.name], v.name) for v in (*outputs, *calculated)],
+        [(index_of[name], name) for name in model.states],
+        zip(derivative_index, model.derivatives, strict=True),
+    )
     if initial:
         section = ET.SubElement(structure, "InitialUnknowns")
-        for index, name in sorted(initial):
+        for index, name in initial:
             _unknown(
                 section, "Unknown", "index", index, _dependency_list(_initial_dependencies(model, name), start_knowns)
             )
@@ -462,10 +471,12 @@ def fmi3_model_description(
             reference,
             _dependency_list(_continuous_dependencies(model, name), knowns),
         )
-    initial: list[tuple[int, str]] = [(v.value_reference, v.name) for v in (*outputs, *calculated)]
-    initial += [(model.variable(name).value_reference, name) for name in model.states]
-    initial += list(zip(derivative_vr, model.derivatives, strict=True))
-    for reference, name in sorted(initial):
+    initial = _initial_unknowns(
+        [(v.value_reference, v.name) for v in (*outputs, *calculated)],
+        [(model.variable(name).value_reference, name) for name in model.states],
+        zip(derivative_vr, model.derivatives, strict=True),
+    )
+    for reference, name in initial:
         _unknown(
             structure,
             "InitialUnknown",
