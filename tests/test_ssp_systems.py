@@ -399,3 +399,47 @@ def test_a_scenarios_system_and_its_ssp_give_one_trace_bit_for_bit(
         for name in common:
             assert np.array_equal(got.column(name), expected.column(name)), (variant, name)
         assert abs(expected.column("plant.x_B")[-1] - expected.column("plant.x_B")[0]) > 1e-3
+
+
+def test_the_press_example_as_an_ssp_runs_as_its_scenario_and_in_libcosim(
+    plant_fmu: Path, press_parts: dict[str, Path], tmp_path: Path
+) -> None:
+    """examples/press_system/press.yaml (plant, controller, sensor, die: four components) written
+    with `toggle-cosim ssp` and the real controller FMU, its t_end cut to 0.5 s: each variant run
+    from the SSP gives the scenario's trace bit for bit on every column, and libcosim, loading
+    each variant's root SSD, gives our Jacobi run's x_B to 1e-12 m and command to 1e-10 A."""
+    pytest.importorskip("libcosimpy")
+    from masters import run_in_libcosim
+
+    from toggle_cosim.controller_fmu import build_controller_fmu
+    from toggle_cosim.files.traces import read_csv
+
+    vsc = build_controller_fmu(tmp_path / "vsc" / "ToggleVSC.fmu").path
+    text = (ROOT / "examples" / "press_system" / "press.yaml").read_text()
+    text = re.sub(r"(?m)^t_end: 2\.5 ", "t_end: 0.5 ", text)
+    text = re.sub(r"(?m)^fmu: .*$", f"fmu: {plant_fmu}", text)
+    for name in ("PositionSensor", "DieLoad"):
+        text = text.replace(f"../../fmus/{name}.fmu", str(press_parts[name]))
+    scenario = tmp_path / "press.yaml"
+    scenario.write_text(text)
+    ssp = tmp_path / "press.ssp"
+    written = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(ssp), "--controller", str(vsc)])
+    assert written.exit_code == 0, written.output
+    variants = ["--variant", "paper", "--variant", "integral"]
+    for args, out in (
+        ([str(scenario)], "yaml"),
+        ([str(ssp), *variants], "ssp"),
+        ([str(ssp), *variants, "--coupling", "jacobi"], "ssp"),
+    ):
+        ran = CliRunner().invoke(main, ["run", *args, "--out", str(tmp_path / out), "-q"])
+        assert ran.exit_code == 0, ran.output
+    for variant, member in (("paper", None), ("integral", "integral.ssd")):
+        expected = read_csv(tmp_path / "yaml" / "press_system" / variant / "trace.csv")
+        got = read_csv(tmp_path / "ssp" / "press_ssp" / variant / "trace.csv")
+        assert set(expected.names) <= set(got.names) and "die.F" in expected.names
+        for name in expected.names:
+            assert np.array_equal(got.column(name), expected.column(name)), (variant, name)
+        jacobi = read_csv(tmp_path / "ssp" / "press_ssp_jacobi" / variant / "trace.csv")
+        frame = run_in_libcosim(ssp, None, 0.0005, 0.5, ssd=member)
+        assert np.max(np.abs(frame["plant.x_B"].to_numpy() - jacobi.column("plant.x_B"))) < 1e-12
+        assert np.max(np.abs(frame["controller.iq_ref"].to_numpy() - jacobi.column("controller.iq_ref"))) < 1e-10
