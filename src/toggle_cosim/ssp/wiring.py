@@ -16,6 +16,10 @@ Each connection is checked, one SspError line naming the SSD and the connection:
   text: "the value of source is already converted to the target unit"), so the connection is
   end = a·(converted start) + b; with suppressUnitConversion="true" it applies instead of it.
   Other transformations (Boolean or Integer mappings) are refused;
+* the `Connection`'s factor and offset are what the master applies on top of its own conversion
+  between the two FMUs' declared units (`cosim.systems.unit_conversion`, after the Connection's):
+  where both FMUs declare units, a pure unit conversion is the identity Connection; where one
+  declares none, the Connection holds the whole conversion (`_beyond_master`);
 * no algebraic loop: a cycle through connections and the FMUs' declared direct dependencies
   (ModelStructure; an output that declares none depends on every input), found by
   `system.graph.algebraic_loop`.
@@ -135,9 +139,10 @@ def _end_unit(
     own_meaning = meaning_of(own, fmu) if own else None
     if given and own and given != own:
         if given_meaning is None or own_meaning is None or given_meaning[:-2] != own_meaning[:-2]:
+            what = "another dimension" if given_meaning and own_meaning else "and what one means is not defined"
             raise SspError(
                 f"{where}: the connection {connection} gives {port} the unit {_show(given_meaning, given)}, but its "
-                f"FMU's unit is {_show(own_meaning, own)}, another dimension (give the connector the FMU's unit)"
+                f"FMU's unit is {_show(own_meaning, own)}, {what} (give the connector the FMU's unit)"
             )
     if own:
         return own, own_meaning

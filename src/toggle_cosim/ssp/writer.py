@@ -478,7 +478,16 @@ def _part_variables(scenario: Path, runs: Sequence[Run]) -> dict[Path, FmuVariab
                 raise SspError(f"{scenario}: two components are named {part.name!r} (give each its own name)")
             names.add(part.name)
             if part.fmu not in found:
+                if not Path(part.fmu).is_file():
+                    raise SspError(
+                        f"{scenario}: key components.{part.name}.fmu: no FMU at {part.fmu} (build it, or fix the path)"
+                    )
                 found[part.fmu] = describe(Path(part.fmu), "part")
+                if getattr(found[part.fmu].model_description, "coSimulation", None) is None:
+                    raise SspError(
+                        f"{scenario}: key components.{part.name}.fmu: {part.fmu} has no Co-Simulation interface "
+                        "(an SSP's components run as Co-Simulation FMUs; export it for Co-Simulation)"
+                    )
             found[part.fmu].check_parameters(part.values, f"part {part.name!r}", part.source or str(scenario))
     return found
 
