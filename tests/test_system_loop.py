@@ -9,6 +9,9 @@ them and stepped by `SystemLoop`, give the master's trace of the same scenario
 under Jacobi; a run in two stretches gives the one-call run's bits; a connection with a factor
 and an offset delivers factor · value + offset with Python's bits (read back from the FMU); a
 call that fails stops the loop at its sample and names the component and the FMI function.
+A three-FMU system assembled and initialised by the master (`cosim.systems.assemble`, the pair
+and a second controller instance reading the plant) runs its first samples in the Python
+execution and the rest in C with the all-Python run's bits.
 """
 
 from __future__ import annotations
@@ -28,13 +31,16 @@ from fmpy.fmi3 import FMU3Slave
 
 from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.fmi_pointers import fmu_functions
-from toggle_cosim.cosim.master import input_samples, plant_settings, simulate
+from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.system_loop import DONE, FMI_FAILED, SystemLoop, system_library, system_library_reason
+from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.system.graph import gauss_seidel_order
-from toggle_cosim.system.model import Connection, Interface, Port
+from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -262,3 +268,56 @@ def test_tables_that_do_not_fit_the_plan_are_refused(plant_fmu: Path, toggle_vsc
         fresh.freeLibrary()
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
+def test_three_fmus_hand_over_from_the_python_execution_to_c_with_its_bits(
+    coupling: str, plant_fmu: Path, toggle_vsc: dict[str, Path]
+) -> None:
+    """The pair plus a monitor (another ToggleVSC instance reading the plant's x_B, v_B, and theta1
+    in mrad plus 0.5, which the x_B law does not read): samples 0 .. 499 in `Execution.advance`, 500 .. n in `SystemLoop`, on the
+    same instances and buffer slots: every column of the trace equals the run all in Python."""
+    plant = check_plant(plant_fmu)
+    fmu = toggle_vsc["2.0"]
+    run = load_scenario(SCENARIO)[0]
+    run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=fmu), coupling=coupling)
+    controller = controller_for(run, plant.recorded_outputs)
+    inputs = [v for v in controller.fmu.inputs if v in plant.recorded_outputs]
+    wiring = Wiring(parts=(Part("monitor", fmu, tuple(controller.settings)),))
+    controller.close()
+    connections = pair_connections(wiring, inputs) + (
+        Connection(Port("plant", "x_B"), Port("monitor", "x_B")),
+        Connection(Port("plant", "v_B"), Port("monitor", "v_B")),
+        Connection(Port("plant", "theta1"), Port("monitor", "theta1"), 1000.0, 0.5),
+    )
+    run = dataclasses.replace(run, system=dataclasses.replace(wiring, connections=connections))
+    n, traces = run.steps, []
+    for hand_over in (n + 1, 500):
+        assembly = assemble(run, plant)
+        try:
+            assert assembly.plan.order == ("plant", "controller", "monitor")
+            trace = np.full((n + 1, len(assembly.plan.names)), np.nan)
+            execution = Execution(
+                assembly.plan,
+                assembly.slaves,
+                assembly.signals,
+                n,
+                run.T_s,
+                run.t_end,
+                [TraceObserver(assembly.plan, trace)],
+            )
+            execution.initialize()
+            assert execution.advance(0, hand_over) == hand_over
+            if hand_over <= n:
+                functions = [slave.c_functions() for slave in assembly.slaves]
+                loop = SystemLoop(assembly.plan, functions, assembly.signals, trace, n, run.T_s)
+                loop.buffer[:] = execution.values  # the slots as the Python samples left them
+                assert loop.run(hand_over, n + 1) == (DONE, n + 1)
+            traces.append((assembly.plan.names, trace))
+        finally:
+            assembly.close()
+    (names, python), (_, compiled) = traces
+    assert np.array_equal(python, compiled)
+    theta1 = python[:, names.index("plant.theta1")].tolist()
+    assert np.array_equal(python[:, names.index("monitor.theta1")], np.array([1000.0 * x + 0.5 for x in theta1]))
+    assert np.array_equal(python[:, names.index("monitor.iq_ref")], python[:, names.index("controller.iq_ref")])
