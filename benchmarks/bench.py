@@ -25,10 +25,11 @@ What is measured (benchmarks/README.md says more):
   Python loop's own cost per sample around a step that returns a constant (the loop, which calls
   the plant once per sample from C, minus the plant's share of the same samples replayed by the C
   driver; beside it the same loop with the session's three ctypes calls);
-* systems in the compiled system loop (`cosim.system_loop`): the plant + controller-FMU system and
-  a three-FMU system (a second controller instance reading the plant) per sample, beside the
-  master's Python execution of the same plan and a plain C master of the same FMUs
-  (benchmarks/system_master.c, `system_bench.py`);
+* systems in the compiled system loop (`cosim.system_loop`): the plant + controller-FMU system,
+  a three-FMU system (a second controller instance reading the plant) and the press example's
+  four FMUs per sample, beside the master's Python execution of the same plan, a plain C master
+  of the same FMUs (benchmarks/system_master.c) and the sum of each FMU's own calls replayed
+  from C (benchmarks/system_replay.c; `system_bench.py`);
 * the cost per step and per simulated second for T_s = 2 ms ... 0.05 ms;
 * the throughput of a batch of runs on 1 and 2 worker processes;
 * sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the

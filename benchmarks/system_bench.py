@@ -9,19 +9,24 @@ FMUs loaded, their values set, one initialisation pass) and stepped over fig4_no
 
 * the pair: the plant FMU and the controller FMU ToggleVSC (FMI 2.0);
 * three FMUs: the pair and a second ToggleVSC instance ("monitor") reading the plant's outputs
-  (its outputs recorded, not connected).
+  (its outputs recorded, not connected);
+* the press: examples/press_system/press.yaml's four FMUs (the plant, its sensor and die-load
+  models built here, the controller as ToggleVSC), 5000 samples.
 
-Each is timed three ways per sample: the compiled system loop (`SystemLoop.run`, the trace
-recorded), the master's Python execution of the same plan (`Execution.advance`), and
-`system_master.c`, a plain C master of the same FMUs compiled here (dlopen, instantiate,
-initialise, per sample get/set/doStep, a row recorded; no Python, no tables): the cost of the
-FMUs' own calls from C. The C master's last x_B, last command and the sum of x_B over the run
-are compared with the loop's trace (the same bits, or the table says not).
+Each is timed per sample in the compiled system loop (`SystemLoop.run`, the trace recorded; the
+FMUs' debug logging off, and for the first two also on) and in the master's Python execution of
+the same plan (`Execution.advance`; its trace must equal the loop's bit for bit). Against what the
+FMUs cost from C: for the first two `system_master.c`, a plain C master of the same FMUs compiled
+here (dlopen, instantiate, initialise, per sample get/set/doStep, a row recorded; no Python, no
+tables; its last x_B, last command and sum of x_B compared with the loop's trace); for the press
+`system_replay.c`, each FMU alone on a fresh instance making the loop's calls with the inputs
+the run recorded, summed over the FMUs (its outputs compared with the recorded ones).
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import dataclasses
 import shutil
 import subprocess
@@ -37,7 +42,7 @@ from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.system_loop import DONE, SystemLoop, system_library, system_library_reason
 from toggle_cosim.cosim.systems import assemble, pair_connections
-from toggle_cosim.experiments.scenario import load_scenario
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.system.model import Connection, Part, Port, Wiring
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -107,6 +112,109 @@ def python_run(run, plant, logging: bool) -> tuple[float, np.ndarray]:  # noqa: 
         t0 = time.perf_counter()
         execution.advance(0, run.steps + 1)
         return (time.perf_counter() - t0) / run.steps, trace
+    finally:
+        assembly.close()
+
+
+PRESS = ROOT / "examples" / "press_system"
+
+
+def build_press_parts(folder: Path) -> dict[str, Path]:
+    """The press example's sensor and die-load FMUs (FMI 2.0, Co-Simulation), built here."""
+    from toggle_cosim.fmu_export import build_fmu
+
+    built = {}
+    for name, model in (("sensor", "PositionSensor"), ("die", "DieLoad")):
+        built[name] = build_fmu(PRESS / f"{model}.mo", model, folder / f"{model}.fmu", "2.0", "cs").fmu.path
+    return built
+
+
+def press_with(controller: Path, parts: dict[str, Path]):  # noqa: ANN201 - a Run
+    """examples/press_system/press.yaml's first variant (four components: the plant, the sensor,
+    the die load, the controller), with the controller as the controller FMU and the parts built here."""
+    import yaml
+
+    document = yaml.safe_load((PRESS / "press.yaml").read_text(encoding="utf-8"))
+    for name, component in document["components"].items():
+        component["fmu"] = str(parts[name])
+    document["controller"]["fmu"] = str(controller)
+    return runs_from_document(document, PRESS / "press.yaml")[0]
+
+
+def compile_replay(folder: Path) -> ctypes.CDLL | None:
+    """system_replay.c as a shared library in `folder` (None without a C compiler)."""
+    from toggle_cosim.native import c_compiler
+
+    try:
+        compiler = c_compiler()
+    except RuntimeError:
+        return None
+    library = folder / "system_replay.so"
+    source = Path(__file__).resolve().parent / "system_replay.c"
+    subprocess.run([compiler, "-O2", "-fPIC", "-shared", "-o", str(library), str(source)], check=True)
+    replay = ctypes.CDLL(str(library))
+    replay.replay.restype = ctypes.c_long
+    replay.replay.argtypes = [
+        *(ctypes.c_void_p,) * 5,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_double,
+    ]
+    return replay
+
+
+def replayed(run, plant, library: ctypes.CDLL, trace: np.ndarray, names: tuple[str, ...]) -> tuple[float, bool]:  # noqa: ANN001
+    """Seconds per sample of the system's FMUs' own calls from C, each FMU replayed alone on a fresh
+    instance with the inputs the system run recorded (`trace`, `names`), summed; and whether every
+    output it read has the system run's bits."""
+    assembly, _, _ = _assembled(run, plant, logging=False)
+    plan, n, total, same = assembly.plan, run.steps, 0.0, True
+    try:
+        for c, slave in enumerate(assembly.slaves):
+            calls = slave.c_functions()
+            if calls.fmi3:
+                raise ValueError("the replay driver calls FMI 2.0 FMUs only")
+            component, inputs = plan.order[c], plan.input_names[c]
+            in_vr = (ctypes.c_uint32 * max(len(inputs), 1)).from_address(calls.in_vr)
+            late = plan.late(c)
+            tables, vrs = [], []
+            for positions in (plan.early[c], late):
+                columns = [names.index(f"{component}.{inputs[i]}") for i in positions]
+                tables.append(np.ascontiguousarray(trace[:, columns]))
+                vrs.append((ctypes.c_uint32 * max(len(positions), 1))(*(in_vr[i] for i in positions)))
+            outputs = plan.output_names[c]
+            read = np.full((n + 1, len(outputs)), np.nan)
+            t0 = time.perf_counter()
+            done = library.replay(
+                calls.get,
+                calls.set,
+                calls.step,
+                calls.component,
+                calls.out_vr,
+                len(outputs),
+                read.ctypes.data,
+                ctypes.addressof(vrs[0]),
+                len(plan.early[c]),
+                tables[0].ctypes.data,
+                ctypes.addressof(vrs[1]),
+                len(late),
+                tables[1].ctypes.data,
+                n,
+                run.T_s,
+            )
+            total += time.perf_counter() - t0
+            if done != n + 1:
+                raise RuntimeError(f"the replay of {component} stopped at sample {done}")
+            recorded = trace[:, [names.index(f"{component}.{v}") for v in outputs]]
+            same = same and np.array_equal(read, recorded)
+        return total / n, same
     finally:
         assembly.close()
 
@@ -188,8 +296,9 @@ def same_bits(master: dict, trace: np.ndarray, names: tuple[str, ...]) -> bool:
     return (x_B[-1], command[-1], total) == (master["x_B_n"], master["iq_ref_n"], master["x_B_sum"])
 
 
-def measure(plant, controller: Path, folder: Path, repetitions: int) -> dict:  # noqa: ANN001
-    """Best per-sample times of the two systems, three ways each, interleaved."""
+def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict[str, Path] | None = None) -> dict:  # noqa: ANN001
+    """Best per-sample times of the pair and the three-FMU system (compiled, logging on, Python,
+    the C master), and with `parts`, of the press system (compiled, Python, its FMUs replayed)."""
     folder.mkdir(parents=True, exist_ok=True)
     binary = compile_master(folder)
     figures: dict = {}
@@ -212,22 +321,46 @@ def measure(plant, controller: Path, folder: Path, repetitions: int) -> dict:  #
         if binary is not None:
             result["bit_for_bit"] = same_bits(master, trace, names)
         figures[key] = result
+    if parts is not None:
+        run = press_with(controller, parts)
+        replay = compile_replay(folder)
+        times = {"compiled": [], "python": [], "replay": []}
+        for _ in range(repetitions):
+            per_step, trace, names = compiled_run(run, plant, logging=False)
+            times["compiled"].append(per_step)
+            seconds, python_trace = python_run(run, plant, logging=False)
+            times["python"].append(seconds)
+            if not np.array_equal(python_trace, trace, equal_nan=True):
+                raise RuntimeError("press: the compiled system loop's trace is not the Python execution's")
+            if replay is not None:
+                seconds, same = replayed(run, plant, replay, trace, names)
+                times["replay"].append(seconds)
+        figures["press"] = {k: min(v) for k, v in times.items() if v}
+        figures["press"].update(samples=run.steps, components=2 + len(run.system.parts))
+        if replay is not None:
+            figures["press"]["bit_for_bit"] = same
     return figures
 
 
 def section(table, figures: dict, plant, controller: Path | None, folder: Path, repetitions: int, builtin_s: float):  # noqa: ANN001, ANN201
     """bench.py's section: rows and targets of the systems in the compiled system loop."""
-    table.section("Systems in the compiled system loop, fig4_nominal/friction (3000 samples), per sample")
+    table.section(
+        "Systems in the compiled system loop, per sample (fig4_nominal/friction, 3000 samples; press: its own)"
+    )
     if system_library() is None:
         table.text(f"no compiled system loop: {system_library_reason()}")
         return
     if controller is None:
         table.text("no controller FMU (toggle_cosim.controller_fmu absent): not measured")
         return
-    got = measure(plant, controller, folder, repetitions)
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    parts = build_press_parts(folder)
+    build_s = time.perf_counter() - t0
+    got = measure(plant, controller, folder, repetitions, parts)
     figures["systems"] = {**got, "builtin_loop_s": builtin_s}
     table.add("built-in law, compiled loop (full_loop, not touched by the system loop)", us(builtin_s), "as above")
-    for key, what in (("pair", "plant + controller FMU"), ("three", "plant + controller FMU + monitor FMU")):
+    for key, what in (("pair", "plant + controller FMU"), ("three", "pair + monitor FMU")):
         r = got[key]
         table.add(
             f"{what}: compiled system loop", us(r["compiled"]), f"{r['columns']} columns recorded; FMU logging off"
@@ -235,13 +368,36 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
         table.add(
             f"{what}: the same, FMU logging on",
             us(r["compiled_logging"]),
-            "as cosim.slaves instantiates them: the plant logs every doStep through fmpy's callback",
+            "as cosim.slaves makes them: the plant logs each doStep to fmpy's callback",
         )
         table.add(f"{what}: Python execution of the same plan", us(r["python"]), "cosim.execution; same bits as C")
         if "c_master" in r:
             bits = "same bits" if r["bit_for_bit"] else "NOT the same bits"
             table.add(f"{what}: plain C master (system_master.c)", us(r["c_master"]), f"the FMUs' own calls; {bits}")
             table.add(f"{what}: ratio compiled loop / plain C master", f"{r['compiled'] / r['c_master']:.2f}")
+    press = got["press"]
+    what = f"press, {press['components']} FMUs"
+    table.text(
+        f"press: examples/press_system/press.yaml (plant, sensor, die load, the controller as ToggleVSC), "
+        f"{press['samples']} samples; its parts built in {build_s:.2f} s"
+    )
+    table.add(f"{what}: compiled system loop", us(press["compiled"]), "FMU logging off")
+    table.add(f"{what}: Python execution of the same plan", us(press["python"]), "cosim.execution; same bits as C")
+    if "replay" in press:
+        bits = "same bits" if press["bit_for_bit"] else "NOT the same bits"
+        table.add(
+            f"{what}: its FMUs' own calls from C, summed",
+            us(press["replay"]),
+            f"system_replay.c: each FMU alone, its recorded inputs; {bits}",
+        )
+        table.add(f"{what}: ratio compiled loop / its FMUs' own calls", f"{press['compiled'] / press['replay']:.2f}")
+        ratio = press["compiled"] / press["replay"]
+        table.check(
+            f"{press['components']}-FMU press system in the compiled loop <= 1.2 x the sum of its FMUs' own calls from C",
+            ratio <= 1.2 and press["bit_for_bit"],
+            f"{us(press['compiled'])} / {us(press['replay'])} = {ratio:.2f}"
+            + ("" if press["bit_for_bit"] else "; NOT bit for bit"),
+        )
     for key, label in (
         ("pair", "plant + controller-FMU system in the compiled loop <= 1.2 x a plain C master"),
         ("three", "3-FMU system in the compiled loop <= 1.2 x its FMUs' own calls from C"),

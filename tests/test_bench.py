@@ -75,6 +75,9 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
             assert system["bit_for_bit"], key  # the plain C master's bits are the loop's
         assert "plant + controller-FMU system in the compiled loop <= 1.2 x a plain C master" in result.stdout
         assert "3-FMU system in the compiled loop <= 1.2 x its FMUs' own calls from C" in result.stdout
+        press = figures["systems"]["press"]
+        assert press["components"] == 4 and 0 < press["compiled"] < press["python"] and press["bit_for_bit"]
+        assert "4-FMU press system in the compiled loop <= 1.2 x the sum of its FMUs' own calls from C" in result.stdout
     if "python_loop_overhead" in figures:  # measured wherever the C driver compiles
         overhead = figures["python_loop_overhead"]
         assert overhead["own_s"] == overhead["loop_s"] - overhead["plant_s"]  # against the C driver's plant share
