@@ -106,6 +106,7 @@ class Pair:
     trace: np.ndarray
     slaves: tuple[Any, Any]
     controller: Any
+    functions: tuple[Any, ...]
 
 
 @contextmanager
@@ -155,7 +156,7 @@ def pair_system(
             functions.append(fmu_functions(slave, outputs, [references[v] for v in plan.input_names[c]]))
         trace = np.full((n + 1, len(plan.names)), np.nan)
         loop = SystemLoop(plan, functions, signals, trace, n, run.T_s)
-        yield Pair(run, plan, loop, trace, (plant_slave, control), controller)
+        yield Pair(run, plan, loop, trace, (plant_slave, control), controller, tuple(functions))
     finally:
         for slave in slaves:
             try:
@@ -252,7 +253,7 @@ def test_tables_that_do_not_fit_the_plan_are_refused(plant_fmu: Path, toggle_vsc
     calls: ValueError before anything runs; an FMU not instantiated has no C calls."""
     with pair_system(plant_fmu, toggle_vsc["2.0"]) as pair:
         n, T_s, plan = pair.run.steps, pair.run.T_s, pair.plan
-        functions = pair.loop._functions
+        functions = pair.functions
         signals = np.zeros((n + 1, 1))
         with pytest.raises(ValueError, match="columns"):
             SystemLoop(plan, functions, signals, np.zeros((n + 1, 3)), n, T_s)
