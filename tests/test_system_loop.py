@@ -11,7 +11,8 @@ and an offset delivers factor · value + offset with Python's bits (read back fr
 call that fails stops the loop at its sample and names the component and the FMI function.
 A three-FMU system assembled and initialised by the master (`cosim.systems.assemble`, the pair
 and a second controller instance reading the plant) runs its first samples in the Python
-execution and the rest in C with the all-Python run's bits.
+execution and the rest in C with the all-Python run's bits; a system whose controller runs in
+Python (the built-in law) gets no compiled loop, and a line naming that component.
 """
 
 from __future__ import annotations
@@ -35,7 +36,14 @@ from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.fmi_pointers import fmu_functions
 from toggle_cosim.cosim.master import simulate
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
-from toggle_cosim.cosim.system_loop import DONE, FMI_FAILED, SystemLoop, system_library, system_library_reason
+from toggle_cosim.cosim.system_loop import (
+    DONE,
+    FMI_FAILED,
+    SystemLoop,
+    compiled_system,
+    system_library,
+    system_library_reason,
+)
 from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
@@ -322,3 +330,36 @@ def test_three_fmus_hand_over_from_the_python_execution_to_c_with_its_bits(
     theta1 = python[:, names.index("plant.theta1")].tolist()
     assert np.array_equal(python[:, names.index("monitor.theta1")], np.array([1000.0 * x + 0.5 for x in theta1]))
     assert np.array_equal(python[:, names.index("monitor.iq_ref")], python[:, names.index("controller.iq_ref")])
+
+
+def test_a_system_with_a_component_in_python_gets_a_reason_not_a_loop(
+    plant_fmu: Path, toggle_vsc: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """fig4 as a system: with the built-in law (a native controller) `compiled_system` names the
+    controller and runs nothing; with the controller FMU it gives a loop that runs the system to
+    its end; with TOGGLE_COSIM_KERNEL=0 it says the loop is switched off."""
+    plant = check_plant(plant_fmu)
+    base = load_scenario(SCENARIO)[0]
+    with_fmu = dataclasses.replace(base, controller=dataclasses.replace(base.controller, fmu=toggle_vsc["2.0"]))
+    for run, expected in ((base, "component controller runs in Python"), (with_fmu, None)):
+        wiring = Wiring(connections=pair_connections(Wiring(), ("x_B", "v_B")))  # the law's measured inputs
+        run = dataclasses.replace(run, system=wiring)
+        assembly = assemble(run, plant)
+        try:
+            n, plan = run.steps, assembly.plan
+            trace = np.full((n + 1, len(plan.names)), np.nan)
+            execution = Execution(plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end)
+            execution.initialize()
+            made = compiled_system(plan, assembly.slaves, assembly.signals, trace, n, run.T_s)
+            if expected is not None:
+                assert isinstance(made, str) and made.startswith(expected), made
+                assert np.isnan(trace).all()
+            else:
+                assert isinstance(made, SystemLoop), made
+                assert made.run(0, n + 1) == (DONE, n + 1)
+                assert np.ptp(trace[:, plan.names.index("plant.x_B")]) > 0.05
+                monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+                off = compiled_system(plan, assembly.slaves, assembly.signals, trace, n, run.T_s)
+                assert off == "no compiled system loop: disabled by TOGGLE_COSIM_KERNEL=0"
+        finally:
+            assembly.close()

@@ -12,6 +12,10 @@ the value of the slot plan.record[i]. An input fed through a unit conversion get
 Instantiation, parameters and initialisation are the caller's (`cosim.execution`): the loop only
 steps instances that are ready.
 
+`compiled_system` makes the loop for a plan's slaves (`cosim.slaves`) when every one of them can
+be called from C (an FMU's `c_functions()`), or says in a line why not (a component run in
+Python, such as a native controller; no compiled library).
+
 A status other than OK or Warning stops the loop at that call; `failure()` names the component,
 the function, its status and the sample (`ComponentCallError`, one line).
 
@@ -41,6 +45,7 @@ __all__ = [
     "DONE",
     "FMI_FAILED",
     "SystemLoop",
+    "compiled_system",
     "system_library",
     "system_library_reason",
 ]
@@ -247,3 +252,22 @@ class SystemLoop:
         names = self._functions[c].names
         function = getattr(names, _CALLS[int(s.fault)])
         return ComponentCallError(self.plan.order[c], function, int(s.status), int(s.k) * self.T_s)
+
+
+def compiled_system(
+    plan: Plan, slaves: Sequence[object], signals: np.ndarray, trace: np.ndarray, n: int, T_s: float
+) -> SystemLoop | str:
+    """The compiled loop over `slaves` (in plan.order, instantiated and initialised; each with a
+    `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has), or why there is none: one
+    line naming the first component run in Python, or why the library is missing."""
+    library = system_library()
+    if library is None:
+        return f"no compiled system loop: {system_library_reason()}"
+    functions = []
+    for name, slave in zip(plan.order, slaves, strict=True):
+        make = getattr(slave, "c_functions", None)
+        calls = make() if callable(make) else None
+        if not isinstance(calls, CFunctions):
+            return f"component {name} runs in Python ({type(slave).__name__}): the compiled system loop calls FMUs only"
+        functions.append(calls)
+    return SystemLoop(plan, functions, signals, trace, n, T_s, library)
