@@ -135,6 +135,7 @@ int main(int argc, char **argv) {
     }
     long width = n_out + copies * n_cout;
     double *trace = malloc(sizeof(double) * (size_t)((n + 1) * width));
+    for (long i = 0; i < (n + 1) * width; i++) { trace[i] = 0.0; } /* touched before timing, as the loop's trace is */
     double *in = malloc(sizeof(double) * (size_t)(n_in + 1));
     double best = 1e300, sum = 0.0;
     fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
