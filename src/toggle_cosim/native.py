@@ -1,6 +1,6 @@
 """Small C libraries compiled on the user's machine, kept in a private cache and loaded only
 after their content is checked: the co-simulation loop generated from the control law
-(`cosim.compiled_loop`).
+(`cosim.compiled_loop`) and the loop that steps a system (`cosim.system_loop`).
 
 The compiler is $CC, else cc, gcc or clang: `c_compiler` is the one lookup, for these helpers and
 for the FMU export's build alike (it lives here, below the FMU export, because importing that
