@@ -341,6 +341,8 @@ def test_a_system_with_a_component_in_python_gets_a_reason_not_a_loop(
     plant = check_plant(plant_fmu)
     base = load_scenario(SCENARIO)[0]
     with_fmu = dataclasses.replace(base, controller=dataclasses.replace(base.controller, fmu=toggle_vsc["2.0"]))
+    # the built-in law as a native component (its generated-C FMU not used: `systems.law_fmu`)
+    monkeypatch.setattr("toggle_cosim.cosim.systems.law_fmu", lambda: "not used here")
     for run, expected in ((base, "component controller runs in Python"), (with_fmu, None)):
         wiring = Wiring(connections=pair_connections(Wiring(), ("x_B", "v_B")))  # the law's measured inputs
         run = dataclasses.replace(run, system=wiring)
