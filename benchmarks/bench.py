@@ -25,6 +25,11 @@ What is measured (benchmarks/README.md says more):
   Python loop's own cost per sample around a step that returns a constant (the loop, which calls
   the plant once per sample from C, minus the plant's share of the same samples replayed by the C
   driver; beside it the same loop with the session's three ctypes calls);
+* systems in the compiled system loop (`cosim.system_loop`): the plant + controller-FMU system,
+  a three-FMU system (a second controller instance reading the plant) and the press example's
+  four FMUs per sample, beside the master's Python execution of the same plan, a plain C master
+  of the same FMUs (benchmarks/system_master.c) and the sum of each FMU's own calls replayed
+  from C (benchmarks/system_replay.c; `system_bench.py`);
 * the cost per step and per simulated second for T_s = 2 ms ... 0.05 ms;
 * the throughput of a batch of runs on 1 and 2 worker processes;
 * sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the
@@ -67,6 +72,7 @@ PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
 T_S_SWEEP = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
 FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
 
+import system_bench  # noqa: E402 - benchmarks/system_bench.py, beside this script
 from timing import run_to_last_file  # noqa: E402 - benchmarks/timing.py, beside this script
 
 from toggle_cosim.control.protocol import ControllerContext, ControlStep  # noqa: E402
@@ -1073,6 +1079,17 @@ def main() -> int:
                 f"{per_step['gauss-seidel-python'] / b['python']:.2f}",
                 "the FMU's set, get and doStep per sample in place of the Python law",
             )
+
+        # ---------------------------------------------------------------- systems in the compiled loop
+        system_bench.section(
+            table,
+            figures,
+            plant,
+            fmu_path if made is not None and what.startswith("ToggleVSC") else None,
+            folder / "systems",
+            reps,
+            b["loop"],
+        )
 
         # ---------------------------------------------------------------- paper runs
         table.section("Real-time factor of each paper run (simulated s / wall s, best of repetitions)")

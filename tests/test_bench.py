@@ -2,7 +2,8 @@
 finish, measure the loop it says it measures (the compiled loop when there is a C compiler),
 time the compiled loop's C build, measure a python-control PID in the compiled loop and the
 Python loop's own cost, measure the sweeps (local workers, a Dask cluster of its own, a many-case
-sweep as a command, with the time to its first case), and report every target it checks."""
+sweep as a command, with the time to its first case), measure systems in the compiled system loop
+against a plain C master, and report every target it checks."""
 
 from __future__ import annotations
 
@@ -67,6 +68,16 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
     assert 0 < pid["compiled_s"] < pid["python_s"] and pid["ratio"] == pid["compiled_s"] / pid["builtin_s"]
     if compiled_loop.kernel_available():
         assert "python-control controller in the compiled loop <= 1.2 x the built-in law" in result.stdout
+    if "systems" in figures:  # the compiled system loop, measured wherever it and the C master compile
+        for key in ("pair", "three"):
+            system = figures["systems"][key]
+            assert system["c_master"] > 0 and 0 < system["compiled"] < system["python"], system
+            assert system["bit_for_bit"], key  # the plain C master's bits are the loop's
+        assert "plant + controller-FMU system in the compiled loop <= 1.2 x a plain C master" in result.stdout
+        assert "3-FMU system in the compiled loop <= 1.2 x its FMUs' own calls from C" in result.stdout
+        press = figures["systems"]["press"]
+        assert press["components"] == 4 and 0 < press["compiled"] < press["python"] and press["bit_for_bit"]
+        assert "4-FMU press system in the compiled loop <= 1.2 x the sum of its FMUs' own calls from C" in result.stdout
     if "python_loop_overhead" in figures:  # measured wherever the C driver compiles
         overhead = figures["python_loop_overhead"]
         assert overhead["own_s"] == overhead["loop_s"] - overhead["plant_s"]  # against the C driver's plant share

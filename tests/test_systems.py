@@ -121,17 +121,27 @@ def _short(run, **changes):
     return dataclasses.replace(run, t_end=0.3, **changes)
 
 
+@pytest.mark.parametrize("engine", ["compiled", "python"])
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 @pytest.mark.parametrize("law", ["built-in", "fmu"])
-def test_the_pair_as_a_system_gives_the_fixed_loops_bits(plant, vsc_fmu: Path, coupling: str, law: str) -> None:
+def test_the_pair_as_a_system_gives_the_fixed_loops_bits(
+    plant, vsc_fmu: Path, coupling: str, law: str, engine: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The built-in law runs as its generated C (the law FMU) in the compiled system loop, and as
+    a native Python component without it; a controller FMU in either loop."""
     run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], coupling=coupling)
     if law == "fmu":
         run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
     fixed = master.simulate(run, plant)
+    if engine == "python":
+        monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
     wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
     system = master.simulate(dataclasses.replace(run, system=wired), plant)
     assert fixed.complete and system.complete, system.reason
-    assert system.record["loop"]["kind"] == "system"
+    assert system.record["loop"]["kind"] == f"system, {engine}"
+    kinds = [component.get("kind", "") for component in system.record["system"]["components"]]
+    assert ("generated C" in kinds[1]) == (law == "built-in" and engine == "compiled")
+    assert (kinds[1] == "native controller") == (law == "built-in" and engine == "python")
     for name, column in (
         ("x_B", "plant.x_B"),
         ("v_B", "plant.v_B"),

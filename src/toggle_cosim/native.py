@@ -1,6 +1,6 @@
 """Small C libraries compiled on the user's machine, kept in a private cache and loaded only
 after their content is checked: the co-simulation loop generated from the control law
-(`cosim.compiled_loop`).
+(`cosim.compiled_loop`) and the loop that steps a system (`cosim.system_loop`).
 
 The compiler is $CC, else cc, gcc or clang: `c_compiler` is the one lookup, for these helpers and
 for the FMU export's build alike (it lives here, below the FMU export, because importing that
@@ -280,6 +280,44 @@ def cached_library_from(
     except OSError:
         pass  # no marker: the source is made again next time, nothing worse
     return library
+
+
+def cached_file(inputs: Sequence[Path], stem: str, suffix: str, build: Callable[[Path], None]) -> CachedLibrary:
+    """A file generated from `inputs` (e.g. an FMU built from our sources) in the private cache:
+    the one there when it has the bytes recorded when it was built, else `build(path)` writes it
+    (into a private temporary folder, then moved into place) and its SHA-256 is recorded. Its name
+    holds the hash of the inputs' bytes, the compiler, the platform and the Python version; the
+    caller checks `sha256` again before it uses the file (`verified_bytes`). CacheError when no
+    cache folder can be used."""
+    digest = hashlib.sha256()
+    for path in inputs:
+        digest.update(str(Path(path).name).encode() + b"\0" + Path(path).read_bytes() + b"\0")
+    digest.update("\0".join((c_compiler(), platform.machine(), sys.platform, sys.version)).encode())
+    name = f"{stem}-{digest.hexdigest()[:16]}{suffix}"
+    folder = cache_folder()
+    found = _verified(folder, name)
+    if found is not None:
+        return found
+    with tempfile.TemporaryDirectory(dir=folder) as work:
+        built = Path(work) / name
+        build(built)
+        os.chmod(built, 0o600)
+        sha256 = hashlib.sha256(built.read_bytes()).hexdigest()
+        os.replace(built, folder / name)
+        _write_private_text(folder, _record_name(name), sha256)
+    return CachedLibrary(folder / name, sha256)
+
+
+def verified_bytes(cached: CachedLibrary) -> bool:
+    """Whether the cached file is still private and has the bytes recorded when it was built."""
+    try:
+        fd = _open_private(cached.path, "file")
+    except (OSError, CacheError):
+        return False
+    try:
+        return _fd_sha256(fd) == cached.sha256
+    finally:
+        os.close(fd)
 
 
 def load_library(library: CachedLibrary) -> ctypes.CDLL:

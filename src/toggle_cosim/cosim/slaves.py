@@ -115,6 +115,7 @@ class FmuSlave:
         self._fatal = False
         self._stepping = False
         self._instance = f"{name}"
+        self.origin = ""  # what the FMU stands for, when not a file the user named (run.json)
         self.bind(self.interface.inputs, self.interface.outputs)
 
     def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
@@ -128,6 +129,10 @@ class FmuSlave:
         self._vr_buffer = (ctypes.c_uint32 * max(len(fed), 1))()
 
     # -- life cycle ---------------------------------------------------------------------------
+    def failure(self, function: str, t: float, status: int) -> SlaveError:
+        """The error of the call `function` that returned `status` at t (a C loop's call too)."""
+        return self._fail(function, t, status)
+
     def _fail(self, function: str, t: float | None, status: object) -> SlaveError:
         if status == FATAL:
             self._fatal = True
@@ -165,6 +170,7 @@ class FmuSlave:
             )
         else:
             self._call("fmi2Instantiate", lambda: slave.instantiate(visible=False, loggingOn=True))
+        self._quiet_logging(slave)
         prefix = "fmi3" if self.fmi3 else "fmi2"
         names = (
             (f"{prefix}SetFloat64", f"{prefix}GetFloat64", f"{prefix}DoStep")
@@ -184,6 +190,18 @@ class FmuSlave:
             self._call("fmi2SetupExperiment", lambda: slave.setupExperiment(startTime=0.0, stopTime=t_end))
         for name, value in self.values:
             self._set_value(name, value)
+
+    def _quiet_logging(self, slave: Any) -> None:
+        """Logging stays on for what a failure's reason needs: where the FMU declares log
+        categories, only those of non-OK statuses (the standard's logStatus*, or a name with
+        Error or Warning in it), so an FMU that logs every step does not call back every step."""
+        categories = [c.name for c in getattr(self.description, "logCategories", None) or ()]
+        chosen = [c for c in categories if c.startswith("logStatus") or "Error" in c or "Warning" in c]
+        if categories and chosen:
+            try:
+                slave.setDebugLogging(True, chosen)
+            except Exception:  # noqa: BLE001, S110 - an FMU that refuses keeps its own logging
+                pass
 
     def _set_value(self, name: str, value: Value) -> None:
         variable = self.variables.get(name)

@@ -28,23 +28,28 @@ from __future__ import annotations
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.controllers import controller_for, fmu_settings
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.fmu_controller import FmuController
+from toggle_cosim.cosim.law_fmu import law_fmu
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.summary import summarize
+from toggle_cosim.cosim.system_loop import FMI_FAILED, SystemLoop, compiled_system
 from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.plant.controller_contract import check_controller_fmu
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
 from toggle_cosim.system.model import Connection, Interface, Port, Wiring
@@ -161,12 +166,20 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
 def _controller_slave(
     run: Run, name: str, controller: Controller | None, outputs: Sequence[str], units: Mapping[str, str | None]
 ) -> Slave:
-    """The run's controller as a component: a controller FMU as an FMU, any other natively, its
-    connectors in the units of the plant variables of their names (`units`)."""
+    """The run's controller as a component: a controller FMU as an FMU; the built-in law (tracking
+    its constant target) as its generated C, the controller FMU built from it (`law_fmu`, bit for
+    bit the Python law), where that FMU can be built; any other natively, its connectors in the
+    units of the plant variables of their names (`units`)."""
     if controller is None:
         controller = controller_for(run, outputs)
     if isinstance(controller, FmuController):
         return FmuSlave(name, controller.fmu.path, controller.settings)
+    if type(controller) is VSCController and controller.reference is None:  # the built-in law as generated C
+        fmu = law_fmu()
+        if isinstance(fmu, Path):
+            slave = FmuSlave(name, fmu, fmu_settings(run, check_controller_fmu(fmu, outputs, run.T_s)))
+            slave.origin = "the built-in law as generated C (its controller FMU, built into the private cache)"
+            return slave
     diagnostics = check_controller(controller, outputs)
     return ControllerSlave(name, controller, diagnostics, COMMAND, units)
 
@@ -194,7 +207,8 @@ def assemble(
                 raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
             slaves[part.name] = FmuSlave(part.name, part.fmu, part.values, requested.get(part.name, ()))
         interfaces = {name: slave.interface for name, slave in slaves.items()}
-        controller_inputs = interfaces[wiring.controller].inputs
+        plant_outputs = set(interfaces[wiring.plant].outputs)  # a controller FMU's reference inputs stay unfed
+        controller_inputs = [name for name in interfaces[wiring.controller].inputs if name in plant_outputs]
         connections = (
             wiring.connections if wiring.connections is not None else pair_connections(wiring, controller_inputs)
         )
@@ -269,6 +283,8 @@ def _component_record(name: str, slave: Slave, order: Sequence[str]) -> dict[str
     record: dict[str, Any] = {"name": name, "position": order.index(name)}
     if isinstance(slave, FmuSlave):
         record.update(fmu=str(slave.path), sha256=file_sha256(slave.path), values=dict(slave.values))
+        if slave.origin:
+            record["kind"] = slave.origin
     else:
         record.update(kind="native controller", type=type(slave.controller).__qualname__)
     return record
@@ -281,6 +297,32 @@ def system_columns(run: Run, plant: PlantInterface, controller: Controller | Non
         if isinstance(slave, FmuSlave):
             slave.close()
     return assembly.plan.names
+
+
+def _run_compiled(
+    loop: SystemLoop,
+    slaves: Sequence[Slave],
+    observer: TraceObserver,
+    data: np.ndarray,
+    n: int,
+    progress: Callable[[float], None] | None,
+    run: Run,
+) -> None:
+    """Samples 0 .. n in C, in stretches of 1 % for the progress hook; a failed call raises the
+    SlaveError the Python execution raises for it (with the FMU's last log line)."""
+    every = max(n // 100, 1) if progress is not None else n + 1
+    k = 0
+    while k <= n:
+        code, k_next = loop.run(k, min(k + every, n + 1))
+        observer.rows = k_next + (0 if np.isnan(data[k_next, 0]) else 1) if code == FMI_FAILED else k_next
+        if code == FMI_FAILED:
+            error = loop.failure()
+            slave = slaves[loop.plan.order.index(error.component)]
+            failure = getattr(slave, "failure", None)
+            raise failure(error.function, error.t, error.status) if callable(failure) else SlaveError(str(error))
+        k = k_next
+        if progress is not None:
+            progress(min(k, n) * run.T_s / run.t_end)
 
 
 def _column(trace: Trace, name: str) -> np.ndarray | None:
@@ -322,10 +364,15 @@ def simulate_system(
     execution = Execution(plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks)
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
+    compiled: SystemLoop | str = "the run ended before its first sample"
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
-        execution.advance(0, n + 1)
+        compiled = compiled_system(plan, assembly.slaves, assembly.signals, data, n, run.T_s)
+        if isinstance(compiled, SystemLoop):
+            _run_compiled(compiled, assembly.slaves, observer, data, n, progress, run)
+        else:
+            execution.advance(0, n + 1)
         loop_finished = clock.perf_counter()
     except KeyboardInterrupt:
         loop_finished, interrupted = clock.perf_counter(), True
@@ -360,9 +407,10 @@ def simulate_system(
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     coupled = "jacobi" if plan.jacobi else "gauss-seidel"
+    where = "in the compiled system loop" if isinstance(compiled, SystemLoop) else f"in Python ({compiled})"
     loop = {
-        "kind": "system",
-        "reason": f"{len(assembly.slaves)} components stepped in Python, {coupled}, in the order {', '.join(plan.order)}",
+        "kind": "system, compiled" if isinstance(compiled, SystemLoop) else "system, python",
+        "reason": f"{len(assembly.slaves)} components, {coupled}, in the order {', '.join(plan.order)}, {where}",
     }
     record = run_record(
         run,

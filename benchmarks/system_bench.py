@@ -1,0 +1,449 @@
+"""Systems in the compiled system loop (`cosim.system_loop`) against a plain C master.
+
+    .venv/bin/python benchmarks/system_bench.py [--quick] [--fmu PLANT.fmu]   # this section alone
+
+bench.py prints the same rows in its table (`section`). Two systems, each assembled and
+initialised by the master (`cosim.systems.assemble`, `cosim.execution.Execution.initialize`: the
+FMUs loaded, their values set, one initialisation pass) and stepped over fig4_nominal/friction
+(3000 samples of 0.5 ms):
+
+* the pair: the plant FMU and the controller FMU ToggleVSC (FMI 2.0);
+* three FMUs: the pair and a second ToggleVSC instance ("monitor") reading the plant's outputs
+  (its outputs recorded, not connected);
+* the press: examples/press_system/press.yaml's four FMUs (the plant, its sensor and die-load
+  models built here, the controller as ToggleVSC), 5000 samples.
+
+Each is timed per sample in the compiled system loop (`SystemLoop.run`, the trace recorded; the
+FMUs' debug logging off, and for the first two also on) and in the master's Python execution of
+the same plan (`Execution.advance`; its trace must equal the loop's bit for bit). Against what the
+FMUs cost from C: for the first two `system_master.c`, a plain C master of the same FMUs compiled
+here (dlopen, instantiate, initialise, per sample get/set/doStep, a row recorded; no Python, no
+tables; its last x_B, last command and sum of x_B compared with the loop's trace); for the press
+`system_replay.c`, each FMU alone on a fresh instance making the loop's calls with the inputs
+the run recorded, summed over the FMUs (its outputs compared with the recorded ones).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import dataclasses
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.execution import Execution, TraceObserver
+from toggle_cosim.cosim.system_loop import DONE, SystemLoop, system_library, system_library_reason
+from toggle_cosim.cosim.systems import assemble, pair_connections
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
+from toggle_cosim.system.model import Connection, Part, Port, Wiring
+
+ROOT = Path(__file__).resolve().parent.parent
+SOURCE = Path(__file__).resolve().parent / "system_master.c"
+
+
+def fig4_with(controller: Path, plant, monitor: bool):  # noqa: ANN001, ANN201 - a Run
+    """fig4_nominal/friction with the controller FMU, wired as the pair (each controller input
+    that is a plant output from it, the command to the plant); with `monitor`, a second instance
+    of the controller FMU reading the same plant outputs."""
+    run = next(r for r in load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml") if r.label.endswith("/friction"))
+    run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=controller, python=None))
+    settings = controller_for(run, plant.recorded_outputs)
+    try:
+        inputs = [v for v in settings.fmu.inputs if v in plant.recorded_outputs]
+        values = tuple(settings.settings)  # the controller's values, for the monitor too
+    finally:
+        settings.close()
+    wiring = Wiring(parts=(Part("monitor", controller, values),) if monitor else ())
+    connections = pair_connections(wiring, inputs)
+    if monitor:
+        connections += tuple(Connection(Port("plant", v), Port("monitor", v)) for v in inputs)
+    return dataclasses.replace(run, system=dataclasses.replace(wiring, connections=connections))
+
+
+def _assembled(run, plant, logging: bool):  # noqa: ANN001, ANN202 - (Assembly, Execution, trace)
+    """The run's system assembled and initialised by the master; without `logging`, each FMU's
+    debug logging then switched off (fmi2SetDebugLogging / fmi3SetDebugLogging: the plant's
+    shell logs every doStep, through fmpy's Python callback, while it is on)."""
+    assembly = assemble(run, plant)
+    n = run.steps
+    trace = np.full((n + 1, len(assembly.plan.names)), np.nan)
+    execution = Execution(
+        assembly.plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [TraceObserver(assembly.plan, trace)]
+    )
+    execution.initialize()
+    if not logging:
+        for slave in assembly.slaves:
+            fmpy_slave = getattr(slave, "_slave", None)  # a benchmark's reach into cosim.slaves.FmuSlave
+            if fmpy_slave is not None:
+                fmpy_slave.setDebugLogging(False, [])
+    return assembly, execution, trace
+
+
+def compiled_run(run, plant, logging: bool) -> tuple[float, np.ndarray, tuple[str, ...]]:  # noqa: ANN001
+    """Seconds per sample of the system in the compiled system loop, its trace and column names."""
+    assembly, _, trace = _assembled(run, plant, logging)
+    try:
+        n = run.steps
+        loop = SystemLoop(
+            assembly.plan, [slave.c_functions() for slave in assembly.slaves], assembly.signals, trace, n, run.T_s
+        )
+        t0 = time.perf_counter()
+        code, k = loop.run(0, n + 1)
+        seconds = time.perf_counter() - t0
+        if code != DONE:
+            raise RuntimeError(f"the system loop stopped at sample {k}: {loop.failure()}")
+        return seconds / n, trace, assembly.plan.names
+    finally:
+        assembly.close()
+
+
+def python_run(run, plant, logging: bool) -> tuple[float, np.ndarray]:  # noqa: ANN001
+    """Seconds per sample of the same system in the master's Python execution, and its trace."""
+    assembly, execution, trace = _assembled(run, plant, logging)
+    try:
+        t0 = time.perf_counter()
+        execution.advance(0, run.steps + 1)
+        return (time.perf_counter() - t0) / run.steps, trace
+    finally:
+        assembly.close()
+
+
+PRESS = ROOT / "examples" / "press_system"
+
+
+def build_press_parts(folder: Path) -> dict[str, Path]:
+    """The press example's sensor and die-load FMUs (FMI 2.0, Co-Simulation), built here."""
+    from toggle_cosim.fmu_export import build_fmu
+
+    built = {}
+    for name, model in (("sensor", "PositionSensor"), ("die", "DieLoad")):
+        built[name] = build_fmu(PRESS / f"{model}.mo", model, folder / f"{model}.fmu", "2.0", "cs").fmu.path
+    return built
+
+
+def press_with(controller: Path, parts: dict[str, Path]):  # noqa: ANN201 - a Run
+    """examples/press_system/press.yaml's first variant (four components: the plant, the sensor,
+    the die load, the controller), with the controller as the controller FMU and the parts built here."""
+    import yaml
+
+    document = yaml.safe_load((PRESS / "press.yaml").read_text(encoding="utf-8"))
+    for name, component in document["components"].items():
+        component["fmu"] = str(parts[name])
+    document["controller"]["fmu"] = str(controller)
+    return runs_from_document(document, PRESS / "press.yaml")[0]
+
+
+def compile_replay(folder: Path) -> ctypes.CDLL | None:
+    """system_replay.c as a shared library in `folder` (None without a C compiler)."""
+    from toggle_cosim.native import c_compiler
+
+    try:
+        compiler = c_compiler()
+    except RuntimeError:
+        return None
+    library = folder / "system_replay.so"
+    source = Path(__file__).resolve().parent / "system_replay.c"
+    subprocess.run([compiler, "-O2", "-fPIC", "-shared", "-o", str(library), str(source)], check=True)
+    replay = ctypes.CDLL(str(library))
+    replay.replay.restype = ctypes.c_long
+    replay.replay.argtypes = [
+        *(ctypes.c_void_p,) * 5,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_void_p,
+        ctypes.c_long,
+        ctypes.c_double,
+    ]
+    return replay
+
+
+def replayed(run, plant, library: ctypes.CDLL, trace: np.ndarray, names: tuple[str, ...]) -> tuple[float, bool]:  # noqa: ANN001
+    """Seconds per sample of the system's FMUs' own calls from C, each FMU replayed alone on a fresh
+    instance with the inputs the system run recorded (`trace`, `names`), summed; and whether every
+    output it read has the system run's bits."""
+    assembly, _, _ = _assembled(run, plant, logging=False)
+    plan, n, total, same = assembly.plan, run.steps, 0.0, True
+    try:
+        for c, slave in enumerate(assembly.slaves):
+            calls = slave.c_functions()
+            if calls.fmi3:
+                raise ValueError("the replay driver calls FMI 2.0 FMUs only")
+            component, inputs = plan.order[c], plan.input_names[c]
+            in_vr = (ctypes.c_uint32 * max(len(inputs), 1)).from_address(calls.in_vr)
+            late = plan.late(c)
+            tables, vrs = [], []
+            for positions in (plan.early[c], late):
+                columns = [names.index(f"{component}.{inputs[i]}") for i in positions]
+                tables.append(np.ascontiguousarray(trace[:, columns]))
+                vrs.append((ctypes.c_uint32 * max(len(positions), 1))(*(in_vr[i] for i in positions)))
+            outputs = plan.output_names[c]
+            read = np.full((n + 1, len(outputs)), np.nan)
+            t0 = time.perf_counter()
+            done = library.replay(
+                calls.get,
+                calls.set,
+                calls.step,
+                calls.component,
+                calls.out_vr,
+                len(outputs),
+                read.ctypes.data,
+                ctypes.addressof(vrs[0]),
+                len(plan.early[c]),
+                tables[0].ctypes.data,
+                ctypes.addressof(vrs[1]),
+                len(late),
+                tables[1].ctypes.data,
+                n,
+                run.T_s,
+            )
+            total += time.perf_counter() - t0
+            if done != n + 1:
+                raise RuntimeError(f"the replay of {component} stopped at sample {done}")
+            recorded = trace[:, [names.index(f"{component}.{v}") for v in outputs]]
+            same = same and np.array_equal(read, recorded)
+        return total / n, same
+    finally:
+        assembly.close()
+
+
+def compile_master(folder: Path) -> Path | None:
+    """system_master.c compiled into `folder` (None without a C compiler)."""
+    from toggle_cosim.fmu_export.packaging import fmi_headers
+    from toggle_cosim.native import c_compiler
+
+    try:
+        compiler = c_compiler()
+    except RuntimeError:
+        return None
+    binary = folder / "system_master"
+    subprocess.run([compiler, "-O2", f"-I{fmi_headers()}", str(SOURCE), "-o", str(binary), "-ldl"], check=True)
+    return binary
+
+
+def _binary(fmu: Path, identifier: str, folder: Path) -> Path:
+    from toggle_cosim.fmu_export.packaging import platform_folder, shared_library_suffix
+
+    target = folder / fmu.stem
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(target)
+    return target / "binaries" / platform_folder() / f"{identifier}{shared_library_suffix()}"
+
+
+def _values(settings, references, types, kinds) -> list[str]:  # noqa: ANN001
+    """The spec's three lists (Real, Integer, Boolean) of (value reference, value)."""
+    groups: dict[str, list[str]] = {"real": [], "int": [], "bool": []}
+    for name, value in settings:
+        kind = types[name]
+        group = "bool" if kind == "Boolean" else "int" if kind in ("Integer", "Enumeration", "Int32") else "real"
+        if group == "real" and kind not in ("Real", "Float64"):
+            raise ValueError(f"{name}: a {kind} parameter; the C master sets Real, Integer and Boolean only")
+        groups[group].append(f"{references[name]} {float(value)!r}")
+    return [f"{len(groups[g])} {' '.join(groups[g])}" for g in kinds]
+
+
+def c_master(binary: Path, run, plant, copies: int, repetitions: int, folder: Path) -> dict:  # noqa: ANN001
+    """The plain C master over the plant and `copies` instances of the run's controller FMU."""
+    from toggle_cosim.cosim.master import plant_settings
+
+    controller = controller_for(run, plant.recorded_outputs)
+    try:
+        fmu = controller.fmu
+        if not isinstance(run.plant.F_E, (int, float)):
+            raise ValueError("the C master takes a constant F_E")
+        outputs = list(plant.recorded_outputs)
+        spec = [
+            *_values(plant_settings(run, plant), plant.references, plant.types, ("real", "int", "bool")),
+            f"{len(outputs)} {' '.join(str(plant.references[v]) for v in outputs)}",
+            f"{plant.references['iq_ref']} {plant.references['F_E']} {float(run.plant.F_E)!r}",
+            *_values(controller.settings, fmu.references, fmu.types, ("real", "int", "bool")),
+            f"{len(fmu.inputs)} {' '.join(f'{fmu.references[v]} {outputs.index(v)}' for v in fmu.inputs)}",
+            f"{1 + len(fmu.diagnostics)} {' '.join(str(fmu.references[v]) for v in ('iq_ref', *fmu.diagnostics))}",
+        ]
+        if outputs[0] != "x_B":
+            raise ValueError("the C master reports the plant's first output as x_B")
+        plant_binary = _binary(plant.path, plant.model_identifier, folder / "plant")
+        ctrl_binary = _binary(fmu.path, fmu.model_identifier, folder / "controller")
+        command = [str(binary), str(plant_binary), plant.model_description.guid, str(ctrl_binary), fmu.token]
+        command += [str(copies), str(run.steps), repr(run.T_s), repr(run.t_end), str(repetitions)]
+        done = subprocess.run(command, input="\n".join(spec), capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            raise RuntimeError(f"system_master failed: {done.stderr.strip()[-500:]}")
+        ns, x_B, command_n, total = (float(v) for v in done.stdout.split())
+        return {"per_step_s": ns * 1e-9, "x_B_n": x_B, "iq_ref_n": command_n, "x_B_sum": total}
+    finally:
+        controller.close()
+
+
+def same_bits(master: dict, trace: np.ndarray, names: tuple[str, ...]) -> bool:
+    """Whether the C master's x_B at N, command at N and sum of x_B (in order) are the trace's."""
+    x_B, command = trace[:, names.index("plant.x_B")], trace[:, names.index("plant.iq_ref")]
+    total = 0.0
+    for value in x_B.tolist():
+        total += value
+    return (x_B[-1], command[-1], total) == (master["x_B_n"], master["iq_ref_n"], master["x_B_sum"])
+
+
+def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict[str, Path] | None = None) -> dict:  # noqa: ANN001
+    """Best per-sample times of the pair and the three-FMU system (compiled, logging on, Python,
+    the C master), and with `parts`, of the press system (compiled, Python, its FMUs replayed)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    binary = compile_master(folder)
+    figures: dict = {}
+    for key, monitor in (("pair", False), ("three", True)):
+        run = fig4_with(controller, plant, monitor)
+        times: dict[str, list[float]] = {"compiled": [], "compiled_logging": [], "python": [], "c_master": []}
+        for _ in range(repetitions):
+            per_step, trace, names = compiled_run(run, plant, logging=False)
+            times["compiled"].append(per_step)
+            times["compiled_logging"].append(compiled_run(run, plant, logging=True)[0])
+            seconds, python_trace = python_run(run, plant, logging=False)
+            times["python"].append(seconds)
+            if not np.array_equal(python_trace, trace, equal_nan=True):
+                raise RuntimeError(f"{key}: the compiled system loop's trace is not the Python execution's")
+            if binary is not None:
+                master = c_master(binary, run, plant, 2 if monitor else 1, 1, folder / key)  # one run, as the loop
+                times["c_master"].append(master["per_step_s"])
+        result = {k: min(v) for k, v in times.items() if v}
+        result["columns"] = len(names) - 1
+        if binary is not None:
+            result["bit_for_bit"] = same_bits(master, trace, names)
+        figures[key] = result
+    if parts is not None:
+        run = press_with(controller, parts)
+        replay = compile_replay(folder)
+        times = {"compiled": [], "python": [], "replay": []}
+        for _ in range(repetitions):
+            per_step, trace, names = compiled_run(run, plant, logging=False)
+            times["compiled"].append(per_step)
+            seconds, python_trace = python_run(run, plant, logging=False)
+            times["python"].append(seconds)
+            if not np.array_equal(python_trace, trace, equal_nan=True):
+                raise RuntimeError("press: the compiled system loop's trace is not the Python execution's")
+            if replay is not None:
+                seconds, same = replayed(run, plant, replay, trace, names)
+                times["replay"].append(seconds)
+        figures["press"] = {k: min(v) for k, v in times.items() if v}
+        figures["press"].update(samples=run.steps, components=2 + len(run.system.parts))
+        if replay is not None:
+            figures["press"]["bit_for_bit"] = same
+    return figures
+
+
+def section(table, figures: dict, plant, controller: Path | None, folder: Path, repetitions: int, builtin_s: float):  # noqa: ANN001, ANN201
+    """bench.py's section: rows and targets of the systems in the compiled system loop."""
+    table.section(
+        "Systems in the compiled system loop, per sample (fig4_nominal/friction, 3000 samples; press: its own)"
+    )
+    if system_library() is None:
+        table.text(f"no compiled system loop: {system_library_reason()}")
+        return
+    if controller is None:
+        table.text("no controller FMU (toggle_cosim.controller_fmu absent): not measured")
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    parts = build_press_parts(folder)
+    build_s = time.perf_counter() - t0
+    got = measure(plant, controller, folder, repetitions, parts)
+    figures["systems"] = {**got, "builtin_loop_s": builtin_s}
+    table.add("built-in law, compiled loop (full_loop, not touched by the system loop)", us(builtin_s), "as above")
+    for key, what in (("pair", "plant + controller FMU"), ("three", "pair + monitor FMU")):
+        r = got[key]
+        table.add(
+            f"{what}: compiled system loop", us(r["compiled"]), f"{r['columns']} columns recorded; FMU logging off"
+        )
+        table.add(
+            f"{what}: the same, FMU logging on",
+            us(r["compiled_logging"]),
+            "as cosim.slaves makes them: the plant logs each doStep to fmpy's callback",
+        )
+        table.add(f"{what}: Python execution of the same plan", us(r["python"]), "cosim.execution; same bits as C")
+        if "c_master" in r:
+            bits = "same bits" if r["bit_for_bit"] else "NOT the same bits"
+            table.add(f"{what}: plain C master (system_master.c)", us(r["c_master"]), f"the FMUs' own calls; {bits}")
+            table.add(f"{what}: ratio compiled loop / plain C master", f"{r['compiled'] / r['c_master']:.2f}")
+    press = got["press"]
+    what = f"press, {press['components']} FMUs"
+    table.text(
+        f"press: examples/press_system/press.yaml (plant, sensor, die load, the controller as ToggleVSC), "
+        f"{press['samples']} samples; its parts built in {build_s:.2f} s"
+    )
+    table.add(f"{what}: compiled system loop", us(press["compiled"]), "FMU logging off")
+    table.add(f"{what}: Python execution of the same plan", us(press["python"]), "cosim.execution; same bits as C")
+    if "replay" in press:
+        bits = "same bits" if press["bit_for_bit"] else "NOT the same bits"
+        table.add(
+            f"{what}: its FMUs' own calls from C, summed",
+            us(press["replay"]),
+            f"system_replay.c: each FMU alone, its recorded inputs; {bits}",
+        )
+        table.add(f"{what}: ratio compiled loop / its FMUs' own calls", f"{press['compiled'] / press['replay']:.2f}")
+        ratio = press["compiled"] / press["replay"]
+        table.check(
+            f"{press['components']}-FMU press system in the compiled loop <= 1.2 x the sum of its FMUs' own calls from C",
+            ratio <= 1.2 and press["bit_for_bit"],
+            f"{us(press['compiled'])} / {us(press['replay'])} = {ratio:.2f}"
+            + ("" if press["bit_for_bit"] else "; NOT bit for bit"),
+        )
+    for key, label in (
+        ("pair", "plant + controller-FMU system in the compiled loop <= 1.2 x a plain C master"),
+        ("three", "3-FMU system in the compiled loop <= 1.2 x its FMUs' own calls from C"),
+    ):
+        r = got[key]
+        if "c_master" in r:
+            ratio = r["compiled"] / r["c_master"]
+            detail = f"{us(r['compiled'])} / {us(r['c_master'])} = {ratio:.2f}"
+            table.check(
+                label, ratio <= 1.2 and r["bit_for_bit"], detail + ("" if r["bit_for_bit"] else "; NOT bit for bit")
+            )
+
+
+def us(seconds: float) -> str:
+    return f"{seconds * 1e6:.2f} us"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="3 repetitions instead of 9")
+    parser.add_argument("--fmu", type=Path, default=None, help="the plant FMU (default: built here)")
+    args = parser.parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench
+
+    from toggle_cosim.controller_fmu import build_controller_fmu
+    from toggle_cosim.fmu_export import build_fmu
+    from toggle_cosim.plant.contract import check_plant
+
+    folder = Path(tempfile.mkdtemp(prefix="toggle-system-bench-"))
+    try:
+        fmu = (
+            args.fmu or build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant", folder / "ToggleLSM.fmu").fmu.path
+        )
+        plant = check_plant(Path(fmu).resolve())
+        controller = Path(build_controller_fmu(folder / "ToggleVSC.fmu", "2.0").path)
+        repetitions = 3 if args.quick else 9
+        run = next(r for r in bench.paper_runs() if r.label == "fig4_nominal/friction")
+        builtin = min(bench.full_loop(plant, run)["per_step"] for _ in range(repetitions))
+        table, figures = bench.Table(), {}
+        section(table, figures, plant, controller, folder, repetitions, builtin)
+        table.print()
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

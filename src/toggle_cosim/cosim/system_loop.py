@@ -1,0 +1,273 @@
+"""A system's stepping plan (`system.plan.Plan`) run in C: one loop over a component table and a
+connection table, for any number of FMUs (FMI 2.0 and 3.0 Co-Simulation).
+
+`SystemLoop` makes the tables from the plan and each component's C calls (`CFunctions`, e.g.
+`fmi_pointers.fmu_functions` of an fmpy slave: its outputs' value references in the plan's
+`output_names[c]` order, its fed inputs' in `input_names[c]` order) and runs samples k0 .. k_end - 1
+as the plan's docstring says (cosim/system_skeleton.c): per component one setReal for its early
+inputs and one getReal for its outputs, then one setReal for its late inputs and a doStep each.
+Each sample's row goes into the caller's preallocated trace: column 0 t_k = k T_s, column 1 + i
+the value of the slot plan.record[i]. An input fed through a unit conversion gets factor · value
++ offset with Python's bits (compiled without contraction); an identity connection copies.
+Instantiation, parameters and initialisation are the caller's (`cosim.execution`): the loop only
+steps instances that are ready.
+
+`compiled_system` makes the loop for a plan's slaves (`cosim.slaves`) when every one of them can
+be called from C (an FMU's `c_functions()`), or says in a line why not (a component run in
+Python, such as a native controller; no compiled library).
+
+A status other than OK or Warning stops the loop at that call; `failure()` names the component,
+the function, its status and the sample (`ComponentCallError`, one line).
+
+The library is compiled once per machine and cached as the master's other compiled loop is
+(`native`: private cache, checked by hash; `TOGGLE_COSIM_KERNEL=0` switches it off and
+`system_library_reason()` says why there is none).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import os
+from collections.abc import Sequence
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from toggle_cosim.cosim.compiled_loop import KERNEL_FLAGS
+from toggle_cosim.cosim.session import CFunctions
+from toggle_cosim.native import load_library_from
+from toggle_cosim.system.plan import Plan
+
+__all__ = [
+    "ComponentCallError",
+    "DONE",
+    "FMI_FAILED",
+    "SystemLoop",
+    "compiled_system",
+    "system_library",
+    "system_library_reason",
+]
+
+DONE, FMI_FAILED = 0, 2  # system_run's return codes (system_skeleton.c)
+_CALLS = {1: "get", 2: "set", 3: "step"}
+
+# The C structs' fields, in their order in system_skeleton.c.
+_COMPONENT_POINTERS = (
+    "get",
+    "set",
+    "step",
+    "component",
+    "out_vr",
+    "early_vr",
+    "late_vr",
+    "early_slot",
+    "late_slot",
+    "scratch",
+)
+_COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late")
+_SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record")
+_SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
+_SYSTEM_DOUBLES = ("T_s",)
+
+
+class ComponentCallError(RuntimeError):
+    """An FMI call of a component that returned a status other than OK or Warning: which
+    component (its name), which function, the status and the sample's time."""
+
+    def __init__(self, component: str, function: str, status: int, t: float) -> None:
+        super().__init__(f"component {component}: {function} returned status {status} at t = {t:.6g} s")
+        self.component, self.function, self.status, self.t = component, function, status, t
+
+
+@functools.cache
+def _component_struct() -> type[ctypes.Structure]:
+    fields = [*((name, ctypes.c_void_p) for name in _COMPONENT_POINTERS)]
+    fields += [(name, ctypes.c_long) for name in _COMPONENT_LONGS]
+    return type("_Component", (ctypes.Structure,), {"_fields_": fields})
+
+
+@functools.cache
+def _system_struct() -> type[ctypes.Structure]:
+    fields = [*((name, ctypes.c_void_p) for name in _SYSTEM_POINTERS)]
+    fields += [(name, ctypes.c_long) for name in _SYSTEM_LONGS]
+    fields += [(name, ctypes.c_double) for name in _SYSTEM_DOUBLES]
+    return type("_System", (ctypes.Structure,), {"_fields_": fields})
+
+
+def _skeleton() -> Path:
+    return Path(str(resources.files("toggle_cosim.cosim").joinpath("system_skeleton.c")))
+
+
+def system_source() -> str:
+    """The C source of the system loop (system_skeleton.c as it is)."""
+    return _skeleton().read_text(encoding="utf-8")
+
+
+def system_inputs() -> list[Path]:
+    """The files the library is built from: the skeleton and this module (its struct mirror)."""
+    return [_skeleton(), Path(__file__)]
+
+
+_library: ctypes.CDLL | None = None
+_library_reason: str | None = None
+
+
+def system_library() -> ctypes.CDLL | None:
+    """The system loop's library (built and cached on first use), or None; `system_library_reason()` says why not."""
+    global _library, _library_reason
+    if os.environ.get("TOGGLE_COSIM_KERNEL", "1") == "0":
+        return None
+    if _library is None and _library_reason is None:
+        try:
+            library = load_library_from(system_inputs(), system_source, "system-loop", KERNEL_FLAGS)
+            library.system_run.argtypes = [ctypes.POINTER(_system_struct()), ctypes.c_long]
+            library.system_run.restype = ctypes.c_int
+            _library = library
+        except Exception as error:  # noqa: BLE001 - no library: the Python execution runs instead
+            _library_reason = str(error)
+    return _library
+
+
+def system_library_reason() -> str | None:
+    """Why the system loop is not available (None when it is)."""
+    if os.environ.get("TOGGLE_COSIM_KERNEL", "1") == "0":
+        return "disabled by TOGGLE_COSIM_KERNEL=0"
+    system_library()
+    return _library_reason
+
+
+def _longs(values: Sequence[int]) -> ctypes.Array:
+    return (ctypes.c_long * max(len(values), 1))(*values)
+
+
+class SystemLoop:
+    """Samples of a plan run in C (module docstring).
+
+    Args:
+        plan: the system's stepping plan.
+        functions: per component in plan.order, its C calls: out_vr the value references of
+            plan.output_names[c], in_vr those of plan.input_names[c], in those orders.
+        signals: the run's (n + 1, len(plan.signals)) C-contiguous float64 signal table.
+        trace: the (n + 1, 1 + len(plan.record)) C-contiguous float64 trace the rows go into.
+        n: the last sample (t_n = n T_s is recorded, and no doStep is made from it).
+        T_s: the communication step [s].
+        library: the compiled library (None: `system_library()`; ValueError when there is none).
+    """
+
+    def __init__(
+        self,
+        plan: Plan,
+        functions: Sequence[CFunctions],
+        signals: np.ndarray,
+        trace: np.ndarray,
+        n: int,
+        T_s: float,
+        library: ctypes.CDLL | None = None,
+    ) -> None:
+        library = library if library is not None else system_library()
+        if library is None:
+            raise ValueError(f"no compiled system loop: {system_library_reason()}")
+        count = len(plan.order)
+        if len(functions) != count:
+            raise ValueError(f"the plan has {count} components, {len(functions)} C calls were given")
+        m = len(plan.signals)
+        if signals.dtype != np.float64 or not signals.flags.c_contiguous or signals.shape != (n + 1, m):
+            raise ValueError(f"the signal table must be a C-contiguous float64 array of shape ({n + 1}, {m})")
+        width = 1 + len(plan.record)
+        if trace.dtype != np.float64 or not trace.flags.c_contiguous or trace.ndim != 2 or trace.shape[1] != width:
+            raise ValueError(f"the trace must be a C-contiguous float64 array of {width} columns")
+        if trace.shape[0] < n + 1:
+            raise ValueError(f"the trace has {trace.shape[0]} rows, the run {n + 1}")
+        self.plan, self.T_s, self.n = plan, float(T_s), n
+        self._library = library
+        table = (_component_struct() * count)()
+        keep: list[object] = [functions, signals, trace]
+        for c, (entry, calls) in enumerate(zip(table, functions, strict=True)):
+            inputs, outputs = plan.inputs[c], plan.outputs[c]
+            if outputs and outputs != tuple(range(outputs[0], outputs[0] + len(outputs))):
+                raise ValueError(f"component {plan.order[c]}: its output slots are not contiguous")
+            in_vr = (ctypes.c_uint32 * len(inputs)).from_address(calls.in_vr) if inputs else ()
+            early = plan.early[c]
+            late = plan.late(c)
+            arrays = (
+                (ctypes.c_uint32 * max(len(early), 1))(*(in_vr[i] for i in early)),
+                (ctypes.c_uint32 * max(len(late), 1))(*(in_vr[i] for i in late)),
+                _longs([inputs[i] for i in early]),
+                _longs([inputs[i] for i in late]),
+                (ctypes.c_double * max(len(inputs), 1))(),
+            )
+            keep.append(arrays)
+            entry.get, entry.set, entry.step, entry.component = calls.get, calls.set, calls.step, calls.component
+            entry.out_vr = calls.out_vr
+            entry.early_vr, entry.late_vr, entry.early_slot, entry.late_slot, entry.scratch = (
+                ctypes.addressof(a) for a in arrays
+            )
+            entry.fmi3 = 1 if calls.fmi3 else 0
+            entry.n_out, entry.out0 = len(outputs), outputs[0] if outputs else 0
+            entry.n_early, entry.n_late = len(early), len(late)
+        buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
+        source = np.ascontiguousarray(plan.feed_source, dtype=np.int64)
+        factor = np.ascontiguousarray(plan.feed_factor, dtype=np.float64)
+        offset = np.ascontiguousarray(plan.feed_offset, dtype=np.float64)
+        record = np.ascontiguousarray(plan.record, dtype=np.int64)
+        if ctypes.sizeof(ctypes.c_long) != 8:  # the C tables are longs
+            source, record = source.astype(np.int32), record.astype(np.int32)
+        keep += [table, buffer, source, factor, offset, record]
+        s = _system_struct()()
+        s.components, s.buffer = ctypes.addressof(table), buffer.ctypes.data
+        s.source, s.factor, s.offset = source.ctypes.data, factor.ctypes.data, offset.ctypes.data
+        s.signals, s.trace, s.record = signals.ctypes.data, trace.ctypes.data, record.ctypes.data
+        s.n_components, s.n_signals, s.n_record, s.n = count, m, len(plan.record), n
+        s.T_s = self.T_s
+        self._keep = keep  # everything the C side points into stays alive with the loop
+        self._functions = tuple(functions)
+        self._state = s
+        self._pointer = ctypes.pointer(s)
+        self.buffer = buffer  # the sample's values, slot by slot (plan.slot)
+
+    @property
+    def no_set_state_prior_to_current_point(self) -> bool:
+        """The flag passed to every doStep (False: the FMUs keep their history)."""
+        return bool(self._state.no_prior)
+
+    @no_set_state_prior_to_current_point.setter
+    def no_set_state_prior_to_current_point(self, value: bool) -> None:
+        self._state.no_prior = 1 if value else 0
+
+    def run(self, k0: int, k_end: int) -> tuple[int, int]:
+        """Samples k0 .. k_end - 1 (k_end <= n + 1): (DONE, k_end), or (FMI_FAILED, k) with k the
+        sample whose call failed (`failure()` names it)."""
+        if not 0 <= k0 <= k_end <= self.n + 1:
+            raise ValueError(f"samples {k0} .. {k_end - 1} are not within 0 .. {self.n}")
+        self._state.k = k0
+        code = self._library.system_run(self._pointer, k_end)
+        return code, int(self._state.k)
+
+    def failure(self) -> ComponentCallError:
+        """The error of the failed call of the last `run` that returned FMI_FAILED."""
+        s = self._state
+        c = int(s.failed)
+        names = self._functions[c].names
+        function = getattr(names, _CALLS[int(s.fault)])
+        return ComponentCallError(self.plan.order[c], function, int(s.status), int(s.k) * self.T_s)
+
+
+def compiled_system(
+    plan: Plan, slaves: Sequence[object], signals: np.ndarray, trace: np.ndarray, n: int, T_s: float
+) -> SystemLoop | str:
+    """The compiled loop over `slaves` (in plan.order, instantiated and initialised; each with a
+    `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has), or why there is none: one
+    line naming the first component run in Python, or why the library is missing."""
+    library = system_library()
+    if library is None:
+        return f"no compiled system loop: {system_library_reason()}"
+    functions = []
+    for name, slave in zip(plan.order, slaves, strict=True):
+        make = getattr(slave, "c_functions", None)
+        calls = make() if callable(make) else None
+        if not isinstance(calls, CFunctions):
+            return f"component {name} runs in Python ({type(slave).__name__}): the compiled system loop calls FMUs only"
+        functions.append(calls)
+    return SystemLoop(plan, functions, signals, trace, n, T_s, library)
