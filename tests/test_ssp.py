@@ -393,16 +393,6 @@ BAD_SSPS = {
         _ssd_edit('<ssd:Connector name="x_B" kind="output">', '<ssd:Connector name="x_B" kind="input">'),
         "component 'plant' declares 'x_B' as a connector of kind input, but its FMU's variable has causality output",
     ),
-    "no connections": (
-        lambda m: m.update(
-            {
-                layout.SSD_MEMBER: re.sub(
-                    rb"<ssd:Connections>.*</ssd:Connections>", b"", m[layout.SSD_MEMBER], flags=re.S
-                )
-            }
-        ),
-        "no connection plant.x_B -> controller.x_B",
-    ),
     "x_B and v_B crossed, their units left out": (
         _both(
             _ssd_edit(WIRE.format("x_B"), WIRE.format("x_B").replace('endConnector="x_B"', 'endConnector="v_B"')),
@@ -412,24 +402,9 @@ BAD_SSPS = {
         ),
         "the connection plant.x_B -> controller.v_B joins m to m/s",
     ),
-    "a unit redefined by a factor 0.001": (
-        _ssd_edit(
-            '<ssc:Unit name="m">\n      <ssc:BaseUnit m="1"/>',
-            '<ssc:Unit name="m">\n<ssc:BaseUnit m="1" factor="0.001"/>',
-        ),
-        "the connection plant.x_B -> controller.x_B gives plant.x_B the unit 'm' (= 0.001 m), but its FMU's unit is "
-        "'m' (= 1 m); a unit conversion is not supported here",
-    ),
     "unit mismatch": (
         _ssd_edit(CONTROLLER_IN.format("x_B", "m"), CONTROLLER_IN.format("x_B", "m/s")),
         "the connection plant.x_B -> controller.x_B gives controller.x_B the unit 'm/s'",
-    ),
-    "a scaling transformation": (
-        _ssd_edit(
-            f"{WIRE.format('x_B')}/>",
-            f'{WIRE.format("x_B")}><ssc:LinearTransformation factor="1000"/></ssd:Connection>',
-        ),
-        "the connection plant.x_B -> controller.x_B has a LinearTransformation that is not the identity",
     ),
     "controller.iq_ref to plant.F_E": (
         _ssd_edit(COMMAND_WIRE, COMMAND_WIRE.replace('endConnector="iq_ref"', 'endConnector="F_E"')),
@@ -442,24 +417,6 @@ BAD_SSPS = {
             'endElement="controller" endConnector="omega1"/></ssd:Connections>',
         ),
         "an algebraic loop controller.iq_ref -> controller.omega1 -> controller.iq_ref",
-    ),
-    "a wiring the master does not run": (
-        _both(
-            _ssd_edit(
-                '<ssd:Connector name="iq_ref" kind="output">',
-                '<ssd:Connector name="S" kind="output"/><ssd:Connector name="iq_ref" kind="output">',
-            ),
-            _ssd_edit(
-                "</ssd:Connections>",
-                '<ssd:Connection startElement="controller" startConnector="S" endElement="plant" endConnector="F_E"/>'
-                "</ssd:Connections>",
-            ),
-        ),
-        "the connection controller.S -> plant.F_E is not a wiring our master runs",
-    ),
-    "a third component": (
-        _ssd_edit("</ssd:Elements>", '<ssd:Component name="logger" source="resources/ToggleVSC.fmu"/></ssd:Elements>'),
-        "3 components; our master runs a plant and a controller",
     ),
     "system-level connectors": (
         _ssd_edit(
@@ -633,6 +590,83 @@ def test_a_bad_ssp_is_refused_in_one_line(case: str, fig5_ssp: Path, tmp_path: P
     assert line.startswith(f"error: {bad}") and expected in line, line
     with pytest.raises(SspError, match=re.escape(expected)):
         read_ssp(bad)
+
+
+# Refused while the master ran only the plant + controller loop; read now as the system they
+# describe (the master steps any system, `cosim.systems`): each case's change, and the Wiring's
+# parts (names) and connections (start, end, factor, offset), None for the plain pair
+PAIR = [("plant.x_B", "controller.x_B"), ("plant.v_B", "controller.v_B"), ("plant.theta1", "controller.theta1")]
+PAIR += [("plant.omega1", "controller.omega1"), ("controller.iq_ref", "plant.iq_ref")]
+NOW_SYSTEMS = {
+    "no connections": (
+        lambda m: m.update(
+            {
+                layout.SSD_MEMBER: re.sub(
+                    rb"<ssd:Connections>.*</ssd:Connections>", b"", m[layout.SSD_MEMBER], flags=re.S
+                )
+            }
+        ),
+        (),
+        [],
+    ),
+    # both connectors' unit m is redefined alike (0.001 m): each value leaves and reaches its FMU
+    # in the FMU's own m, so the connection is the identity and this is the plain pair
+    "a unit redefined by a factor 0.001": (
+        _ssd_edit(
+            '<ssc:Unit name="m">\n      <ssc:BaseUnit m="1"/>',
+            '<ssc:Unit name="m">\n<ssc:BaseUnit m="1" factor="0.001"/>',
+        ),
+        (),
+        None,
+    ),
+    "a scaling transformation": (
+        _ssd_edit(
+            f"{WIRE.format('x_B')}/>",
+            f'{WIRE.format("x_B")}><ssc:LinearTransformation factor="1000"/></ssd:Connection>',
+        ),
+        (),
+        [(*PAIR[0], 1000.0, 0.0), *((*wire, 1.0, 0.0) for wire in PAIR[1:])],
+    ),
+    "controller.S to plant.F_E": (
+        _both(
+            _ssd_edit(
+                '<ssd:Connector name="iq_ref" kind="output">',
+                '<ssd:Connector name="S" kind="output"/><ssd:Connector name="iq_ref" kind="output">',
+            ),
+            _ssd_edit(
+                "</ssd:Connections>",
+                '<ssd:Connection startElement="controller" startConnector="S" endElement="plant" endConnector="F_E"/>'
+                "</ssd:Connections>",
+            ),
+        ),
+        (),
+        [*((*wire, 1.0, 0.0) for wire in PAIR), ("controller.S", "plant.F_E", 1.0, 0.0)],
+    ),
+    "a third component": (
+        _ssd_edit("</ssd:Elements>", '<ssd:Component name="logger" source="resources/ToggleVSC.fmu"/></ssd:Elements>'),
+        ("logger",),
+        [(*wire, 1.0, 0.0) for wire in PAIR],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", NOW_SYSTEMS, ids=list(NOW_SYSTEMS))
+def test_a_wiring_other_than_the_pair_is_read_as_the_system_it_describes(
+    case: str, fig5_ssp: Path, tmp_path: Path
+) -> None:
+    """Cases once refused (the master ran the pair only): the run's system has the SSD's parts and
+    every connection in document order, with the LinearTransformation's factor; the plain pair
+    stays Wiring() so its runs stay the fixed loop's."""
+    change, parts, connections = NOW_SYSTEMS[case]
+    with open_ssp(_rewrite(fig5_ssp, tmp_path / "now.ssp", change)) as study:
+        system = study.run.system
+        assert tuple(part.name for part in system.parts) == parts
+        if connections is None:
+            assert system == dataclasses.replace(system.__class__()) and system.is_pair
+        else:
+            got = [(str(c.start), str(c.end), c.factor, c.offset) for c in system.connections]
+            assert got == connections
+            assert [p["name"] for p in study.run.resolved["ssp"]["parts"]] == list(parts)
 
 
 def test_a_variant_that_does_not_exist_is_refused_naming_those_that_do(fig5_ssp: Path, tmp_path: Path) -> None:

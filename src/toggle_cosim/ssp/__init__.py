@@ -1,5 +1,6 @@
 """The study as an SSP 1.0 archive (System Structure and Parameterization): the plant FMU and the
-controller FMU as components, their connections, one root SSD per scenario variant (each binding
+controller FMU as components (and any other FMU components of a system: a sensor, a load), their
+connections, one root SSD per scenario variant (each binding
 one parameter set per component), the default experiment. `writer` writes one from a scenario
 file; `reader` reads a variant back into what our master runs (`run`), from the SSD and its .ssv
 files only (`variants`, `bindings`, `wiring`, `as_scenario`); `checks` holds what both check (the

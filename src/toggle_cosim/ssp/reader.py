@@ -2,16 +2,19 @@
 
 A variant is a root SSD (SSP 1.0.1, section 3): `SystemStructure.ssd`, the default, and any other
 `*.ssd` at the archive's top level, each named by its `name` attribute (or its file name). What
-runs is read from the chosen SSD and its .ssv files only: the two components (the controller is
-the FMU with an output iq_ref, the plant the one with an input iq_ref, whatever their names),
-the values their bindings give (`bindings`: every binding, later ones taking priority, then the
-system's), the stop time of its DefaultExperiment and the controller's T_s. Annotations are not
-read.
+runs is read from the chosen SSD and its .ssv files only: the components (the controller is the
+FMU with an output iq_ref, the plant the one with an input iq_ref, whatever their names; every
+other FMU component a part of the run's system, `Run.system`), the values their bindings give
+(`bindings`: every binding, later ones taking priority, then the system's), the stop time of its
+DefaultExperiment and the controller's T_s. Annotations are not read.
 
 Checked before any run, each failure one SspError line naming the file and the fix: a zip
 archive, safe (`plant.archive`); the variants (`variants`: names, bounds, set names); every .ssv
-within bounds and valid SSP 1.0 (`checks`); exactly two FMU components, Co-Simulation, whose FMUs the
-archive holds; connections exactly the loop our master runs (`wiring`); every bound name a
+within bounds and valid SSP 1.0 (`checks`); two or more FMU components, Co-Simulation, whose FMUs
+the archive holds; the connections (`wiring`: kinds, units, transformations, algebraic loops).
+Connections exactly the pair's loop and no other component: `Run.system` is the plain pair
+(`Wiring()` with the SSD's component names), which the master's fixed loop runs bit for bit;
+anything else: the parts and every connection in document order; every bound name a
 parameter or input of its FMU, of its type, finite; the values within the scenario's ranges
 (`as_scenario`); the experiment starting at 0 and ending at a whole number of samples.
 """
@@ -36,7 +39,8 @@ from toggle_cosim.ssp.bindings import Binding, Value, bindings_of, merged
 from toggle_cosim.ssp.checks import Element, SspError, open_archive
 from toggle_cosim.ssp.fmus import FmuVariables, describe
 from toggle_cosim.ssp.variants import Variant, check_set_names, choose, root_ssds
-from toggle_cosim.ssp.wiring import check_wiring, connectors_of
+from toggle_cosim.ssp.wiring import connectors_of, is_pair_loop, read_connections
+from toggle_cosim.system.model import Connection, Part, Wiring
 
 __all__ = ["Component", "SspStudy", "open_ssp", "open_ssp_variants", "read_ssp", "read_ssp_variants"]
 
@@ -66,7 +70,8 @@ class SspStudy:
     `plant_values` are what the master sets on the plant before initialisation (F_E, the plant's
     input, apart); `controller_values` the controller FMU's parameters; `run` the run with the
     SSP's t_end, T_s, F_E and plant values, its record naming the SSP, the variant and each
-    component's source, hash and values. `plant_fmu` and `controller_fmu` are extracted copies."""
+    component's source, hash and values, and its `system` (`Run.system`). `plant_fmu`,
+    `controller_fmu` and each part's FMU are extracted copies; `parts` the other components."""
 
     path: Path
     variant: str
@@ -78,6 +83,7 @@ class SspStudy:
     t_end: float
     T_s: float
     run: Run
+    parts: tuple[Component, ...] = ()
 
     @property
     def plant_fmu(self) -> Path:
@@ -105,7 +111,7 @@ def _elements(ssd: Element, where: str) -> list[Element]:
     for child in children:
         kind = child.tag.rsplit("}", 1)[-1]
         if kind != "Component":
-            raise SspError(f"{where}: a {kind} in the system (our master runs two FMU components; remove it)")
+            raise SspError(f"{where}: a {kind} in the system (our master runs FMU components only; remove it)")
         if child.get("type", layout.FMU_TYPE) != layout.FMU_TYPE:
             raise SspError(
                 f"{where}: component {child.get('name')!r} is of type {child.get('type')!r} (only FMUs, "
@@ -116,9 +122,10 @@ def _elements(ssd: Element, where: str) -> list[Element]:
                 f"{where}: component {child.get('name')!r} asks for implementation "
                 f"{child.get('implementation')!r} (our master runs Co-Simulation only)"
             )
-    if len(children) != 2:
+    if len(children) < 2:
         raise SspError(
-            f"{where}: {len(children)} components; our master runs a plant and a controller (two FMU components)"
+            f"{where}: {len(children)} component{'' if len(children) == 1 else 's'}; our master runs at least a plant "
+            "and a controller (two FMU components)"
         )
     return children
 
@@ -151,8 +158,12 @@ class _Extracted:
         return self.fmus[member]
 
 
-def _roles(children: list[Element], fmus: dict[str, FmuVariables], where: str) -> tuple[str, str]:
-    """(plant, controller): the controller has an output iq_ref, the plant an input iq_ref."""
+def _roles(
+    children: list[Element], fmus: dict[str, FmuVariables], connections: Sequence[Connection], where: str
+) -> tuple[str, str]:
+    """(plant, controller): the plant has an input iq_ref (where several have one, the one that meets
+    the plant contract's required variables), the controller an output iq_ref (where several have
+    one, the one whose iq_ref is connected)."""
 
     def causality(name: str) -> str | None:
         variable = fmus[name].variables.get(layout.COMMAND)
@@ -161,12 +172,28 @@ def _roles(children: list[Element], fmus: dict[str, FmuVariables], where: str) -
     names = [child.get("name") for child in children]
     controllers = [n for n in names if causality(n) == "output"]
     plants = [n for n in names if causality(n) == "input"]
+    if len(plants) > 1:
+        plants = [n for n in plants if _meets_contract(fmus[n])]
+    if len(controllers) > 1:
+        connected = {c.start.component for c in connections if c.start.variable == layout.COMMAND}
+        controllers = [n for n in controllers if n in connected]
     if len(controllers) != 1 or len(plants) != 1:
         raise SspError(
             f"{where}: cannot tell the plant from the controller (one FMU needs an output {layout.COMMAND}, the "
             f"other an input {layout.COMMAND}; the components are {', '.join(names)})"
         )
     return plants[0], controllers[0]
+
+
+def _meets_contract(fmu: FmuVariables) -> bool:
+    """Whether the FMU has every variable the plant contract requires, of its causality."""
+    from toggle_cosim.plant.contract import load_contract
+
+    return all(
+        (variable := fmu.variables.get(entry.name)) is not None and variable.causality == entry.causality
+        for entry in load_contract()
+        if entry.required
+    )
 
 
 def _typed(fmu: FmuVariables, name: str, value: Value, kind: str, unit: str | None, where: str) -> Value:
@@ -260,11 +287,24 @@ def _system_bindings(ssd: Element, archive: zipfile.ZipFile, path: Path, where: 
     return split
 
 
-def _components(
-    variant: Variant, archive: zipfile.ZipFile, path: Path, fmus: _Extracted
-) -> tuple[Component, Component, FmuVariables, FmuVariables]:
-    """The plant and the controller of a root SSD, with their FMUs' variables: wiring checked,
-    values bound (`_component_values`)."""
+@dataclass(frozen=True)
+class _System:
+    """A root SSD's components and wiring: the plant, the controller, the other FMU components
+    (parts, in document order) and the system around the pair (`Wiring`)."""
+
+    plant: Component
+    controller: Component
+    parts: tuple[Component, ...]
+    plant_fmu: FmuVariables
+    controller_fmu: FmuVariables
+    wiring: Wiring
+
+
+def _components(variant: Variant, archive: zipfile.ZipFile, path: Path, fmus: _Extracted) -> _System:
+    """The components of a root SSD with their FMUs' variables: wiring read and checked (`wiring`),
+    values bound (`_component_values`). The connections exactly the pair's loop and no other
+    component: the plain pair (`Wiring` with no parts and no connections), which the master's
+    fixed loop runs; otherwise every component and connection."""
     where = f"{path}: {variant.member}"
     children = _elements(variant.ssd, where)
     found: dict[str, tuple[str, Path, FmuVariables, str]] = {}
@@ -273,11 +313,17 @@ def _components(
         member = _member_of(child.get("source"), archive, where, f"component {name!r}'s FMU")
         found[name] = (member, *fmus.get(member, "component"))
     variables = {name: entry[2] for name, entry in found.items()}
-    plant, controller = _roles(children, variables, where)
+    connectors = {child.get("name"): connectors_of(child, variables[child.get("name")], where) for child in children}
+    connections = read_connections(variant.ssd, where, variables, connectors)
+    plant, controller = _roles(children, variables, connections, where)
     if getattr(variables[controller].model_description, "coSimulation", None) is None:
         raise SspError(f"{variables[controller].label}: the controller FMU has no Co-Simulation interface")
-    connectors = {child.get("name"): connectors_of(child, variables[child.get("name")], where) for child in children}
-    check_wiring(variant.ssd, where, plant, controller, variables, connectors)
+    for name, fmu in variables.items():
+        if getattr(fmu.model_description, "coSimulation", None) is None:
+            raise SspError(
+                f"{fmu.label}: component {name!r}'s FMU has no Co-Simulation interface (Model Exchange only; our "
+                "master runs Co-Simulation FMUs: export it for Co-Simulation)"
+            )
     system = _system_bindings(variant.ssd, archive, path, where, list(found))
     components = {}
     for child in children:
@@ -285,7 +331,17 @@ def _components(
         member, fmu_path, fmu, sha256 = found[name]
         values = _component_values(child, system[name], fmu, archive, path, where)
         components[name] = Component(name, member, fmu_path, sha256, values)
-    return components[plant], components[controller], variables[plant], variables[controller]
+    parts = tuple(components[name] for name in components if name not in (plant, controller))
+    if not parts and is_pair_loop(connections, plant, controller, variables):
+        wiring = Wiring(plant=plant, controller=controller)
+    else:
+        wiring = Wiring(
+            parts=tuple(Part(p.name, p.fmu, p.values, p.source) for p in parts),
+            connections=connections,
+            plant=plant,
+            controller=controller,
+        )
+    return _System(components[plant], components[controller], parts, variables[plant], variables[controller], wiring)
 
 
 def _with_starts(component: Component, fmu: FmuVariables, names: Sequence[str]) -> dict[str, Value]:
@@ -301,7 +357,13 @@ def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, p
     from toggle_cosim.ssp.as_scenario import CONTROLLER_NAMES, PLANT_NAMES, run_of_values
 
     where = f"{path}: {variant.member}"
-    plant, controller, plant_fmu, controller_fmu = _components(variant, archive, path, fmus)
+    system = _components(variant, archive, path, fmus)
+    plant, controller, plant_fmu, controller_fmu = (
+        system.plant,
+        system.controller,
+        system.plant_fmu,
+        system.controller_fmu,
+    )
     t_end = _experiment(variant.ssd, where)
     plant_all = _with_starts(plant, plant_fmu, PLANT_NAMES)
     controller_all = _with_starts(controller, controller_fmu, (*CONTROLLER_NAMES, "T_s"))
@@ -314,10 +376,10 @@ def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, p
             f"{where}: the OSP annotation's baseStepSize {step!r} s is not the controller's T_s = {T_s!r} s "
             "(libcosim would step at the other; make them equal)"
         )
-    system = variant.ssd.find("ssd:System", NS)
+    element = variant.ssd.find("ssd:System", NS)
     try:
         run = run_of_values(
-            system.get("name"), system.get("description", ""), t_end, float(T_s), plant_all, controller_all
+            element.get("name"), element.get("description", ""), t_end, float(T_s), plant_all, controller_all
         )
     except ScenarioError as error:
         raise SspError(
@@ -332,6 +394,12 @@ def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, p
         "ssd": variant.member,
         "components": {"plant": plant.record(), "controller": controller.record()},
     }
+    if not system.wiring.is_pair:
+        record["parts"] = [part.record() for part in system.parts]
+        record["connections"] = [
+            {"start": str(c.start), "end": str(c.end), "factor": c.factor, "offset": c.offset}
+            for c in system.wiring.connections
+        ]
     run = dataclasses.replace(
         run,
         variant=variant.name,
@@ -341,8 +409,11 @@ def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, p
             run.plant, F_E=F_E, fmu_values=tuple((n, v) for n, v in plant.values if n != layout.EXTERNAL_FORCE)
         ),
         resolved={"ssp": record},
+        system=system.wiring,
     )
-    return SspStudy(path, variant.name, variant.member, names, plant, controller, F_E, t_end, float(T_s), run)
+    return SspStudy(
+        path, variant.name, variant.member, names, plant, controller, F_E, t_end, float(T_s), run, system.parts
+    )
 
 
 def read_ssp_variants(path: Path, asked: Sequence[str | None], folder: Path) -> tuple[SspStudy, ...]:

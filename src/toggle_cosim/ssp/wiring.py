@@ -1,26 +1,34 @@
-"""An SSD's connections checked against the wiring our master implements (`check_wiring`).
+"""An SSD's connections as the system's `Connection`s (`read_connections`), each checked as the
+SSP 1.0 standard reads it, and whether they are the plain plant + controller loop (`is_pair_loop`).
 
-Until the master steps any system, an SSP runs only if its connections are exactly the plant +
-controller loop the master wires: every input of the controller from the plant output of the
-same name, and the controller's iq_ref to the plant's iq_ref. Before that comparison each
-connection is checked as the SSP 1.0 standard reads it, so that the refusal names what is wrong:
+Each connection is checked, one SspError line naming the SSD and the connection:
 
 * both ends exist (components and connectors of the SSD, variables of the FMUs), no system-level
   connector, and a connector's kind is its FMU variable's causality;
-* it runs from an output to an input (section 5, Connections);
-* its units: each end's unit means what its FMU's unit means (an SSD Unit that redefines `m` by
-  a factor 0.001 is a conversion), and the two ends mean the same (a declared conversion between
-  two names is accepted only when it is the identity: same SI exponents, factor 1, offset 0),
-  and a LinearTransformation, if any, is the identity;
+* it runs from an output to an input (section 5, Connections), both Real;
+* no input is driven by two connections;
+* units: the value leaves the start FMU in its unit and reaches the end FMU in its own
+  (a connector's unit, an SSD Unit or the FMU's, has to mean the same dimension as its FMU
+  variable's). Two units of one dimension are a conversion: with base-unit factor f and offset
+  o (base = f·value + o), end = (f_s/f_e)·start + (o_s − o_e)/f_e. Different dimensions are
+  refused. A unit the FMU leaves out is the connector's;
+* a LinearTransformation (factor a, offset b) applies after the unit conversion (the schema's
+  text: "the value of source is already converted to the target unit"), so the connection is
+  end = a·(converted start) + b; with suppressUnitConversion="true" it applies instead of it.
+  Other transformations (Boolean or Integer mappings) are refused;
+* the `Connection`'s factor and offset are what the master applies on top of its own conversion
+  between the two FMUs' declared units (`cosim.systems.unit_conversion`, after the Connection's):
+  where both FMUs declare units, a pure unit conversion is the identity Connection; where one
+  declares none, the Connection holds the whole conversion (`_beyond_master`);
 * no algebraic loop: a cycle through connections and the FMUs' declared direct dependencies
-  (ModelStructure; an output that declares none depends on every input).
-
-Each failure is one SspError line naming the SSD and the connection.
+  (ModelStructure; an output that declares none depends on every input), found by
+  `system.graph.algebraic_loop`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from lxml import etree
@@ -29,12 +37,18 @@ from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError
 from toggle_cosim.ssp.fmus import FmuVariables
+from toggle_cosim.system.graph import algebraic_loop
+from toggle_cosim.system.model import Connection, Port
 
-__all__ = ["Connector", "Wire", "check_wiring", "connectors_of"]
+__all__ = ["Connector", "connectors_of", "conversion", "is_pair_loop", "meaning_of", "read_connections"]
 
 NS = layout.NAMESPACES
 BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 Meaning = tuple[float, ...]  # the SI exponents of BASE, then factor and offset
+REAL_TYPES = ("Real", "Float64", "Float32")
+# unit symbols `fmu_export.units` reads as a base unit although they are a multiple of it (g is
+# 0.001 kg, deg pi/180 rad): a unit written with one has no meaning here unless a Unit defines it
+_SCALED = re.compile(r"(^|[./])(g|deg)(-?\d+)?(?=$|[./])")
 
 
 @dataclass(frozen=True)
@@ -43,19 +57,6 @@ class Connector:
 
     kind: str
     unit: str | None
-
-
-@dataclass(frozen=True)
-class Wire:
-    """One connection, start -> end."""
-
-    start: str
-    start_connector: str
-    end: str
-    end_connector: str
-
-    def __str__(self) -> str:
-        return f"{self.start}.{self.start_connector} -> {self.end}.{self.end_connector}"
 
 
 def connectors_of(component: Element, fmu: FmuVariables, where: str) -> dict[str, Connector]:
@@ -81,7 +82,8 @@ def connectors_of(component: Element, fmu: FmuVariables, where: str) -> dict[str
     return found
 
 
-def _ssd_units(ssd: Element) -> dict[str, Meaning]:
+def ssd_units(ssd: Element) -> dict[str, Meaning]:
+    """The SSD's own Units by name."""
     units = {}
     for unit in ssd.iterfind("ssd:Units/ssc:Unit", NS):
         base = unit.find("ssc:BaseUnit", NS)
@@ -94,9 +96,13 @@ def _ssd_units(ssd: Element) -> dict[str, Meaning]:
     return units
 
 
-def _fmu_meaning(unit: str, fmu: FmuVariables) -> Meaning | None:
+def meaning_of(unit: str, fmu: FmuVariables) -> Meaning | None:
+    """What `unit` means in the FMU: its UnitDefinitions, else the unit read by its symbols
+    (`fmu_export.units`; None for one it cannot read, or one with a scaled symbol, g or deg)."""
     found = fmu.base_unit(unit)
     if found is None:
+        if _SCALED.search(unit):
+            return None
         try:
             found = {**base_exponents(unit), "factor": 1.0, "offset": 0.0}
         except UnitError:
@@ -108,6 +114,12 @@ def _fmu_meaning(unit: str, fmu: FmuVariables) -> Meaning | None:
     )
 
 
+def conversion(start: Meaning, end: Meaning) -> tuple[float, float]:
+    """(factor, offset) taking a value in unit `start` to unit `end` (the same dimension)."""
+    (f_s, o_s), (f_e, o_e) = start[-2:], end[-2:]
+    return f_s / f_e, (o_s - o_e) / f_e
+
+
 def _show(meaning: Meaning | None, name: str | None) -> str:
     if meaning is None:
         return repr(name)
@@ -116,149 +128,191 @@ def _show(meaning: Meaning | None, name: str | None) -> str:
     return f"{name!r} (= {factor:g} {powers or '1'}{f' + {offset:g}' if offset else ''})"
 
 
-def _check_units(wire: Wire, connectors, fmus, ssd_units, where: str) -> None:  # noqa: ANN001
-    meanings = []
-    for component, name in ((wire.start, wire.start_connector), (wire.end, wire.end_connector)):
-        fmu = fmus[component]
-        own = fmu.unit(name)
-        given = connectors[component][name].unit or own
-        meaning = ssd_units.get(given) if given in ssd_units else (_fmu_meaning(given, fmu) if given else None)
-        own_meaning = _fmu_meaning(own, fmu) if own else None
-        if given and own and (meaning != own_meaning if meaning and own_meaning else given != own):
+def _end_unit(
+    port: Port, connection: str, connector: Connector, fmu: FmuVariables, units: Mapping[str, Meaning], where: str
+) -> tuple[str | None, Meaning | None]:
+    """The unit a port's value has (its FMU's; the connector's where the FMU gives none) and what
+    it means; SspError if the connector's unit means another dimension than the FMU's."""
+    own = fmu.unit(port.variable)
+    given = connector.unit
+    given_meaning = (units.get(given) or meaning_of(given, fmu)) if given else None
+    own_meaning = meaning_of(own, fmu) if own else None
+    if given and own and given != own:
+        if given_meaning is None or own_meaning is None or given_meaning[:-2] != own_meaning[:-2]:
+            what = "another dimension" if given_meaning and own_meaning else "and what one means is not defined"
             raise SspError(
-                f"{where}: the connection {wire} gives {component}.{name} the unit {_show(meaning, given)}, but its "
-                f"FMU's unit is {_show(own_meaning, own)}; a unit conversion is not supported here (give the FMU's unit)"
+                f"{where}: the connection {connection} gives {port} the unit {_show(given_meaning, given)}, but its "
+                f"FMU's unit is {_show(own_meaning, own)}, {what} (give the connector the FMU's unit)"
             )
-        meanings.append((given, meaning))
-    (start, start_meaning), (end, end_meaning) = meanings
-    same = start_meaning == end_meaning if start_meaning and end_meaning else start == end
-    if start and end and not same:
-        raise SspError(
-            f"{where}: the connection {wire} joins {start} to {end}; only the identity is supported "
-            "(give both connectors the same unit)"
-        )
+    if own:
+        return own, own_meaning
+    return given, given_meaning
 
 
-def _check_transformation(connection: Element, wire: Wire, where: str) -> None:
-    for child in connection:
+def _transformation(element: Element, connection: str, where: str) -> tuple[float, float]:
+    """The connection's LinearTransformation (factor, offset); (1, 0) without one."""
+    found = (1.0, 0.0)
+    for child in element:
         kind = etree.QName(child).localname
         if kind in ("Annotations", "ConnectionGeometry"):
             continue
-        identity = kind == "LinearTransformation" and (
-            float(child.get("factor", 1)) == 1.0 and float(child.get("offset", 0)) == 0.0
+        if kind != "LinearTransformation":
+            raise SspError(
+                f"{where}: the connection {connection} has a {kind} (only a LinearTransformation is supported; "
+                "remove it)"
+            )
+        found = (float(child.get("factor", 1)), float(child.get("offset", 0)))
+    return found
+
+
+def _scaling(
+    element: Element,
+    start: Port,
+    end: Port,
+    connectors: Mapping[str, Mapping[str, Connector]],
+    fmus: Mapping[str, FmuVariables],
+    units: Mapping[str, Meaning],
+    where: str,
+) -> tuple[float, float]:
+    """(factor, offset) of one connection: its unit conversion, then its LinearTransformation."""
+    label = f"{start} -> {end}"
+    ends = [
+        _end_unit(port, label, connectors[port.component][port.variable], fmus[port.component], units, where)
+        for port in (start, end)
+    ]
+    (start_unit, start_meaning), (end_unit, end_meaning) = ends
+    factor, offset = 1.0, 0.0
+    if start_unit and end_unit:
+        if start_meaning is None or end_meaning is None:
+            if start_unit != end_unit:
+                raise SspError(
+                    f"{where}: the connection {label} joins {start_unit} to {end_unit}, and what "
+                    f"{start_unit if start_meaning is None else end_unit} means is not defined (define it in the "
+                    "SSD's Units, or give both the same unit)"
+                )
+        elif start_meaning[:-2] != end_meaning[:-2]:
+            raise SspError(
+                f"{where}: the connection {label} joins {start_unit} to {end_unit}, units of different dimensions "
+                f"({_show(start_meaning, start_unit)}, {_show(end_meaning, end_unit)}; connect a variable of the "
+                "same dimension)"
+            )
+        else:
+            factor, offset = conversion(start_meaning, end_meaning)
+    a, b = _transformation(element, label, where)
+    if element.get("suppressUnitConversion", "false") in ("true", "1"):
+        total = (a, b)
+    elif (a, b) == (1.0, 0.0):
+        total = (factor, offset)
+    else:
+        total = (a * factor, a * offset + b)
+    return _beyond_master(total, (factor, offset), start, end, fmus, label, where)
+
+
+def _beyond_master(
+    total: tuple[float, float],
+    units: tuple[float, float],
+    start: Port,
+    end: Port,
+    fmus: Mapping[str, FmuVariables],
+    label: str,
+    where: str,
+) -> tuple[float, float]:
+    """The Connection's factor and offset: what remains of the SSD's `total` once the master's own
+    conversion between the two FMUs' units (`cosim.systems.unit_conversion`, applied after the
+    Connection's) is taken out; `units` is the SSD's unit conversion (the master's, where both FMUs
+    declare their units, and then a pure unit conversion leaves the identity)."""
+    from toggle_cosim.cosim.systems import SystemError_, unit_conversion
+
+    connection = Connection(start, end)
+    try:
+        master = unit_conversion(
+            connection,
+            (fmus[start.component].unit(start.variable), fmus[start.component].model_description),
+            (fmus[end.component].unit(end.variable), fmus[end.component].model_description),
         )
-        if not identity:
-            raise SspError(
-                f"{where}: the connection {wire} has a {kind} that is not the identity (not supported; remove it)"
-            )
+    except SystemError_ as error:
+        raise SspError(f"{where}: {error}") from None
+    if master is None:
+        return total
+    f, o = master
+    if total == units == master:
+        return 1.0, 0.0
+    return total[0] / f, (total[1] - o) / f
 
 
-def _wires(ssd: Element, connectors, where: str) -> list[Wire]:  # noqa: ANN001
-    wires = []
-    for connection in ssd.iterfind("ssd:System/ssd:Connections/ssd:Connection", NS):
-        ends = []
-        for side in ("start", "end"):
-            element, connector = connection.get(f"{side}Element"), connection.get(f"{side}Connector")
-            if element is None:
-                raise SspError(
-                    f"{where}: a connection to the system's own connector {connector!r} (system-level connectors "
-                    "are not supported; connect the components directly)"
-                )
-            if element not in connectors:
-                raise SspError(
-                    f"{where}: a connection names the component {element!r}, which does not exist "
-                    f"(choose one of {', '.join(connectors)})"
-                )
-            if connector not in connectors[element]:
-                raise SspError(
-                    f"{where}: a connection names the connector {element}.{connector}, which the component does "
-                    "not declare (declare it in its Connectors or fix the name)"
-                )
-            ends.append((element, connector))
-        wire = Wire(*ends[0], *ends[1])
-        kinds = (connectors[wire.start][wire.start_connector].kind, connectors[wire.end][wire.end_connector].kind)
-        if kinds != ("output", "input"):
-            raise SspError(
-                f"{where}: the connection {wire} runs from a connector of kind {kinds[0]} to one of kind {kinds[1]} "
-                "(a connection runs from an output to an input)"
-            )
-        _check_transformation(connection, wire, where)
-        wires.append(wire)
-    return wires
+def _port(element: Element, side: str, connectors, fmus, where: str) -> Port:  # noqa: ANN001
+    component, connector = element.get(f"{side}Element"), element.get(f"{side}Connector")
+    if component is None:
+        raise SspError(
+            f"{where}: a connection to the system's own connector {connector!r} (system-level connectors "
+            "are not supported; connect the components directly)"
+        )
+    if component not in connectors:
+        raise SspError(
+            f"{where}: a connection names the component {component!r}, which does not exist "
+            f"(choose one of {', '.join(connectors)})"
+        )
+    if connector not in connectors[component]:
+        raise SspError(
+            f"{where}: a connection names the connector {component}.{connector}, which the component does "
+            "not declare (declare it in its Connectors or fix the name)"
+        )
+    return Port(component, connector)
 
 
-def _loop(wires: list[Wire], fmus: Mapping[str, FmuVariables]) -> list[str] | None:
-    """A cycle through the connections and the FMUs' direct dependencies, as names, or None."""
-    edges: dict[str, list[str]] = {}
-    for wire in wires:
-        edges.setdefault(f"{wire.start}.{wire.start_connector}", []).append(f"{wire.end}.{wire.end_connector}")
-    for component, fmu in fmus.items():
-        inputs = fmu.inputs()
-        for unknown in getattr(fmu.model_description, "outputs", None) or ():
-            depends = inputs if unknown.dependencies is None else [v.name for v in unknown.dependencies]
-            for name in depends:
-                if name in inputs:
-                    edges.setdefault(f"{component}.{name}", []).append(f"{component}.{unknown.variable.name}")
-    state: dict[str, int] = {}  # 1: on the path, 2: done
-    path: list[str] = []
-
-    def visit(node: str) -> list[str] | None:
-        state[node] = 1
-        path.append(node)
-        for following in edges.get(node, ()):
-            if state.get(following) == 1:
-                return [*path[path.index(following) :], following]
-            if following not in state:
-                found = visit(following)
-                if found:
-                    return found
-        path.pop()
-        state[node] = 2
-        return None
-
-    for node in list(edges):
-        if node not in state:
-            found = visit(node)
-            if found:
-                return found
-    return None
-
-
-def check_wiring(
+def read_connections(
     ssd: Element,
     where: str,
-    plant: str,
-    controller: str,
     fmus: Mapping[str, FmuVariables],
     connectors: Mapping[str, Mapping[str, Connector]],
-) -> None:
-    """SspError unless the SSD's connections are exactly the loop our master runs (module doc)."""
-    wires = _wires(ssd, connectors, where)
-    loop = _loop(wires, fmus)
+) -> tuple[Connection, ...]:
+    """Every connection of the SSD in document order, checked (module docstring), with the factor
+    and offset of its unit conversion and LinearTransformation."""
+    ends: list[tuple[Element, Port, Port]] = []
+    for element in ssd.iterfind("ssd:System/ssd:Connections/ssd:Connection", NS):
+        start = _port(element, "start", connectors, fmus, where)
+        end = _port(element, "end", connectors, fmus, where)
+        label = f"{start} -> {end}"
+        kinds = (connectors[start.component][start.variable].kind, connectors[end.component][end.variable].kind)
+        if kinds != ("output", "input"):
+            raise SspError(
+                f"{where}: the connection {label} runs from a connector of kind {kinds[0]} to one of kind "
+                f"{kinds[1]} (a connection runs from an output to an input)"
+            )
+        for port in (start, end):
+            kind = fmus[port.component].variable(port.variable).type
+            if kind not in REAL_TYPES:
+                raise SspError(
+                    f"{where}: the connection {label} joins {port}, a {kind} variable (connections here join "
+                    "Real inputs and outputs; remove it)"
+                )
+        ends.append((element, start, end))
+    plain = [Connection(start, end) for _, start, end in ends]
+    loop = algebraic_loop(plain, {name: fmu.interface() for name, fmu in fmus.items()})
     if loop is not None:
         raise SspError(
             f"{where}: an algebraic loop {' -> '.join(loop)} (through the connections and the FMUs' direct "
             "dependencies; break it)"
         )
-    units = _ssd_units(ssd)
-    for wire in wires:
-        _check_units(wire, connectors, fmus, units, where)
-    expected = [Wire(plant, name, controller, name) for name in fmus[controller].inputs()]
-    expected.append(Wire(controller, layout.COMMAND, plant, layout.COMMAND))
-    ends: dict[tuple[str, str], Wire] = {}
-    for wire in wires:
-        twice = ends.setdefault((wire.end, wire.end_connector), wire)
-        if twice != wire:
-            raise SspError(f"{where}: the connections {twice} and {wire} both drive {wire.end}.{wire.end_connector}")
-        if wire not in expected:
-            raise SspError(
-                f"{where}: the connection {wire} is not a wiring our master runs (it connects each controller "
-                f"input to the plant output of that name and {controller}.{layout.COMMAND} to "
-                f"{plant}.{layout.COMMAND}; remove or fix it)"
-            )
-    missing = [wire for wire in expected if wire not in wires]
-    if missing:
-        raise SspError(
-            f"{where}: no connection {missing[0]} (our master runs the plant and controller only as the loop "
-            f"these connections make; add {'it' if len(missing) == 1 else f'the {len(missing)} missing'})"
-        )
+    driven: dict[Port, str] = {}
+    for _, start, end in ends:
+        if end in driven:
+            raise SspError(f"{where}: the connections {driven[end]} and {start} -> {end} both drive {end}")
+        driven[end] = f"{start} -> {end}"
+    units = ssd_units(ssd)
+    found = []
+    for element, start, end in ends:
+        factor, offset = _scaling(element, start, end, connectors, fmus, units, where)
+        found.append(Connection(start, end, factor, offset))
+    return tuple(found)
+
+
+def is_pair_loop(
+    connections: Sequence[Connection], plant: str, controller: str, fmus: Mapping[str, FmuVariables]
+) -> bool:
+    """Whether the connections are exactly the loop our master runs for a plant and a controller,
+    in any order and each the identity: every controller input (`FmuVariables.inputs`) from the
+    plant output of its name, and the controller's iq_ref to the plant's iq_ref."""
+    expected = {Connection(Port(plant, name), Port(controller, name)) for name in fmus[controller].inputs()}
+    expected.add(Connection(Port(controller, layout.COMMAND), Port(plant, layout.COMMAND)))
+    return len(connections) == len(expected) and set(connections) == expected

@@ -32,6 +32,7 @@ from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError, schema_problem
 from toggle_cosim.ssp.fmus import FmuVariables, describe
+from toggle_cosim.system.model import Connection, Port, Wiring
 
 __all__ = ["ParameterSet", "controller_values", "parameter_sets", "write_ssp"]
 
@@ -130,6 +131,67 @@ def _connectors(component: Element, names: Sequence[str], variables: FmuVariable
     return units
 
 
+def _system_components(
+    wiring: Wiring, plant: FmuVariables, controller: FmuVariables, parts: Mapping[str, FmuVariables]
+) -> tuple[list[tuple[str, FmuVariables, list[str]]], list[Connection]]:
+    """The components of a system (plant, controller, parts in order) with the connectors each
+    gets (every connected variable; the plant's F_E too, which its parameter set gives), and the
+    connections (the pair's wiring when the system gives none)."""
+    variables = {wiring.plant: plant, wiring.controller: controller, **{p.name: parts[p.name] for p in wiring.parts}}
+    if wiring.connections is None:
+        inputs = controller.inputs()
+        connections = [Connection(Port(wiring.plant, s), Port(wiring.controller, s)) for s in inputs]
+        connections.append(Connection(Port(wiring.controller, layout.COMMAND), Port(wiring.plant, layout.COMMAND)))
+    else:
+        connections = list(wiring.connections)
+    connectors: dict[str, list[str]] = {name: [] for name in variables}
+    for connection in connections:
+        for port in (connection.start, connection.end):
+            if port.component not in variables:
+                raise SspError(
+                    f"the connection {connection} names the component {port.component!r}, which the system does not "
+                    f"have (its components: {', '.join(variables)})"
+                )
+            variables[port.component].variable(port.variable)
+            if port.variable not in connectors[port.component]:
+                connectors[port.component].append(port.variable)
+    if layout.EXTERNAL_FORCE not in connectors[wiring.plant] and layout.EXTERNAL_FORCE in plant.variables:
+        connectors[wiring.plant].append(layout.EXTERNAL_FORCE)
+    return [(name, variables[name], connectors[name]) for name in variables], connections
+
+
+def _transformation(wire: Element, connection: Connection, variables: Mapping[str, FmuVariables]) -> None:
+    """The SSD form of a connection's factor and offset. Our master converts between the two
+    FMUs' units itself, after the connection's factor and offset (`cosim.systems.unit_conversion`):
+    where it would, the SSD says the whole conversion as a LinearTransformation with
+    suppressUnitConversion="true" (so a master that ignores units, libcosim, runs it alike); else
+    a non-identity connection is a LinearTransformation (the reader reads either back)."""
+    from toggle_cosim.cosim.systems import SystemError_, unit_conversion
+
+    start, end = variables[connection.start.component], variables[connection.end.component]
+    try:
+        master = unit_conversion(
+            connection,
+            (start.unit(connection.start.variable), start.model_description),
+            (end.unit(connection.end.variable), end.model_description),
+        )
+    except SystemError_ as error:
+        raise SspError(str(error)) from None
+    if master is None:
+        factor, offset = connection.factor, connection.offset
+    else:
+        f, o = master
+        factor, offset = f * connection.factor, f * connection.offset + o
+        wire.set("suppressUnitConversion", "true")
+    if (factor, offset) != (1.0, 0.0):
+        attributes = {}
+        if factor != 1.0:
+            attributes["factor"] = repr(float(factor))
+        if offset != 0.0:
+            attributes["offset"] = repr(float(offset))
+        etree.SubElement(wire, _q(layout.SSC_NS, "LinearTransformation"), attributes)
+
+
 def _document(run: Run) -> dict[str, Any]:
     """The scenario document of one run: its resolved keys (the variant applied), without the
     scenario's own fmu (the SSP holds the plant)."""
@@ -137,10 +199,17 @@ def _document(run: Run) -> dict[str, Any]:
 
 
 def system_structure(
-    scenario: str, parameter_set: ParameterSet, plant: FmuVariables, controller: FmuVariables, fmus: Mapping[str, str]
+    scenario: str,
+    parameter_set: ParameterSet,
+    plant: FmuVariables,
+    controller: FmuVariables,
+    fmus: Mapping[str, str],
+    parts: Mapping[str, FmuVariables] | None = None,
 ) -> Element:
-    """The root SSD of one variant: `fmus` maps each component to its FMU's member name; each
-    component binds that variant's .ssv, and nothing else."""
+    """The root SSD of one variant: `fmus` maps each component to its FMU's member name, `parts`
+    each part of the run's system to its FMU's variables; each component binds that variant's
+    .ssv, and nothing else. A run whose system has parts or connections of its own gets every
+    component, connectors for each connected variable and its connections (`_transformation`)."""
     run = parameter_set.run
     root = etree.Element(
         _q(layout.SSD_NS, "SystemStructureDescription"),
@@ -154,16 +223,20 @@ def system_structure(
     if run.description:
         system.set("description", run.description)
     elements = etree.SubElement(system, _q(layout.SSD_NS, "Elements"))
-    inputs = controller.inputs()
-    connections = [(layout.PLANT, signal, layout.CONTROLLER, signal) for signal in inputs]
-    connections.append((layout.CONTROLLER, layout.COMMAND, layout.PLANT, layout.COMMAND))
-    plant_connectors = [*inputs, layout.COMMAND, layout.EXTERNAL_FORCE]
-    controller_connectors = [*inputs, layout.COMMAND]
+    wiring = run.system
+    if wiring.parts or wiring.connections is not None:
+        components, connections = _system_components(wiring, plant, controller, parts or {})
+    else:  # the plain pair
+        inputs = controller.inputs()
+        connections = [Connection(Port(layout.PLANT, signal), Port(layout.CONTROLLER, signal)) for signal in inputs]
+        connections.append(Connection(Port(layout.CONTROLLER, layout.COMMAND), Port(layout.PLANT, layout.COMMAND)))
+        components = [
+            (layout.PLANT, plant, [*inputs, layout.COMMAND, layout.EXTERNAL_FORCE]),
+            (layout.CONTROLLER, controller, [*inputs, layout.COMMAND]),
+        ]
+    variables_of = {component: variables for component, variables, _ in components}
     units: set[str] = set()
-    for component, variables, connectors in (
-        (layout.PLANT, plant, plant_connectors),
-        (layout.CONTROLLER, controller, controller_connectors),
-    ):
+    for component, variables, connectors in components:
         element = etree.SubElement(
             elements,
             _q(layout.SSD_NS, "Component"),
@@ -180,19 +253,20 @@ def system_structure(
             source=layout.ssv_member(parameter_set.name, component),
         )
     wires = etree.SubElement(system, _q(layout.SSD_NS, "Connections"))
-    for start, start_connector, end, end_connector in connections:
-        etree.SubElement(
+    for connection in connections:
+        wire = etree.SubElement(
             wires,
             _q(layout.SSD_NS, "Connection"),
-            startElement=start,
-            startConnector=start_connector,
-            endElement=end,
-            endConnector=end_connector,
+            startElement=connection.start.component,
+            startConnector=connection.start.variable,
+            endElement=connection.end.component,
+            endConnector=connection.end.variable,
         )
+        _transformation(wire, connection, variables_of)
     if units:
         unit_list = etree.SubElement(root, _q(layout.SSD_NS, "Units"))
         for unit in sorted(units):
-            _unit_element(unit_list, unit, (plant, controller))
+            _unit_element(unit_list, unit, tuple(variables_of.values()))
         if len(unit_list) == 0:
             root.remove(unit_list)
     default = etree.SubElement(root, _q(layout.SSD_NS, "DefaultExperiment"), startTime="0.0", stopTime=repr(run.t_end))
@@ -302,23 +376,31 @@ def _chosen(path: Path, runs: list[Run], variants: Sequence[str]) -> list[Run]:
 
 
 def write_ssp(
-    scenario: Path, output: Path, plant_fmu: Path | None, controller_fmu: Path, variants: Sequence[str] = ()
+    scenario: Path,
+    output: Path,
+    plant_fmu: Path | None,
+    controller_fmu: Path,
+    variants: Sequence[str] = (),
+    runs: Sequence[Run] | None = None,
 ) -> Path:
     """Write the SSP of `scenario` to `output` (whole or not at all) and return `output`.
 
     `plant_fmu`: the plant (None: the scenario's fmu: key); `variants`: the variants to write, the
-    first as SystemStructure.ssd (none: every variant in the scenario's order). Raises ScenarioError for a scenario
+    first as SystemStructure.ssd (none: every variant in the scenario's order); `runs`: the
+    scenario's runs as already loaded (None: loaded from `scenario`). A run's system (`Run.system`:
+    parts, connections) is written as it is; its `record` list is no part of an SSD. Raises ScenarioError for a scenario
     that `run` refuses, SspError (one line) for anything else an SSP cannot be made from."""
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     scenario = Path(scenario)
-    try:
-        runs = load_scenario(scenario)
-    except ScenarioError:
-        _refuse_sweep(scenario)  # a sweep file is no scenario: say what it is
-        raise
-    runs = _chosen(scenario, runs, variants)
+    if runs is None:
+        try:
+            runs = load_scenario(scenario)
+        except ScenarioError:
+            _refuse_sweep(scenario)  # a sweep file is no scenario: say what it is
+            raise
+    runs = _chosen(scenario, list(runs), variants)
     refuse_unwritable(scenario, runs)
     chosen = plant_fmu if plant_fmu is not None else runs[0].fmu
     if chosen is None:
@@ -342,24 +424,86 @@ def write_ssp(
             (layout.CONTROLLER, parameter_set.controller, controller_variables),
         ):
             variables.check_parameters(values, component, f"the {component}'s parameter set {parameter_set.name!r}")
+    parts = _part_variables(scenario, runs)
     fmus = {layout.PLANT: plant.path, layout.CONTROLLER: Path(controller_fmu)}
     members = {component: layout.fmu_member(path.name) for component, path in fmus.items()}
     if members[layout.PLANT] == members[layout.CONTROLLER]:
         members[layout.CONTROLLER] = layout.fmu_member(f"{layout.CONTROLLER}_{fmus[layout.CONTROLLER].name}")
+    part_members = _part_members(runs, members, fmus)
     texts = {}
     for member, parameter_set in zip(variant_members(scenario, sets), sets, strict=True):
-        ssd = system_structure(runs[0].scenario, parameter_set, plant_variables, controller_variables, members)
+        wiring = parameter_set.run.system
+        named = {
+            wiring.plant: members[layout.PLANT],
+            wiring.controller: members[layout.CONTROLLER],
+            **{part.name: part_members[part.fmu] for part in wiring.parts},
+        }
+        try:
+            ssd = system_structure(
+                runs[0].scenario,
+                parameter_set,
+                plant_variables,
+                controller_variables,
+                named,
+                {part.name: parts[part.fmu] for part in wiring.parts},
+            )
+        except SspError as error:
+            raise SspError(f"{scenario}: variant {parameter_set.name}: {error}") from None
         texts[member] = _checked(ssd, "ssd", member)
         for component, values, variables in (
-            (layout.PLANT, parameter_set.plant, plant_variables),
-            (layout.CONTROLLER, parameter_set.controller, controller_variables),
+            (wiring.plant, parameter_set.plant, plant_variables),
+            (wiring.controller, parameter_set.controller, controller_variables),
+            *((part.name, part.values, parts[part.fmu]) for part in wiring.parts),
         ):
             member = layout.ssv_member(parameter_set.name, component)
             texts[member] = _checked(_ssv(parameter_set.name, values, variables), "ssv", member)
+    stored = {members[component]: path for component, path in fmus.items()}
+    stored.update({member: path for path, member in part_members.items()})
     with replacing(output, "SSP (--out)", kind=SSP) as temporary:
         with zipfile.ZipFile(temporary, "w", compression=zipfile.ZIP_DEFLATED) as archive:
             for member, text in texts.items():
                 archive.writestr(member, text)
-            for component, path in fmus.items():  # an FMU is a zip already: stored as it is
-                archive.write(path, members[component], compress_type=zipfile.ZIP_STORED)
+            for member, path in stored.items():  # an FMU is a zip already: stored as it is
+                archive.write(path, member, compress_type=zipfile.ZIP_STORED)
     return Path(output)
+
+
+def _part_variables(scenario: Path, runs: Sequence[Run]) -> dict[Path, FmuVariables]:
+    """Each part FMU of the runs' systems, read once; every part's values checked against it."""
+    found: dict[Path, FmuVariables] = {}
+    for run in runs:
+        names = {run.system.plant, run.system.controller}
+        for part in run.system.parts:
+            if part.name in names:
+                raise SspError(f"{scenario}: two components are named {part.name!r} (give each its own name)")
+            names.add(part.name)
+            if part.fmu not in found:
+                if not Path(part.fmu).is_file():
+                    raise SspError(
+                        f"{scenario}: key components.{part.name}.fmu: no FMU at {part.fmu} (build it, or fix the path)"
+                    )
+                found[part.fmu] = describe(Path(part.fmu), "part")
+                if getattr(found[part.fmu].model_description, "coSimulation", None) is None:
+                    raise SspError(
+                        f"{scenario}: key components.{part.name}.fmu: {part.fmu} has no Co-Simulation interface "
+                        "(an SSP's components run as Co-Simulation FMUs; export it for Co-Simulation)"
+                    )
+            found[part.fmu].check_parameters(part.values, f"part {part.name!r}", part.source or str(scenario))
+    return found
+
+
+def _part_members(runs: Sequence[Run], members: Mapping[str, str], fmus: Mapping[str, Path]) -> dict[Path, str]:
+    """The archive member of each part FMU: resources/<its file name>, or <part>_<file name>
+    where another FMU has that name (one member per file: parts of one FMU share it)."""
+    taken = {member: path for member, path in zip(members.values(), fmus.values(), strict=True)}
+    found: dict[Path, str] = {}
+    for run in runs:
+        for part in run.system.parts:
+            if part.fmu in found:
+                continue
+            member = layout.fmu_member(Path(part.fmu).name)
+            if taken.get(member, part.fmu) != part.fmu:
+                member = layout.fmu_member(f"{part.name}_{Path(part.fmu).name}")
+            taken[member] = part.fmu
+            found[part.fmu] = member
+    return found
