@@ -36,11 +36,11 @@ from toggle_cosim.plant.fmi_calls import (
     logger3,
     quiet,
 )
+from toggle_cosim.system.interfaces import fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
-__all__ = ["ControllerSlave", "FmuSlave", "Slave", "SlaveError", "fmu_interface"]
+__all__ = ["ControllerSlave", "FmuSlave", "Slave", "SlaveError"]
 
-_REAL = ("Real", "Float64")
 _SETTERS = {
     "Real": "setReal",
     "Float64": "setFloat64",
@@ -68,33 +68,6 @@ class Slave(Protocol):
     def get(self, values: Any, t: float) -> None: ...
     def do_step(self, t: float, h: float) -> None: ...
     def close(self) -> None: ...
-
-
-def _unit(variable: Any) -> str | None:
-    if getattr(variable, "unit", None):
-        return variable.unit
-    declared = getattr(variable, "declaredType", None)
-    return getattr(declared, "unit", None) or None
-
-
-def fmu_interface(description: Any, observed: Sequence[str] = ()) -> Interface:
-    """An FMU's Real inputs and outputs (then `observed`, other variables read as outputs), each
-    output's direct dependencies on inputs from its ModelStructure (none declared: every input),
-    and the units."""
-    variables = {v.name: v for v in description.modelVariables}
-    inputs = tuple(v.name for v in description.modelVariables if v.causality == "input" and v.type in _REAL)
-    outputs = tuple(v.name for v in description.modelVariables if v.causality == "output" and v.type in _REAL)
-    depends: dict[str, tuple[str, ...]] = {}
-    declared = {unknown.variable.name: unknown for unknown in getattr(description, "outputs", None) or ()}
-    for name in outputs:
-        unknown = declared.get(name)
-        if unknown is None or unknown.dependencies is None:
-            depends[name] = inputs
-        else:
-            depends[name] = tuple(v.name for v in unknown.dependencies if v.name in inputs)
-    extra = tuple(name for name in observed if name not in outputs and name not in inputs and name in variables)
-    units = {name: _unit(variables[name]) for name in (*inputs, *outputs, *extra)}
-    return Interface(inputs, (*outputs, *extra), depends, units)
 
 
 class FmuSlave:

@@ -46,7 +46,6 @@ from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.cosim.system_loop import FMI_FAILED, SystemLoop, compiled_system
 from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.files.traces import Trace
-from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.plant.controller_contract import check_controller_fmu
@@ -54,11 +53,11 @@ from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
 from toggle_cosim.system.model import Connection, Interface, Port, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
+from toggle_cosim.system.units import BASE, conversion, unit_meaning
 
 __all__ = ["SystemError_", "Assembly", "assemble", "simulate_system", "system_columns", "unit_conversion"]
 
 COMMAND = "iq_ref"
-_BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
 class SystemError_(ValueError):  # noqa: N801 - `SystemError` is a builtin
@@ -82,24 +81,6 @@ class Assembly:
             slave.close()
 
 
-def _meaning(unit: str, description: Any) -> tuple[float, ...] | None:
-    """(SI exponents of _BASE, factor, offset) of an FMU unit: its UnitDefinitions, else the
-    Modelica unit grammar (factor 1); None when unknown."""
-    for definition in getattr(description, "unitDefinitions", None) or ():
-        if definition.name == unit and definition.baseUnit is not None:
-            base = definition.baseUnit
-            return (
-                *(float(getattr(base, key, 0) or 0) for key in _BASE),
-                float(base.factor if base.factor is not None else 1.0),
-                float(base.offset or 0.0),
-            )
-    try:
-        exponents = base_exponents(unit)
-    except UnitError:
-        return None
-    return (*(float(exponents.get(key, 0)) for key in _BASE), 1.0, 0.0)
-
-
 def unit_conversion(
     connection: Connection, start: tuple[str | None, Any], end: tuple[str | None, Any]
 ) -> tuple[float, float] | None:
@@ -109,22 +90,21 @@ def unit_conversion(
     (unit_s, desc_s), (unit_e, desc_e) = start, end
     if not unit_s or not unit_e or unit_s == unit_e:
         return None
-    m_s, m_e = _meaning(unit_s, desc_s), _meaning(unit_e, desc_e)
+    m_s, m_e = unit_meaning(unit_s, desc_s), unit_meaning(unit_e, desc_e)
     if m_s is None or m_e is None:
         unknown = unit_s if m_s is None else unit_e
         raise SystemError_(
             f"the connection {connection} joins the units {unit_s!r} and {unit_e!r}, and {unknown!r} is not defined "
             "(declare it in the FMU's UnitDefinitions or connect variables of the same unit)"
         )
-    if m_s[: len(_BASE)] != m_e[: len(_BASE)]:
+    if m_s[: len(BASE)] != m_e[: len(BASE)]:
         raise SystemError_(
             f"the connection {connection} joins {unit_s!r} to {unit_e!r}, of different dimensions (connect "
             "variables of the same quantity)"
         )
-    (f_s, o_s), (f_e, o_e) = m_s[-2:], m_e[-2:]
-    if f_s == f_e and o_s == o_e:
+    if m_s[-2:] == m_e[-2:]:
         return None
-    return f_s / f_e, (o_s - o_e) / f_e
+    return conversion(m_s, m_e)
 
 
 def pair_connections(wiring: Wiring, controller_inputs: Sequence[str]) -> tuple[Connection, ...]:

@@ -13,6 +13,7 @@ from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.plant.contract import declared_unit
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import SspError
+from toggle_cosim.system.interfaces import fmu_interface
 from toggle_cosim.system.model import Interface
 
 __all__ = ["FmuVariables", "describe"]
@@ -59,17 +60,8 @@ class FmuVariables:
         return None
 
     def interface(self) -> Interface:
-        """The FMU's connectors as the system sees them: every input and output, each output's
-        direct dependencies from its ModelStructure (an output that declares none depends on
-        every input), the declared units."""
-        inputs = tuple(v.name for v in self.model_description.modelVariables if v.causality == "input")
-        outputs = tuple(v.name for v in self.model_description.modelVariables if v.causality == "output")
-        depends = {name: inputs for name in outputs}
-        for unknown in getattr(self.model_description, "outputs", None) or ():
-            if unknown.dependencies is not None:
-                depends[unknown.variable.name] = tuple(v.name for v in unknown.dependencies if v.name in inputs)
-        units = {name: self.unit(name) for name in (*inputs, *outputs)}
-        return Interface(inputs, outputs, depends, units)
+        """The FMU's connectors as the system sees them (`system.interfaces.fmu_interface`)."""
+        return fmu_interface(self.model_description)
 
     def inputs(self) -> list[str]:
         """The FMU's inputs another FMU drives, in model-description order: all but the built-in

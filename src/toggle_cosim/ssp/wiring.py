@@ -27,28 +27,22 @@ Each connection is checked, one SspError line naming the SSD and the connection:
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from lxml import etree
 
-from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError
 from toggle_cosim.ssp.fmus import FmuVariables
 from toggle_cosim.system.graph import algebraic_loop
 from toggle_cosim.system.model import Connection, Port
+from toggle_cosim.system.units import BASE, Meaning, conversion, unit_meaning
 
 __all__ = ["Connector", "connectors_of", "conversion", "is_pair_loop", "meaning_of", "read_connections"]
 
 NS = layout.NAMESPACES
-BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-Meaning = tuple[float, ...]  # the SI exponents of BASE, then factor and offset
 REAL_TYPES = ("Real", "Float64", "Float32")
-# unit symbols `fmu_export.units` reads as a base unit although they are a multiple of it (g is
-# 0.001 kg, deg pi/180 rad): a unit written with one has no meaning here unless a Unit defines it
-_SCALED = re.compile(r"(^|[./])(g|deg)(-?\d+)?(?=$|[./])")
 
 
 @dataclass(frozen=True)
@@ -97,27 +91,8 @@ def ssd_units(ssd: Element) -> dict[str, Meaning]:
 
 
 def meaning_of(unit: str, fmu: FmuVariables) -> Meaning | None:
-    """What `unit` means in the FMU: its UnitDefinitions, else the unit read by its symbols
-    (`fmu_export.units`; None for one it cannot read, or one with a scaled symbol, g or deg)."""
-    found = fmu.base_unit(unit)
-    if found is None:
-        if _SCALED.search(unit):
-            return None
-        try:
-            found = {**base_exponents(unit), "factor": 1.0, "offset": 0.0}
-        except UnitError:
-            return None
-    return (
-        *(float(found.get(key) or 0) for key in BASE),
-        float(found.get("factor") if found.get("factor") is not None else 1),
-        float(found.get("offset") or 0),
-    )
-
-
-def conversion(start: Meaning, end: Meaning) -> tuple[float, float]:
-    """(factor, offset) taking a value in unit `start` to unit `end` (the same dimension)."""
-    (f_s, o_s), (f_e, o_e) = start[-2:], end[-2:]
-    return f_s / f_e, (o_s - o_e) / f_e
+    """What `unit` means in the FMU (`system.units.unit_meaning`)."""
+    return unit_meaning(unit, fmu.model_description)
 
 
 def _show(meaning: Meaning | None, name: str | None) -> str:

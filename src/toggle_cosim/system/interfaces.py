@@ -1,0 +1,43 @@
+"""An FMU's connectors as a system sees them (`fmu_interface`): read from its model description
+(fmpy's), the one definition that the master's slaves (`cosim.slaves`) and the SSP reader
+(`ssp.fmus`) both use. Nothing is loaded."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from toggle_cosim.system.model import Interface
+
+__all__ = ["REAL_TYPES", "fmu_interface", "variable_unit"]
+
+REAL_TYPES = ("Real", "Float64", "Float32")
+
+
+def variable_unit(variable: Any) -> str | None:
+    """A model variable's unit: its own, else its declared type's; None if neither."""
+    if getattr(variable, "unit", None):
+        return variable.unit
+    declared = getattr(variable, "declaredType", None)
+    return getattr(declared, "unit", None) or None
+
+
+def fmu_interface(description: Any, observed: Sequence[str] = ()) -> Interface:
+    """An FMU's Real inputs and outputs (then `observed`: other variables read as outputs, those
+    it has), each output's direct dependencies on inputs from its ModelStructure (an output that
+    declares none depends on every input), and the units."""
+    variables = {v.name: v for v in description.modelVariables}
+    real = [v for v in description.modelVariables if v.type in REAL_TYPES]
+    inputs = tuple(v.name for v in real if v.causality == "input")
+    outputs = tuple(v.name for v in real if v.causality == "output")
+    depends: dict[str, tuple[str, ...]] = {}
+    declared = {unknown.variable.name: unknown for unknown in getattr(description, "outputs", None) or ()}
+    for name in outputs:
+        unknown = declared.get(name)
+        if unknown is None or unknown.dependencies is None:
+            depends[name] = inputs
+        else:
+            depends[name] = tuple(v.name for v in unknown.dependencies if v.name in inputs)
+    extra = tuple(name for name in observed if name not in outputs and name not in inputs and name in variables)
+    units = {name: variable_unit(variables[name]) for name in (*inputs, *outputs, *extra)}
+    return Interface(inputs, (*outputs, *extra), depends, units)
