@@ -13,8 +13,8 @@ FMUs loaded, their values set, one initialisation pass) and stepped over fig4_no
 * the press: examples/press_system/press.yaml's four FMUs (the plant, its sensor and die-load
   models built here, the controller as ToggleVSC), 5000 samples.
 
-Each is timed per sample in the compiled system loop (`SystemLoop.run`, the trace recorded; the
-FMUs' debug logging off, and for the first two also on) and in the master's Python execution of
+Each is timed per sample in the compiled system loop (`SystemLoop.run`, the trace recorded; each
+FMU logging only its non-OK statuses, as the master sets it) and in the master's Python execution of
 the same plan (`Execution.advance`; its trace must equal the loop's bit for bit). Against what the
 FMUs cost from C: for the first two `system_master.c`, a plain C master of the same FMUs compiled
 here (dlopen, instantiate, initialise, per sample get/set/doStep, a row recorded; no Python, no
@@ -68,10 +68,9 @@ def fig4_with(controller: Path, plant, monitor: bool):  # noqa: ANN001, ANN201 -
     return dataclasses.replace(run, system=dataclasses.replace(wiring, connections=connections))
 
 
-def _assembled(run, plant, logging: bool):  # noqa: ANN001, ANN202 - (Assembly, Execution, trace)
-    """The run's system assembled and initialised by the master; without `logging`, each FMU's
-    debug logging then switched off (fmi2SetDebugLogging / fmi3SetDebugLogging: the plant's
-    shell logs every doStep, through fmpy's Python callback, while it is on)."""
+def _assembled(run, plant):  # noqa: ANN001, ANN202 - (Assembly, Execution, trace)
+    """The run's system assembled and initialised by the master (each FMU logging only its
+    non-OK statuses, as `cosim.slaves.FmuSlave` sets it)."""
     assembly = assemble(run, plant)
     n = run.steps
     trace = np.full((n + 1, len(assembly.plan.names)), np.nan)
@@ -79,17 +78,12 @@ def _assembled(run, plant, logging: bool):  # noqa: ANN001, ANN202 - (Assembly, 
         assembly.plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [TraceObserver(assembly.plan, trace)]
     )
     execution.initialize()
-    if not logging:
-        for slave in assembly.slaves:
-            fmpy_slave = getattr(slave, "_slave", None)  # a benchmark's reach into cosim.slaves.FmuSlave
-            if fmpy_slave is not None:
-                fmpy_slave.setDebugLogging(False, [])
     return assembly, execution, trace
 
 
-def compiled_run(run, plant, logging: bool) -> tuple[float, np.ndarray, tuple[str, ...]]:  # noqa: ANN001
+def compiled_run(run, plant) -> tuple[float, np.ndarray, tuple[str, ...]]:  # noqa: ANN001
     """Seconds per sample of the system in the compiled system loop, its trace and column names."""
-    assembly, _, trace = _assembled(run, plant, logging)
+    assembly, _, trace = _assembled(run, plant)
     try:
         n = run.steps
         loop = SystemLoop(
@@ -105,9 +99,9 @@ def compiled_run(run, plant, logging: bool) -> tuple[float, np.ndarray, tuple[st
         assembly.close()
 
 
-def python_run(run, plant, logging: bool) -> tuple[float, np.ndarray]:  # noqa: ANN001
+def python_run(run, plant) -> tuple[float, np.ndarray]:  # noqa: ANN001
     """Seconds per sample of the same system in the master's Python execution, and its trace."""
-    assembly, execution, trace = _assembled(run, plant, logging)
+    assembly, execution, trace = _assembled(run, plant)
     try:
         t0 = time.perf_counter()
         execution.advance(0, run.steps + 1)
@@ -174,7 +168,7 @@ def replayed(run, plant, library: ctypes.CDLL, trace: np.ndarray, names: tuple[s
     """Seconds per sample of the system's FMUs' own calls from C, each FMU replayed alone on a fresh
     instance with the inputs the system run recorded (`trace`, `names`), summed; and whether every
     output it read has the system run's bits."""
-    assembly, _, _ = _assembled(run, plant, logging=False)
+    assembly, _, _ = _assembled(run, plant)
     plan, n, total, same = assembly.plan, run.steps, 0.0, True
     try:
         for c, slave in enumerate(assembly.slaves):
@@ -297,19 +291,18 @@ def same_bits(master: dict, trace: np.ndarray, names: tuple[str, ...]) -> bool:
 
 
 def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict[str, Path] | None = None) -> dict:  # noqa: ANN001
-    """Best per-sample times of the pair and the three-FMU system (compiled, logging on, Python,
+    """Best per-sample times of the pair and the three-FMU system (compiled, Python,
     the C master), and with `parts`, of the press system (compiled, Python, its FMUs replayed)."""
     folder.mkdir(parents=True, exist_ok=True)
     binary = compile_master(folder)
     figures: dict = {}
     for key, monitor in (("pair", False), ("three", True)):
         run = fig4_with(controller, plant, monitor)
-        times: dict[str, list[float]] = {"compiled": [], "compiled_logging": [], "python": [], "c_master": []}
+        times: dict[str, list[float]] = {"compiled": [], "python": [], "c_master": []}
         for _ in range(repetitions):
-            per_step, trace, names = compiled_run(run, plant, logging=False)
+            per_step, trace, names = compiled_run(run, plant)
             times["compiled"].append(per_step)
-            times["compiled_logging"].append(compiled_run(run, plant, logging=True)[0])
-            seconds, python_trace = python_run(run, plant, logging=False)
+            seconds, python_trace = python_run(run, plant)
             times["python"].append(seconds)
             if not np.array_equal(python_trace, trace, equal_nan=True):
                 raise RuntimeError(f"{key}: the compiled system loop's trace is not the Python execution's")
@@ -326,9 +319,9 @@ def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict
         replay = compile_replay(folder)
         times = {"compiled": [], "python": [], "replay": []}
         for _ in range(repetitions):
-            per_step, trace, names = compiled_run(run, plant, logging=False)
+            per_step, trace, names = compiled_run(run, plant)
             times["compiled"].append(per_step)
-            seconds, python_trace = python_run(run, plant, logging=False)
+            seconds, python_trace = python_run(run, plant)
             times["python"].append(seconds)
             if not np.array_equal(python_trace, trace, equal_nan=True):
                 raise RuntimeError("press: the compiled system loop's trace is not the Python execution's")
@@ -363,12 +356,9 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
     for key, what in (("pair", "plant + controller FMU"), ("three", "pair + monitor FMU")):
         r = got[key]
         table.add(
-            f"{what}: compiled system loop", us(r["compiled"]), f"{r['columns']} columns recorded; FMU logging off"
-        )
-        table.add(
-            f"{what}: the same, FMU logging on",
-            us(r["compiled_logging"]),
-            "as cosim.slaves makes them: the plant logs each doStep to fmpy's callback",
+            f"{what}: compiled system loop",
+            us(r["compiled"]),
+            f"{r['columns']} columns recorded; FMUs log non-OK statuses only",
         )
         table.add(f"{what}: Python execution of the same plan", us(r["python"]), "cosim.execution; same bits as C")
         if "c_master" in r:
@@ -381,7 +371,7 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
         f"press: examples/press_system/press.yaml (plant, sensor, die load, the controller as ToggleVSC), "
         f"{press['samples']} samples; its parts built in {build_s:.2f} s"
     )
-    table.add(f"{what}: compiled system loop", us(press["compiled"]), "FMU logging off")
+    table.add(f"{what}: compiled system loop", us(press["compiled"]), "FMUs log non-OK statuses only")
     table.add(f"{what}: Python execution of the same plan", us(press["python"]), "cosim.execution; same bits as C")
     if "replay" in press:
         bits = "same bits" if press["bit_for_bit"] else "NOT the same bits"
@@ -398,6 +388,22 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
             f"{us(press['compiled'])} / {us(press['replay'])} = {ratio:.2f}"
             + ("" if press["bit_for_bit"] else "; NOT bit for bit"),
         )
+    ssp = _press_ssp(controller, parts, plant, folder)
+    run = press_with(controller, parts)
+    masters = ssp_masters(ssp, run.T_s, run.t_end, max(repetitions // 3, 1), folder)
+    figures["ssp_masters"] = masters
+    table.text(f"the press example's SSP (paper variant, {run.steps} steps, Jacobi in every master), per step:")
+    for key, what in (
+        ("ours", f"ours, toggle-cosim run --coupling jacobi ({masters['ours_loop']})"),
+        ("libcosim", "libcosim (libcosimpy 0.0.6), simulate_until"),
+        ("ecos", "Ecos (ecospy), step(n)"),
+    ):
+        value = masters[key]
+        if isinstance(value, float):
+            ratio = "" if key == "ours" else f"{value / masters['ours']:.2f} x ours"
+            table.add(f"press SSP: {what}", us(value), ratio)
+        else:
+            table.add(f"press SSP: {what}", value)
     for key, label in (
         ("pair", "plant + controller-FMU system in the compiled loop <= 1.2 x a plain C master"),
         ("three", "3-FMU system in the compiled loop <= 1.2 x its FMUs' own calls from C"),
@@ -409,6 +415,90 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
             table.check(
                 label, ratio <= 1.2 and r["bit_for_bit"], detail + ("" if r["bit_for_bit"] else "; NOT bit for bit")
             )
+
+
+def _press_ssp(controller: Path, parts: dict[str, Path], plant, folder: Path) -> Path:  # noqa: ANN001
+    """The press example's first variant as an SSP (`toggle-cosim ssp`), its FMUs the ones built here."""
+    import yaml
+
+    document = yaml.safe_load((PRESS / "press.yaml").read_text(encoding="utf-8"))
+    document["fmu"] = str(plant.path)
+    for name, component in document["components"].items():
+        component["fmu"] = str(parts[name])
+    document["variants"] = {"paper": document["variants"]["paper"]}
+    scenario = folder / "press_bench.yaml"
+    scenario.write_text(yaml.safe_dump(document), encoding="utf-8")
+    archive = folder / "press_bench.ssp"
+    command = [sys.executable, "-m", "toggle_cosim", "ssp", str(scenario), "--out", str(archive)]
+    subprocess.run([*command, "--controller", str(controller)], check=True, capture_output=True, timeout=300)
+    return archive
+
+
+def ssp_masters(ssp: Path, T_s: float, t_end: float, repetitions: int, folder: Path) -> dict[str, float | str]:
+    """Seconds per step of the same SSP in our master (`run --coupling jacobi`, the loop's time from
+    run.json), libcosim (`simulate_until`) and Ecos (`step`), each the best of `repetitions`
+    (loading and initialisation left out), or why a master was not measured."""
+    import json
+
+    n = round(t_end / T_s)
+    found: dict[str, float | str] = {}
+    best = float("inf")
+    for _ in range(repetitions):
+        out = folder / "ssp_runs"
+        command = [
+            sys.executable,
+            "-m",
+            "toggle_cosim",
+            "run",
+            str(ssp),
+            "--coupling",
+            "jacobi",
+            "-q",
+            "--out",
+            str(out),
+        ]
+        subprocess.run(command, check=True, capture_output=True, timeout=600)
+        record = json.loads(next(out.glob("*/*/run.json")).read_text(encoding="utf-8"))
+        best = min(best, record["loop_time_s"] / n)
+        found["ours_loop"] = record["loop"]["kind"]
+    found["ours"] = best
+    try:
+        from libcosimpy.CosimExecution import CosimExecution
+        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+
+        log_output_level(CosimLogLevel.WARNING)
+        unpacked = folder / "press_unpacked"
+        shutil.rmtree(unpacked, ignore_errors=True)
+        with zipfile.ZipFile(ssp) as archive:
+            archive.extractall(unpacked)
+        best = float("inf")
+        for _ in range(repetitions):
+            execution = CosimExecution.from_ssp_file(str(unpacked), step_size=round(T_s * 1e9))
+            started = time.perf_counter()
+            if not execution.simulate_until(n * round(T_s * 1e9)):
+                raise RuntimeError("libcosim stopped early")
+            best = min(best, (time.perf_counter() - started) / n)
+            del execution
+        found["libcosim"] = best
+    except Exception as error:  # noqa: BLE001 - not installed, or it failed: said in the table
+        found["libcosim"] = f"not measured ({type(error).__name__}: {str(error)[:80]})"
+    try:
+        from ecospy import EcosLib, EcosSimulation
+
+        EcosLib.set_log_level("warn")
+        best = float("inf")
+        for _ in range(repetitions):
+            with EcosSimulation(ssp_path=str(ssp), step_size=T_s) as sim:
+                if not sim.init(0.0, "paper"):
+                    raise RuntimeError(EcosLib.get_last_error())
+                started = time.perf_counter()
+                sim.step(n)
+                best = min(best, (time.perf_counter() - started) / n)
+                sim.terminate()
+        found["ecos"] = best
+    except Exception as error:  # noqa: BLE001 - not installed (it needs Debian's libtbb12), or it failed
+        found["ecos"] = f"not measured ({type(error).__name__}: {str(error)[:80]})"
+    return found
 
 
 def us(seconds: float) -> str:

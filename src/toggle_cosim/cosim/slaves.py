@@ -171,7 +171,10 @@ class FmuSlave:
         categories = [c.name for c in getattr(self.description, "logCategories", None) or ()]
         chosen = [c for c in categories if c.startswith("logStatus") or "Error" in c or "Warning" in c]
         if categories and chosen:
-            try:
+            try:  # the others off by name, then those on (a shell may add to the categories it has)
+                unwanted = [c for c in categories if c not in chosen]
+                if unwanted:
+                    slave.setDebugLogging(False, unwanted)
                 slave.setDebugLogging(True, chosen)
             except Exception:  # noqa: BLE001, S110 - an FMU that refuses keeps its own logging
                 pass
