@@ -405,7 +405,7 @@ def simulate_system(
         loop,
         None,
         warnings=[],
-        controller=None,
+        controller=next((c for c in assembly.components if c["name"] == run.system.controller), None),
     )
     record["system"] = {
         "components": assembly.components,
