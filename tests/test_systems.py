@@ -22,7 +22,7 @@ from toggle_cosim.cosim import master, systems
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.system.graph import AlgebraicLoop, algebraic_loop, gauss_seidel_order
-from toggle_cosim.system.model import Connection, Interface, Port, Wiring
+from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
 from toggle_cosim.system.plan import SIGNAL, build_plan
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -264,3 +264,29 @@ def test_the_run_command_refuses_a_bad_connection_before_any_run(plant_fmu: Path
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and "controller.S, which is not a Real input of 'controller'" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_part_that_is_not_an_fmu_or_that_others_may_change_is_refused(
+    plant, press_parts: dict[str, Path], tmp_path: Path
+) -> None:
+    """A part is code the command runs: checked as any FMU (a zip archive with a binary for this
+    platform), and refused when another user could change it, each in one line naming the key."""
+    import shutil
+
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> die.x"))
+    fake = tmp_path / "Fake.fmu"
+    fake.write_text("not a zip")
+    wiring = Wiring(parts=(Part("die", fake),), connections=wires)
+    with pytest.raises(systems.SystemError_, match=r"key components\.die\.fmu: .*not an FMU \(not a zip archive\)"):
+        systems.system_columns(dataclasses.replace(run, system=wiring), plant)
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    die = shared / "DieLoad.fmu"
+    shutil.copy(press_parts["DieLoad"], die)
+    die.chmod(0o664)
+    wiring = Wiring(parts=(Part("die", die),), connections=wires)
+    with pytest.raises(systems.SystemError_, match="key components.die.fmu: .*writable by group or others"):
+        systems.system_columns(dataclasses.replace(run, system=wiring), plant)
+    die.chmod(0o644)
+    assert "die.F" in systems.system_columns(dataclasses.replace(run, system=wiring), plant)

@@ -75,9 +75,17 @@ class FmuSlave:
     `fed` are the inputs the plan feeds (`Plan.input_names`), `outputs` the variables it reads
     every sample (`Plan.output_names`), both set by `bind` before `instantiate`."""
 
-    def __init__(self, name: str, path: Path, values: Sequence[tuple[str, Value]] = (), observed: Sequence[str] = ()):
+    def __init__(
+        self,
+        name: str,
+        path: Path,
+        values: Sequence[tuple[str, Value]] = (),
+        observed: Sequence[str] = (),
+        description: Any = None,
+    ):
+        """`description`: its model description, read already (when the FMU was checked)."""
         self.name, self.path, self.values = name, Path(path), tuple(values)
-        self.description = read_model_description(str(self.path), validate=False)
+        self.description = description or read_model_description(str(self.path), validate=False)
         if self.description.coSimulation is None:
             raise SlaveError(f"component {name!r}: {self.path.name} offers no Co-Simulation interface")
         self.variables = {v.name: v for v in self.description.modelVariables}

@@ -44,14 +44,15 @@ from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.cosim.system_loop import FMI_FAILED, SystemLoop, compiled_system
+from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
-from toggle_cosim.plant.contract import PlantInterface
+from toggle_cosim.plant.contract import ContractError, PlantInterface, read_fmu
 from toggle_cosim.plant.controller_contract import check_controller_fmu
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
-from toggle_cosim.system.model import Connection, Interface, Port, Wiring
+from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
 from toggle_cosim.system.units import BASE, conversion, unit_meaning
 
@@ -185,7 +186,9 @@ def assemble(
         for part in wiring.parts:
             if part.name in slaves:
                 raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
-            slaves[part.name] = FmuSlave(part.name, part.fmu, part.values, requested.get(part.name, ()))
+            slaves[part.name] = FmuSlave(
+                part.name, part.fmu, part.values, requested.get(part.name, ()), _checked_part(part, run.source)
+            )
         interfaces = {name: slave.interface for name, slave in slaves.items()}
         plant_outputs = set(interfaces[wiring.plant].outputs)  # a controller FMU's reference inputs stay unfed
         controller_inputs = [name for name in interfaces[wiring.controller].inputs if name in plant_outputs]
@@ -257,6 +260,24 @@ def assemble(
         for slave in slaves.values():
             slave.close()
         raise
+
+
+def _checked_part(part: Part, source: Path | None) -> Any:
+    """A part's FMU checked as any FMU the master runs (a zip archive, safe, FMI 2.0 or 3.0,
+    Co-Simulation, a binary for this platform: `plant.contract.read_fmu`) and, being code this
+    command runs, owned by the user (`user_code.check_owned`): its model description, or
+    SystemError_ naming the key and the fix."""
+    ssp = source is not None and Path(source).suffix.lower() == ".ssp"
+    key = f"component {part.name!r}" if ssp else f"key components.{part.name}.fmu"
+    try:
+        archive = read_fmu(part.fmu, missing=f"build it, or fix {key}")
+        if part.fmu.exists():
+            check_owned(part.fmu, key)
+    except ContractError as error:
+        raise SystemError_(f"{key}: {error}") from None
+    except ControllerError as error:
+        raise SystemError_(str(error)) from None
+    return archive.model_description
 
 
 def _component_record(name: str, slave: Slave, order: Sequence[str]) -> dict[str, Any]:
