@@ -290,3 +290,34 @@ def test_a_part_that_is_not_an_fmu_or_that_others_may_change_is_refused(
         systems.system_columns(dataclasses.replace(run, system=wiring), plant)
     die.chmod(0o644)
     assert "die.F" in systems.system_columns(dataclasses.replace(run, system=wiring), plant)
+
+
+class _PD:
+    """A user's controller without `measured`: it reads x_B and v_B from its measurement."""
+
+    diagnostics = ("e",)
+
+    def start(self, t0, measurement):  # noqa: ANN001, ANN201
+        return None
+
+    def step(self, state, t, measurement):  # noqa: ANN001, ANN201
+        from toggle_cosim.control.protocol import ControlStep
+
+        e = 0.3199 - measurement["x_B"]
+        return ControlStep(12.0 * e - 2.5 * measurement["v_B"], (e,), state)
+
+
+def test_a_python_controller_reads_its_connected_inputs_only(plant) -> None:
+    """A controller without `measured` may be wired to any plant output of its measurement's
+    names: with x_B and v_B connected it gives the pair's Python loop bit for bit; with v_B left
+    unconnected its read of v_B fails the run naming the name, never a silent 0."""
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    fixed = master.simulate(run, plant, controller=_PD())
+    wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
+    system = master.simulate(dataclasses.replace(run, system=wired), plant, controller=_PD())
+    assert fixed.complete and system.complete, system.reason
+    assert np.array_equal(fixed.trace.column("x_B"), system.trace.column("plant.x_B"))
+    assert np.array_equal(fixed.trace.column("iq_ref"), system.trace.column("controller.iq_ref"))
+    half = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("controller.iq_ref -> plant.iq_ref")))
+    failed = master.simulate(dataclasses.replace(run, system=half), plant, controller=_PD())
+    assert not failed.complete and "KeyError" in failed.reason and "'v_B'" in failed.reason

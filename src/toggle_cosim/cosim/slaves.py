@@ -308,11 +308,14 @@ class ControllerSlave:
         diagnostics: Sequence[str],
         command: str = "iq_ref",
         units: Mapping[str, str | None] | None = None,
+        readable: Sequence[str] = (),
     ):
         """`units`: its connectors' units by name (the plant's variables of those names: what
-        the controller measures and commands), None: none declared."""
+        the controller measures and commands), None: none declared. Its inputs are the names it
+        declares it measures (`measured`), else `readable` (the plant's outputs, which its
+        measurement holds in the plant + controller loop); its measurement holds those fed."""
         self.name, self.controller = name, controller
-        measured = tuple(controller.measured)
+        measured = tuple(getattr(controller, "measured", None) or readable)
         outputs = (command, *diagnostics)
         units = {n: (units or {}).get(n) for n in (*measured, command)}
         self.interface = Interface(measured, outputs, {output: measured for output in outputs}, units)
@@ -326,7 +329,10 @@ class ControllerSlave:
         self._n_diagnostics = len(diagnostics)
 
     def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
-        self._positions = tuple(self._index[name] for name in fed)
+        """Its measurement holds the fed inputs only: reading another raises KeyError."""
+        self._index = {name: i for i, name in enumerate(fed)}
+        self._row = [0.0] * len(fed)
+        self._positions = tuple(range(len(fed)))
         self._outputs = tuple(outputs)
 
     def instantiate(self, t_end: float) -> None:

@@ -162,7 +162,7 @@ def _controller_slave(
             slave.origin = "the built-in law as generated C (its controller FMU, built into the private cache)"
             return slave
     diagnostics = check_controller(controller, outputs)
-    return ControllerSlave(name, controller, diagnostics, COMMAND, units)
+    return ControllerSlave(name, controller, diagnostics, COMMAND, units, outputs)
 
 
 def assemble(
