@@ -46,21 +46,10 @@ from toggle_cosim.plant.fmi_calls import (
     last_log_line,
     logger3,
     quiet,
+    typed_setter,
 )
 
 __all__ = ["ControllerFmuError", "FmuController"]
-
-_SETTERS = {  # fmpy's setter per FMI type, FMI 2.0 then 3.0
-    "Real": "setReal",
-    "Float64": "setFloat64",
-    "Float32": "setFloat32",
-    "Integer": "setInteger",
-    "Int32": "setInt32",
-    "Int64": "setInt64",
-    "Enumeration": "setInteger",
-    "Boolean": "setBoolean",
-    "String": "setString",
-}
 
 
 class ControllerFmuError(Exception):
@@ -181,17 +170,10 @@ class FmuController:
 
     def _set_value(self, name: str, value: Any) -> None:
         kind = self.fmu.types[name]
-        setter = getattr(self._slave, _SETTERS.get(kind, ""), None)
-        if setter is None:
+        found = typed_setter(self._slave, kind, value)
+        if found is None:
             raise ControllerFmuError(f"{self.fmu.path.name}: parameter {name!r} is of type {kind}, which cannot be set")
-        if kind == "Boolean":
-            value = bool(value)
-        elif kind == "String":
-            value = str(value).encode("utf-8")
-        elif kind in ("Integer", "Int32", "Int64", "Enumeration"):
-            value = int(value)
-        else:
-            value = float(value)
+        setter, value = found
         try:
             setter([self.fmu.references[name]], [value])
         except Exception as error:  # noqa: BLE001 - name the parameter and the value

@@ -35,22 +35,12 @@ from toggle_cosim.plant.fmi_calls import (
     last_log_line,
     logger3,
     quiet,
+    typed_setter,
 )
 from toggle_cosim.system.interfaces import fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
 __all__ = ["ControllerSlave", "FmuSlave", "Slave", "SlaveError"]
-
-_SETTERS = {
-    "Real": "setReal",
-    "Float64": "setFloat64",
-    "Float32": "setFloat32",
-    "Integer": "setInteger",
-    "Int32": "setInt32",
-    "Int64": "setInt64",
-    "Enumeration": "setInteger",
-    "Boolean": "setBoolean",
-}
 
 
 class SlaveError(Exception):
@@ -191,15 +181,10 @@ class FmuSlave:
         variable = self.variables.get(name)
         if variable is None:
             raise SlaveError(f"component {self.name!r}: {self.path.name} has no variable {name!r}")
-        setter = getattr(self._slave, _SETTERS.get(variable.type, ""), None)
-        if setter is None:
+        found = typed_setter(self._slave, variable.type, value)
+        if found is None:
             raise SlaveError(f"component {self.name!r}: {name!r} is of type {variable.type}, which cannot be set")
-        if variable.type == "Boolean":
-            value = bool(value)
-        elif variable.type in ("Integer", "Int32", "Int64", "Enumeration"):
-            value = int(value)
-        else:
-            value = float(value)
+        setter, value = found
         try:
             setter([variable.valueReference], [value])
         except Exception as error:  # noqa: BLE001 - name the variable and the value

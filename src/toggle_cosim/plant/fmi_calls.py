@@ -28,6 +28,34 @@ LABELS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
 FATAL = LABELS.index("FATAL")  # fmi2Fatal, fmi3Fatal: no further call to any instance of the FMU
 
 
+SETTERS = {  # fmpy's setter per FMI type, FMI 2.0 then 3.0
+    "Real": "setReal",
+    "Float64": "setFloat64",
+    "Float32": "setFloat32",
+    "Integer": "setInteger",
+    "Int32": "setInt32",
+    "Int64": "setInt64",
+    "Enumeration": "setInteger",
+    "Boolean": "setBoolean",
+    "String": "setString",
+}
+
+
+def typed_setter(slave: Any, kind: str, value: Any) -> tuple[Any, Any] | None:
+    """fmpy's setter on `slave` for a variable of FMI type `kind`, and `value` as that type takes
+    it (bool, int, float, or UTF-8 bytes); None when the type cannot be set."""
+    setter = getattr(slave, SETTERS.get(kind, ""), None)
+    if setter is None:
+        return None
+    if kind == "Boolean":
+        return setter, bool(value)
+    if kind == "String":
+        return setter, str(value).encode("utf-8")
+    if kind in ("Integer", "Int32", "Int64", "Enumeration"):
+        return setter, int(value)
+    return setter, float(value)
+
+
 def failed(status: int) -> bool:
     """True for every status but OK and Warning, including values the standard does not define."""
     return status not in SUCCESS
