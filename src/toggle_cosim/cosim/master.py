@@ -1,74 +1,36 @@
-"""The co-simulation master: a plant FMU and a discrete controller, stepped every T_s.
+"""The co-simulation master: `simulate` runs one run of a scenario or an SSP.
 
-    instantiate -> set parameters -> initialise -> every T_s: read outputs, control,
-    set inputs, doStep -> terminate, free
+A run's system (`Run.system`) decides how it is stepped:
 
-A run with parts around the pair, connections of its own or a `record:` list is a system:
-`simulate` hands it to `systems.simulate_system` (an execution of its components). The pair
-itself runs in the fixed loop below, which gives the system execution's values bit for bit.
+* the plain pair, a plant FMU and its controller (a scenario without `components:`,
+  `connections:` or `record:`, and an SSP of exactly that loop): the pair's fixed loop
+  (`pair.simulate_pair`, with the compiled law, hand-back to Python, checkpoint retries and a
+  plant session kept across runs);
+* any other system: an execution of its components in the order of its connections
+  (`systems.simulate_system`), in the compiled system loop where every component is an FMU.
 
-`simulate` assembles the parts (after FMPy's simulateCS, with its Recorder and step hook):
-a `PlantSession` (session.py), a `Recorder` and step hooks (recorder.py), the controller
-(the one given, else the scenario's: `controllers`), the steppers (stepper.py: the first
-sample in Python, which starts the controller; for the built-in law and a controller FMU the
-rest in the compiled loop generated from `control.laws` (which calls the FMU's C functions),
-handed over to Python at a sample the C hands back, or all in Python without a C compiler;
-any other controller in Python at every sample) and the
-`CheckpointPolicy` (retry.py). run.json says which loop ran and why. The FMU is freed on
-every exit path. A plant fault (an error status, non-finite outputs) or a controller failure
-ends the run early: the trace up to the fault is kept and the run is marked failed with the
-reason. A controller with a `close()` (a controller FMU) is closed on every exit path too.
-
-The load F_E (`Run.plant.F_E`) and the plant's other inputs (`Run.plant.inputs`), each a number
-or a signal in time (`signals`), are sampled once before the loop at every communication point
-t_k = k·T_s (`input_samples`); sample k sends row k in both loops and both couplings and records
-it (F_E's column, and one column per other input after the diagnostics); initialisation sends row 0.
-
-Coupling (`Run.coupling`, or simulate's `coupling`): "gauss-seidel" (the default) drives the
-plant over [t_k, t_k+1] with the command the controller computed from the plant's outputs at t_k;
-"jacobi" drives it with the command of sample k - 1 (sample 0's at k = 0), as a master that steps
-every FMU and only then exchanges values does, and row k of the trace holds the plant's outputs
-at t_k with the controller's outputs (command and diagnostics) of sample k - 1: the values every
-variable has at t_k in such a master. The compiled loop runs gauss-seidel only; jacobi runs the
-Python loop, and run.json says so. A run that fails after retried steps is reported failed at its first failed step, and
-its trace ends at the sample that step started from: no sample of a failed (even if retried)
-step is kept. A finished run is checked for plausibility (`plausibility`): its warnings go
-into run.json.
+The pair run as a system gives the fixed loop's values bit for bit (tests/test_systems.py).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import time as clock
 from collections.abc import Callable
 
 import numpy as np
 
-from toggle_cosim import interrupts
-from toggle_cosim.control.controller import VSCController
-from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for, controller_record
-from toggle_cosim.cosim.outcome import RunOutcome, run_record
-from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
-from toggle_cosim.cosim.plausibility import plausibility_warnings
-from toggle_cosim.cosim.recorder import ProgressHook, Recorder
-from toggle_cosim.cosim.retry import CheckpointPolicy
-from toggle_cosim.cosim.session import PlantSession
-from toggle_cosim.cosim.stepper import (
-    CompiledStepper,
-    ControllerFailed,
-    HandOver,
-    LoopState,
-    PythonStepper,
-    Timing,
-    compiled_controller,
+from toggle_cosim.control.protocol import Controller
+from toggle_cosim.cosim.outcome import RunOutcome
+from toggle_cosim.cosim.pair import (
+    JACOBI_REASON,
+    close_controller,
+    open_session,
+    refused_outcome,
+    simulate_pair,
+    trace_names,
 )
-from toggle_cosim.cosim.summary import summarize
+from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
+from toggle_cosim.cosim.session import PlantSession
 from toggle_cosim.cosim.systems import simulate_system
-from toggle_cosim.files.traces import Trace
-from toggle_cosim.messages import bounded_text
-from toggle_cosim.physics.mechanism import working_range
-from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import COUPLINGS, Run
 
@@ -84,62 +46,6 @@ __all__ = [
     "simulate",
     "trace_names",
 ]
-JACOBI_REASON = "coupling jacobi: the compiled loop runs gauss-seidel only, so the Python loop delays the command"
-INPUTS = COMMAND_COLUMNS
-
-
-def trace_names(
-    plant: PlantInterface, diagnostics: tuple[str, ...] = VSCController.diagnostics, inputs: tuple[str, ...] = ()
-) -> tuple[str, ...]:
-    """The columns of a run's trace: time, the plant's recorded outputs, the inputs (iq_ref,
-    F_E), the controller's diagnostics (the built-in law's by default), then the plant's other
-    inputs the run sets (`inputs`: `other_inputs(run)`)."""
-    return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics, *inputs)
-
-
-def _number(value: object) -> float | None:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
-
-
-def _diagnostics(trace: Trace, names: tuple[str, ...]) -> tuple[np.ndarray | None, ...]:
-    """The columns `names` of the trace if it has them all (the built-in law's S and phase), else Nones."""
-    if all(name in trace.names for name in names):
-        return tuple(trace.column(name) for name in names)
-    return tuple(None for _ in names)
-
-
-def open_session(plant: PlantInterface, instance_name: str, inputs: tuple[str, ...] = ()) -> PlantSession:
-    """A session of `plant` with the master's outputs and inputs (iq_ref, F_E, then `inputs`, the
-    plant's other inputs a run sets): the FMU unzipped and its binary loaded, no instance yet.
-    `simulate(..., session=)` runs on it, run after run (runs with those other inputs)."""
-    return PlantSession(plant, instance_name, list(plant.recorded_outputs), [*INPUTS, *inputs])
-
-
-def _initialise(session: PlantSession, run: Run, plant: PlantInterface, sent: tuple[float, ...]) -> None:
-    """Instantiate, set the parameters, and initialise with the inputs (0, then u(0) of the others)."""
-    session.instantiate(0.0, run.t_end)
-    for name, value in plant_settings(run, plant):
-        try:
-            session.set_value(name, value)
-        except Exception as error:  # noqa: BLE001 - name the variable and the value
-            raise RuntimeError(f"setting {name} = {value!r} failed ({error})") from None
-    session.enter_initialization()
-    session.write_inputs((0.0, *sent))
-    session.exit_initialization()
-
-
-def _cut_at_first_failure(reason: str, recorder: Recorder, first: int | None, T_s: float) -> str:
-    """For a run that failed after an earlier step failed and was retried: cut the trace after the
-    sample of that first failed step and say the run failed there; otherwise `reason` as it is."""
-    if first is None or first + 1 >= recorder.rows:
-        return reason
-    ended = (recorder.rows - 1) * T_s
-    recorder.truncate(first + 1)
-    return (
-        f"plant FMU failed at t = {first * T_s:.6g} s, its first failed step (retried from a checkpoint; the steps "
-        f"went on failing until the run ended at t = {ended:.6g} s; no sample after t = {first * T_s:.6g} s is "
-        f"kept): {reason}"
-    )
 
 
 def simulate(
@@ -151,166 +57,19 @@ def simulate(
     session: PlantSession | None = None,
     coupling: str | None = None,
 ) -> RunOutcome:
-    """Run one scenario variant against `plant`. Never raises for a plant or controller fault:
-    see RunOutcome.
+    """Run one scenario variant against `plant`: the plain pair in its fixed loop, any other
+    system as an execution of its components (module docstring). Never raises for a plant, part
+    or controller fault: see RunOutcome.
 
     `controller`: any object that meets the controller protocol (`control.protocol`); None: the
-    run's own (`controllers.controller_for`: the scenario's built-in law, or its
-    controller.python). The compiled loop runs the built-in law and a controller FMU (under
-    gauss-seidel coupling); any other controller runs in Python at every sample, and run.json
-    says which loop ran and why.
-
-    `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
-    file-backed map shared with a supervising process (`supervision`); the trace is then a view of it.
-    `session`, if given (`open_session`), is a plant already loaded that the caller keeps: the run
-    gets an instance of it (reset after a complete run for the next, else freed), not a new copy.
-    `coupling`: "gauss-seidel" or "jacobi" (module docstring); None: the run's own (`Run.coupling`)."""
-    if not run.system.is_pair:  # parts around the pair, connections or a record list: a system
-        if session is not None:
-            close_controller(controller)
-            raise ValueError("a system's run loads its own components: simulate it without session=")
-        if coupling is not None and coupling not in COUPLINGS:
-            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
-        return simulate_system(run, plant, progress, buffer, controller, coupling)
-    started = clock.perf_counter()
-    if coupling is not None and coupling != run.coupling:
-        if coupling not in COUPLINGS:
-            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
-        run = dataclasses.replace(run, coupling=coupling)
-    jacobi = run.coupling == "jacobi"
-    try:
-        if controller is None:
-            controller = controller_for(run, plant.recorded_outputs)
-        diagnostics = check_controller(controller, plant.recorded_outputs)
-    except ControllerError as error:
+    run's own. `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN).
+    `session` (the plain pair only, `open_session`): a plant already loaded that the caller keeps.
+    `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`)."""
+    if run.system.is_pair:
+        return simulate_pair(run, plant, progress, buffer, controller, session, coupling)
+    if coupling is not None and coupling not in COUPLINGS:
+        raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
+    if session is not None:
         close_controller(controller)
-        return refused_outcome(run, plant, str(error), started)
-    n, others = run.steps, other_inputs(run)
-    if session is not None and session.inputs != (*INPUTS, *others):
-        close_controller(controller)
-        raise ValueError(f"the session sets the inputs {session.inputs}, the run {(*INPUTS, *others)}")
-    recorder = Recorder(trace_names(plant, diagnostics, others), n, buffer, extra=len(others))
-    own_session = session is None
-    if session is None:
-        session = open_session(plant, run.label, others)
-    timing, state = Timing(n, run.T_s, input_samples(run, n)), LoopState()
-    hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
-    policy = CheckpointPolicy(saving=session.can_save_state)
-    loop = {"kind": "python", "reason": "the run ended before the second sample"}
-    interrupted = False
-    loop_started = loop_finished = clock.perf_counter()
-    try:
-        _initialise(session, run, plant, tuple(float(value) for value in timing.load[0]))
-        policy.configure(session)
-        python = PythonStepper(session, controller, recorder, timing, state, hooks, jacobi=jacobi)
-        loop_started = clock.perf_counter()
-        k = python.advance(0, 1)  # the first sample starts the controller (S0, T_h)
-        if k == 1 and n > 0:
-            law = JACOBI_REASON if jacobi else compiled_controller(controller, state.controller)
-            compiled = (
-                law
-                if isinstance(law, str)
-                else CompiledStepper.build(
-                    session,
-                    recorder,
-                    timing,
-                    state,
-                    law,
-                    controller.measured,
-                    hooks,
-                    controller.reference if isinstance(controller, VSCController) else None,
-                )
-            )
-            stepper = HandOver(python, compiled)
-            if stepper.compiled is not None:
-                policy.configure(stepper.compiled.loop)
-            try:
-                policy.drive(stepper, session, recorder, k, n, run.T_s)
-            finally:
-                loop = stepper.loop
-        loop_finished = clock.perf_counter()
-    except KeyboardInterrupt:
-        loop_finished = clock.perf_counter()
-        interrupted = True
-        state.reason = f"interrupted (SIGINT or SIGTERM) at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s"
-    except ControllerFailed as error:
-        loop_finished = clock.perf_counter()
-        state.reason = f"controller failed: {error}"
-    except Exception as error:  # noqa: BLE001 - any plant failure ends the run cleanly
-        loop_finished = clock.perf_counter()
-        state.reason = f"plant FMU failed at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s: {error}"
-    finally:
-        close_controller(controller)
-        solver_statistics = session.solver_statistics()
-        if own_session:
-            session.close()
-        else:  # a kept plant: reset after a complete run for the next, else freed
-            session.release(reuse=state.reason is None and recorder.rows == n + 1 and not interrupted)
-    if state.reason is not None and not interrupted:
-        state.reason = _cut_at_first_failure(state.reason, recorder, policy.first_failure, run.T_s)
-    trace, rows, reason = recorder.trace(), recorder.rows, state.reason
-    reason = bounded_text(reason) if reason is not None else None  # one line, whatever the plant or controller said
-    complete = reason is None and rows == n + 1
-    summary, warnings = None, []
-    if rows > 1:
-        x_B, iq_ref = trace.column("x_B"), trace.column("iq_ref")
-        summary = summarize(
-            trace.time,
-            x_B,
-            iq_ref,
-            trace.column("E_in") if "E_in" in trace.names else None,
-            trace.column("E_fric") if "E_fric" in trace.names else None,
-            run.x_start,
-            run.x_target,
-            _number(getattr(state.controller, "T_h", None)),
-            _number(getattr(state.controller, "S0", None)),
-            *_diagnostics(trace, ("S", "phase")),
-            None if run.x_final == run.x_target else run.x_final,
-        )
-        limits = run.plant.working_range or working_range(MechanismParameters())
-        warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
-    wall = clock.perf_counter() - started
-    status = "complete" if complete else "interrupted" if interrupted else "failed"
-    loop_seconds = loop_finished - loop_started
-    record = run_record(
-        run,
-        plant,
-        status,
-        reason,
-        rows,
-        wall,
-        loop_seconds,
-        summary,
-        policy.retries,
-        loop,
-        solver_statistics,
-        warnings=warnings,
-        controller=controller_record(run, controller),
-    )
-    return RunOutcome(run, trace, complete, reason, wall, loop_seconds, summary, record, interrupted)
-
-
-def close_controller(controller: object) -> None:
-    """Call the controller's close(), if it has one (a controller FMU frees its instance, its
-    library and its unzipped copy); whatever it raises is ignored (the run's outcome stands)."""
-    close = getattr(controller, "close", None)
-    if callable(close):
-        try:
-            close()
-        except BaseException as error:  # noqa: BLE001 - freeing never changes a run's outcome
-            if not interrupts.raised_by_code(error):  # SystemExit, or KeyboardInterrupt in a run's child
-                raise
-
-
-def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:
-    """The outcome of a run whose controller could not be built (`reason`, a ControllerError's
-    message): failed, no sample; `started` is the run's perf_counter() start."""
-    names = trace_names(plant, inputs=other_inputs(run))
-    trace = Trace(names, np.empty((0, len(names))))
-    reason = bounded_text(reason if reason.startswith("controller: ") else f"controller: {reason}")
-    loop = {"kind": "none", "reason": "the controller could not be built"}
-    wall = clock.perf_counter() - started
-    record = run_record(
-        run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None, warnings=None, controller=None
-    )
-    return RunOutcome(run, trace, False, reason, wall, 0.0, None, record)
+        raise ValueError("a system's run loads its own components: simulate it without session=")
+    return simulate_system(run, plant, progress, buffer, controller, coupling)
