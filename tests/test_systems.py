@@ -237,6 +237,10 @@ def _scenario(tmp_path: Path, body: str) -> Path:
         ("connections: ['plant.x_B->controller.x_B->plant.iq_ref']\n", "is not one connection"),
         ("record: [ghost.x]\n", "key record[0]: 'ghost.x' names the component 'ghost'"),
         (
+            "variants: {v: {components: {extra: {parameters: {a: 1}}}}}\n",
+            "key components.extra.fmu (variant v): missing",
+        ),
+        (
             "plant: {F_E: 10}\nconnections: [plant.x_B -> controller.x_B, plant.x_B -> plant.F_E]\n",
             "key plant.F_E: the connection plant.x_B -> plant.F_E feeds plant.F_E too",
         ),

@@ -533,6 +533,11 @@ def _wiring(document: Mapping[str, Any], source: Path | None, suffix: str) -> Wi
     plant input given a value (plant.F_E) is not also connected."""
     parts = []
     for name, given in (document.get("components") or {}).items():
+        if "fmu" not in given:
+            raise ScenarioError(
+                f"key components.{name}.fmu{suffix}: missing (a variant may change a part's parameters; a part "
+                "it adds needs its fmu: too)"
+            )
         fmu = _relative(given["fmu"], source)
         if not fmu.is_file():
             raise ScenarioError(
