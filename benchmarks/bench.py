@@ -76,7 +76,7 @@ import system_bench  # noqa: E402 - benchmarks/system_bench.py, beside this scri
 from timing import run_to_last_file  # noqa: E402 - benchmarks/timing.py, beside this script
 
 from toggle_cosim.control.protocol import ControllerContext, ControlStep  # noqa: E402
-from toggle_cosim.cosim import compiled_loop, master, session  # noqa: E402
+from toggle_cosim.cosim import compiled_loop, master, pair, session  # noqa: E402
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document  # noqa: E402
 from toggle_cosim.fmu_export import build_fmu  # noqa: E402
 from toggle_cosim.plant.contract import check_plant  # noqa: E402
@@ -331,12 +331,12 @@ def full_loop(plant, run, python_loop: bool = False) -> dict:
     """One simulate(): per-step loop cost and three real-time factors. python_loop: with the
     compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
     Timed.spans.clear()
-    original, master.PlantSession = master.PlantSession, Timed
+    original, pair.PlantSession = pair.PlantSession, Timed  # the pair's fixed loop opens its session
     try:
         with loop_switch(python_loop) as expected:
             outcome = master.simulate(run, plant)
     finally:
-        master.PlantSession = original
+        pair.PlantSession = original
     if not outcome.complete:
         raise RuntimeError(f"{run.label}: {outcome.reason}")
     if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop

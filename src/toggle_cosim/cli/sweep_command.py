@@ -90,6 +90,8 @@ def sweep(
     )
     if code == interrupts.EXIT_INTERRUPTED:
         interrupts.exit_interrupted()
+    if not html:  # sweep.json says how the run ended: a later signal changes nothing
+        interrupts.ignore()
     if html and code in (0, 1):  # a table to show: every case ran, some may have failed
         from toggle_cosim.cli.report_command import REPORT_FILE, write_sweep_report
         from toggle_cosim.experiments.sweep_spec import load_sweep

@@ -337,8 +337,19 @@ def _execute_sweep(
         result.done = len(store.done)
         result.failed = sum(1 for ok in store.done.values() if not ok)
         if not result.interrupted:  # matplotlib only when there is time for it
-            result.figures = write_heatmaps(result.results, sweep)
-        with interrupts.deferred():
+            try:
+                result.figures = write_heatmaps(result.results, sweep)
+            except BaseException as error:
+                if not interrupts.is_interrupt(error):
+                    raise
+                result.interrupted = True  # the table is whole; the maps come with the next run
+                interrupts.ignore()
+        try:
+            with interrupts.deferred():
+                _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
+        except KeyboardInterrupt:  # it came while sweep.json was written: the run ends interrupted, and says so
+            result.interrupted = True
+            interrupts.ignore()
             _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
     return result
 
