@@ -229,10 +229,10 @@ def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequ
     found = _verified(folder, name)
     if found is not None:
         return found
-    with tempfile.TemporaryDirectory(dir=folder) as work:
-        source_path = Path(work) / f"{stem}.c"
+
+    def compile_into(built: Path) -> None:
+        source_path = built.parent / f"{stem}.c"
         source_path.write_text(source, encoding="utf-8")
-        built = Path(work) / name
         result = subprocess.run(
             [compiler, *flags, "-o", str(built), str(source_path), *libraries],
             capture_output=True,
@@ -241,7 +241,18 @@ def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequ
         )
         if result.returncode != 0:
             raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:500]}")
-        os.chmod(built, 0o700)
+
+    return _store(folder, name, compile_into, 0o700)
+
+
+def _store(folder: Path, name: str, build: Callable[[Path], None], mode: int) -> CachedLibrary:
+    """`build(path)` writes the file `name` in a private temporary folder inside the cache
+    `folder`; it is given `mode`, moved into place (atomically: concurrent builds only race to the
+    same file) and its SHA-256 recorded beside it."""
+    with tempfile.TemporaryDirectory(dir=folder) as work:
+        built = Path(work) / name
+        build(built)
+        os.chmod(built, mode)
         sha256 = hashlib.sha256(built.read_bytes()).hexdigest()
         os.replace(built, folder / name)
         _write_private_text(folder, _record_name(name), sha256)
@@ -296,16 +307,7 @@ def cached_file(inputs: Sequence[Path], stem: str, suffix: str, build: Callable[
     name = f"{stem}-{digest.hexdigest()[:16]}{suffix}"
     folder = cache_folder()
     found = _verified(folder, name)
-    if found is not None:
-        return found
-    with tempfile.TemporaryDirectory(dir=folder) as work:
-        built = Path(work) / name
-        build(built)
-        os.chmod(built, 0o600)
-        sha256 = hashlib.sha256(built.read_bytes()).hexdigest()
-        os.replace(built, folder / name)
-        _write_private_text(folder, _record_name(name), sha256)
-    return CachedLibrary(folder / name, sha256)
+    return found if found is not None else _store(folder, name, build, 0o600)
 
 
 def verified_bytes(cached: CachedLibrary) -> bool:

@@ -3,8 +3,9 @@ or getFloat64 / setFloat64 / doStep (FMI 3.0) with their FMI prototypes, its ins
 value references of the variables the caller reads and sets (`CFunctions`).
 
 `fmu_functions` makes one from any instantiated fmpy `FMU2Slave` or `FMU3Slave` (fmpy's checked
-subclasses of `plant.fmi_calls` included), so every C loop (`compiled_loop`, `system_loop`) and
-every part of the master that hands an FMU to one takes it the same way.
+subclasses of `plant.fmi_calls` included): a system's FMU components (`slaves.FmuSlave`) hand
+themselves to the compiled system loop (`system_loop`) this way, and take the FMI function names
+from here.
 """
 
 from __future__ import annotations

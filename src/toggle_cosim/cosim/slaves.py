@@ -21,11 +21,12 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
-from fmpy import extract, read_model_description
+from fmpy import extract
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
-from toggle_cosim.cosim.session import CFunctions, FunctionNames, bound_function
+from toggle_cosim.cosim.fmi_pointers import FMI2_NAMES, FMI3_NAMES, fmu_functions
+from toggle_cosim.cosim.session import CFunctions, bound_function
 from toggle_cosim.messages import error_text
 from toggle_cosim.plant.fmi_calls import (
     FATAL,
@@ -61,23 +62,16 @@ class Slave(Protocol):
 
 
 class FmuSlave:
-    """An FMU component (module docstring). `values` are set before initialisation, in order;
-    `fed` are the inputs the plan feeds (`Plan.input_names`), `outputs` the variables it reads
-    every sample (`Plan.output_names`), both set by `bind` before `instantiate`."""
+    """An FMU component (module docstring). `fmu` is the FMU as its check gave it: the plant's
+    `PlantInterface`, a controller FMU's `ControllerFmu`, a part's `FmuArchive`
+    (`plant.contract.read_fmu`), each a Co-Simulation FMU with its path, model description and
+    SHA-256. `values` are set before initialisation, in order; `fed` are the inputs the plan
+    feeds (`Plan.input_names`), `outputs` the variables it reads every sample
+    (`Plan.output_names`), both set by `bind` before `instantiate`."""
 
-    def __init__(
-        self,
-        name: str,
-        path: Path,
-        values: Sequence[tuple[str, Value]] = (),
-        observed: Sequence[str] = (),
-        description: Any = None,
-    ):
-        """`description`: its model description, read already (when the FMU was checked)."""
-        self.name, self.path, self.values = name, Path(path), tuple(values)
-        self.description = description or read_model_description(str(self.path), validate=False)
-        if self.description.coSimulation is None:
-            raise SlaveError(f"component {name!r}: {self.path.name} offers no Co-Simulation interface")
+    def __init__(self, name: str, fmu: Any, values: Sequence[tuple[str, Value]] = (), observed: Sequence[str] = ()):
+        self.name, self.path, self.values = name, Path(fmu.path), tuple(values)
+        self.description, self.sha256 = fmu.model_description, fmu.sha256
         self.variables = {v.name: v for v in self.description.modelVariables}
         self.interface = fmu_interface(self.description, observed)
         self.fmi3 = self.description.fmiVersion.startswith("3")
@@ -93,9 +87,10 @@ class FmuSlave:
         """The inputs the plan sets (by position) and the outputs it reads, in its order."""
         self._fed = tuple(fed)
         self._read = tuple(outputs)
-        references = {name: v.valueReference for name, v in self.variables.items()}
-        self._in_vr = (ctypes.c_uint32 * max(len(fed), 1))(*(references[n] for n in fed))
-        self._out_vr = (ctypes.c_uint32 * max(len(outputs), 1))(*(references[n] for n in outputs))
+        self._in_refs = tuple(self.variables[n].valueReference for n in fed)
+        self._out_refs = tuple(self.variables[n].valueReference for n in outputs)
+        self._in_vr = (ctypes.c_uint32 * max(len(fed), 1))(*self._in_refs)
+        self._out_vr = (ctypes.c_uint32 * max(len(outputs), 1))(*self._out_refs)
         self._buffer = (ctypes.c_double * max(len(fed), 1))()
         self._vr_buffer = (ctypes.c_uint32 * max(len(fed), 1))()
 
@@ -142,16 +137,12 @@ class FmuSlave:
         else:
             self._call("fmi2Instantiate", lambda: slave.instantiate(visible=False, loggingOn=True))
         self._quiet_logging(slave)
-        prefix = "fmi3" if self.fmi3 else "fmi2"
-        names = (
-            (f"{prefix}SetFloat64", f"{prefix}GetFloat64", f"{prefix}DoStep")
-            if self.fmi3
-            else ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")
-        )
-        self.names = FunctionNames(set=names[0], get=names[1], step=names[2])
-        self._set, self._get, self._step = (bound_function(slave.dll, name) for name in names)
+        self.names = names = FMI3_NAMES if self.fmi3 else FMI2_NAMES
+        self._set, self._get, self._step = (bound_function(slave.dll, n) for n in (names.set, names.get, names.step))
         if None in (self._set, self._get, self._step):
-            raise SlaveError(f"component {self.name!r}: {self.path.name} does not export {', '.join(names)}")
+            raise SlaveError(
+                f"component {self.name!r}: {self.path.name} does not export {names.set}, {names.get}, {names.step}"
+            )
         if self.fmi3:
             self._step_outputs = tuple(ctypes.byref(ctypes.c_bool()) for _ in range(3)) + (
                 ctypes.byref(ctypes.c_double()),
@@ -265,17 +256,9 @@ class FmuSlave:
             raise self._fail(self.names.step, t, status)
 
     def c_functions(self) -> CFunctions:
-        """What a C loop calls: the three functions, the instance, the output and fed-input
-        value-reference arrays (in the plan's order)."""
-        return CFunctions.of(
-            (self._get, self._set, self._step),
-            self._slave.component,
-            self._out_vr,
-            self._in_vr,
-            self.fmi3,
-            self.names,
-            self,
-        )
+        """What a C loop calls (`fmi_pointers.fmu_functions`): the three functions, the instance,
+        the value references of its outputs and fed inputs, in the plan's order."""
+        return fmu_functions(self._slave, self._out_refs, self._in_refs)
 
 
 class ControllerSlave:
@@ -304,8 +287,7 @@ class ControllerSlave:
         outputs = (command, *diagnostics)
         units = {n: (units or {}).get(n) for n in (*measured, command)}
         self.interface = Interface(measured, outputs, {output: measured for output in outputs}, units)
-        self._index = {name: i for i, name in enumerate(measured)}
-        self._row = [0.0] * len(measured)
+        self.bind(measured, outputs)
         self._state: Any = None
         self._next: Any = None
         self._held: tuple[float, ...] = (0.0,) * len(outputs)
@@ -314,11 +296,9 @@ class ControllerSlave:
         self._n_diagnostics = len(diagnostics)
 
     def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
-        """Its measurement holds the fed inputs only: reading another raises KeyError."""
+        """Its measurement holds the fed inputs only, in the plan's order: reading another raises KeyError."""
         self._index = {name: i for i, name in enumerate(fed)}
         self._row = [0.0] * len(fed)
-        self._positions = tuple(range(len(fed)))
-        self._outputs = tuple(outputs)
 
     def instantiate(self, t_end: float) -> None:
         pass
@@ -330,9 +310,9 @@ class ControllerSlave:
         pass
 
     def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
-        row, own = self._row, self._positions
+        row = self._row
         for i, value in zip(positions, values, strict=True):
-            row[own[i]] = value
+            row[i] = value
         self._dirty = True
 
     def _fail(self, what: str, t: float, error: BaseException) -> SlaveError:

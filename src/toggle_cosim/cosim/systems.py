@@ -25,6 +25,8 @@ order) or the run's `record:` list, which may name any variable of an FMU compon
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import time as clock
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -45,10 +47,9 @@ from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveErr
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.cosim.system_loop import FMI_FAILED, SystemLoop, compiled_system
 from toggle_cosim.cosim.user_code import check_owned
-from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
-from toggle_cosim.plant.contract import ContractError, PlantInterface, read_fmu
+from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterface, read_fmu
 from toggle_cosim.plant.controller_contract import check_controller_fmu
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
@@ -154,11 +155,12 @@ def _controller_slave(
     if controller is None:
         controller = controller_for(run, outputs)
     if isinstance(controller, FmuController):
-        return FmuSlave(name, controller.fmu.path, controller.settings)
+        return FmuSlave(name, controller.fmu, controller.settings)
     if type(controller) is VSCController and controller.reference is None:  # the built-in law as generated C
         fmu = law_fmu()
         if isinstance(fmu, Path):
-            slave = FmuSlave(name, fmu, fmu_settings(run, check_controller_fmu(fmu, outputs, run.T_s)))
+            checked = check_controller_fmu(fmu, outputs, run.T_s)
+            slave = FmuSlave(name, checked, fmu_settings(run, checked))
             slave.origin = "the built-in law as generated C (its controller FMU, built into the private cache)"
             return slave
     diagnostics = check_controller(controller, outputs)
@@ -178,7 +180,7 @@ def assemble(
     slaves: dict[str, Slave] = {}
     try:
         slaves[wiring.plant] = FmuSlave(
-            wiring.plant, plant.path, plant_settings(run, plant), requested.get(wiring.plant, ())
+            wiring.plant, plant, plant_settings(run, plant), requested.get(wiring.plant, ())
         )
         slaves[wiring.controller] = _controller_slave(
             run, wiring.controller, controller, plant.recorded_outputs, slaves[wiring.plant].interface.units
@@ -187,7 +189,7 @@ def assemble(
             if part.name in slaves:
                 raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
             slaves[part.name] = FmuSlave(
-                part.name, part.fmu, part.values, requested.get(part.name, ()), _checked_part(part, run.source)
+                part.name, _checked_part(part, run.source), part.values, requested.get(part.name, ())
             )
         interfaces = {name: slave.interface for name, slave in slaves.items()}
         plant_outputs = set(interfaces[wiring.plant].outputs)  # a controller FMU's reference inputs stay unfed
@@ -262,28 +264,40 @@ def assemble(
         raise
 
 
-def _checked_part(part: Part, source: Path | None) -> Any:
+@functools.lru_cache(maxsize=64)
+def _read_part(path: Path, size: int, mtime_ns: int, missing: str) -> FmuArchive:
+    """`read_fmu` of a part's file, kept while the file is unchanged (its size and time): a run's
+    system is checked before the run, and assembled again in the run's process."""
+    return read_fmu(path, missing=missing)
+
+
+def _checked_part(part: Part, source: Path | None) -> FmuArchive:
     """A part's FMU checked as any FMU the master runs (a zip archive, safe, FMI 2.0 or 3.0,
     Co-Simulation, a binary for this platform: `plant.contract.read_fmu`) and, being code this
-    command runs, owned by the user (`user_code.check_owned`): its model description, or
-    SystemError_ naming the key and the fix."""
+    command runs, owned by the user (`user_code.check_owned`): the checked archive (path, model
+    description, SHA-256), or SystemError_ naming the key and the fix."""
     ssp = source is not None and Path(source).suffix.lower() == ".ssp"
     key = f"component {part.name!r}" if ssp else f"key components.{part.name}.fmu"
     try:
-        archive = read_fmu(part.fmu, missing=f"build it, or fix {key}")
-        if part.fmu.exists():
+        missing = f"build it, or fix {key}"
+        try:
+            status = part.fmu.stat()
+        except OSError:
+            archive = read_fmu(part.fmu, missing=missing)  # its own message for a missing file
+        else:
+            archive = _read_part(part.fmu.resolve(), status.st_size, status.st_mtime_ns, missing)
             check_owned(part.fmu, key)
     except ContractError as error:
         raise SystemError_(f"{key}: {error}") from None
     except ControllerError as error:
         raise SystemError_(str(error)) from None
-    return archive.model_description
+    return archive
 
 
 def _component_record(name: str, slave: Slave, order: Sequence[str]) -> dict[str, Any]:
     record: dict[str, Any] = {"name": name, "position": order.index(name)}
     if isinstance(slave, FmuSlave):
-        record.update(fmu=str(slave.path), sha256=file_sha256(slave.path), values=dict(slave.values))
+        record.update(fmu=str(slave.path), sha256=slave.sha256, values=dict(slave.values))
         if slave.origin:
             record["kind"] = slave.origin
     else:
@@ -343,8 +357,6 @@ def simulate_system(
     ControllerError for a system that cannot be assembled."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
-        import dataclasses
-
         run = dataclasses.replace(run, coupling=coupling)
     n = run.steps
     try:
