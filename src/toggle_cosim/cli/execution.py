@@ -295,3 +295,21 @@ TIME_LIMIT_OPTION = click.option(
     metavar="SECONDS",
     help="Wall-clock limit per run (default: the scenario's time_limit key, else max(30 s, 20 x t_end)).",
 )
+
+
+# The options a sweep and a tuning share: how their cases run (`sweep`, `tune`).
+SCHEDULER_OPTION = click.option(
+    "--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool)."
+)
+WORKERS_OPTION = click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
+FMU_OPTION = click.option(
+    "--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys)."
+)
+CASE_TIMEOUT_OPTION = click.option(
+    "--case-timeout",
+    type=Seconds(),
+    default=None,
+    metavar="SECONDS",
+    help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",
+)
+QUIET_OPTION = click.option("--quiet", "-q", is_flag=True, help="No progress bar.")

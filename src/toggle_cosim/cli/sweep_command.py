@@ -9,7 +9,13 @@ import click
 
 from toggle_cosim import interrupts
 from toggle_cosim.cli.app import check_output, main, require
-from toggle_cosim.cli.execution import Seconds
+from toggle_cosim.cli.execution import (
+    CASE_TIMEOUT_OPTION,
+    FMU_OPTION,
+    QUIET_OPTION,
+    SCHEDULER_OPTION,
+    WORKERS_OPTION,
+)
 from toggle_cosim.files.outputs import HTML
 
 
@@ -35,25 +41,17 @@ def _check_report_output(sweep_file: Path, out: Path | None) -> None:
     default=None,
     help="Output folder (default: the sweep file's output: key, else out/sweeps/<name> under the current folder).",
 )
-@click.option(
-    "--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool)."
-)
-@click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
-@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
+@SCHEDULER_OPTION
+@WORKERS_OPTION
+@FMU_OPTION
 @click.option("--retry-failed", is_flag=True, help="Run again the cases that failed last time.")
-@click.option(
-    "--case-timeout",
-    type=Seconds(),
-    default=None,
-    metavar="SECONDS",
-    help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",
-)
+@CASE_TIMEOUT_OPTION
 @click.option(
     "--keep-traces",
     is_flag=True,
     help="Store every case's whole trace in OUTPUT/traces/ (compressed Parquet, by case_id).",
 )
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@QUIET_OPTION
 @click.option(
     "--html",
     is_flag=True,

@@ -10,7 +10,13 @@ import click
 
 from toggle_cosim import interrupts
 from toggle_cosim.cli.app import main, require
-from toggle_cosim.cli.execution import Seconds
+from toggle_cosim.cli.execution import (
+    CASE_TIMEOUT_OPTION,
+    FMU_OPTION,
+    QUIET_OPTION,
+    SCHEDULER_OPTION,
+    WORKERS_OPTION,
+)
 
 
 @main.command()
@@ -23,19 +29,11 @@ from toggle_cosim.cli.execution import Seconds
     help="Output folder (default: the tuning file's output: key, else out/tune/<name> under the current folder).",
 )
 @click.option("--trials", type=click.IntRange(min=1), default=None, help="Trial budget (default: optimiser.trials).")
-@click.option(
-    "--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler (default: a local process pool)."
-)
-@click.option("--workers", type=int, default=None, help="Local pool size (default: all cores).")
-@click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU (overrides the fmu: keys).")
-@click.option(
-    "--case-timeout",
-    type=Seconds(),
-    default=None,
-    metavar="SECONDS",
-    help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",
-)
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@SCHEDULER_OPTION
+@WORKERS_OPTION
+@FMU_OPTION
+@CASE_TIMEOUT_OPTION
+@QUIET_OPTION
 def tune(
     tune_file: Path,
     out: Path | None,
