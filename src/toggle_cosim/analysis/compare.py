@@ -353,6 +353,12 @@ def _file_stem(name: str, taken: set[str]) -> str:
     return candidate
 
 
+def draw_outside_points(ax: Any, envelope: Any, label: str) -> None:
+    """Mark on a matplotlib axis the samples of a compared variable that lie outside its funnel."""
+    outside = envelope.error > 0
+    ax.plot(envelope.time[outside], envelope.result[outside], "o", color="C3", markersize=2.5, label=label)
+
+
 def draw_funnel_band(ax: Any, variable: VariableResult, color: str, alpha: float) -> None:
     """Shade a compared variable's funnel on a matplotlib axis: the band between its lower and
     upper envelopes on their common time grid, labelled with the funnel's half-height and width."""
@@ -384,15 +390,7 @@ def _plot(variable: VariableResult, reference: Trace, path: Path) -> None:
     top.plot(envelope.upper_time, envelope.upper, color="C0", linewidth=0.6)
     top.plot(reference.time, reference.column(variable.name), color="k", linewidth=1.0, label="reference")
     top.plot(envelope.time, envelope.result, color="C3", linewidth=1.0, linestyle="--", label="result")
-    outside = envelope.error > 0
-    top.plot(
-        envelope.time[outside],
-        envelope.result[outside],
-        "o",
-        color="C3",
-        markersize=2.5,
-        label="result outside the funnel",
-    )
+    draw_outside_points(top, envelope, "result outside the funnel")
     top.set_ylabel(variable.name)
     top.grid(True, alpha=0.3)
     top.legend(fontsize=8, loc="best")

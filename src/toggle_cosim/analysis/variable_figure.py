@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from toggle_cosim.analysis.compare import ComparisonResult, draw_funnel_band
+from toggle_cosim.analysis.compare import ComparisonResult, draw_funnel_band, draw_outside_points
 from toggle_cosim.analysis.display_points import thin
 from toggle_cosim.analysis.run_files import LoadedRun
 from toggle_cosim.files.outputs import PNG, replacing
@@ -52,16 +52,8 @@ def _draw_band(ax, band: ReferenceBand, name: str) -> None:  # noqa: ANN001 - a 
     if envelope is None:
         return
     draw_funnel_band(ax, variable, "0.5", 0.25)
-    outside = envelope.error > 0
-    if np.any(outside):
-        ax.plot(
-            envelope.time[outside],
-            envelope.result[outside],
-            "o",
-            color="C3",
-            markersize=2.5,
-            label="outside the funnel",
-        )
+    if np.any(envelope.error > 0):
+        draw_outside_points(ax, envelope, "outside the funnel")
 
 
 def variables_figure(
