@@ -290,6 +290,18 @@ def same_bits(master: dict, trace: np.ndarray, names: tuple[str, ...]) -> bool:
     return (x_B[-1], command[-1], total) == (master["x_B_n"], master["iq_ref_n"], master["x_B_sum"])
 
 
+def both_loops(run, plant, times: dict[str, list[float]], label: str) -> tuple[np.ndarray, tuple[str, ...]]:  # noqa: ANN001
+    """One repetition of the system in the compiled loop and in the Python execution, their
+    seconds per sample appended to `times`; the trace (the two must be equal bit for bit) and names."""
+    per_step, trace, names = compiled_run(run, plant)
+    times["compiled"].append(per_step)
+    seconds, python_trace = python_run(run, plant)
+    times["python"].append(seconds)
+    if not np.array_equal(python_trace, trace, equal_nan=True):
+        raise RuntimeError(f"{label}: the compiled system loop's trace is not the Python execution's")
+    return trace, names
+
+
 def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict[str, Path] | None = None) -> dict:  # noqa: ANN001
     """Best per-sample times of the pair and the three-FMU system (compiled, Python,
     the C master), and with `parts`, of the press system (compiled, Python, its FMUs replayed)."""
@@ -300,12 +312,7 @@ def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict
         run = fig4_with(controller, plant, monitor)
         times: dict[str, list[float]] = {"compiled": [], "python": [], "c_master": []}
         for _ in range(repetitions):
-            per_step, trace, names = compiled_run(run, plant)
-            times["compiled"].append(per_step)
-            seconds, python_trace = python_run(run, plant)
-            times["python"].append(seconds)
-            if not np.array_equal(python_trace, trace, equal_nan=True):
-                raise RuntimeError(f"{key}: the compiled system loop's trace is not the Python execution's")
+            trace, names = both_loops(run, plant, times, key)
             if binary is not None:
                 master = c_master(binary, run, plant, 2 if monitor else 1, 1, folder / key)  # one run, as the loop
                 times["c_master"].append(master["per_step_s"])
@@ -319,12 +326,7 @@ def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict
         replay = compile_replay(folder)
         times = {"compiled": [], "python": [], "replay": []}
         for _ in range(repetitions):
-            per_step, trace, names = compiled_run(run, plant)
-            times["compiled"].append(per_step)
-            seconds, python_trace = python_run(run, plant)
-            times["python"].append(seconds)
-            if not np.array_equal(python_trace, trace, equal_nan=True):
-                raise RuntimeError("press: the compiled system loop's trace is not the Python execution's")
+            trace, names = both_loops(run, plant, times, "press")
             if replay is not None:
                 seconds, same = replayed(run, plant, replay, trace, names)
                 times["replay"].append(seconds)
