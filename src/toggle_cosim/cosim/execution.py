@@ -146,8 +146,3 @@ class Execution:
                 hook(k)
             k += 1
         return k
-
-    def close(self) -> None:
-        """Close every slave (each closes whatever it holds; safe to call more than once)."""
-        for slave in self.slaves:
-            slave.close()

@@ -36,7 +36,7 @@ from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError
 from toggle_cosim.ssp.fmus import FmuVariables
 from toggle_cosim.system.graph import algebraic_loop
-from toggle_cosim.system.model import Connection, Port
+from toggle_cosim.system.model import Connection, Port, Wiring
 from toggle_cosim.system.units import BASE, Meaning, conversion, unit_meaning
 
 __all__ = ["Connector", "connectors_of", "conversion", "is_pair_loop", "meaning_of", "read_connections"]
@@ -288,6 +288,7 @@ def is_pair_loop(
     """Whether the connections are exactly the loop our master runs for a plant and a controller,
     in any order and each the identity: every controller input (`FmuVariables.inputs`) from the
     plant output of its name, and the controller's iq_ref to the plant's iq_ref."""
-    expected = {Connection(Port(plant, name), Port(controller, name)) for name in fmus[controller].inputs()}
-    expected.add(Connection(Port(controller, layout.COMMAND), Port(plant, layout.COMMAND)))
+    from toggle_cosim.cosim.systems import pair_connections  # the master's own definition of the pair
+
+    expected = set(pair_connections(Wiring(plant=plant, controller=controller), fmus[controller].inputs()))
     return len(connections) == len(expected) and set(connections) == expected
