@@ -103,18 +103,21 @@ class Execution:
         if slots:
             self.values[slots[0] : slots[0] + len(slots)] = out[: len(slots)]
 
-    def _pass(self, k: int, t: float, early: Sequence[tuple[int, ...]], late: Sequence[tuple[int, ...]]) -> None:
-        """Every component in order: its early inputs set, its outputs read; then the late inputs computed."""
+    def _pass(
+        self, k: int, t: float, early: Sequence[tuple[int, ...]], late: Sequence[tuple[int, ...]]
+    ) -> list[list[float]]:
+        """Every component in order: its early inputs set, its outputs read; then the values of
+        the late inputs, per component (computed into the buffer, not yet set)."""
         for c, slave in enumerate(self.slaves):
             if early[c]:
                 slave.set(early[c], self._feed(c, early[c], k), t)
             self._read(c, t)
-        self._late_values = [self._feed(c, late[c], k) for c in range(len(self.slaves))]
+        return [self._feed(c, late[c], k) for c in range(len(self.slaves))]
 
-    def _set_late(self, t: float, late: Sequence[tuple[int, ...]]) -> None:
+    def _set_late(self, t: float, late: Sequence[tuple[int, ...]], values: Sequence[Sequence[float]]) -> None:
         for c, slave in enumerate(self.slaves):
             if late[c]:
-                slave.set(late[c], self._late_values[c], t)
+                slave.set(late[c], values[c], t)
 
     def initialize(self) -> None:
         """Instantiate, set values, initialise every slave with its inputs from one pass at t = 0."""
@@ -123,8 +126,7 @@ class Execution:
         for slave in self.slaves:
             slave.enter_initialization()
         late = tuple(self.plan.late(c, initial=True) for c in range(len(self.slaves)))
-        self._pass(0, 0.0, self.plan.init_early, late)
-        self._set_late(0.0, late)
+        self._set_late(0.0, late, self._pass(0, 0.0, self.plan.init_early, late))
         for slave in self.slaves:
             slave.exit_initialization()
 
@@ -134,12 +136,12 @@ class Execution:
         early, late = self._early, self._late
         while k < stop:
             t = k * T_s
-            self._pass(k, t, early, late)
+            values = self._pass(k, t, early, late)
             for observer in observers:
                 observer.observe(k, t, self.values)
             if k == n:
                 return k + 1
-            self._set_late(t, late)
+            self._set_late(t, late, values)
             for slave in slaves:
                 slave.do_step(t, T_s)
             for hook in hooks:
