@@ -204,6 +204,7 @@ def check_destination(
     or, given the output's `kind`, a non-empty regular file that is not of that kind; `what`
     names the output in the message, and `fix` says what to do (default: give another file name)."""
     path = Path(path)
+    other = fix or f"give another file name for the {what} (or move the file away)"  # a file of another kind
     fix = fix or f"give another file name for the {what}"
     if through and str(path) in STREAMS:
         return
@@ -219,9 +220,7 @@ def check_destination(
         return
     if stat.S_ISREG(mode):
         if kind is not None and os.lstat(path).st_size > 0 and not kind.recognize(path):
-            raise OutputError(
-                path, f"exists and is not {kind.name}, so it is not replaced; {fix} (or move the file away)"
-            )
+            raise OutputError(path, f"exists and is not {kind.name}, so it is not replaced; {other}")
         return
     shape = next((name for test, name in _KINDS if test(mode)), "something else")
     note = " (a link is not followed)" if stat.S_ISLNK(mode) else ""
