@@ -281,10 +281,10 @@ def test_resume_goes_on_with_the_same_study_and_asks_an_interrupted_batch_again(
 @pytest.mark.parametrize(
     ("changes", "words"),
     [
-        ({"name": "other"}, "the files of another tuning ('tiny')"),
+        ({"name": "other"}, "another tuning ('tiny')"),
         (
             {"parameters": {"controller.C_I": {"low": 8, "high": 30}, "controller.K_I": {"low": 16, "high": 400}}},
-            "the files of another tuning (its map, parameters, bounds",
+            "another tuning (its map, parameters, bounds",
         ),
     ],
 )
@@ -292,8 +292,9 @@ def test_a_second_different_tuning_into_the_same_folder_is_refused(
     tiny, tmp_path, plant_fmu, changes: dict, words: str
 ) -> None:
     """A copy of the tiny tuning's folder, and a different tuning (another name; the same name
-    with other bounds) with the same --out: refused in one line, exit 2, before any case runs;
-    the study still holds the tiny tuning's trials alone and no file changed."""
+    with other bounds) with the same --out: refused in one line naming the folder's tune.json or
+    study.db, exit 2, before any case runs; the study still holds the tiny tuning's trials alone
+    and no file changed."""
     import shutil
 
     path, result = tiny
@@ -305,7 +306,7 @@ def test_a_second_different_tuning_into_the_same_folder_is_refused(
     done = CliRunner().invoke(main, ["tune", str(other), "--out", str(out), "-q"])
     assert done.exit_code == 2, done.output
     lines = done.output.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"error: {out / 'tune.json'}: ") and words in lines[0], lines
+    assert len(lines) == 1 and lines[0].startswith(f"error: {out}/") and words in lines[0], lines
     assert {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()} == listing
     assert optuna.study.get_all_study_names(f"sqlite:///{out / 'study.db'}") == ["tiny"]
 
