@@ -141,3 +141,12 @@ def test_a_folder_whose_tune_json_is_another_tunings_is_refused(tmp_path: Path) 
     code, lines = _tune(path, out)
     _assert_one_line_refusal(code, lines, out / "tune.json", "another tuning ('other')")
     assert _snapshot(out) == listing
+
+
+def test_a_file_the_tuning_writes_at_its_end_that_cannot_be_written_is_refused_first(tmp_path: Path) -> None:
+    """A folder where maps.png goes: refused before any case runs (not after every trial)."""
+    path, out = _refused(tmp_path)
+    (out / "maps.png").mkdir()
+    code, lines = _tune(path, out)
+    _assert_one_line_refusal(code, lines, out / "maps.png", "is a folder")
+    assert _snapshot(out) == {"maps.png": ("folder", None)}
