@@ -90,12 +90,12 @@ def check_manifest(tuning: Tuning, output: Path) -> None:
 
 
 def _study_problem(path: Path, tuning: Tuning) -> TuneError | None:
-    """What keeps the SQLite database at `path` from being this tuning's study, read without
-    writing anything (no tables at all: a new study)."""
+    """What keeps the SQLite database at `path` from being this tuning's study (no tables at all:
+    a new study). It is only read; opened read-write (never created) so that SQLite may roll
+    back the journal of a tuning killed while it wrote, as Optuna would."""
+    uri = f"file:{quote(str(path))}?mode=rw"
     try:
-        connection = sqlite3.connect(
-            f"file:{quote(str(path))}?mode=rw", uri=True
-        )  # rw: a crash's journal is rolled back
+        connection = sqlite3.connect(uri, uri=True)
     except sqlite3.Error as error:
         return TuneError(f"{path}: cannot be opened as an SQLite database ({error}); {_FIX}")
     try:
