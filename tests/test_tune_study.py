@@ -98,7 +98,7 @@ def test_a_fifo_at_study_db_is_refused_without_waiting_on_it(tmp_path: Path) -> 
     ("content", "words"),
     [
         (b"my notes, not a database\n", "is not an SQLite database"),
-        (SQLITE_HEADER + b"\xff" * 2000, "SQLite database"),  # the header, then garbage: damaged
+        (SQLITE_HEADER + b"\xff" * 2000, "is not a readable SQLite database"),  # the header, then garbage
     ],
 )
 def test_a_file_that_is_not_a_readable_sqlite_database_is_refused_and_kept(
