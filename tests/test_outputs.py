@@ -26,6 +26,7 @@ from toggle_cosim.files.outputs import (
     OutputError,
     OutputKind,
     check_destination,
+    fitting_name,
     folder_lock,
     replacing,
     write_file,
@@ -478,3 +479,13 @@ def test_plot_refuses_to_write_over_notes_and_replaces_its_own_figure(tmp_path: 
     for _ in range(2):  # the second run replaces the figure the first wrote
         run = CliRunner().invoke(main, ["plot", str(folder), "-o", str(tmp_path / "fig.png")])
         assert run.exit_code == 0, run.output
+
+
+def test_a_long_name_is_cut_with_a_hash_of_the_whole_and_a_short_one_is_kept() -> None:
+    assert fitting_name("heatmap_plant.mu=0.2", ".png") == "heatmap_plant.mu=0.2.png"
+    long_a, long_b = "x" * 300 + "a", "x" * 300 + "b"
+    named_a, named_b = fitting_name(long_a, ".png"), fitting_name(long_b, ".png")
+    assert len(named_a.encode()) == 255 and named_a.endswith(".png") and named_a.startswith("x" * 200)
+    assert named_a != named_b and named_a == fitting_name(long_a, ".png")
+    assert len(fitting_name("é" * 200, ".png").encode()) <= 255  # never half a character
+    fitting_name("é" * 200, ".png").encode().decode("utf-8")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -84,6 +85,21 @@ def test_heat_maps_exist_one_per_other_axis_value(pool_run):
     assert names == ["heatmap_plant.mu=0.2.png", "heatmap_plant.mu=0.png"]
     for figure in result.figures:
         assert figure.is_file() and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_heat_map_that_cannot_be_written_is_a_warning_and_sweep_json_is_written(tmp_path, plant_fmu, capsys):
+    """A folder where one heat map goes: that map is not written (one warning line naming it),
+    the other is, and the table and sweep.json (listing the written map only) are; exit 0."""
+    axes = {"plant.F_E": {"values": [0, 50]}, "plant.m_B": {"values": [4.43]}, "plant.mu": {"values": [0.0, 0.2]}}
+    path = write_sweep(tmp_path, axes, dict(BASE, t_end=0.05), heatmap={"x": "plant.F_E", "y": "plant.m_B"})
+    blocked = tmp_path / "out" / "heatmaps" / "heatmap_plant.mu=0.png"
+    blocked.mkdir(parents=True)
+    assert run_sweep(path, None, 1, plant_fmu, progress=False) == 0
+    manifest = json.loads((tmp_path / "out" / "sweep.json").read_text(encoding="utf-8"))
+    assert manifest["heatmaps"] == ["heatmaps/heatmap_plant.mu=0.2.png"]
+    assert len(read_results(tmp_path / "out")) == 4 and blocked.is_dir()
+    warnings = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and str(blocked) in warnings[0] and "heat map not written" in warnings[0], warnings
 
 
 def test_rerun_skips_everything_and_ids_are_stable(pool_run, plant_fmu):

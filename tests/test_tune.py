@@ -278,6 +278,39 @@ def test_resume_goes_on_with_the_same_study_and_asks_an_interrupted_batch_again(
     assert len(table) == 4  # the start map's cases were found done
 
 
+@pytest.mark.parametrize(
+    ("changes", "words"),
+    [
+        ({"name": "other"}, "another tuning ('tiny')"),
+        (
+            {"parameters": {"controller.C_I": {"low": 8, "high": 30}, "controller.K_I": {"low": 16, "high": 400}}},
+            "another tuning (its map, parameters, bounds",
+        ),
+    ],
+)
+def test_a_second_different_tuning_into_the_same_folder_is_refused(
+    tiny, tmp_path, plant_fmu, changes: dict, words: str
+) -> None:
+    """A copy of the tiny tuning's folder, and a different tuning (another name; the same name
+    with other bounds) with the same --out: refused in one line naming the folder's tune.json or
+    study.db, exit 2, before any case runs; the study still holds the tiny tuning's trials alone
+    and no file changed."""
+    import shutil
+
+    path, result = tiny
+    folder = tmp_path / "second"
+    shutil.copytree(path.parent, folder, ignore=shutil.ignore_patterns("again"))
+    out = folder / "out"
+    listing = {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+    other = write_tuning(folder, plant_fmu, **changes)
+    done = CliRunner().invoke(main, ["tune", str(other), "--out", str(out), "-q"])
+    assert done.exit_code == 2, done.output
+    lines = done.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {out}/") and words in lines[0], lines
+    assert {p: p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()} == listing
+    assert optuna.study.get_all_study_names(f"sqlite:///{out / 'study.db'}") == ["tiny"]
+
+
 def test_a_constraint_no_trial_meets_leaves_no_best_and_exit_1(tmp_path, plant_fmu) -> None:
     path = write_tuning(
         tmp_path,

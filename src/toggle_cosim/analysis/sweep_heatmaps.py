@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.files.outputs import PNG, replacing
+from toggle_cosim import interrupts
+from toggle_cosim.files.outputs import PNG, fitting_name, replacing
 
 HEATMAP_DIR = "heatmaps"
 
@@ -31,17 +33,31 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.=-]+", "_", text).strip("_") or "all"
 
 
+def heatmap_name(others: list[str], key: tuple[Any, ...]) -> str:
+    """The file name of the heat map of one combination `key` of the other axes `others`:
+    heatmap_AXIS=VALUE_....png, within the file system's limit (`fitting_name`: a long one is cut
+    and ends with a hash; the figure's title and the PNG's Description say the whole)."""
+    if not others:
+        return "heatmap.png"
+    tag = _slug("_".join(f"{k}={value_label(v)}" for k, v in zip(others, key, strict=True)))
+    return fitting_name(f"heatmap_{tag}", ".png")
+
+
 def _columns_needed(sweep: Any) -> list[str]:
     axes = [*sweep.axes, "variant"]
     return list(dict.fromkeys([*axes, "status", *(column for column, *_ in PANELS)]))
 
 
-def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.sweep_spec.Sweep
+def write_heatmaps(
+    table: Any, sweep: Any, warn: Callable[[str], None] | None = None
+) -> list[Path]:  # sweep: experiments.sweep_spec.Sweep
     """One PNG per combination of the other axes: heat maps of the figures of merit over the two
     chosen axes. A failed case is a crossed cell; a run that never settles is a grey cell.
 
     `table` is the results DataFrame or the path of results.parquet: then only the columns the
-    maps show are read (not the reasons, hosts, timings and other metrics of every case)."""
+    maps show are read (not the reasons, hosts, timings and other metrics of every case).
+    Given `warn`, a heat map that cannot be drawn or written is said there (one line) and the
+    others are still written; without it, the error is raised."""
     if sweep.heatmap is None:
         return []
     if isinstance(table, (str, Path)):
@@ -116,13 +132,16 @@ def write_heatmaps(table: Any, sweep: Any) -> list[Path]:  # sweep: experiments.
             f"{sweep.name}{': ' + tag if tag else ''}  ({len(group)} cases, {n_failed} failed ✗,"
             " grey: no value / never settled)"
         )
-        name = "heatmap" + (
-            "_" + _slug("_".join(f"{k}={value_label(v)}" for k, v in zip(others, key, strict=True))) if others else ""
-        )
-        path = folder / f"{name}.png"
+        path = folder / heatmap_name(others, key)
+        metadata = {"Title": f"{sweep.name}: heat maps", "Description": tag or "all cases"}
         try:
             with replacing(path, "heat map", kind=PNG) as temporary:  # a unique temporary name, renamed into place
-                figure.savefig(temporary, dpi=100, format="png")
+                figure.savefig(temporary, dpi=100, format="png", metadata=metadata)
+        except Exception as error:
+            if warn is None or interrupts.is_interrupt(error):
+                raise
+            warn(f"warning: {path}: heat map not written ({' '.join(str(error).split())})")
+            continue
         finally:
             plt.close(figure)
         written.append(path)

@@ -338,12 +338,16 @@ def _execute_sweep(
         result.failed = sum(1 for ok in store.done.values() if not ok)
         if not result.interrupted:  # matplotlib only when there is time for it
             try:
-                result.figures = write_heatmaps(result.results, sweep)
+                result.figures = write_heatmaps(result.results, sweep, warn=say)
             except BaseException as error:
                 if not interrupts.is_interrupt(error):
-                    raise
-                result.interrupted = True  # the table is whole; the maps come with the next run
-                interrupts.ignore()
+                    if not isinstance(error, Exception):
+                        raise
+                    # the table is whole and sweep.json is still written: a figure never loses the results
+                    say(f"warning: {sweep.output}: heat maps not written ({' '.join(str(error).split())})")
+                else:
+                    result.interrupted = True  # the table is whole; the maps come with the next run
+                    interrupts.ignore()
         try:
             with interrupts.deferred():
                 _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)

@@ -32,14 +32,19 @@ from toggle_cosim import interrupts
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_run import execute_sweep
 from toggle_cosim.experiments.sweep_spec import SweepError, load_sweep
-from toggle_cosim.experiments.tune_files import map_sweep, tuned_scenario, write_map_sweep, write_scenario
+from toggle_cosim.experiments.tune_files import (
+    TUNE_YAML,
+    map_sweep,
+    tuned_scenario,
+    write_map_sweep,
+    write_scenario,
+)
 from toggle_cosim.experiments.tune_score import Score, score, violations
 from toggle_cosim.experiments.tune_spec import TuneError, Tuning
-from toggle_cosim.files.outputs import folder_lock
+from toggle_cosim.experiments.tune_study import MANIFEST_FILE, fingerprint, open_study
+from toggle_cosim.files.outputs import CSV, JSON, PNG, OutputError, check_destination, folder_lock
 
-STUDY_FILE = "study.db"
 HISTORY_FILE = "trials.csv"
-MANIFEST_FILE = "tune.json"
 START_SWEEP, TUNED_SWEEP = "start_sweep.yaml", "tuned_sweep.yaml"
 START_MAP, TUNED_MAP = "map_start", "map_tuned"
 WAVES = (9, 3, 1)  # a trial's cases in three waves (`waves`)
@@ -86,40 +91,23 @@ def _sampler(tuning: Tuning, finished: int) -> Any:
     )
 
 
-def _fingerprint(tuning: Tuning) -> str:
-    """What a study's trials mean: the map's cases, the tuned keys and bounds, objectives, constraints."""
-    import hashlib
-    import json
-
-    content = {
-        "cases": [c.case_id for c in tuning.cases],
-        "parameters": [[p.key, p.low, p.high, p.log] for p in tuning.parameters],
-        "objectives": [o.label for o in tuning.objectives],
-        "constraints": tuning.constraints.__dict__,
-    }
-    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
-
-
-def _open_study(tuning: Tuning, output: Path) -> Any:
-    import optuna
-
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    storage = f"sqlite:///{(output / STUDY_FILE).resolve()}"
-    study = optuna.create_study(
-        storage=storage,
-        study_name=tuning.name,
-        directions=["minimize"] * len(tuning.objectives),
-        load_if_exists=True,
-    )
-    mark = study.user_attrs.get("tuning")
-    if mark is None:
-        study.set_user_attr("tuning", _fingerprint(tuning))
-    elif mark != _fingerprint(tuning):
-        raise TuneError(
-            f"{output / STUDY_FILE}: holds a study of another tuning (its map, parameters, bounds, objectives or"
-            " constraints differ); delete the folder or choose another --out"
-        )
-    return study
+def _check_outputs(tuning: Tuning, output: Path) -> None:
+    """TuneError, before anything runs, when one of the files the tuning writes at the end could
+    not be written there (a link, a folder, a file of another kind: `files.outputs`)."""
+    files = [
+        (MANIFEST_FILE, JSON),
+        (HISTORY_FILE, CSV),
+        (START_SWEEP, TUNE_YAML),
+        (TUNED_SWEEP, TUNE_YAML),
+        (f"{tuning.name}_best.yaml", TUNE_YAML),
+        ("maps.png", PNG),
+        ("pareto.png", PNG),
+    ]
+    for name, kind in files:
+        try:
+            check_destination(output / name, "tuning's file", kind, fix="choose another --out (or move it away)")
+        except OutputError as error:
+            raise TuneError(str(error)) from None
 
 
 def waves(cases: int) -> list[list[int]]:
@@ -255,7 +243,8 @@ def _execute(
     result = TuneResult(output=output)
     chosen = fmu if fmu is not None else tuning.sweep.fmu
     options = {"scheduler": scheduler, "workers": workers, "progress": False, "log": say, "case_timeout": case_timeout}
-    study = _open_study(tuning, output)
+    _check_outputs(tuning, output)
+    study = open_study(tuning, output)
     # 1. the starting controller's map, by the sweep engine (it checks the plant and the controller first)
     start_doc = map_sweep(tuning, output, f"{tuning.name}_start", chosen)
     start_score, start_sweep, _ = _run_map(tuning, start_doc, output / START_SWEEP, output / START_MAP, chosen, options)
@@ -390,20 +379,32 @@ def _execute(
     result.rerun = {**_attrs(rerun), "equal": _attrs(rerun)["objectives"] == result.best["objectives"]}
     from toggle_cosim.analysis.tune_figures import write_maps_side_by_side, write_pareto
 
-    with interrupts.deferred():
-        if start_sweep.heatmap is not None:  # a map over two axes (a one-axis sweep has no heat maps)
-            result.files.append(
-                write_maps_side_by_side(
+    figures: list[tuple[Path, Callable[[], Path]]] = []
+    if start_sweep.heatmap is not None:  # a map over two axes (a one-axis sweep has no heat maps)
+        maps = [o.metric for o in tuning.objectives]
+        figures.append(
+            (
+                output / "maps.png",
+                lambda: write_maps_side_by_side(
                     output / START_MAP / "results.parquet",
                     output / TUNED_MAP / "results.parquet",
                     start_sweep,
-                    [o.metric for o in tuning.objectives],
+                    maps,
                     output / "maps.png",
                     tuning.name,
-                )
+                ),
             )
-        if len(tuning.objectives) == 2:
-            result.files.append(write_pareto(_history(study, tuning), tuning, output / "pareto.png"))
+        )
+    if len(tuning.objectives) == 2:
+        figures.append(
+            (output / "pareto.png", lambda: write_pareto(_history(study, tuning), tuning, output / "pareto.png"))
+        )
+    with interrupts.deferred():
+        for path, draw in figures:
+            try:
+                result.files.append(draw())
+            except Exception as error:  # a figure never loses the tuning's results: tune.json is written
+                say(f"warning: {path}: figure not written ({' '.join(str(error).split())})")
     _write_manifest(tuning, result, plant.sha256)
     return result
 
@@ -484,6 +485,7 @@ def _write_manifest(tuning: Tuning, result: TuneResult, sha: str) -> None:
             result.output / MANIFEST_FILE,
             {
                 "tuning": tuning.name,
+                "fingerprint": fingerprint(tuning),
                 "tuning_file": str(tuning.path),
                 "sweep_file": str(tuning.sweep.path),
                 "cases": len(tuning.cases),

@@ -17,12 +17,15 @@
   streams, whatever they are connected to) and a character device named directly (/dev/null,
   a terminal), opened without creating or truncating anything and without following a link.
 * A lock is taken on the folder itself (`folder_lock`): no lock file, so no fixed name to plant.
+* A name built from the user's words (axis names and values) is kept within the file system's
+  limit of NAME_MAX bytes per name (`fitting_name`): cut short and ended by a hash of the whole.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import os
 import re
 import stat
@@ -137,6 +140,26 @@ INVARIANTS = OutputKind(
 SETTINGS = OutputKind(
     "a reference's settings file (StartTime, ... lines)", _starts(b"StartTime,", b"StopTime,", b"StepSize,")
 )
+SQLITE_HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite 3 database
+SQLITE = OutputKind("an SQLite database", lambda path: _head(path).startswith(SQLITE_HEADER))
+
+NAME_MAX = 255  # bytes in one name of a path (Linux, macOS and Windows file systems)
+_HASH_DIGITS = 12
+
+
+def fitting_name(stem: str, suffix: str = "", limit: int = NAME_MAX) -> str:
+    """`stem + suffix` when it fits in `limit` bytes (UTF-8); else the stem cut short and ended
+    by `~` and 12 hex digits of its SHA-256, so that the name fits: the same stem always gives
+    the same name, and two stems that differ give different names (the hash)."""
+    name = stem + suffix
+    if len(name.encode()) <= limit:
+        return name
+    tag = "~" + hashlib.sha256(stem.encode()).hexdigest()[:_HASH_DIGITS]
+    room = limit - len(suffix.encode()) - len(tag)
+    if room < 0:
+        raise ValueError(f"a suffix of {len(suffix.encode())} bytes leaves no room in a name of {limit} bytes")
+    cut = stem.encode()[:room].decode("utf-8", errors="ignore")  # never half a character
+    return cut + tag + suffix
 
 
 def _umask() -> int:
@@ -153,6 +176,7 @@ _KINDS = (
     (stat.S_ISFIFO, "a FIFO"),
     (stat.S_ISSOCK, "a socket"),
     (stat.S_ISBLK, "a block device"),
+    (stat.S_ISCHR, "a character device"),
 )
 
 
@@ -166,13 +190,23 @@ def _written_through(path: Path) -> bool:
         return False
 
 
-def check_destination(path: Path | str, what: str = "output", kind: OutputKind | None = None) -> None:
+def check_destination(
+    path: Path | str,
+    what: str = "output",
+    kind: OutputKind | None = None,
+    *,
+    through: bool = True,
+    fix: str | None = None,
+) -> None:
     """Raise OutputError if something that is not a regular file lies at `path` (a character
-    device and /dev/stdout, /dev/stderr are written through; see the module docstring), or, given
-    the output's `kind`, a non-empty regular file that is not of that kind; `what` names the
-    output in the message."""
+    device and /dev/stdout, /dev/stderr are written through, unless `through` is False: an output
+    that is a file by nature, such as a database, refuses them too; see the module docstring),
+    or, given the output's `kind`, a non-empty regular file that is not of that kind; `what`
+    names the output in the message, and `fix` says what to do (default: give another file name)."""
     path = Path(path)
-    if str(path) in STREAMS:
+    other = fix or f"give another file name for the {what} (or move the file away)"  # a file of another kind
+    fix = fix or f"give another file name for the {what}"
+    if through and str(path) in STREAMS:
         return
     try:
         mode = os.lstat(path).st_mode
@@ -180,23 +214,17 @@ def check_destination(path: Path | str, what: str = "output", kind: OutputKind |
         return
     except OSError as error:  # e.g. a parent that is a file: the write will say it, naming the path
         if error.errno in (errno.ENOTDIR, errno.ELOOP, errno.ENAMETOOLONG):
-            raise OutputError(
-                path, f"cannot be written ({error.strerror}); give another file name for the {what}"
-            ) from error
+            raise OutputError(path, f"cannot be written ({error.strerror}); {fix}") from error
         raise
-    if stat.S_ISCHR(mode):
+    if through and stat.S_ISCHR(mode):
         return
     if stat.S_ISREG(mode):
         if kind is not None and os.lstat(path).st_size > 0 and not kind.recognize(path):
-            raise OutputError(
-                path,
-                f"exists and is not {kind.name}, so it is not replaced; give another file name for the {what} "
-                "(or move the file away)",
-            )
+            raise OutputError(path, f"exists and is not {kind.name}, so it is not replaced; {other}")
         return
     shape = next((name for test, name in _KINDS if test(mode)), "something else")
     note = " (a link is not followed)" if stat.S_ISLNK(mode) else ""
-    raise OutputError(path, f"is {shape}, not a regular file{note}; give another file name for the {what}")
+    raise OutputError(path, f"is {shape}, not a regular file{note}; {fix}")
 
 
 @contextlib.contextmanager
@@ -240,7 +268,9 @@ def replacing(path: Path | str, what: str = "output", *, kind: OutputKind) -> It
     through = _written_through(path)
     folder = Path(tempfile.gettempdir()) if through else path.parent
     folder.mkdir(parents=True, exist_ok=True)
-    handle, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=folder)
+    # mkstemp adds 8 letters and the suffix: the prefix is cut so that a name that fits gives one that fits
+    prefix = f".{fitting_name(path.name, limit=NAME_MAX - 32)}."
+    handle, name = tempfile.mkstemp(prefix=prefix, suffix=".partial", dir=folder)
     temporary = Path(name)
     try:
         os.close(handle)
@@ -315,15 +345,19 @@ __all__ = [
     "JUNIT",
     "MARKDOWN",
     "MAT",
+    "NAME_MAX",
     "NPZ",
     "PARQUET",
     "PNG",
     "SETTINGS",
+    "SQLITE",
+    "SQLITE_HEADER",
     "SSP",
     "STREAMS",
     "OutputError",
     "OutputKind",
     "check_destination",
+    "fitting_name",
     "folder_lock",
     "replacing",
     "write_file",
