@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
+from hostile_names import ENTITY, HOSTILE, IMAGE, SCRIPT, hostile_runs, hostile_sweep
 
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import Trace, read_csv, select, write_csv
@@ -76,14 +77,17 @@ def browser() -> Iterator[object]:
 
 
 class Page:
-    """A report opened in the browser, with every console error and page error collected."""
+    """A report opened in the browser, with every console error, page error and dialog (an
+    alert, which the page never opens) collected."""
 
     def __init__(self, context, path: Path) -> None:  # noqa: ANN001 - Playwright's BrowserContext
         self.page = context.new_page()
         self.page.set_default_timeout(10_000)
         self.errors: list[str] = []
+        self.dialogs: list[str] = []
         self.page.on("console", lambda message: self.errors.append(message.text) if message.type == "error" else None)
         self.page.on("pageerror", lambda error: self.errors.append(str(error)))
+        self.page.on("dialog", lambda dialog: (self.dialogs.append(dialog.message), dialog.dismiss()))
         self.page.goto(path.resolve().as_uri())
         self.page.wait_for_function(ALL_DRAWN, timeout=20_000)
 
@@ -258,3 +262,41 @@ def test_a_sweep_cell_click_shows_that_cases_trace(browser, tmp_path: Path) -> N
     assert [c["visible"] for c in page.curves("sweep-map-0")] == [False, False, True]
     assert page.errors == []
     page.shot(tmp_path / "report-sweep-tiny.png", full_page=True)
+
+
+def test_a_page_of_hostile_names_runs_none_of_them_and_shows_them_as_written(browser, tmp_path: Path) -> None:  # noqa: ANN001
+    """The runs and the sweep of tests/hostile_names.py (names holding </script><script>, an
+    <img onerror>, an entity, quotes, line separators): each page loads with its own title, no
+    image, no dialog, no error; Plotly's legend, axis and a clicked cell's title show the names
+    as the files spell them."""
+    results, references = hostile_runs(tmp_path)
+    runs_page = tmp_path / "runs.html"
+    arguments = ["report", str(results), "--references", str(references), "--out", str(runs_page)]
+    assert CliRunner().invoke(main, arguments).exit_code == 0
+    hostile_sweep(tmp_path / "sweep")
+    assert CliRunner().invoke(main, ["report", str(tmp_path / "sweep")]).exit_code == 0
+
+    page = Page(browser, runs_page)
+    assert page.page.title() == f"toggle-cosim report: {results}"
+    legend = page.page.evaluate("[...document.querySelectorAll('#runs-overlay .legendtext')].map(t => t.textContent)")
+    assert legend == [f"{SCRIPT}/{IMAGE}", f"cmp/{HOSTILE[3]}{ENTITY}"]  # the two runs with samples
+    page.page.locator("#runs-overlay .updatemenu-header").click()  # the dropdown of variables opens
+    buttons = page.page.locator("#runs-overlay .updatemenu-dropdown-button .updatemenu-item-text")
+    buttons.nth(len(HOSTILE)).wait_for()
+    assert buttons.all_text_contents() == ["x_B", *HOSTILE]  # the variables, as the trace's header names them
+    assert page.page.evaluate("document.images.length") == 0 and page.dialogs == [] and page.errors == []
+
+    page = Page(browser, tmp_path / "sweep" / "report.html")
+    assert page.page.title() == f"sweep {SCRIPT}"
+    ticks = page.page.evaluate("[...document.querySelectorAll('#sweep-map-0 .xtick text')].map(t => t.textContent)")
+    assert ticks == sorted(HOSTILE)  # the axis's values, as written
+    where = page.page.evaluate(
+        """() => { const g = document.getElementById('sweep-map-0'), box = g.getBoundingClientRect();
+                   const xa = g._fullLayout.xaxis, ya = g._fullLayout.yaxis;
+                   return [box.left + xa._offset + xa.l2p(0), box.top + ya._offset + ya.l2p(0)]; }"""
+    )
+    page.page.mouse.click(*where)  # the first value of each axis: IMAGE and 1.0, case 1
+    page.page.wait_for_function("document.querySelector('#sweep-trace-0 .gtitle').textContent.includes('(case ')")
+    title = page.page.evaluate("document.querySelector('#sweep-trace-0 .gtitle').textContent")
+    assert title == f"{SCRIPT} = {IMAGE}, {IMAGE} = 1 (case {ENTITY}1{IMAGE})"
+    assert page.page.evaluate("document.images.length") == 0 and page.dialogs == [] and page.errors == []
