@@ -6,6 +6,7 @@ report is one self-contained file whose size does not grow with the traces' leng
 
 from __future__ import annotations
 
+import html
 import json
 import sys
 from pathlib import Path
@@ -405,3 +406,42 @@ def test_a_complete_run_without_samples_is_still_refused(tmp_path: Path) -> None
     assert result.exit_code == 2 and result.stderr.count("\n") == 1
     assert "trace.csv: unreadable trace" in result.stderr and "(empty trace)" in result.stderr
     assert not (folder / "report.html").exists()
+
+
+def test_a_run_whose_controller_cannot_be_built_is_in_both_pages_with_its_reason(
+    plant_fmu: Path, tmp_path: Path
+) -> None:
+    """`run` of a controller whose factory raises writes a failed run with a header-only trace;
+    `report` of that folder and `references --html` of that scenario list it with the reason."""
+    import yaml
+
+    (tmp_path / "broken.py").write_text("def make(context):\n    raise ValueError('no gains <b>given</b>')\n")
+    scenario = {
+        "name": "broken",
+        "t_end": 0.02,
+        "T_s": 0.0005,
+        "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+        "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
+        "controller": {"python": "broken:make"},
+        "variants": {"v": {}},
+    }
+    path = tmp_path / "broken.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    out = tmp_path / "out"
+    ran = CliRunner().invoke(main, ["run", str(path), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    assert ran.exit_code == 1, ran.output
+    assert (out / "broken" / "v" / "trace.csv").read_text().count("\n") == 1  # the header: no sample
+    reason = json.loads((out / "broken" / "v" / "run.json").read_text())["reason"]
+    assert "no gains <b>given</b>" in reason
+    row = f'<tr class="fail"><td>broken/v</td><td>failed</td><td>{html.escape(reason)}</td><td>0</td></tr>'
+
+    result = CliRunner().invoke(main, ["report", str(out)])
+    assert result.exit_code == 0, result.output
+    assert row.replace("&quot;", "&#34;") in (out / "report.html").read_text()
+
+    (tmp_path / "references").mkdir()
+    checked = tmp_path / "checked"
+    arguments = ["references", str(path), "--fmu", str(plant_fmu), "--folder", str(tmp_path / "references")]
+    result = CliRunner().invoke(main, [*arguments, "--out", str(checked), "--html"])
+    assert result.exit_code == 1 and "broken/v: FAILED (" in result.output
+    assert row.replace("&quot;", "&#34;") in (checked / "report.html").read_text()

@@ -143,8 +143,9 @@ def reference_comparisons(runs: Sequence[Any], folder: Path) -> list[Any]:
 
 
 def write_checks_report(output: Path, checks: Sequence[tuple[Any, Any, Path]], outcomes: Sequence[Any]) -> Path:
-    """The page of `references --html`: the comparisons it made ((ReferenceCheck, trace,
-    reference stem) each), failing ones first, then the runs overlaid and their records."""
+    """The page of `references --html`: the runs that failed with their reasons, the comparisons
+    it made ((ReferenceCheck, trace, reference stem) each), failing ones first, then the runs
+    overlaid and their records (`outcomes`: every run, complete or not)."""
     from toggle_cosim.analysis.html_report import Comparison
     from toggle_cosim.analysis.reference_files import read_reference
 
