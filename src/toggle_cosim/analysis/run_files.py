@@ -131,7 +131,7 @@ def _samples_kept(path: Path) -> Trace | None:
     header only, or one row): None when it is not such a file (then its defect is reported)."""
     from toggle_cosim.files.traces import read_csv
 
-    if not path.is_file():
+    if not (path.exists() or path.is_symlink()):  # no file at all (a folder or a link is a defect)
         return Trace(("time",), np.empty((0, 1)))
     try:
         trace = read_csv(path)
