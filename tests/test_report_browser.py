@@ -4,7 +4,9 @@ must load from file:// with no console error, draw the expected curves (Plotly's
 each figure), and react to the reader: choosing a variable in the dropdown redraws the plot, a
 click on a sweep's heat-map cell shows that case's trace. A `references --html` run on a plant
 whose slider mass is doubled (the references are the nominal ones) shows the failing x_B with
-its funnel band, the samples outside it and the distance outside it.
+its funnel band, the samples outside it and the distance outside it. Pages of hostile names
+(tests/hostile_names.py) keep their own title, open no image and no dialog, and show the names
+as written in Plotly's legend, dropdown, axis, hover text and a clicked cell's title.
 
 Without chromium or Playwright the tests are skipped with the reason, except under CI=true,
 where they fail: CI installs both (TOGGLE_COSIM_CHROMIUM names another browser executable).
@@ -25,7 +27,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
-from hostile_names import ENTITY, HOSTILE, IMAGE, SCRIPT, hostile_runs, hostile_sweep
+from hostile_names import ENTITY, HOSTILE, IMAGE, REASON, SCRIPT, hostile_runs, hostile_sweep
 
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import Trace, read_csv, select, write_csv
@@ -290,12 +292,15 @@ def test_a_page_of_hostile_names_runs_none_of_them_and_shows_them_as_written(bro
     assert page.page.title() == f"sweep {SCRIPT}"
     ticks = page.page.evaluate("[...document.querySelectorAll('#sweep-map-0 .xtick text')].map(t => t.textContent)")
     assert ticks == sorted(HOSTILE)  # the axis's values, as written
-    where = page.page.evaluate(
-        """() => { const g = document.getElementById('sweep-map-0'), box = g.getBoundingClientRect();
-                   const xa = g._fullLayout.xaxis, ya = g._fullLayout.yaxis;
-                   return [box.left + xa._offset + xa.l2p(0), box.top + ya._offset + ya.l2p(0)]; }"""
-    )
-    page.page.mouse.click(*where)  # the first value of each axis: IMAGE and 1.0, case 1
+    cell = """([x, y]) => { const g = document.getElementById('sweep-map-0'), box = g.getBoundingClientRect();
+                           const xa = g._fullLayout.xaxis, ya = g._fullLayout.yaxis;
+                           return [box.left + xa._offset + xa.l2p(x), box.top + ya._offset + ya.l2p(y)]; }"""
+    page.page.mouse.move(*page.page.evaluate(cell, [0, 1]))  # IMAGE and 2.0: case 6, the failed one
+    hover = page.page.locator("#sweep-map-0 .hoverlayer .hovertext")
+    hover.wait_for()
+    lines = hover.locator("tspan").all_text_contents()
+    assert lines[:2] == [f"{SCRIPT} = {IMAGE}", f"{IMAGE} = 2"] and f"status: failed: {REASON}" in lines
+    page.page.mouse.click(*page.page.evaluate(cell, [0, 0]))  # IMAGE and 1.0, case 1
     page.page.wait_for_function("document.querySelector('#sweep-trace-0 .gtitle').textContent.includes('(case ')")
     title = page.page.evaluate("document.querySelector('#sweep-trace-0 .gtitle').textContent")
     assert title == f"{SCRIPT} = {IMAGE}, {IMAGE} = 1 (case {ENTITY}1{IMAGE})"

@@ -12,7 +12,13 @@ from data already read:
   (every variable, the numbers unrounded by display);
 * `sweep_section`: a sweep's figures of merit as heat maps over two axes (a dropdown per figure
   of merit), whose cells, when the sweep kept its traces, show that case's trace below;
+* `failures_section`: the runs that failed or were interrupted, with their reasons (a run that
+  failed before its first sample has nothing else to show);
 * `records_section`: each run's record (settings, warnings, which loop ran and why, solver counts).
+
+Every value from the user's files reaches the page through `page_text` (the page's text and
+attributes, and every string Plotly draws) or `script_json` (the click handler's values): a name
+is shown as written and never read as markup or script.
 
 Curves are thinned for display (`display_points.thin`, at most DISPLAY_POINTS per curve, every
 extreme kept); the numbers in tables are never thinned.
