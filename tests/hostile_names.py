@@ -1,6 +1,6 @@
 """Results folders whose every name a report page shows is hostile: markup that would end a
 <script> element, an element whose attribute runs script, an entity, quotes and a line
-separator, in the folder, scenario, variant and variable names, a failure's reason, a sweep's
+separator, a Plotly template, in the folder, scenario, variant and variable names, a failure's reason, a sweep's
 name, axis, values and case ids. `page_tags` parses a written page as a browser does and
 returns what it holds, for tests to assert that no hostile markup survived as markup."""
 
@@ -18,7 +18,8 @@ IMAGE = '"><img src=x onerror=alert(1)>'
 ENTITY = "&lt;"
 QUOTES = 'it\'s "quoted"'
 SEPARATOR = "line\u2028separated\u2029here"
-HOSTILE = (SCRIPT, IMAGE, ENTITY, QUOTES, SEPARATOR)
+TEMPLATE = "50%{meta[0]}"  # a Plotly template: in a legend name or a dropdown label it would be replaced
+HOSTILE = (SCRIPT, IMAGE, ENTITY, QUOTES, SEPARATOR, TEMPLATE)
 REASON = "plant: " + " | ".join(HOSTILE)  # a failure's reason holding each of them
 
 # the elements a report page is made of: a hostile name adding any other one (an <img>) fails
@@ -76,7 +77,7 @@ def hostile_sweep(folder: Path) -> list[str]:
     t = np.linspace(0.0, 1.0, 101)
     for index, (text, number) in enumerate((v, n) for n in (1.0, 2.0) for v in HOSTILE):
         case_id = f"{ENTITY}{index}{IMAGE}"
-        failed = index == 6
+        failed = index == len(HOSTILE) + 1  # IMAGE and 2.0
         rows.append({"case": index, "case_id": case_id, "variant": "friction", SCRIPT: text, IMAGE: number,
                      "status": "failed" if failed else "ok", "reason": REASON if failed else None,
                      "final_error_m": 1e-4 * (index + 1), "settling_time_s": 0.2, "peak_iq_ref_A": 3.0 + index})  # fmt: skip

@@ -259,10 +259,11 @@ def test_sweep_html_writes_the_sweeps_page_with_its_kept_traces(plant_fmu: Path,
     assert len(cases) == 4  # every case's trace is in the page, by its case id
     from plotly.io.json import to_json_plotly  # as the page spells strings ("/" escaped)
 
+    from toggle_cosim.analysis.page_text import page_text
     from toggle_cosim.analysis.sweep_heatmaps import PANELS
 
     for _, title, _, _ in PANELS:  # a map per figure of merit of the PNG maps, in the dropdown
-        spelt = to_json_plotly(title)
+        spelt = to_json_plotly(page_text(title))
         assert text.count(f'"name":{spelt}') == 1 and f'"label":{spelt}' in text
     assert '"xaxis":{"title":{"text":"plant.F_E"}' in text.replace(" ", "")
 
@@ -307,6 +308,7 @@ def test_page_text_and_script_json_hold_no_markup_and_read_back_as_written(name:
     shown = page_text(name)
     assert not set("<>\"'") & set(shown) and html.unescape(shown) == name
     assert "&quot;" not in shown  # Plotly decodes numeric references, not &quot;: it would show as typed
+    assert "%{" not in shown  # nor is any of it read as a Plotly template
     literal = script_json(name)
     assert not set("<>&\u2028\u2029") & set(literal) and json.loads(literal) == name
 

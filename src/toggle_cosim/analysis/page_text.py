@@ -4,8 +4,9 @@ reaches a page goes through `page_text` or `script_json`, chosen by where it lan
 
 * `page_text`: text or an attribute value of the page, and every string Plotly draws (titles,
   axis titles, legend names, dropdown labels, hover text). Plotly reads those strings as a small
-  markup of its own (<b>, <br>, <a href>, entities) and decodes the numeric entities and
-  &amp; &lt; &gt;, so the one escaped form shows the name as written in both places.
+  markup of its own (<b>, <br>, <a href>, entities) and of templates (`%{meta[0]}` in a legend
+  name or a dropdown label is replaced) and decodes the numeric entities and &amp; &lt; &gt;,
+  so the one escaped form shows the name as written in both places.
 * `script_json`: a value written inside a <script> element, as JSON that cannot end the element
   or start a comment there: <, >, & and U+2028/U+2029 are written as \\u escapes. Plotly writes
   its figures' data the same way but for the line separators, which `separators_escaped` adds.
@@ -26,9 +27,10 @@ _SEPARATORS_TABLE = str.maketrans({c: _SCRIPT_ESCAPES[c] for c in "\u2028\u2029"
 
 
 def page_text(value: Any) -> str:
-    """`value` as text that shows as written in the page and in Plotly's figures: &, <, >, " and
-    ' as character references (the quote as &#34;, the form Plotly decodes as well as HTML)."""
-    return html.escape(str(value), quote=True).replace("&quot;", "&#34;")
+    """`value` as text that shows as written in the page and in Plotly's figures: &, <, >, ", '
+    and % as character references (the quote as &#34;, the form Plotly decodes as well as HTML;
+    % so that no `%{...}` is read as one of Plotly's templates)."""
+    return html.escape(str(value), quote=True).replace("&quot;", "&#34;").replace("%", "&#37;")
 
 
 def script_json(value: Any) -> str:
