@@ -4,7 +4,9 @@ must load from file:// with no console error, draw the expected curves (Plotly's
 each figure), and react to the reader: choosing a variable in the dropdown redraws the plot, a
 click on a sweep's heat-map cell shows that case's trace. A `references --html` run on a plant
 whose slider mass is doubled (the references are the nominal ones) shows the failing x_B with
-its funnel band, the samples outside it and the distance outside it.
+its funnel band, the samples outside it and the distance outside it. Pages of hostile names
+(tests/hostile_names.py) keep their own title, open no image and no dialog, and show the names
+as written in Plotly's legend, dropdown, axis, hover text and a clicked cell's title.
 
 Without chromium or Playwright the tests are skipped with the reason, except under CI=true,
 where they fail: CI installs both (TOGGLE_COSIM_CHROMIUM names another browser executable).
@@ -25,6 +27,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
+from hostile_names import ENTITY, HOSTILE, IMAGE, REASON, SCRIPT, hostile_runs, hostile_sweep
 
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import Trace, read_csv, select, write_csv
@@ -76,14 +79,17 @@ def browser() -> Iterator[object]:
 
 
 class Page:
-    """A report opened in the browser, with every console error and page error collected."""
+    """A report opened in the browser, with every console error, page error and dialog (an
+    alert, which the page never opens) collected."""
 
     def __init__(self, context, path: Path) -> None:  # noqa: ANN001 - Playwright's BrowserContext
         self.page = context.new_page()
         self.page.set_default_timeout(10_000)
         self.errors: list[str] = []
+        self.dialogs: list[str] = []
         self.page.on("console", lambda message: self.errors.append(message.text) if message.type == "error" else None)
         self.page.on("pageerror", lambda error: self.errors.append(str(error)))
+        self.page.on("dialog", lambda dialog: (self.dialogs.append(dialog.message), dialog.dismiss()))
         self.page.goto(path.resolve().as_uri())
         self.page.wait_for_function(ALL_DRAWN, timeout=20_000)
 
@@ -258,3 +264,44 @@ def test_a_sweep_cell_click_shows_that_cases_trace(browser, tmp_path: Path) -> N
     assert [c["visible"] for c in page.curves("sweep-map-0")] == [False, False, True]
     assert page.errors == []
     page.shot(tmp_path / "report-sweep-tiny.png", full_page=True)
+
+
+def test_a_page_of_hostile_names_runs_none_of_them_and_shows_them_as_written(browser, tmp_path: Path) -> None:  # noqa: ANN001
+    """The runs and the sweep of tests/hostile_names.py (names holding </script><script>, an
+    <img onerror>, an entity, quotes, line separators): each page loads with its own title, no
+    image, no dialog, no error; Plotly's legend, axis and a clicked cell's title show the names
+    as the files spell them."""
+    results, references = hostile_runs(tmp_path)
+    runs_page = tmp_path / "runs.html"
+    arguments = ["report", str(results), "--references", str(references), "--out", str(runs_page)]
+    assert CliRunner().invoke(main, arguments).exit_code == 0
+    hostile_sweep(tmp_path / "sweep")
+    assert CliRunner().invoke(main, ["report", str(tmp_path / "sweep")]).exit_code == 0
+
+    page = Page(browser, runs_page)
+    assert page.page.title() == f"toggle-cosim report: {results}"
+    legend = page.page.evaluate("[...document.querySelectorAll('#runs-overlay .legendtext')].map(t => t.textContent)")
+    assert legend == [f"{SCRIPT}/{IMAGE}", f"cmp/{HOSTILE[3]}{ENTITY}"]  # the two runs with samples
+    page.page.locator("#runs-overlay .updatemenu-header").click()  # the dropdown of variables opens
+    buttons = page.page.locator("#runs-overlay .updatemenu-dropdown-button .updatemenu-item-text")
+    buttons.nth(len(HOSTILE)).wait_for()
+    assert buttons.all_text_contents() == ["x_B", *HOSTILE]  # the variables, as the trace's header names them
+    assert page.page.evaluate("document.images.length") == 0 and page.dialogs == [] and page.errors == []
+
+    page = Page(browser, tmp_path / "sweep" / "report.html")
+    assert page.page.title() == f"sweep {SCRIPT}"
+    ticks = page.page.evaluate("[...document.querySelectorAll('#sweep-map-0 .xtick text')].map(t => t.textContent)")
+    assert ticks == sorted(HOSTILE)  # the axis's values, as written
+    cell = """([x, y]) => { const g = document.getElementById('sweep-map-0'), box = g.getBoundingClientRect();
+                           const xa = g._fullLayout.xaxis, ya = g._fullLayout.yaxis;
+                           return [box.left + xa._offset + xa.l2p(x), box.top + ya._offset + ya.l2p(y)]; }"""
+    page.page.mouse.move(*page.page.evaluate(cell, [0, 1]))  # IMAGE and 2.0: case 6, the failed one
+    hover = page.page.locator("#sweep-map-0 .hoverlayer .hovertext")
+    hover.wait_for()
+    lines = hover.locator("tspan").all_text_contents()
+    assert lines[:2] == [f"{SCRIPT} = {IMAGE}", f"{IMAGE} = 2"] and f"status: failed: {REASON}" in lines
+    page.page.mouse.click(*page.page.evaluate(cell, [0, 0]))  # IMAGE and 1.0, case 1
+    page.page.wait_for_function("document.querySelector('#sweep-trace-0 .gtitle').textContent.includes('(case ')")
+    title = page.page.evaluate("document.querySelector('#sweep-trace-0 .gtitle').textContent")
+    assert title == f"{SCRIPT} = {IMAGE}, {IMAGE} = 1 (case {ENTITY}1{IMAGE})"
+    assert page.page.evaluate("document.images.length") == 0 and page.dialogs == [] and page.errors == []

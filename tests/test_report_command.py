@@ -6,6 +6,7 @@ report is one self-contained file whose size does not grow with the traces' leng
 
 from __future__ import annotations
 
+import html
 import json
 import sys
 from pathlib import Path
@@ -13,6 +14,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hostile_names import (
+    ENTITY,
+    HOSTILE,
+    IMAGE,
+    PAGE_TAGS,
+    QUOTES,
+    REASON,
+    SCRIPT,
+    hostile_runs,
+    hostile_sweep,
+    page_tags,
+)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -246,10 +259,11 @@ def test_sweep_html_writes_the_sweeps_page_with_its_kept_traces(plant_fmu: Path,
     assert len(cases) == 4  # every case's trace is in the page, by its case id
     from plotly.io.json import to_json_plotly  # as the page spells strings ("/" escaped)
 
+    from toggle_cosim.analysis.page_text import page_text
     from toggle_cosim.analysis.sweep_heatmaps import PANELS
 
     for _, title, _, _ in PANELS:  # a map per figure of merit of the PNG maps, in the dropdown
-        spelt = to_json_plotly(title)
+        spelt = to_json_plotly(page_text(title))
         assert text.count(f'"name":{spelt}') == 1 and f'"label":{spelt}' in text
     assert '"xaxis":{"title":{"text":"plant.F_E"}' in text.replace(" ", "")
 
@@ -280,3 +294,156 @@ def test_html_options_refuse_bad_input_before_any_run(tmp_path: Path) -> None:
         "followed); give another file name for the HTML report (--html)\n"
     )
     assert sorted(p.name for p in (tmp_path / "sweep").iterdir()) == ["report.html"] and not target.exists()
+
+
+# -- names from the user's files in a page -------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", HOSTILE)
+def test_page_text_and_script_json_hold_no_markup_and_read_back_as_written(name: str) -> None:
+    import html
+
+    from toggle_cosim.analysis.page_text import page_text, script_json
+
+    shown = page_text(name)
+    assert not set("<>\"'") & set(shown) and html.unescape(shown) == name
+    assert "&quot;" not in shown  # Plotly decodes numeric references, not &quot;: it would show as typed
+    assert "%{" not in shown  # nor is any of it read as a Plotly template
+    literal = script_json(name)
+    assert not set("<>&\u2028\u2029") & set(literal) and json.loads(literal) == name
+
+
+def _shown_as_text(page: Path, figures: int) -> str:
+    """The page's text outside its scripts, after checking that the page holds only its own
+    elements (no <img>, no extra <script>) and its scripts no raw line separator."""
+    parsed = page_tags(page)
+    assert set(parsed.tags) <= PAGE_TAGS, set(parsed.tags) - PAGE_TAGS
+    assert len(parsed.scripts) == 1 + figures  # plotly.js, then one per figure: no script was injected
+    assert not any(set("\u2028\u2029") & set(script) for script in parsed.scripts[1:])
+    assert "<img" not in page.read_text().lower()
+    return "".join(parsed.text)
+
+
+def test_hostile_names_in_a_runs_report_are_shown_as_text_never_as_markup(tmp_path: Path) -> None:
+    """Folder, scenario, variant and variable names, warnings and a failure's reason holding
+    </script>, an <img onerror>, an entity, quotes and line separators: the page shows each as
+    written (in the failures, the verdicts, the records) and runs none of them."""
+    results, references = hostile_runs(tmp_path)
+    page = tmp_path / "report.html"
+    arguments = ["report", str(results), "--references", str(references), "--out", str(page)]
+    result = CliRunner().invoke(main, arguments)
+    assert result.exit_code == 0, result.output
+    text = _shown_as_text(page, figures=2)  # the comparison and the runs overlaid
+    assert f"toggle-cosim report: {results}" in text  # the title, with the folder's name
+    assert f"{SCRIPT}/{IMAGE}" in text and f"cmp/{QUOTES}{ENTITY}: FAIL" in text  # records, comparison
+    assert all(name in text for name in HOSTILE)  # the variables in the verdict table
+    assert text.count(REASON) >= 2  # the failures' table (and the records') give the reason
+
+
+def test_hostile_names_in_a_sweeps_report_are_shown_as_text_never_as_markup(tmp_path: Path) -> None:
+    """A sweep named `</script>...` over an axis of that name with hostile values and case ids:
+    the page runs none of it; the click script gets the axes' names as safe literals."""
+    from toggle_cosim.analysis.page_text import page_text, script_json
+
+    hostile_sweep(tmp_path / "sweep")
+    result = CliRunner().invoke(main, ["report", str(tmp_path / "sweep")])
+    assert result.exit_code == 0, result.output
+    page = tmp_path / "sweep" / "report.html"
+    text = _shown_as_text(page, figures=2)  # the heat map and its cases' traces
+    assert f"sweep {SCRIPT}" in text
+    click = page_tags(page).scripts[1]
+    assert f"var cell = {script_json(page_text(SCRIPT))} + ' = '" in click
+
+
+# -- runs that did not complete ------------------------------------------------------------------
+
+
+def _failed_run(folder: Path, variant: str, samples: int | None) -> None:
+    """A failed run: a trace of `samples` samples (0: a header only; None: no trace.csv)."""
+    run = folder / "s" / variant
+    run.mkdir(parents=True)
+    if samples is not None:
+        trace = _trace(FOREIGN_COLUMNS, samples) if samples else Trace(FOREIGN_COLUMNS, np.empty((0, 5)))
+        write_csv(run / "trace.csv", trace)
+    reason = f"plant: fmi2DoStep failed at t = 0 ({variant})"
+    record = {"scenario": "s", "variant": variant, "status": "failed", "reason": reason, "samples": samples or 0}
+    (run / "run.json").write_text(json.dumps(record))
+
+
+def test_a_run_that_failed_before_its_first_sample_is_in_the_report_with_its_reason(tmp_path: Path) -> None:
+    """A folder with a complete run and three failed ones (no trace file, a header only, a
+    partial trace): the page lists each failed run with its reason and samples first, draws the
+    complete and the partial run, and names the two it cannot draw."""
+    folder = tmp_path / "out"
+    _write_run(folder, "s", "complete", _trace(FOREIGN_COLUMNS))
+    _failed_run(folder, "empty", 0)
+    _failed_run(folder, "missing", None)
+    _failed_run(folder, "partial", 120)
+    result = CliRunner().invoke(main, ["report", str(folder), "--vars", "x_B,iq_ref"])
+    assert result.exit_code == 0, result.output
+    page = folder / "report.html"
+    text = page.read_text()
+    failures = text[text.index('<section id="failures">') : text.index('<section id="runs">')]
+    for variant, samples in (("empty", 0), ("missing", 0), ("partial", 120)):
+        assert (
+            f'<tr class="fail"><td>s/{variant}</td><td>failed</td>'
+            f"<td>plant: fmi2DoStep failed at t = 0 ({variant})</td><td>{samples}</td></tr>"
+        ) in failures
+    assert "s/complete" not in failures
+    assert "<p>Not drawn (fewer than two samples): s/empty, s/missing.</p>" in text
+    assert text.count('"name":"s\\u002fpartial"') == 2 and text.count('"name":"s\\u002fempty"') == 0  # x_B, iq_ref
+
+    alone = CliRunner().invoke(main, ["report", str(folder / "s" / "empty")])
+    assert alone.exit_code == 0, alone.output  # nothing to draw: the failure and its record
+    text = (folder / "s" / "empty" / "report.html").read_text()
+    assert 'id="failures"' in text and 'id="records"' in text and 'id="runs"' not in text
+
+
+def test_a_complete_run_without_samples_is_still_refused(tmp_path: Path) -> None:
+    """Only a run whose record says it failed may lack samples; a complete one with an empty
+    trace is a broken folder: one line naming the file, exit 2, no page."""
+    folder = tmp_path / "out"
+    _write_run(folder, "s", "v", Trace(FOREIGN_COLUMNS, np.empty((0, 5))))
+    result = CliRunner().invoke(main, ["report", str(folder)])
+    assert result.exit_code == 2 and result.stderr.count("\n") == 1
+    assert "trace.csv: unreadable trace" in result.stderr and "(empty trace)" in result.stderr
+    assert not (folder / "report.html").exists()
+
+
+def test_a_run_whose_controller_cannot_be_built_is_in_both_pages_with_its_reason(
+    plant_fmu: Path, tmp_path: Path
+) -> None:
+    """`run` of a controller whose factory raises writes a failed run with a header-only trace;
+    `report` of that folder and `references --html` of that scenario list it with the reason."""
+    import yaml
+
+    (tmp_path / "broken.py").write_text("def make(context):\n    raise ValueError('no gains <b>given</b>')\n")
+    scenario = {
+        "name": "broken",
+        "t_end": 0.02,
+        "T_s": 0.0005,
+        "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+        "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
+        "controller": {"python": "broken:make"},
+        "variants": {"v": {}},
+    }
+    path = tmp_path / "broken.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    out = tmp_path / "out"
+    ran = CliRunner().invoke(main, ["run", str(path), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    assert ran.exit_code == 1, ran.output
+    assert (out / "broken" / "v" / "trace.csv").read_text().count("\n") == 1  # the header: no sample
+    reason = json.loads((out / "broken" / "v" / "run.json").read_text())["reason"]
+    assert "no gains <b>given</b>" in reason
+    row = f'<tr class="fail"><td>broken/v</td><td>failed</td><td>{html.escape(reason)}</td><td>0</td></tr>'
+
+    result = CliRunner().invoke(main, ["report", str(out)])
+    assert result.exit_code == 0, result.output
+    assert row.replace("&quot;", "&#34;") in (out / "report.html").read_text()
+
+    (tmp_path / "references").mkdir()
+    checked = tmp_path / "checked"
+    arguments = ["references", str(path), "--fmu", str(plant_fmu), "--folder", str(tmp_path / "references")]
+    result = CliRunner().invoke(main, [*arguments, "--out", str(checked), "--html"])
+    assert result.exit_code == 1 and "broken/v: FAILED (" in result.output
+    assert row.replace("&quot;", "&#34;") in (checked / "report.html").read_text()

@@ -12,7 +12,13 @@ from data already read:
   (every variable, the numbers unrounded by display);
 * `sweep_section`: a sweep's figures of merit as heat maps over two axes (a dropdown per figure
   of merit), whose cells, when the sweep kept its traces, show that case's trace below;
+* `failures_section`: the runs that failed or were interrupted, with their reasons (a run that
+  failed before its first sample has nothing else to show);
 * `records_section`: each run's record (settings, warnings, which loop ran and why, solver counts).
+
+Every value from the user's files reaches the page through `page_text` (the page's text and
+attributes, and every string Plotly draws) or `script_json` (the click handler's values): a name
+is shown as written and never read as markup or script.
 
 Curves are thinned for display (`display_points.thin`, at most DISPLAY_POINTS per curve, every
 extreme kept); the numbers in tables are never thinned.
@@ -20,7 +26,6 @@ extreme kept); the numbers in tables are never thinned.
 
 from __future__ import annotations
 
-import html
 import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -31,6 +36,7 @@ import numpy as np
 
 from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
 from toggle_cosim.analysis.display_points import DISPLAY_POINTS, thin
+from toggle_cosim.analysis.page_text import page_text, script_json, separators_escaped
 from toggle_cosim.analysis.run_files import LoadedRun
 from toggle_cosim.analysis.sweep_heatmaps import value_label
 from toggle_cosim.files.outputs import HTML, write_file
@@ -41,6 +47,7 @@ __all__ = [
     "Section",
     "SweepCase",
     "comparison_section",
+    "failures_section",
     "overlay_section",
     "records_section",
     "render",
@@ -56,7 +63,7 @@ SWEEP_TRACE_VARIABLES = ("x_B", "iq_ref")  # what a clicked cell shows, where th
 # (the traces are in the figure below it, hidden; each carries its case id in `meta`). Plotly's
 # to_html puts it after the heat map's figure, {plot_id} being that figure's element id;
 # {traces_id} is the element id of the figure of traces, {x_name} and {y_name} the axes' names
-# (as JavaScript strings).
+# (JavaScript strings written by `page_text.script_json`).
 SWEEP_CLICK = """
 (function () {
   var map = document.getElementById('{plot_id}');
@@ -107,17 +114,17 @@ class SweepCase:
     traces: Mapping[str, Trace]
 
 
-def _e(text: Any) -> str:
-    return html.escape(str(text), quote=True)
-
-
 def _figure_html(figure: Any, div_id: str, post_script: str | None = None) -> str:
-    return figure.to_html(
-        full_html=False,
-        include_plotlyjs=False,
-        div_id=div_id,
-        post_script=post_script,
-        config={"displaylogo": False, "responsive": True},
+    """The figure's element and its script (Plotly's JSON, `<` and `>` escaped by Plotly, the
+    line separators by `separators_escaped`); the strings in `figure` went through `page_text`."""
+    return separators_escaped(
+        figure.to_html(
+            full_html=False,
+            include_plotlyjs=False,
+            div_id=div_id,
+            post_script=post_script,
+            config={"displaylogo": False, "responsive": True},
+        )
     )
 
 
@@ -127,11 +134,11 @@ def _display(values: np.ndarray) -> np.ndarray:
 
 
 def _label(name: str, units: Mapping[str, str]) -> str:
-    return f"{name} [{units[name]}]" if name in units else name
+    return page_text(f"{name} [{units[name]}]" if name in units else name)
 
 
 def _outside(name: str, units: Mapping[str, str]) -> str:
-    return f"outside by [{units[name]}]" if name in units else "outside by"
+    return page_text(f"outside by [{units[name]}]" if name in units else "outside by")
 
 
 def _dropdown(buttons: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -165,9 +172,12 @@ _COLORS = (
 
 def overlay_section(runs: Sequence[LoadedRun], variables: Sequence[str] | None = None, title: str = "Runs") -> Section:
     """Every run's `variables` (default: every column any run has) overlaid, one variable shown
-    at a time, chosen in the dropdown; a run lacking a variable has no curve for it."""
+    at a time, chosen in the dropdown; a run lacking a variable has no curve for it, and a run
+    with fewer than two samples (one that failed at its start) none at all: the note names it."""
     import plotly.graph_objects as go
 
+    undrawn = [run.label for run in runs if not run.drawable]
+    runs = [run for run in runs if run.drawable]
     names = list(variables or dict.fromkeys(name for run in runs for name in run.variables))
     units: dict[str, str] = {}
     for run in runs:
@@ -185,7 +195,7 @@ def overlay_section(runs: Sequence[LoadedRun], variables: Sequence[str] | None =
                 go.Scatter(
                     x=_display(t),
                     y=_display(y),
-                    name=run.label,
+                    name=page_text(run.label),
                     legendgroup=run.label,
                     line={"color": color, "width": 1.5},
                     visible=name == names[0],
@@ -196,7 +206,7 @@ def overlay_section(runs: Sequence[LoadedRun], variables: Sequence[str] | None =
             owner.append(name)
     buttons = [
         {
-            "label": name,
+            "label": page_text(name),
             "method": "update",
             "args": [{"visible": [o == name for o in owner]}, {"yaxis.title.text": _label(name, units)}],
         }
@@ -211,8 +221,24 @@ def overlay_section(runs: Sequence[LoadedRun], variables: Sequence[str] | None =
         legend={"title": {"text": "run"}, "orientation": "h", "y": -0.15, "yanchor": "top"},
         template="plotly_white",
     )
-    body = f"<p>{len(runs)} run(s); choose the variable above the plot.</p>" + _figure_html(figure, "runs-overlay")
-    return Section(title, body, "runs")
+    note = f"<p>{len(runs)} run(s); choose the variable above the plot.</p>"
+    if undrawn:
+        note += f"<p>Not drawn (fewer than two samples): {page_text(', '.join(undrawn))}.</p>"
+    return Section(title, note + _figure_html(figure, "runs-overlay"), "runs")
+
+
+def failures_section(runs: Sequence[LoadedRun], title: str = "Runs that did not complete") -> Section:
+    """A row per run whose record says it failed or was interrupted: its status, the reason its
+    record gives and the samples its trace holds (none for a run that failed at its start)."""
+    rows = "".join(
+        f'<tr class="fail"><td>{page_text(run.label)}</td><td>{page_text(run.record.get("status"))}</td>'
+        f"<td>{page_text(run.record.get('reason') or 'no reason recorded')}</td>"
+        f"<td>{run.trace.data.shape[0]}</td></tr>"
+        for run in runs
+        if run.incomplete
+    )
+    head = "<tr><th>run</th><th>status</th><th>reason</th><th>samples in its trace</th></tr>"
+    return Section(title, f'<table class="records">{head}{rows}</table>', "failures")
 
 
 def shown_variables(comparison: ComparisonResult) -> list[VariableResult]:
@@ -264,7 +290,7 @@ def _verdict_table(comparison: ComparisonResult, units: Mapping[str, str]) -> st
         when = "" if v.time_of_max_error is None else repr(v.time_of_max_error)
         verdict = "PASS" if v.passed else "FAIL"
         rows.append(
-            f'<tr class="{verdict.lower()}"><td>{_e(v.name)}</td><td>{_e(units.get(v.name, ""))}</td>'
+            f'<tr class="{verdict.lower()}"><td>{page_text(v.name)}</td><td>{page_text(units.get(v.name, ""))}</td>'
             f"<td>{verdict}</td><td>{v.max_error!r}</td><td>{when}</td><td>{v.half_height!r}</td>"
             f"<td>{v.half_width!r}</td></tr>"
         )
@@ -293,7 +319,7 @@ def comparison_section(comparisons: Sequence[Comparison], title: str = "Comparis
                 owner.append(variable.name)
         buttons = [
             {
-                "label": f"{v.name} ({'PASS' if v.passed else 'FAIL'})",
+                "label": page_text(f"{v.name} ({'PASS' if v.passed else 'FAIL'})"),
                 "method": "update",
                 "args": [
                     {"visible": [o == v.name for o in owner]},
@@ -311,11 +337,11 @@ def comparison_section(comparisons: Sequence[Comparison], title: str = "Comparis
             height=580,
             margin={"t": 90 if len(buttons) > 1 else 50},
             template="plotly_white",
-            title={"text": f"{item.label}: {'PASS' if item.comparison.passed else 'FAIL'}", "x": 0.5},
+            title={"text": page_text(f"{item.label}: {'PASS' if item.comparison.passed else 'FAIL'}"), "x": 0.5},
         )
         verdict = "pass" if item.comparison.passed else "fail"
         parts.append(
-            f'<h3 class="{verdict}" id="cmp-{number}">{_e(item.label)}: {verdict.upper()}</h3>'
+            f'<h3 class="{verdict}" id="cmp-{number}">{page_text(item.label)}: {verdict.upper()}</h3>'
             + _figure_html(figure, f"comparison-{number}")
             + f"<details{' open' if not item.comparison.passed else ''}><summary>every variable</summary>"
             + _verdict_table(item.comparison, item.units)
@@ -335,30 +361,37 @@ def _grid_of(group: Any, x: str, y: str) -> tuple[list[Any], list[Any], np.ndarr
 
 
 def _click_script(traces_id: str, x: str, y: str) -> str:
-    """SWEEP_CLICK for the figure of traces `traces_id` and the axes `x`, `y`."""
+    """SWEEP_CLICK for the figure of traces `traces_id` and the axes `x`, `y`: the names as
+    Plotly shows them (`page_text`) in script-safe literals (`script_json`)."""
     script = SWEEP_CLICK.replace("{traces_id}", traces_id)
-    return script.replace("{x_name}", json.dumps(x)).replace("{y_name}", json.dumps(y))
+    return script.replace("{x_name}", script_json(page_text(x))).replace("{y_name}", script_json(page_text(y)))
+
+
+def _case_text(status: Any, reason: Any) -> str:
+    """A cell's status as its hover text shows it: "ok", or "failed: <reason>"."""
+    return page_text(f"{status}: {reason}" if status != "ok" and isinstance(reason, str) and reason else status)
 
 
 def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
     """A heat map per combination of the other axes, the figure of merit chosen in a dropdown;
-    failed cases are empty cells named in the hover text. With kept traces, a click on a cell
-    shows that case's trace in the figure below the map."""
+    failed cases are empty cells whose hover text names them with their reason. With kept traces,
+    a click on a cell shows that case's trace in the figure below the map."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
 
     table = sweep.table
-    parts = [f"<p>{_e(sweep.name)}: {len(table)} case(s), {int((table['status'] != 'ok').sum())} failed.</p>"]
+    parts = [f"<p>{page_text(sweep.name)}: {len(table)} case(s), {int((table['status'] != 'ok').sum())} failed.</p>"]
     groups = table.groupby(list(sweep.groups), sort=True, dropna=False) if sweep.groups else [((), table)]
     for number, (key, group) in enumerate(groups):
         key = key if isinstance(key, tuple) else (key,)
-        tag = ", ".join(f"{k} = {value_label(v)}" for k, v in zip(sweep.groups, key, strict=True))
+        tag = page_text(", ".join(f"{k} = {value_label(v)}" for k, v in zip(sweep.groups, key, strict=True)))
         xs, ys, rows, cols = _grid_of(group, sweep.x, sweep.y)
         ok = (group["status"] == "ok").to_numpy()
         ids = np.full((len(ys), len(xs)), "", dtype=object)
-        ids[rows, cols] = group["case_id"].astype(str).to_numpy()
+        ids[rows, cols] = [page_text(case) for case in group["case_id"].astype(str)]
+        reasons = group["reason"] if "reason" in group.columns else [None] * len(group)
         status = np.full((len(ys), len(xs)), "", dtype=object)
-        status[rows, cols] = group["status"].astype(str).to_numpy()
+        status[rows, cols] = [_case_text(s, r) for s, r in zip(group["status"].astype(str), reasons, strict=True)]
         figure = go.Figure()
         for index, (column, label, transform) in enumerate(sweep.metrics):
             grid = np.full((len(ys), len(xs)), np.nan)
@@ -367,30 +400,35 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
             figure.add_trace(
                 go.Heatmap(
                     z=grid,
-                    x=[value_label(v) for v in xs],
-                    y=[value_label(v) for v in ys],
+                    x=[page_text(value_label(v)) for v in xs],
+                    y=[page_text(value_label(v)) for v in ys],
                     customdata=ids,
                     text=status,
                     colorscale="Viridis",
-                    colorbar={"title": {"text": label}},
-                    hovertemplate=f"{sweep.x} = %{{x}}<br>{sweep.y} = %{{y}}<br>{label}: %{{z:.4g}}"
+                    colorbar={"title": {"text": page_text(label)}},
+                    meta=[page_text(sweep.x), page_text(sweep.y), page_text(label)],  # not read as template
+                    hovertemplate="%{meta[0]} = %{x}<br>%{meta[1]} = %{y}<br>%{meta[2]}: %{z:.4g}"
                     "<br>status: %{text}<br>case %{customdata}<extra></extra>",
                     visible=index == 0,
-                    name=label,
+                    name=page_text(label),
                 )
             )
         buttons = [
-            {"label": label, "method": "update", "args": [{"visible": [i == index for i in range(len(sweep.metrics))]}]}
+            {
+                "label": page_text(label),
+                "method": "update",
+                "args": [{"visible": [i == index for i in range(len(sweep.metrics))]}],
+            }
             for index, (_, label, _) in enumerate(sweep.metrics)
         ]
         figure.update_layout(
             updatemenus=_dropdown(buttons),
-            xaxis_title=sweep.x,
-            yaxis_title=sweep.y,
+            xaxis_title=page_text(sweep.x),
+            yaxis_title=page_text(sweep.y),
             height=480,
             margin={"t": 90},
             template="plotly_white",
-            title={"text": tag or sweep.name, "x": 0.5},
+            title={"text": tag or page_text(sweep.name), "x": 0.5},
             xaxis={"type": "category"},
             yaxis={"type": "category"},
         )
@@ -410,8 +448,8 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
                         go.Scatter(
                             x=_display(t),
                             y=_display(y),
-                            name=name,
-                            meta=case,
+                            name=page_text(name),
+                            meta=page_text(case),
                             visible=False,
                             mode="lines",
                             showlegend=False,
@@ -421,7 +459,7 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
                         col=1,
                     )
         for row, name in enumerate(shown, start=1):
-            panel.update_yaxes(title_text=name, row=row, col=1)
+            panel.update_yaxes(title_text=page_text(name), row=row, col=1)
         panel.update_xaxes(title_text="time [s]", row=len(shown), col=1)
         panel.update_layout(
             height=180 + 200 * len(shown),
@@ -465,19 +503,19 @@ _RECORD_FIELDS = (
 def records_section(runs: Sequence[LoadedRun], title: str = "Run records") -> Section:
     """A row per run with its record's status, controller, coupling, loop (which ran, and why),
     warnings; the whole record (settings, solver statistics, versions) in a fold below."""
-    head = "<tr><th>run</th>" + "".join(f"<th>{_e(name)}</th>" for name, _ in _RECORD_FIELDS) + "</tr>"
+    head = "<tr><th>run</th>" + "".join(f"<th>{page_text(name)}</th>" for name, _ in _RECORD_FIELDS) + "</tr>"
     rows, folds = [], []
     for run in runs:
         record = dict(run.record)
         if not record:
-            rows.append(f"<tr><td>{_e(run.label)}</td><td colspan={len(_RECORD_FIELDS)}>no run record</td></tr>")
+            rows.append(f"<tr><td>{page_text(run.label)}</td><td colspan={len(_RECORD_FIELDS)}>no run record</td></tr>")
             continue
-        warned = ' class="warn"' if record.get("warnings") else ""
-        cells = "".join(f"<td>{_e(read(record))}</td>" for _, read in _RECORD_FIELDS)
-        rows.append(f"<tr{warned}><td>{_e(run.label)}</td>{cells}</tr>")
+        warned = ' class="fail"' if run.incomplete else ' class="warn"' if record.get("warnings") else ""
+        cells = "".join(f"<td>{page_text(read(record))}</td>" for _, read in _RECORD_FIELDS)
+        rows.append(f"<tr{warned}><td>{page_text(run.label)}</td>{cells}</tr>")
         folds.append(
-            f"<details><summary>{_e(run.label)}: the whole run.json</summary>"
-            f"<pre>{_e(json.dumps(record, indent=2, default=str))}</pre></details>"
+            f"<details><summary>{page_text(run.label)}: the whole run.json</summary>"
+            f"<pre>{page_text(json.dumps(record, indent=2, default=str))}</pre></details>"
         )
     body = f'<table class="records">{head}{"".join(rows)}</table>{"".join(folds)}'
     return Section(title, body, "records")
@@ -498,13 +536,15 @@ def render(title: str, sections: Sequence[Section], note: str = "") -> str:
     """The whole page: plotly.js (Plotly's bundle, once), a table of contents, the sections."""
     from plotly.offline import get_plotlyjs
 
-    contents = "".join(f'<li><a href="#{_e(s.anchor)}">{_e(s.title)}</a></li>' for s in sections)
-    body = "".join(f'<section id="{_e(s.anchor)}"><h2>{_e(s.title)}</h2>{s.body}</section>' for s in sections)
+    contents = "".join(f'<li><a href="#{page_text(s.anchor)}">{page_text(s.title)}</a></li>' for s in sections)
+    body = "".join(
+        f'<section id="{page_text(s.anchor)}"><h2>{page_text(s.title)}</h2>{s.body}</section>' for s in sections
+    )
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-        f"<title>{_e(title)}</title><style>{_STYLE}</style>"
+        f"<title>{page_text(title)}</title><style>{_STYLE}</style>"
         f'<script type="text/javascript">{get_plotlyjs()}</script></head>'
-        f"<body><h1>{_e(title)}</h1>{f'<p>{_e(note)}</p>' if note else ''}<ul>{contents}</ul>{body}</body></html>\n"
+        f"<body><h1>{page_text(title)}</h1>{f'<p>{page_text(note)}</p>' if note else ''}<ul>{contents}</ul>{body}</body></html>\n"
     )
 
 

@@ -9,6 +9,11 @@ A RUN argument may be:
 * a scenario's results folder (`<scenario>/<variant>/trace.csv`), every variant;
 * an output folder of several scenarios (`out/`, as `paper` leaves it), every run in it.
 
+A run that did not complete (its run.json says "failed" or "interrupted") may have stopped
+before its first sample: its trace.csv then holds a header only, or is missing. `load_runs(...,
+incomplete=True)` (the HTML report) loads such a run with the samples it has, so that its record
+and reason can be shown; by default (the figures) a trace without samples is refused.
+
 Units come from the plant FMU the run record names (its modelDescription: the unit of each
 output and input, `plant.contract.declared_unit`); "time" is in s. A trace without a run record,
 or whose FMU is no longer there, has no units beyond time: its panels say so in no unit.
@@ -21,6 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from toggle_cosim.analysis.results_figure import ResultsError, read_run_record
 from toggle_cosim.files.traces import Trace
 
@@ -28,6 +35,7 @@ __all__ = ["LoadedRun", "check_variables", "fmu_units", "load_runs", "record_uni
 
 TRACE_FILE = "trace.csv"
 RECORD_FILE = "run.json"
+INCOMPLETE = ("failed", "interrupted")  # the run.json statuses of a run that did not run to its end
 
 
 @dataclass(frozen=True)
@@ -45,6 +53,16 @@ class LoadedRun:
     def variables(self) -> tuple[str, ...]:
         """The trace's columns but time."""
         return self.trace.names[1:]
+
+    @property
+    def incomplete(self) -> bool:
+        """True when its run record says the run did not run to its end (failed, interrupted)."""
+        return self.record.get("status") in INCOMPLETE
+
+    @property
+    def drawable(self) -> bool:
+        """True when the trace spans a time interval (two samples or more): a curve to draw."""
+        return self.trace.data.shape[0] >= 2
 
 
 def fmu_units(fmu: str | Path | None, cache: dict[str, dict[str, str]] | None = None) -> dict[str, str]:
@@ -80,16 +98,21 @@ def record_units(
     return {name: units[name] for name in names if name in units}
 
 
-def run_folders(path: Path) -> list[Path]:
-    """The run folders (holding trace.csv) at `path`: itself, its children, or its grandchildren,
-    in name order; [] when there are none."""
-    if (path / TRACE_FILE).is_file():
+def run_folders(path: Path, records: bool = False) -> list[Path]:
+    """The run folders (holding trace.csv, or with `records` run.json) at `path`: itself, its
+    children, or its grandchildren, in name order; [] when there are none."""
+    files = (TRACE_FILE, RECORD_FILE) if records else (TRACE_FILE,)
+
+    def is_run(folder: Path) -> bool:
+        return any((folder / name).is_file() for name in files)
+
+    if is_run(path):
         return [path]
     children = sorted(p for p in path.iterdir() if p.is_dir())
-    runs = [p for p in children if (p / TRACE_FILE).is_file()]
+    runs = [p for p in children if is_run(p)]
     if runs:
         return runs
-    return [q for p in children for q in sorted(p.iterdir()) if q.is_dir() and (q / TRACE_FILE).is_file()]
+    return [q for p in children for q in sorted(p.iterdir()) if q.is_dir() and is_run(q)]
 
 
 def _read_trace(path: Path) -> Trace:
@@ -103,8 +126,21 @@ def _read_trace(path: Path) -> Trace:
         raise ResultsError(f"{path}: unreadable trace ({detail}); give a trace CSV or a Modelica .mat file") from error
 
 
-def _from_trace_file(path: Path, cache: dict[str, dict[str, str]]) -> LoadedRun:
-    trace = _read_trace(path)
+def _samples_kept(path: Path) -> Trace | None:
+    """The samples an incomplete run's trace.csv holds when they are too few for a trace (a
+    header only, or one row): None when it is not such a file (then its defect is reported)."""
+    from toggle_cosim.files.traces import read_csv
+
+    if not (path.exists() or path.is_symlink()):  # no file at all (a folder or a link is a defect)
+        return Trace(("time",), np.empty((0, 1)))
+    try:
+        trace = read_csv(path)
+    except (OSError, ValueError):
+        return None
+    return trace if trace.data.shape[0] < 2 and trace.names[:1] == ("time",) else None
+
+
+def _from_trace_file(path: Path, cache: dict[str, dict[str, str]], incomplete: bool = False) -> LoadedRun:
     record: dict[str, Any] = {}
     label = path.stem
     beside = path.with_name(RECORD_FILE)
@@ -118,27 +154,35 @@ def _from_trace_file(path: Path, cache: dict[str, dict[str, str]]) -> LoadedRun:
             ) from error
         label = "/".join(str(part) for part in (record.get("scenario"), record.get("variant")) if part)
         label = label or path.parent.name
+    try:
+        trace = _read_trace(path)
+    except ResultsError:
+        kept = _samples_kept(path) if incomplete and record.get("status") in INCOMPLETE else None
+        if kept is None:
+            raise
+        trace = kept
     return LoadedRun(label, trace, record_units(record, trace.names, cache), record, path)
 
 
-def load_runs(paths: Iterable[Path]) -> list[LoadedRun]:
+def load_runs(paths: Iterable[Path], incomplete: bool = False) -> list[LoadedRun]:
     """Every run at `paths` (see the module text), in the order given; a label met twice gets
-    the number of its place appended. Raises ResultsError naming the path for one that holds no
-    run or cannot be read."""
+    the number of its place appended. With `incomplete`, a run that did not complete is loaded
+    with the samples it has, even none. Raises ResultsError naming the path for one that holds
+    no run or cannot be read."""
     cache: dict[str, dict[str, str]] = {}
     runs: list[LoadedRun] = []
     for path in map(Path, paths):
         if path.is_file():
-            runs.append(_from_trace_file(path, cache))
+            runs.append(_from_trace_file(path, cache, incomplete))
             continue
         if not path.is_dir():
             raise ResultsError(f"{path}: no such results folder or trace file; give a folder 'toggle-cosim run' wrote")
-        folders = run_folders(path)
+        folders = run_folders(path, records=incomplete)
         if not folders:
             raise ResultsError(
                 f"{path}: no run results here (expected <variant>/trace.csv; run 'toggle-cosim run' first)"
             )
-        runs += [_from_trace_file(folder / TRACE_FILE, cache) for folder in folders]
+        runs += [_from_trace_file(folder / TRACE_FILE, cache, incomplete) for folder in folders]
     seen: dict[str, int] = {}
     unique = []
     for run in runs:

@@ -25,12 +25,12 @@ def parse_vars(text: str | None) -> list[str] | None:
     return list(dict.fromkeys(names))
 
 
-def _loaded(paths: Sequence[Path]) -> list[Any]:
+def _loaded(paths: Sequence[Path], incomplete: bool = False) -> list[Any]:
     from toggle_cosim.analysis.results_figure import ResultsError
     from toggle_cosim.analysis.run_files import load_runs
 
     try:
-        return load_runs(paths)
+        return load_runs(paths, incomplete)
     except ResultsError as error:
         raise InputError(str(error)) from error
 
@@ -122,7 +122,8 @@ def _runs_of_outcomes(outcomes: Sequence[Any]) -> list[Any]:
 
 def reference_comparisons(runs: Sequence[Any], folder: Path) -> list[Any]:
     """Each run with a stored reference in `folder` (`<scenario>/<variant>_ref.csv`) compared
-    with it as `references` does (its tolerance files by place)."""
+    with it as `references` does (its tolerance files by place); a run without two samples to
+    compare (it failed at its start) is left out, its record says why."""
     from toggle_cosim.analysis.compare_command import compare_with_file
     from toggle_cosim.analysis.csv_traces import CompareInputError
     from toggle_cosim.analysis.html_report import Comparison
@@ -131,7 +132,7 @@ def reference_comparisons(runs: Sequence[Any], folder: Path) -> list[Any]:
     for run in runs:
         scenario, variant = run.record.get("scenario"), run.record.get("variant") or "run"
         path = Path(folder) / str(scenario) / f"{variant}_ref.csv"
-        if not scenario or not path.is_file():
+        if not scenario or not path.is_file() or not run.drawable:
             continue
         try:
             checked = compare_with_file(run.trace, path, result_label=f"run {run.label}")
@@ -142,8 +143,9 @@ def reference_comparisons(runs: Sequence[Any], folder: Path) -> list[Any]:
 
 
 def write_checks_report(output: Path, checks: Sequence[tuple[Any, Any, Path]], outcomes: Sequence[Any]) -> Path:
-    """The page of `references --html`: the comparisons it made ((ReferenceCheck, trace,
-    reference stem) each), failing ones first, then the runs overlaid and their records."""
+    """The page of `references --html`: the runs that failed with their reasons, the comparisons
+    it made ((ReferenceCheck, trace, reference stem) each), failing ones first, then the runs
+    overlaid and their records (`outcomes`: every run, complete or not)."""
     from toggle_cosim.analysis.html_report import Comparison
     from toggle_cosim.analysis.reference_files import read_reference
 
@@ -162,14 +164,25 @@ def write_checks_report(output: Path, checks: Sequence[tuple[Any, Any, Path]], o
 def write_runs_report(
     output: Path, title: str, runs: Sequence[Any], comparisons: Sequence[Any] = (), variables: list[str] | None = None
 ) -> Path:
-    """The page of runs: comparisons first (failing ones open), the runs overlaid, their records."""
-    from toggle_cosim.analysis.html_report import comparison_section, overlay_section, records_section, write_report
+    """The page of runs: the runs that did not complete with their reasons, the comparisons
+    (failing ones open), the runs overlaid (those with samples to draw), their records."""
+    from toggle_cosim.analysis.html_report import (
+        comparison_section,
+        failures_section,
+        overlay_section,
+        records_section,
+        write_report,
+    )
 
     sections = []
+    if any(run.incomplete for run in runs):
+        sections.append(failures_section(runs))
     if comparisons:
         sections.append(comparison_section(comparisons))
+    if any(run.drawable for run in runs):
+        sections.append(overlay_section(runs, variables))
     if runs:
-        sections += [overlay_section(runs, variables), records_section(runs)]
+        sections.append(records_section(runs))
     return write_report(output, title, sections)
 
 
@@ -224,13 +237,13 @@ def report(
             raise InputError(f"{sweeps[0]}: a sweep's report is a page of its own; give the sweep folder alone")
         click.echo(f"wrote {write_sweep_report(sweeps[0], output)}")
         return
-    runs = _loaded(folders)
+    runs = _loaded(folders, incomplete=True)
     if names:
         from toggle_cosim.analysis.results_figure import ResultsError
         from toggle_cosim.analysis.run_files import check_variables
 
         try:
-            check_variables(runs, names)
+            check_variables([run for run in runs if run.drawable], names)
         except ResultsError as error:
             raise InputError(str(error)) from error
     if references_folder is not None and not references_folder.is_dir():
