@@ -104,7 +104,7 @@ def test_junit_report_has_one_case_per_variable_and_failures_with_error_and_time
     text = summary.read_text()
     assert "| case/M | result samples | 3 | 1 | 2 | - | **FAIL** |" in text
     assert "[a_funnel.png](plots/a_funnel.png)" in text and "[c_funnel.png](plots/c_funnel.png)" in text
-    assert "| case/M | `b` |" not in text
+    assert "| case/M | a |" in text and "| case/M | b |" not in text
 
 
 def test_a_passing_comparison_writes_a_report_without_failures(layout):
@@ -237,3 +237,27 @@ def test_the_github_workflow_is_valid_yaml_and_runs_both_commands():
     assert "reports/references/report.html" in uploads
     assert "scripts/test" in (ROOT / "README.md").read_text()
     assert json.dumps(document)  # plain data all through
+
+
+HOSTILE = "x|<img src=q onerror=alert(1)>\n&y"
+
+
+def test_names_from_traces_show_as_written_in_the_markdown_summary(tmp_path: Path) -> None:
+    """A trace label and a variable name holding a cell separator, HTML and a line break stay
+    inside their cells as text: the failing-variable row keeps its six cells, no raw tag or
+    line break reaches the Markdown, and the plot's link cannot end early."""
+    from toggle_cosim.analysis.ci_reports import CheckedTrace, markdown_summary
+    from toggle_cosim.analysis.compare import Tolerance, compare_traces
+
+    result = Trace(("time", HOSTILE), np.column_stack([T, np.sin(T) + 1.0]))
+    reference = Trace(("time", HOSTILE), np.column_stack([T, np.sin(T)]))
+    comparison = compare_traces(result, reference, {}, Tolerance(atol=1e-3, rtol=0.0, ttol=0.0))
+    plot = tmp_path / "plots" / "a (b)|c.png"
+    check = CheckedTrace(HOSTILE, comparison, plots={HOSTILE: plot})
+    text = markdown_summary([check], link_base=tmp_path)
+    assert "<img" not in text and "&lt;img src=q onerror=alert(1)&gt;" in text
+    rows = [line for line in text.splitlines() if line.startswith("| x")]
+    assert len(rows) == 2  # the trace's row and the failing variable's: no line break split them
+    cells = rows[1].replace("\\|", "").split("|")
+    assert len(cells) == 8, rows[1]  # six cells between the outer bars
+    assert "(plots/a%20%28b%29%7Cc.png)" in rows[1]

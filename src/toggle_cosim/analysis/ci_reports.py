@@ -15,9 +15,11 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from urllib.parse import quote
 
 from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
 from toggle_cosim.analysis.invariants import InvariantResult
+from toggle_cosim.analysis.page_text import markdown_cell
 from toggle_cosim.analysis.solver_stats import SolverCheck
 from toggle_cosim.files.outputs import JUNIT, MARKDOWN, replacing, write_text
 
@@ -92,7 +94,8 @@ def write_junit(checks: Sequence[CheckedTrace], path: Path | str) -> Path:
 
 
 def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = None) -> str:
-    """A Markdown report: one row per trace, then one row per failing variable (with its plot)."""
+    """A Markdown report: one row per trace, then one row per failing variable (with its plot);
+    names and messages from the traces go through `markdown_cell`, so they show as written."""
     lines = [
         "| trace | checked at | variables | passed | failed | solver statistics | verdict |",
         "|---|---|---|---|---|---|---|",
@@ -103,7 +106,7 @@ def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = No
         solver = "-" if check.solver is None else check.solver.status
         verdict = "pass" if check.passed else "**FAIL**"
         lines.append(
-            f"| {check.label} | {check.comparison.grid} | {total} | {total - failed} | {failed} | {solver} "
+            f"| {markdown_cell(check.label)} | {check.comparison.grid} | {total} | {total - failed} | {failed} | {solver} "
             f"| {verdict} |"
         )
     failing = [(check, v) for check in checks for v in check.comparison.variables if not v.passed]
@@ -119,21 +122,22 @@ def markdown_summary(checks: Sequence[CheckedTrace], link_base: Path | None = No
             shown = "-"
             if plot is not None:
                 target = os.path.relpath(plot, link_base) if link_base is not None else str(plot)
-                shown = f"[{Path(plot).name}]({target})"
+                shown = f"[{markdown_cell(Path(plot).name)}]({quote(target)})"  # a link that cannot end early
             lines.append(
-                f"| {check.label} | `{v.name}` | {v.max_error:.3e} | {when} | ±{v.half_height:.3g}, "
+                f"| {markdown_cell(check.label)} | {markdown_cell(v.name)} | {v.max_error:.3e} | {when} | ±{v.half_height:.3g}, "
                 f"±{v.half_width:.3g} s | {shown} |"
             )
     broken = [(check, i) for check in checks for i in check.invariants if not i.passed]
     if broken:
         lines.append("")
-        lines += [f"- FAIL: {check.label}: invariant {i.line}" for check, i in broken]
+        lines += [f"- FAIL: {markdown_cell(check.label)}: invariant {markdown_cell(i.line)}" for check, i in broken]
     changed = [check for check in checks if check.solver is not None and check.solver.changed]
     if changed:
         lines.append("")
         for check in changed:
             word = "FAIL" if check.solver_fails else "warning"
-            lines.append(f"- {word}: {check.label}: solver statistics changed: {'; '.join(check.solver.lines)}")
+            changes = markdown_cell("; ".join(check.solver.lines))
+            lines.append(f"- {word}: {markdown_cell(check.label)}: solver statistics changed: {changes}")
     return "\n".join(lines) + "\n"
 
 

@@ -10,6 +10,8 @@ reaches a page goes through `page_text` or `script_json`, chosen by where it lan
 * `script_json`: a value written inside a <script> element, as JSON that cannot end the element
   or start a comment there: <, >, & and U+2028/U+2029 are written as \\u escapes. Plotly writes
   its figures' data the same way but for the line separators, which `separators_escaped` adds.
+* `markdown_cell`: a cell of a Markdown table (`summary.md`, a CI job summary): no raw HTML
+  (<, >, & as character references), no cell boundary (| escaped) and no line break.
 """
 
 from __future__ import annotations
@@ -18,12 +20,16 @@ import html
 import json
 from typing import Any
 
-__all__ = ["page_text", "script_json", "separators_escaped"]
+__all__ = ["markdown_cell", "page_text", "script_json", "separators_escaped"]
 
 # Characters JSON may hold raw that are unsafe inside a <script> element, as JavaScript escapes.
 _SCRIPT_ESCAPES = {"<": "\\u003c", ">": "\\u003e", "&": "\\u0026", "\u2028": "\\u2028", "\u2029": "\\u2029"}
 _SCRIPT_TABLE = str.maketrans(_SCRIPT_ESCAPES)
 _SEPARATORS_TABLE = str.maketrans({c: _SCRIPT_ESCAPES[c] for c in "\u2028\u2029"})
+# A Markdown table cell: HTML a renderer would pass through, the cell separator, line breaks.
+_MARKDOWN_TABLE = str.maketrans(
+    {"&": "&amp;", "<": "&lt;", ">": "&gt;", "|": "\\|", "\n": " ", "\r": " ", "\u2028": " ", "\u2029": " "}
+)
 
 
 def page_text(value: Any) -> str:
@@ -43,3 +49,9 @@ def separators_escaped(script: str) -> str:
     """`script` (Plotly's figure HTML, whose JSON escapes <, > and / but keeps U+2028/U+2029
     raw) with the line separators as \\u escapes; they occur only inside its JSON strings."""
     return script.translate(_SEPARATORS_TABLE)
+
+
+def markdown_cell(value: Any) -> str:
+    """`value` as the text of one Markdown table cell that shows as written: no markup a
+    renderer would pass through as HTML, no `|` that would end the cell, no line break."""
+    return str(value).translate(_MARKDOWN_TABLE)

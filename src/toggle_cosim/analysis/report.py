@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.analysis.friction_claims import CLAIM_COLUMNS, missing_columns
+from toggle_cosim.analysis.page_text import markdown_cell
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.files.outputs import MARKDOWN, write_text
 
@@ -23,13 +24,14 @@ def summary_table(outcomes: Sequence[RunOutcome]) -> str:
     ]
     for outcome in outcomes:
         s = outcome.summary
-        status = "complete" if outcome.complete else f"incomplete: {outcome.reason}"
-        warnings = "; ".join(outcome.warnings).replace("|", "\\|") or "—"
+        label = markdown_cell(outcome.run.label)
+        status = "complete" if outcome.complete else markdown_cell(f"incomplete: {outcome.reason}")
+        warnings = markdown_cell("; ".join(outcome.warnings)) or "—"
         if s is None:
-            lines.append(f"| {outcome.run.label} | {status} |" + " — |" * 9 + f" {warnings} |")
+            lines.append(f"| {label} | {status} |" + " — |" * 9 + f" {warnings} |")
             continue
         lines.append(
-            f"| {outcome.run.label} | {status} | {_cell(s.final_error_m, 1e3, '+.4f')} | {_cell(s.settling_time_s)} | "
+            f"| {label} | {status} | {_cell(s.final_error_m, 1e3, '+.4f')} | {_cell(s.settling_time_s)} | "
             f"{_cell(s.overshoot_percent, 1, '.2f')} | {_cell(s.peak_iq_ref_A, 1, '.2f')} | {_cell(s.hitting_time_s, 1, '.4f')} | "
             f"{_cell(s.S0_m_per_s, 1, '.4f')} | {_cell(s.E_in_J, 1, '.4f')} | {_cell(s.E_fric_J, 1, '.4f')} | "
             f"{_cell(s.fric_share_start, 1, '.3f')} | {warnings} |"
