@@ -28,7 +28,7 @@ PAGE_TAGS = frozenset(
 )
 
 
-def _trace_csv(path: Path, names: list[str], samples: int) -> None:
+def write_trace_csv(path: Path, names: list[str], samples: int) -> None:
     """A cross-check CSV with the header `names` (every name quoted, quotes doubled)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     t = np.linspace(0.0, 1.0, samples)
@@ -41,7 +41,7 @@ def _trace_csv(path: Path, names: list[str], samples: int) -> None:
             )
 
 
-def _record(folder: Path, scenario: str, variant: str, status: str, reason: str | None = None) -> None:
+def write_record(folder: Path, scenario: str, variant: str, status: str, reason: str | None = None) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     record = {"scenario": scenario, "variant": variant, "status": status, "reason": reason, "warnings": list(HOSTILE)}
     (folder / "run.json").write_text(json.dumps(record))
@@ -54,17 +54,17 @@ def hostile_runs(root: Path) -> tuple[Path, Path]:
     failed without writing a trace, both with REASON. The results folder's name is IMAGE."""
     out = root / IMAGE
     names = ["time", "x_B", *HOSTILE]
-    _trace_csv(out / "a" / "run" / "trace.csv", names, 50)
-    _record(out / "a" / "run", SCRIPT, IMAGE, "complete")
+    write_trace_csv(out / "a" / "run" / "trace.csv", names, 50)
+    write_record(out / "a" / "run", SCRIPT, IMAGE, "complete")
     variant = QUOTES + ENTITY
-    _trace_csv(out / "b" / "run" / "trace.csv", names, 50)
-    _record(out / "b" / "run", "cmp", variant, "complete")
+    write_trace_csv(out / "b" / "run" / "trace.csv", names, 50)
+    write_record(out / "b" / "run", "cmp", variant, "complete")
     references = root / "references"
-    _trace_csv(references / "cmp" / f"{variant}_ref.csv", names, 40)
+    write_trace_csv(references / "cmp" / f"{variant}_ref.csv", names, 40)
     (out / "c" / "run").mkdir(parents=True)
     (out / "c" / "run" / "trace.csv").write_text('"' + '","'.join(name.replace('"', '""') for name in names) + '"\n')
-    _record(out / "c" / "run", SCRIPT, "empty", "failed", REASON)
-    _record(out / "d" / "run", SCRIPT, "missing", "failed", REASON)
+    write_record(out / "c" / "run", SCRIPT, "empty", "failed", REASON)
+    write_record(out / "d" / "run", SCRIPT, "missing", "failed", REASON)
     return out, references
 
 

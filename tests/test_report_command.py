@@ -25,6 +25,8 @@ from hostile_names import (
     hostile_runs,
     hostile_sweep,
     page_tags,
+    write_record,
+    write_trace_csv,
 )
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -338,6 +340,21 @@ def test_hostile_names_in_a_runs_report_are_shown_as_text_never_as_markup(tmp_pa
     assert f"{SCRIPT}/{IMAGE}" in text and f"cmp/{QUOTES}{ENTITY}: FAIL" in text  # records, comparison
     assert all(name in text for name in HOSTILE)  # the variables in the verdict table
     assert text.count(REASON) >= 2  # the failures' table (and the records') give the reason
+
+
+def test_a_run_json_naming_a_path_is_compared_with_no_file_outside_the_references(tmp_path: Path) -> None:
+    """run.json's scenario and variant name a reference inside --references only: a scenario
+    `..` (or one holding a /) would reach a CSV beside the folder, so that run is not compared."""
+    results, references = hostile_runs(tmp_path)
+    write_trace_csv(tmp_path / "outside_ref.csv", ["time", "x_B", *HOSTILE], 40)  # references/../outside_ref.csv
+    write_trace_csv(results / "e" / "run" / "trace.csv", ["time", "x_B", *HOSTILE], 50)
+    write_record(results / "e" / "run", "..", "outside", "complete")
+    page = tmp_path / "report.html"
+    result = CliRunner().invoke(main, ["report", str(results), "--references", str(references), "--out", str(page)])
+    assert result.exit_code == 0, result.output
+    text = _shown_as_text(page, figures=2)  # the one comparison inside the folder, and the overlay
+    assert f"cmp/{QUOTES}{ENTITY}: FAIL" in text
+    assert "../outside: FAIL" not in text and "../outside: PASS" not in text
 
 
 def test_hostile_names_in_a_sweeps_report_are_shown_as_text_never_as_markup(tmp_path: Path) -> None:

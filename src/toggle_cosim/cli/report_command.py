@@ -120,6 +120,12 @@ def _runs_of_outcomes(outcomes: Sequence[Any]) -> list[Any]:
     return [LoadedRun(o.run.label, o.trace, record_units(o.record, o.trace.names, cache), o.record) for o in outcomes]
 
 
+def _plain_name(name: object) -> bool:
+    """True for a name that is one folder or file name: the reference it names stays inside the
+    references folder whatever a run.json says."""
+    return isinstance(name, str) and name not in ("", ".", "..") and not set(name) & {"/", "\\", "\0"}
+
+
 def reference_comparisons(runs: Sequence[Any], folder: Path) -> list[Any]:
     """Each run with a stored reference in `folder` (`<scenario>/<variant>_ref.csv`) compared
     with it as `references` does (its tolerance files by place); a run without two samples to
@@ -131,8 +137,10 @@ def reference_comparisons(runs: Sequence[Any], folder: Path) -> list[Any]:
     comparisons = []
     for run in runs:
         scenario, variant = run.record.get("scenario"), run.record.get("variant") or "run"
-        path = Path(folder) / str(scenario) / f"{variant}_ref.csv"
-        if not scenario or not path.is_file() or not run.drawable:
+        if not (_plain_name(scenario) and _plain_name(variant)) or not run.drawable:
+            continue  # a name from run.json that is a path (`..`, `a/b`) names no stored reference
+        path = Path(folder) / scenario / f"{variant}_ref.csv"
+        if not path.is_file():
             continue
         try:
             checked = compare_with_file(run.trace, path, result_label=f"run {run.label}")
