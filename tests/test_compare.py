@@ -474,3 +474,61 @@ def test_a_tolerance_file_found_by_place_that_is_not_a_regular_file_is_bad_input
     assert run_compare(res, ref) == 2
     out, err = capsys.readouterr()
     assert len(err.splitlines()) == 1 and "tolerances.yaml" in err and phrase in err, err
+
+
+SHIPPED = sorted((Path(__file__).resolve().parent.parent / "scenarios" / "references").glob("*/*_ref.csv"))
+
+
+@pytest.mark.parametrize("reference", SHIPPED, ids=[f"{p.parent.name}/{p.stem}" for p in SHIPPED])
+def test_compare_of_a_shipped_reference_with_itself_passes(reference: Path, capsys):
+    """Issue 37, item 11: a stored reference is decimated, its invariants were measured at every
+    sample (T_s, its .opt StepSize): they are reported unchecked on it, not failed."""
+    from toggle_cosim.analysis.invariants import invariants_path, load_invariants
+
+    assert run_compare(reference, reference) == 0
+    out = capsys.readouterr().out
+    invariants = load_invariants(invariants_path(reference))
+    assert out.count("not checked (the values are measured at every sample") == len(invariants)
+    assert "FAIL" not in out
+
+
+@pytest.fixture(scope="module")
+def fig4_friction(plant_fmu: Path):
+    """The run behind scenarios/references/fig4_nominal/friction_ref.csv, at every sample."""
+    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.experiments.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
+
+    root = Path(__file__).resolve().parent.parent
+    run = next(r for r in load_scenario(root / "scenarios" / "fig4_nominal.yaml") if r.variant == "friction")
+    outcome = simulate(run, check_plant(plant_fmu))
+    assert outcome.complete
+    return outcome.trace
+
+
+def test_invariants_are_checked_at_every_sample_and_catch_a_changed_trace(fig4_friction, tmp_path, capsys):
+    """The run's own trace (every sample) passes its reference's invariants; the same trace with
+    the command chattering by ±5 mA more fails iq_total_variation_A_per_s (exit 1); the run
+    thinned as record_every: 10 writes it leaves them unchecked."""
+    reference = (
+        Path(__file__).resolve().parent.parent / "scenarios" / "references" / "fig4_nominal" / "friction_ref.csv"
+    )
+    full = tmp_path / "full.csv"
+    write_csv(full, fig4_friction)
+    assert run_compare(full, reference) == 0
+    out = capsys.readouterr().out
+    assert "invariant iq_total_variation_A_per_s = " in out and out.count(": pass") == 3
+
+    data = fig4_friction.data.copy()
+    column = fig4_friction.names.index("iq_ref")
+    data[:, column] += 0.005 * (-1.0) ** np.arange(data.shape[0])  # up to 20 A/s more variation at T_s = 0.5 ms
+    chattering = tmp_path / "chattering.csv"
+    write_csv(chattering, Trace(fig4_friction.names, data))
+    assert run_compare(chattering, reference) == 1
+    out = capsys.readouterr().out
+    assert "invariant iq_total_variation_A_per_s" in out and "FAIL" in out.split("iq_total_variation_A_per_s")[1]
+
+    thinned = tmp_path / "thinned.csv"
+    write_csv(thinned, fig4_friction, every=10)
+    assert run_compare(thinned, reference) == 0
+    assert capsys.readouterr().out.count("not checked") == 3
