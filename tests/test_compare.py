@@ -207,7 +207,7 @@ BAD_TRACES = {
     "no header": ("0,0\n1,1\n", "no header"),
     "ragged": ('"time","a"\n0,0\n0.5\n1,0\n', "line 3 has 1 values but the header has 2"),
     "non-numeric": ('"time","a"\n0,0\n0.5,abc\n1,0\n', "line 3, column 'a': 'abc' is not a number"),
-    "nan": ('"time","a"\n0,0\n0.5,nan\n1,0\n', "is not finite"),
+    "nan time": ('"time","a"\n0,0\nnan,1\n1,0\n', "line 3: time 'nan' is not finite"),
     "no time": ('"t","a"\n0,0\n1,1\n', 'no "time" column'),
     "time not first": ('"a","time"\n0,0\n1,1\n', '"time" is column 2'),
     "time repeated": ('"time","a"\n0,0\n0.5,1\n0.5,2\n1,0\n', "not strictly increasing at line 4"),
@@ -532,3 +532,29 @@ def test_invariants_are_checked_at_every_sample_and_catch_a_changed_trace(fig4_f
     write_csv(thinned, fig4_friction, every=10)
     assert run_compare(thinned, reference) == 0
     assert capsys.readouterr().out.count("not checked") == 3
+
+
+def test_a_recorded_nan_reads_back_and_fails_only_a_compared_variable(files, capsys):
+    """Issue 37, item 1: a run writes a NaN it records as `nan`; compare reads it back. In a
+    column the reference does not have it is not compared (exit 0); in a compared variable it
+    is one line naming the file, the sample, its time and the variable (exit 2)."""
+    folder, _, ref = files
+    reference = read_trace(ref)
+    time = reference.time
+    values = np.where(time >= 0.5, np.nan, 0.0)
+    extra = folder / "extra.csv"
+    write_csv(extra, Trace((*reference.names, "flag"), np.column_stack([reference.data, values])))
+    assert "nan" in extra.read_text()
+    assert np.array_equal(read_trace(extra).column("flag"), values, equal_nan=True)
+    assert run_compare(extra, ref) == 0
+    capsys.readouterr()
+    compared = folder / "compared.csv"
+    data = reference.data.copy()
+    data[time >= 0.5, 1] = np.inf
+    write_csv(compared, Trace(reference.names, data))
+    assert run_compare(compared, ref) == 2
+    out, err = capsys.readouterr()
+    first = int(np.argmax(time >= 0.5))
+    assert out == "" and len(err.splitlines()) == 1
+    assert err.startswith(f"error: {compared}: sample {first + 1} (t = {time[first]:.6g} s), variable ")
+    assert f"{reference.names[1]!r} is inf, not finite" in err
