@@ -160,7 +160,7 @@ def check_finite(trace: Trace, names: Sequence[str], label: str) -> None:
         raise CompareInputError(
             f"{label}: sample {row + 1} (t = {float(trace.data[row, 0]):.6g} s), variable {names[column]!r} is "
             f"{float(data[row, column])!r}, not finite: a compared variable must be finite (the run diverged or "
-            "recorded NaN there); compare other variables, or fix the run"
+            "recorded NaN there); fix the run, or leave that variable out of the reference"
         )
 
 
