@@ -19,27 +19,25 @@ from toggle_cosim.control.protocol import ControlStep
 
 
 class NanDiagnostic:
-    """A PD law whose diagnostic number `which` (of e, flag) is NaN from t = 0.01 s on; the
-    command stays finite."""
+    """A PD law whose diagnostic number `which` (of `names`: e, then flags of 1.0) is NaN from
+    t = 0.01 s on; the command stays finite."""
 
-    diagnostics = ("e", "flag")
-
-    def __init__(self, which):
-        self.which = which
+    def __init__(self, which, names):
+        self.which, self.diagnostics = which, tuple(names)
 
     def start(self, t0, measurement):
         return None
 
     def step(self, state, t, measurement):
         e = 0.3199 - measurement["x_B"]
-        values = [e, 1.0]
+        values = [e] + [1.0] * (len(self.diagnostics) - 1)
         if t >= 0.01 - 1e-12:
             values[self.which] = math.nan
         return ControlStep(12.0 * e - 2.5 * measurement["v_B"], tuple(values), state)
 
 
-def make(context, which):
-    return NanDiagnostic(which)
+def make(context, which, names=("e", "flag")):
+    return NanDiagnostic(which, names)
 '''
 
 PART = '''
@@ -77,12 +75,13 @@ def base_document() -> dict:
     return document
 
 
-def nan_controller_scenario(folder: Path, which: int) -> Path:
-    """A scenario whose Python controller's diagnostic `which` (0: e, 1: flag, the trace's last
-    column) turns NaN at t = 0.01 s."""
+def nan_controller_scenario(folder: Path, which: int, names: tuple[str, ...] = ("e", "flag")) -> Path:
+    """A scenario whose Python controller records the diagnostics `names` (e, then flags), of
+    which number `which` (1 of e, flag: the trace's last column) turns NaN at t = 0.01 s."""
     (folder / "nan_laws.py").write_text(CONTROLLER, encoding="utf-8")
     document = base_document()
-    document["controller"] = {**document["controller"], "python": "nan_laws:make", "parameters": {"which": which}}
+    parameters = {"which": which, "names": list(names)}
+    document["controller"] = {**document["controller"], "python": "nan_laws:make", "parameters": parameters}
     path = folder / "nan_diagnostic.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
     return path
