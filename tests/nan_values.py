@@ -15,20 +15,23 @@ FINITE = 20  # samples before t = 0.01 s
 
 CONTROLLER = '''
 import math
+import os
 from toggle_cosim.control.protocol import ControlStep
 
 
 class NanDiagnostic:
     """A PD law whose diagnostic number `which` (of `names`: e, then flags of 1.0) is NaN from
-    t = 0.01 s on; the command stays finite."""
+    t = 0.01 s on; the command stays finite. With `exit_at`, it ends its process there."""
 
-    def __init__(self, which, names):
-        self.which, self.diagnostics = which, tuple(names)
+    def __init__(self, which, names, exit_at):
+        self.which, self.diagnostics, self.exit_at = which, tuple(names), exit_at
 
     def start(self, t0, measurement):
         return None
 
     def step(self, state, t, measurement):
+        if self.exit_at is not None and t >= self.exit_at - 1e-12:
+            os._exit(3)
         e = 0.3199 - measurement["x_B"]
         values = [e] + [1.0] * (len(self.diagnostics) - 1)
         if t >= 0.01 - 1e-12:
@@ -36,8 +39,8 @@ class NanDiagnostic:
         return ControlStep(12.0 * e - 2.5 * measurement["v_B"], tuple(values), state)
 
 
-def make(context, which, names=("e", "flag")):
-    return NanDiagnostic(which, names)
+def make(context, which, names=("e", "flag"), exit_at=None):
+    return NanDiagnostic(which, names, exit_at)
 '''
 
 PART = '''
@@ -75,12 +78,15 @@ def base_document() -> dict:
     return document
 
 
-def nan_controller_scenario(folder: Path, which: int, names: tuple[str, ...] = ("e", "flag")) -> Path:
+def nan_controller_scenario(
+    folder: Path, which: int, names: tuple[str, ...] = ("e", "flag"), exit_at: float | None = None
+) -> Path:
     """A scenario whose Python controller records the diagnostics `names` (e, then flags), of
-    which number `which` (1 of e, flag: the trace's last column) turns NaN at t = 0.01 s."""
+    which number `which` (1 of e, flag: the trace's last column) turns NaN at t = 0.01 s; with
+    `exit_at`, the controller ends the run's process at that sample (os._exit)."""
     (folder / "nan_laws.py").write_text(CONTROLLER, encoding="utf-8")
     document = base_document()
-    parameters = {"which": which, "names": list(names)}
+    parameters = {"which": which, "names": list(names), "exit_at": exit_at}
     document["controller"] = {**document["controller"], "python": "nan_laws:make", "parameters": parameters}
     path = folder / "nan_diagnostic.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")

@@ -145,3 +145,20 @@ def test_a_diagnostic_that_turns_nan_is_written_in_every_row_of_the_trace(
     run = load_scenario(scenario)[0]
     in_process = simulate(run, check_plant(plant_fmu))
     assert in_process.complete and np.array_equal(in_process.trace.data, trace.data, equal_nan=True)
+
+
+def test_a_run_ended_after_a_recorded_nan_keeps_every_sample_before_its_end(plant_fmu: Path, tmp_path: Path) -> None:
+    """The supervising process counts the samples as the child records them: a controller that
+    records NaN from t = 0.01 s and ends the run's process at t = 0.03 s leaves the 60 samples
+    before, NaN included (not the 20 before the first NaN)."""
+    from nan_values import FINITE, nan_controller_scenario
+
+    from toggle_cosim.cosim.supervision import simulate_supervised
+
+    run = load_scenario(nan_controller_scenario(tmp_path, 1, exit_at=0.03))[0]
+    outcome = simulate_supervised(run, check_plant(plant_fmu))
+    assert not outcome.complete and "ended the run's process" in outcome.reason, outcome.reason
+    assert outcome.trace.data.shape[0] == outcome.record["samples"] == 60
+    flag = outcome.trace.column("flag")
+    assert np.all(flag[:FINITE] == 1.0) and np.all(np.isnan(flag[FINITE:]))
+    assert outcome.trace.time[-1] == pytest.approx(0.0295, abs=1e-12)
