@@ -50,11 +50,8 @@ class TraceObserver:
 
     @property
     def rows(self) -> int:
+        """The samples recorded (rows 0 .. rows - 1), as counted, whatever their values."""
         return int(self.count[0])
-
-    @rows.setter
-    def rows(self, rows: int) -> None:
-        self.count[0] = rows
 
     def observe(self, k: int, t: float, values: np.ndarray) -> None:
         row = self.data[k]
