@@ -530,8 +530,10 @@ def test_invariants_are_checked_at_every_sample_and_catch_a_changed_trace(fig4_f
 
     thinned = tmp_path / "thinned.csv"
     write_csv(thinned, fig4_friction, every=10)
-    assert run_compare(thinned, reference) == 0
+    assert run_compare(thinned, reference, junit=tmp_path / "junit.xml") == 0
     assert capsys.readouterr().out.count("not checked") == 3
+    junit = (tmp_path / "junit.xml").read_text(encoding="utf-8")
+    assert junit.count("<skipped") == 3 and "<failure" not in junit  # JUnit: skipped, not passed
 
 
 def test_a_recorded_nan_reads_back_and_fails_only_a_compared_variable(files, capsys):
