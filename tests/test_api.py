@@ -345,3 +345,22 @@ def test_an_object_that_is_not_a_controller_is_refused_in_one_line(plant_fmu: Pa
     with pytest.raises(tc.ScenarioError, match=r"^controller: .*has no start\(\) method") as caught:
         tc.simulate(run, plant_fmu, supervised=False, controller=object())
     assert "\n" not in str(caught.value)
+
+
+def test_simulate_returns_every_sample_of_a_run_whose_last_diagnostic_turns_nan(plant_fmu: Path, tmp_path: Path):
+    """Issue 37, item 1: `tc.simulate` (supervised, as by default) of a run whose controller's
+    last diagnostic is NaN from t = 0.01 s: the result holds every sample, its record counts
+    them, the NaN are there, and `Result.write` writes them all and reads back as written."""
+    from nan_values import FINITE, SAMPLES, nan_controller_scenario
+
+    run = next(iter(tc.load_scenario(nan_controller_scenario(tmp_path, 1)).values()))
+    result = tc.simulate(run, plant_fmu)
+    assert result.status == "complete"
+    assert result.trace.data.shape[0] == result.record["samples"] == SAMPLES
+    flag = result.trace.column("flag")
+    assert np.all(flag[:FINITE] == 1.0) and np.all(np.isnan(flag[FINITE:]))
+    assert len(result.to_dataframe()) == SAMPLES
+    result.write(tmp_path / "written")
+    written = read_csv(tmp_path / "written" / "trace.csv")
+    assert np.array_equal(written.data, result.trace.data, equal_nan=True)
+    assert json.loads((tmp_path / "written" / "run.json").read_text(encoding="utf-8"))["samples"] == SAMPLES

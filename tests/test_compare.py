@@ -207,7 +207,7 @@ BAD_TRACES = {
     "no header": ("0,0\n1,1\n", "no header"),
     "ragged": ('"time","a"\n0,0\n0.5\n1,0\n', "line 3 has 1 values but the header has 2"),
     "non-numeric": ('"time","a"\n0,0\n0.5,abc\n1,0\n', "line 3, column 'a': 'abc' is not a number"),
-    "nan": ('"time","a"\n0,0\n0.5,nan\n1,0\n', "is not finite"),
+    "nan time": ('"time","a"\n0,0\nnan,1\n1,0\n', "line 3: time 'nan' is not finite"),
     "no time": ('"t","a"\n0,0\n1,1\n', 'no "time" column'),
     "time not first": ('"a","time"\n0,0\n1,1\n', '"time" is column 2'),
     "time repeated": ('"time","a"\n0,0\n0.5,1\n0.5,2\n1,0\n', "not strictly increasing at line 4"),
@@ -474,3 +474,89 @@ def test_a_tolerance_file_found_by_place_that_is_not_a_regular_file_is_bad_input
     assert run_compare(res, ref) == 2
     out, err = capsys.readouterr()
     assert len(err.splitlines()) == 1 and "tolerances.yaml" in err and phrase in err, err
+
+
+SHIPPED = sorted((Path(__file__).resolve().parent.parent / "scenarios" / "references").glob("*/*_ref.csv"))
+
+
+@pytest.mark.parametrize("reference", SHIPPED, ids=[f"{p.parent.name}/{p.stem}" for p in SHIPPED])
+def test_compare_of_a_shipped_reference_with_itself_passes(reference: Path, capsys):
+    """Issue 37, item 11: a stored reference is decimated, its invariants were measured at every
+    sample (T_s, its .opt StepSize): they are reported unchecked on it, not failed."""
+    from toggle_cosim.analysis.invariants import invariants_path, load_invariants
+
+    assert run_compare(reference, reference) == 0
+    out = capsys.readouterr().out
+    invariants = load_invariants(invariants_path(reference))
+    assert out.count("not checked (the values are measured at every sample") == len(invariants)
+    assert "FAIL" not in out
+
+
+@pytest.fixture(scope="module")
+def fig4_friction(plant_fmu: Path):
+    """The run behind scenarios/references/fig4_nominal/friction_ref.csv, at every sample."""
+    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.experiments.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
+
+    root = Path(__file__).resolve().parent.parent
+    run = next(r for r in load_scenario(root / "scenarios" / "fig4_nominal.yaml") if r.variant == "friction")
+    outcome = simulate(run, check_plant(plant_fmu))
+    assert outcome.complete
+    return outcome.trace
+
+
+def test_invariants_are_checked_at_every_sample_and_catch_a_changed_trace(fig4_friction, tmp_path, capsys):
+    """The run's own trace (every sample) passes its reference's invariants; the same trace with
+    the command chattering by ±5 mA more fails iq_total_variation_A_per_s (exit 1); the run
+    thinned as record_every: 10 writes it leaves them unchecked."""
+    reference = (
+        Path(__file__).resolve().parent.parent / "scenarios" / "references" / "fig4_nominal" / "friction_ref.csv"
+    )
+    full = tmp_path / "full.csv"
+    write_csv(full, fig4_friction)
+    assert run_compare(full, reference) == 0
+    out = capsys.readouterr().out
+    assert "invariant iq_total_variation_A_per_s = " in out and out.count(": pass") == 3
+
+    data = fig4_friction.data.copy()
+    column = fig4_friction.names.index("iq_ref")
+    data[:, column] += 0.005 * (-1.0) ** np.arange(data.shape[0])  # up to 20 A/s more variation at T_s = 0.5 ms
+    chattering = tmp_path / "chattering.csv"
+    write_csv(chattering, Trace(fig4_friction.names, data))
+    assert run_compare(chattering, reference) == 1
+    out = capsys.readouterr().out
+    assert "invariant iq_total_variation_A_per_s" in out and "FAIL" in out.split("iq_total_variation_A_per_s")[1]
+
+    thinned = tmp_path / "thinned.csv"
+    write_csv(thinned, fig4_friction, every=10)
+    assert run_compare(thinned, reference, junit=tmp_path / "junit.xml") == 0
+    assert capsys.readouterr().out.count("not checked") == 3
+    junit = (tmp_path / "junit.xml").read_text(encoding="utf-8")
+    assert junit.count("<skipped") == 3 and "<failure" not in junit  # JUnit: skipped, not passed
+
+
+def test_a_recorded_nan_reads_back_and_fails_only_a_compared_variable(files, capsys):
+    """Issue 37, item 1: a run writes a NaN it records as `nan`; compare reads it back. In a
+    column the reference does not have it is not compared (exit 0); in a compared variable it
+    is one line naming the file, the sample, its time and the variable (exit 2)."""
+    folder, _, ref = files
+    reference = read_trace(ref)
+    time = reference.time
+    values = np.where(time >= 0.5, np.nan, 0.0)
+    extra = folder / "extra.csv"
+    write_csv(extra, Trace((*reference.names, "flag"), np.column_stack([reference.data, values])))
+    assert "nan" in extra.read_text()
+    assert np.array_equal(read_trace(extra).column("flag"), values, equal_nan=True)
+    assert run_compare(extra, ref) == 0
+    capsys.readouterr()
+    compared = folder / "compared.csv"
+    data = reference.data.copy()
+    data[time >= 0.5, 1] = np.inf
+    write_csv(compared, Trace(reference.names, data))
+    assert run_compare(compared, ref) == 2
+    out, err = capsys.readouterr()
+    first = int(np.argmax(time >= 0.5))
+    assert out == "" and len(err.splitlines()) == 1
+    assert err.startswith(f"error: {compared}: sample {first + 1} (t = {time[first]:.6g} s), variable ")
+    assert f"{reference.names[1]!r} is inf, not finite" in err

@@ -114,3 +114,51 @@ def test_run_record_names_the_fmu_and_versions(outcomes: dict, plant_fmu: Path) 
     assert len(record["fmu"]["sha256"]) == 64
     assert record["versions"]["fmpy"] != "not installed"
     assert math.isfinite(record["summary"]["final_error_m"])
+
+
+@pytest.mark.parametrize("which", [1, 0], ids=["last-column", "first-diagnostic"])
+def test_a_diagnostic_that_turns_nan_is_written_in_every_row_of_the_trace(
+    plant_fmu: Path, tmp_path: Path, which: int
+) -> None:
+    """Issue 37, item 1: a Python controller whose diagnostic is NaN from t = 0.01 s, in the
+    trace's last column or not. The run is complete (a diagnostic is a recorded value, not a
+    measurement), trace.csv has every sample, run.json counts them, and the NaN read back."""
+    from click.testing import CliRunner
+    from nan_values import FINITE, SAMPLES, nan_controller_scenario
+
+    from toggle_cosim.cli import main
+    from toggle_cosim.files.traces import read_csv
+
+    scenario = nan_controller_scenario(tmp_path, which)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(scenario), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    folder = out / "user_controllers" / "run"
+    record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+    trace = read_csv(folder / "trace.csv")
+    assert record["status"] == "complete" and record["samples"] == trace.data.shape[0] == SAMPLES
+    assert trace.names[-2:] == ("e", "flag")
+    column = trace.column(("e", "flag")[which])
+    assert np.all(np.isfinite(column[:FINITE])) and np.all(np.isnan(column[FINITE:]))
+    assert np.all(np.isfinite(np.delete(trace.data, len(trace.names) - 2 + which, axis=1)))
+    # the same run in this process: the same rows, NaN for NaN
+    run = load_scenario(scenario)[0]
+    in_process = simulate(run, check_plant(plant_fmu))
+    assert in_process.complete and np.array_equal(in_process.trace.data, trace.data, equal_nan=True)
+
+
+def test_a_run_ended_after_a_recorded_nan_keeps_every_sample_before_its_end(plant_fmu: Path, tmp_path: Path) -> None:
+    """The supervising process counts the samples as the child records them: a controller that
+    records NaN from t = 0.01 s and ends the run's process at t = 0.03 s leaves the 60 samples
+    before, NaN included (not the 20 before the first NaN)."""
+    from nan_values import FINITE, nan_controller_scenario
+
+    from toggle_cosim.cosim.supervision import simulate_supervised
+
+    run = load_scenario(nan_controller_scenario(tmp_path, 1, exit_at=0.03))[0]
+    outcome = simulate_supervised(run, check_plant(plant_fmu))
+    assert not outcome.complete and "ended the run's process" in outcome.reason, outcome.reason
+    assert outcome.trace.data.shape[0] == outcome.record["samples"] == 60
+    flag = outcome.trace.column("flag")
+    assert np.all(flag[:FINITE] == 1.0) and np.all(np.isnan(flag[FINITE:]))
+    assert outcome.trace.time[-1] == pytest.approx(0.0295, abs=1e-12)

@@ -621,3 +621,23 @@ def test_a_small_address_space_limit_is_one_line(tmp_path, plant_fmu):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: the address-space limit (ulimit -v) is 390 MiB")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_case_whose_last_diagnostic_turns_nan_keeps_every_sample(tmp_path, plant_fmu):
+    """Issue 37, item 1, in a sweep's plant host: the case's row counts every sample and its kept
+    trace holds them all, the NaN of its controller's last diagnostic (named e, as kept traces
+    need the built-in law's S, phase, e) included."""
+    from nan_values import FINITE, SAMPLES, nan_controller_scenario
+
+    from toggle_cosim.experiments.sweep import read_trace
+
+    base = nan_controller_scenario(tmp_path, 2, ("S", "phase", "e"))
+    sweep = {"base": base.name, "axes": {"plant.F_E": {"values": [0.0]}}, "output": "out"}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    assert run_sweep(tmp_path / "sweep.yaml", None, 1, plant_fmu, progress=False, keep_traces=True) == 0
+    table = read_results(tmp_path / "out")
+    assert len(table) == 1 and table["samples"].iloc[0] == SAMPLES
+    trace = read_trace(tmp_path / "out", table["case_id"].iloc[0])
+    assert len(trace) == SAMPLES
+    e = trace["e"].to_numpy()
+    assert np.all(np.isfinite(e[:FINITE])) and np.all(np.isnan(e[FINITE:]))

@@ -9,6 +9,7 @@ the order, the algebraic loops, the units and the scenario keys behave as docume
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 import subprocess
 import sys
@@ -325,3 +326,47 @@ def test_a_python_controller_reads_its_connected_inputs_only(plant) -> None:
     half = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("controller.iq_ref -> plant.iq_ref")))
     failed = master.simulate(dataclasses.replace(run, system=half), plant, controller=_PD())
     assert not failed.complete and "KeyError" in failed.reason and "'v_B'" in failed.reason
+
+
+@pytest.fixture(scope="module")
+def nan_part(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A part whose output y turns NaN at t = 0.01 s (`nan_values.PART`, a Python FMU)."""
+    from nan_values import PART
+    from python_fmus import build_python_fmu
+
+    return build_python_fmu(PART, tmp_path_factory.mktemp("nan-part"), "NanAfter")
+
+
+@pytest.mark.parametrize("engine", ["compiled", "python"])
+@pytest.mark.parametrize(
+    "record", [["plant.x_B", "probe.y"], ["probe.y", "plant.x_B"]], ids=["recorded-last", "recorded-first"]
+)
+def test_a_part_output_that_turns_nan_is_written_in_every_row_of_the_trace(
+    plant_fmu: Path, nan_part: Path, tmp_path: Path, record: list[str], engine: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 37, item 1: a part's output NaN from t = 0.01 s, recorded in the trace's last column
+    or not, by the compiled system loop or the Python execution. The run is complete (the part's
+    output is recorded, not measured by the controller), trace.csv has every sample, run.json
+    counts them, and the NaN read back."""
+    from click.testing import CliRunner
+    from nan_values import FINITE, SAMPLES, nan_part_scenario
+
+    from toggle_cosim.cli import main
+    from toggle_cosim.files.traces import read_csv
+
+    if engine == "python":
+        monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+    scenario = nan_part_scenario(tmp_path, nan_part, record)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(scenario), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    folder = out / "user_controllers" / "run"
+    run_record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+    trace = read_csv(folder / "trace.csv")
+    assert run_record["status"] == "complete" and run_record["samples"] == trace.data.shape[0] == SAMPLES
+    assert run_record["loop"]["kind"] == f"system, {engine}"
+    assert trace.names == ("time", *record)
+    y = trace.column("probe.y")
+    assert np.all(np.isfinite(y[:FINITE])) and np.all(np.isnan(y[FINITE:]))
+    assert np.array_equal(y[:FINITE], trace.column("plant.x_B")[:FINITE])
+    assert np.all(np.isfinite(trace.column("plant.x_B")))

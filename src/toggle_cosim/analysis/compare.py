@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.analysis.csv_traces import CompareInputError, check_trace, float_or_none
+from toggle_cosim.analysis.csv_traces import CompareInputError, check_finite, check_trace, float_or_none
 from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
 from toggle_cosim.files.outputs import CSV, PNG, replacing, write_file
 from toggle_cosim.files.traces import Trace, write_csv
@@ -264,6 +264,8 @@ def compare_traces(
         raise CompareInputError(
             f"{result_label}: lacks {len(missing)} variable(s) of the reference: {shown}; write them to the result"
         )
+    check_finite(reference, selected, reference_label)
+    check_finite(result, selected, result_label)
     strangers = [name for name in tolerances if name not in reference.names[1:]]
     if strangers:
         raise CompareInputError(

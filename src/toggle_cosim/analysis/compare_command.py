@@ -160,7 +160,9 @@ def run_compare(
         checked = _compared(reference, options, result, reference_path, tolerance_path, str(result_path))
         comparison, files = checked.comparison, checked.tolerance_files
         solver = solver_check(reference_path, _result_statistics(result_path))
-        invariants = check_invariants(result, load_invariants(invariants_path(reference_path)))
+        step = float(options["StepSize"]) if options is not None else 0.0  # the invariants' sampling
+        step = step if step > 0 else None  # no options file, or a variable step: not known
+        invariants = check_invariants(result, load_invariants(invariants_path(reference_path)), step)
     except (CompareInputError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -10,13 +10,14 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from toggle_cosim.files.traces import Trace
 
-__all__ = ["CompareInputError", "check_trace", "read_trace"]
+__all__ = ["CompareInputError", "check_finite", "check_trace", "read_trace"]
 
 
 class CompareInputError(Exception):
@@ -34,7 +35,9 @@ def float_or_none(text: str) -> float | None:
 
 
 def read_trace(path: Path | str) -> Trace:
-    """Read a cross-check CSV strictly; any defect raises CompareInputError naming the file and the fix."""
+    """Read a cross-check CSV strictly; any defect raises CompareInputError naming the file and the fix.
+    A value may be `nan` or `inf` (as a run records it), but not its time; `check_finite` refuses
+    such a value in a variable that is compared."""
     path = Path(path)
     if not path.exists():
         raise CompareInputError(f"{path}: no such file; check the path (traces are written by `toggle-cosim run`)")
@@ -120,19 +123,18 @@ def read_trace(path: Path | str) -> Trace:
         data = np.array(body, dtype=float)
     except ValueError:
         data = None
-    if data is None or not np.all(np.isfinite(data)):
+    if data is None or not np.all(np.isfinite(data[:, 0])):
         for row, line in zip(body, lines[1:], strict=True):
             for name, cell in zip(names, row, strict=True):
-                value = float_or_none(cell)
-                if value is None:
+                if float_or_none(cell) is None:
                     raise CompareInputError(
                         f"{path}: line {line}, column {name!r}: {cell[:30]!r} is not a number; "
                         "write plain numbers (booleans as 0 and 1)"
                     )
-                if not math.isfinite(value):
-                    raise CompareInputError(
-                        f"{path}: line {line}, column {name!r}: {cell!r} is not finite; the run diverged or wrote a gap"
-                    )
+            if not math.isfinite(float(row[0])):
+                raise CompareInputError(
+                    f"{path}: line {line}: time {row[0]!r} is not finite; every sample needs a finite time"
+                )
     assert data is not None
     if data.shape[0] < 2:
         raise CompareInputError(f"{path}: has a single sample; a trace needs at least two to span a time interval")
@@ -147,6 +149,21 @@ def read_trace(path: Path | str) -> Trace:
     return Trace(names, data)
 
 
+def check_finite(trace: Trace, names: Sequence[str], label: str) -> None:
+    """The columns `names` hold finite values only: a funnel cannot hold NaN or an infinity. A
+    trace may hold them in its other columns (a run records a NaN as a value), which are not
+    compared; CompareInputError names the first sample, its time and the variable."""
+    data = np.asarray(trace.data)[:, [trace.names.index(name) for name in names]]
+    bad = np.argwhere(~np.isfinite(data))
+    if bad.size:
+        row, column = (int(k) for k in bad[0])
+        raise CompareInputError(
+            f"{label}: sample {row + 1} (t = {float(trace.data[row, 0]):.6g} s), variable {names[column]!r} is "
+            f"{float(data[row, column])!r}, not finite: a compared variable must be finite (the run diverged or "
+            "recorded NaN there); fix the run, or leave that variable out of the reference"
+        )
+
+
 def check_trace(trace: Trace, label: str) -> None:
     """The checks of `read_trace` for a Trace built in memory."""
     data = np.asarray(trace.data)
@@ -158,9 +175,9 @@ def check_trace(trace: Trace, label: str) -> None:
         raise CompareInputError(f"{label}: column names repeat; keep one of each")
     if data.shape[0] < 2:
         raise CompareInputError(f"{label}: has {data.shape[0]} samples (empty trace); need at least two")
-    if not np.all(np.isfinite(data)):
-        row, column = (int(k) for k in np.argwhere(~np.isfinite(data))[0])
-        raise CompareInputError(f"{label}: row {row + 1}, column {trace.names[column]!r} is not finite")
+    if not np.all(np.isfinite(data[:, 0])):
+        row = int(np.flatnonzero(~np.isfinite(data[:, 0]))[0])
+        raise CompareInputError(f"{label}: row {row + 1}: time {data[row, 0]!r} is not finite")
     steps = np.diff(data[:, 0])
     if np.any(steps <= 0):
         i = int(np.flatnonzero(steps <= 0)[0]) + 1

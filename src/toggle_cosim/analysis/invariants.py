@@ -14,6 +14,13 @@ time, iq_ref, S, phase by `vsc_metrics`, their one definition); it passes when
 |measured − value| <= max(atol, rtol |value|) (atol and rtol default to 0). A metric the result
 does not have (no S column) fails. `toggle-cosim compare` and `references` check the file when
 it is there; `references --update` re-measures the values and keeps the tolerances.
+
+The metrics depend on the sampling: the command's total variation and S's sign changes over
+every 10th sample are not those over every sample. The stored values are measured on the run's
+full trace, one sample every T_s (the reference's `.opt` StepSize), so an invariant is checked
+only on a trace sampled every T_s (`sampled_every`): a stored reference (decimated), or a trace
+thinned by record_every, leaves it unchecked, with the reason, and neither passes nor fails it.
+Without an options file the sampling is unknown and the invariants are checked on any trace.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from toggle_cosim.analysis.csv_traces import CompareInputError
@@ -37,6 +45,7 @@ __all__ = [
     "check_invariants",
     "invariants_path",
     "load_invariants",
+    "sampled_every",
     "trace_metrics",
     "update_invariants",
 ]
@@ -85,11 +94,17 @@ class Invariant:
 
 @dataclass(frozen=True)
 class InvariantResult:
+    """An invariant against a trace: its measured value, or why it was not checked (`unchecked`:
+    the trace is not sampled as the stored value was; such a result neither passes nor fails)."""
+
     invariant: Invariant
     measured: float | None  # None: the result has no such metric
+    unchecked: str | None = None
 
     @property
     def passed(self) -> bool:
+        if self.unchecked is not None:
+            return True  # nothing measured: no verdict against the check
         if self.measured is None or not math.isfinite(self.measured):
             return False
         return abs(self.measured - self.invariant.value) <= self.invariant.tolerance
@@ -97,6 +112,8 @@ class InvariantResult:
     @property
     def line(self) -> str:
         i = self.invariant
+        if self.unchecked is not None:
+            return f"{i.name}: not checked ({self.unchecked})"
         measured = "absent" if self.measured is None else f"{self.measured:.6g}"
         return f"{i.name} = {measured} (stored {i.value:.6g} ± {i.tolerance:.3g}): {'pass' if self.passed else 'FAIL'}"
 
@@ -135,7 +152,28 @@ def trace_metrics(trace: Trace) -> dict[str, float | None]:
     return vsc_metrics(trace.time, trace.column("iq_ref"), *diagnostics).as_dict()
 
 
-def check_invariants(trace: Trace, invariants: Mapping[str, Invariant]) -> tuple[InvariantResult, ...]:
+def sampled_every(time: np.ndarray, step: float) -> bool:
+    """Whether `time` is a sample every `step` s from its first (to 1e-6 of a step: a time
+    written with 17 digits reads back within far less), as the stored invariants are measured."""
+    if time.size < 2 or not step > 0:
+        return False
+    return bool(np.all(np.abs(np.diff(time) - step) <= 1e-6 * step))
+
+
+def check_invariants(
+    trace: Trace, invariants: Mapping[str, Invariant], step: float | None = None
+) -> tuple[InvariantResult, ...]:
+    """Each invariant against the trace's metrics. `step`: the sampling the stored values were
+    measured at (the run's T_s, a reference's StepSize); a trace not sampled every `step` leaves
+    them unchecked, with the reason (module docstring). None: checked at any sampling."""
+    if invariants and step is not None and not sampled_every(trace.time, step):
+        time = trace.time
+        spacing = f"{float(np.median(np.diff(time))):.6g} s" if time.size > 1 else "no interval"
+        why = (
+            f"the values are measured at every sample, T_s = {step:.6g} s; this trace's samples are {spacing} apart: "
+            "compare the run's own trace.csv written without record_every"
+        )
+        return tuple(InvariantResult(invariant, None, why) for invariant in invariants.values())
     measured = trace_metrics(trace) if invariants else {}
     return tuple(InvariantResult(invariant, measured[name]) for name, invariant in invariants.items())
 

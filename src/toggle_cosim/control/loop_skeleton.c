@@ -39,6 +39,8 @@ typedef struct {
     double *ctrl_in, *ctrl_out; /* CTRL_FMU: its input values, its outputs (iq_ref, diagnostics) */
     const double *lti_a, *lti_b, *lti_c; /* CTRL_LTI: A (n x n, row by row), B, C (n each) */
     double *lti_x, *lti_xn; /* CTRL_LTI: the state at sample k, the next state (scratch) */
+    long long *rows;        /* the samples recorded, set after each whole row (NULL: not counted here);
+                               a supervising process reads it, never the row's values */
     long n_out, ncols, i_q, i_qd, col_u, n;  /* i_q, i_qd: the columns the law reads (x_B, v_B or theta1, omega1) */
     long n_load, col_x;     /* load values per sample; the trace column of the first input after F_E */
     long k, fault, status;  /* next sample; the failed FMI function (1 get, 2 set, 3 step; + 3 for the controller FMU), its status */
@@ -193,6 +195,7 @@ int kernel_run(kernel_t *s, long k_end) {
             in[0] = c[0];
         }
         for (j = 1; j < s->n_load; j++) { row[s->col_x + j - 1] = load[j]; }
+        if (s->rows) { *s->rows = k + 1; }
         if (k == s->n) { s->k = k + 1; return DONE; }
         for (j = 0; j < s->n_load; j++) { in[1 + j] = load[j]; }
         status = fmu_set(&s->plant, (size_t)(1 + s->n_load), in);

@@ -73,6 +73,7 @@ _POINTERS = (
     "lti_c",
     "lti_x",
     "lti_xn",
+    "rows",
 )
 _LONGS = (
     *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "n_load", "col_x", "k", "fault", "status", "no_prior"),
@@ -245,7 +246,9 @@ class CompiledLoop:
     `FmuController.step` does, and hands a sample whose columns i_q, i_qd (x_B, v_B) are not
     finite back before calling it; `law`, `z` and `reference` are unused. With an `LtiCalls` the
     loop runs that system (diagnostic e), handing back a sample where i_q, i_qd, e, the command or
-    the next state is not finite; `lti_state()` is its state.
+    the next state is not finite; `lti_state()` is its state. `rows` (one int64, the recorder's
+    `count`), if given, is set to k + 1 as soon as row k is whole, so a supervising process knows
+    how many rows a run that crashed in C recorded without reading their values.
     """
 
     def __init__(
@@ -264,7 +267,10 @@ class CompiledLoop:
         z: float = 0.0,
         controller: ControllerCalls | LtiCalls | None = None,
         reference: np.ndarray | None = None,
+        rows: np.ndarray | None = None,
     ) -> None:
+        if rows is not None and (rows.shape != (1,) or rows.dtype != np.int64 or not rows.flags.c_contiguous):
+            raise ValueError("the row count must be one C-contiguous int64")
         if data.dtype != np.float64 or not data.flags.c_contiguous or data.shape[0] < n + 1:
             raise ValueError("the trace must be a C-contiguous float64 array of n + 1 rows")
         if load.dtype != np.float64 or not load.flags.c_contiguous or load.ndim != 2 or load.shape[0] != n + 1:
@@ -282,6 +288,7 @@ class CompiledLoop:
         plant_in = (ctypes.c_double * (1 + n_load))()  # the plant's inputs: the command, then the load row
         k.data, k.load, k.plant_in = data.ctypes.data, load.ctypes.data, ctypes.addressof(plant_in)
         k.ref = None if reference is None else reference.ctypes.data
+        k.rows = None if rows is None else rows.ctypes.data
         k.n_load, k.col_x = n_load, data.shape[1] - (n_load - 1)
         k.n_out, k.ncols, k.i_q, k.i_qd, k.col_u, k.n = n_out, data.shape[1], i_q, i_qd, col_u, n
         k.T_s, k.z = float(T_s), float(z)
@@ -314,7 +321,15 @@ class CompiledLoop:
             k.ctrl_cols, k.ctrl_in, k.ctrl_out = (ctypes.addressof(b) for b in (columns, values, outputs))
             k.ctrl_due, k.ctrl_t = (0, 0.0) if controller.t is None else (1, float(controller.t))
             self._outputs = outputs
-        self._keep = (fmu, data, load, reference, plant_in, buffers)  # everything the C side points into stays alive
+        self._keep = (
+            fmu,
+            data,
+            load,
+            reference,
+            rows,
+            plant_in,
+            buffers,
+        )  # everything the C side points into stays alive
         self._state = k
         self._pointer = ctypes.pointer(k)
         self._out = (ctypes.c_double * 5)()

@@ -26,6 +26,7 @@ from typing import Protocol
 
 import numpy as np
 
+from toggle_cosim.cosim.recorder import row_count
 from toggle_cosim.cosim.slaves import Slave
 from toggle_cosim.system.plan import SIGNAL, Plan
 
@@ -40,16 +41,23 @@ class Observer(Protocol):
 
 class TraceObserver:
     """Records the plan's recorded slots into row k of `data` ((n + 1) x (1 + len(record)),
-    column 0 the time); `rows` counts the samples recorded."""
+    column 0 the time); `rows` counts the samples recorded, in `count` (`recorder.row_count`:
+    its own, or one shared with a supervising process; the compiled loop counts in it too),
+    never from the values: a recorded NaN is a value."""
 
-    def __init__(self, plan: Plan, data: np.ndarray) -> None:
-        self.data, self.columns, self.rows = data, np.asarray(plan.record, dtype=np.int64), 0
+    def __init__(self, plan: Plan, data: np.ndarray, count: np.ndarray | None = None) -> None:
+        self.data, self.columns, self.count = data, np.asarray(plan.record, dtype=np.int64), row_count(count)
+
+    @property
+    def rows(self) -> int:
+        """The samples recorded (rows 0 .. rows - 1), as counted, whatever their values."""
+        return int(self.count[0])
 
     def observe(self, k: int, t: float, values: np.ndarray) -> None:
         row = self.data[k]
         row[0] = t
         row[1:] = values[self.columns]
-        self.rows = k + 1
+        self.count[0] = k + 1
 
 
 class Execution:

@@ -56,20 +56,23 @@ def simulate(
     controller: Controller | None = None,
     session: PlantSession | None = None,
     coupling: str | None = None,
+    count: np.ndarray | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`: the plain pair in its fixed loop, any other
     system as an execution of its components (module docstring). Never raises for a plant, part
     or controller fault: see RunOutcome.
 
     `controller`: any object that meets the controller protocol (`control.protocol`); None: the
-    run's own. `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN).
+    run's own. `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN),
+    and `count`, if given, the one int64 the number of samples recorded is kept in as they are
+    recorded (both shared with a supervising process, `supervision`).
     `session` (the plain pair only, `open_session`): a plant already loaded that the caller keeps.
     `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`)."""
     if run.system.is_pair:
-        return simulate_pair(run, plant, progress, buffer, controller, session, coupling)
+        return simulate_pair(run, plant, progress, buffer, controller, session, coupling, count)
     if coupling is not None and coupling not in COUPLINGS:
         raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
     if session is not None:
         close_controller(controller)
         raise ValueError("a system's run loads its own components: simulate it without session=")
-    return simulate_system(run, plant, progress, buffer, controller, coupling)
+    return simulate_system(run, plant, progress, buffer, controller, coupling, count)

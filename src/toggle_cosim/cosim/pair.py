@@ -147,6 +147,7 @@ def simulate_pair(
     controller: Controller | None = None,
     session: PlantSession | None = None,
     coupling: str | None = None,
+    count: np.ndarray | None = None,
 ) -> RunOutcome:
     """Run one plain plant + controller run (`master.simulate` hands it here) against `plant`.
     Never raises for a plant or controller fault: see RunOutcome.
@@ -159,6 +160,7 @@ def simulate_pair(
 
     `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN), e.g. a
     file-backed map shared with a supervising process (`supervision`); the trace is then a view of it.
+    `count`, if given, is where the samples recorded are counted as they are (`recorder.row_count`).
     `session`, if given (`open_session`), is a plant already loaded that the caller keeps: the run
     gets an instance of it (reset after a complete run for the next, else freed), not a new copy.
     `coupling`: "gauss-seidel" or "jacobi" (module docstring); None: the run's own (`Run.coupling`)."""
@@ -179,7 +181,7 @@ def simulate_pair(
     if session is not None and session.inputs != (*INPUTS, *others):
         close_controller(controller)
         raise ValueError(f"the session sets the inputs {session.inputs}, the run {(*INPUTS, *others)}")
-    recorder = Recorder(trace_names(plant, diagnostics, others), n, buffer, extra=len(others))
+    recorder = Recorder(trace_names(plant, diagnostics, others), n, buffer, extra=len(others), count=count)
     own_session = session is None
     if session is None:
         session = open_session(plant, run.label, others)

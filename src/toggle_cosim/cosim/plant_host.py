@@ -3,13 +3,14 @@ supervised by its parent as a single run is (`supervision`).
 
     parent: shared trace buffer -> fork -> submit(request, time limit) -> service() until the
             answer, the child's death or the limit -> the next request (or a new host)
-    child:  read a request from the pipe -> serve(request, buffer) -> answer back -> read again
+    child:  read a request from the pipe -> serve(request, buffer, count) -> answer back -> read again
 
 The child keeps whatever `serve` keeps between requests (a sweep worker: the unzipped FMU, its
 loaded binary, the compiled loop, an instance to reset): that is what a host is for. Each
 request gets the whole trace buffer, NaN-filled by `serve` before it writes the request's
-samples, so when the child dies (a segfault, an abort, SIGKILL from outside) or hangs past the
-request's time limit, the parent still knows how far the request got (`rows_recorded`), and the
+samples, and the shared row count (`supervision.shared_count`) its recorder counts them in, so
+when the child dies (a segfault, an abort, SIGKILL from outside) or hangs past the request's
+time limit, the parent still knows how far the request got (`rows_recorded`), and the
 answer reports the child's end as the request's failure; the caller starts a new host for the
 next request. The child dies with its parent, its address space may grow by
 TOGGLE_COSIM_PLANT_MEMORY, and its temporary files live in its own folder (named like a
@@ -47,12 +48,13 @@ from toggle_cosim.cosim.supervision import (
     limit_memory,
     rows_recorded,
     seconds_text,
+    shared_count,
 )
 from toggle_cosim.messages import error_text
 from toggle_cosim.relay import OutputRelay
 
 _HEADER = struct.Struct("<Q")  # the length of the pickled message that follows
-Serve = Callable[[Any, np.ndarray], Any]  # (request, trace buffer) -> answer, in the child
+Serve = Callable[[Any, np.ndarray, np.ndarray], Any]  # (request, trace buffer, row count) -> answer, in the child
 
 
 @dataclass(frozen=True)
@@ -83,13 +85,13 @@ def _read_exactly(fd: int, size: int) -> bytes | None:
     return b"".join(chunks)
 
 
-def _serve_forever(serve: Serve, buffer: np.ndarray, requests: int, answers: int) -> None:
+def _serve_forever(serve: Serve, buffer: np.ndarray, count: np.ndarray, requests: int, answers: int) -> None:
     while (header := _read_exactly(requests, _HEADER.size)) is not None:
         body = _read_exactly(requests, _HEADER.unpack(header)[0])
         if body is None:
             return
         try:
-            answer: tuple = ("answer", serve(pickle.loads(body), buffer))
+            answer: tuple = ("answer", serve(pickle.loads(body), buffer, count))
         except Exception as error:  # noqa: BLE001 - the request's failure goes back to the parent
             answer = ("error", error_text(error))
         _write_message(answers, answer)
@@ -98,7 +100,9 @@ def _serve_forever(serve: Serve, buffer: np.ndarray, requests: int, answers: int
             return
 
 
-def _host_child(serve: Serve, buffer: np.ndarray, workdir: Path, requests: int, answers: int, parent: int) -> None:
+def _host_child(
+    serve: Serve, buffer: np.ndarray, count: np.ndarray, workdir: Path, requests: int, answers: int, parent: int
+) -> None:
     """The child's whole life: lead its group, then serve requests in a grandchild it keeps
     (`process_tree.run_kept`: a plant or controller that kills its parent kills this keeper, not
     the command) until the parent closes the pipe; end as the grandchild ended."""
@@ -109,17 +113,17 @@ def _host_child(serve: Serve, buffer: np.ndarray, workdir: Path, requests: int, 
         process_tree.die_with(parent)
     except BaseException:  # noqa: BLE001 - the parent sees the exit status
         os._exit(4)
-    process_tree.run_kept(functools.partial(_host_work, serve, buffer, workdir, requests, answers))
+    process_tree.run_kept(functools.partial(_host_work, serve, buffer, count, workdir, requests, answers))
 
 
-def _host_work(serve: Serve, buffer: np.ndarray, workdir: Path, requests: int, answers: int) -> None:
+def _host_work(serve: Serve, buffer: np.ndarray, count: np.ndarray, workdir: Path, requests: int, answers: int) -> None:
     """The grandchild: serve requests until the parent closes the pipe, exit without cleanup."""
     code = 0
     try:
         limit_memory()
         tempfile.tempdir = str(workdir)  # the FMU's unzipped copy goes into the host's folder
         gc.freeze()  # a collection never touches (and so copies) the heap inherited from the parent
-        _serve_forever(serve, buffer, requests, answers)
+        _serve_forever(serve, buffer, count, requests, answers)
     except BaseException:  # noqa: BLE001 - the parent sees the exit status
         code = 4
     with contextlib.suppress(BaseException):
@@ -155,6 +159,7 @@ class PlantHost:
         self._map = mmap.mmap(-1, self.rows * columns * 8)  # anonymous and shared with the child
         self.buffer = np.frombuffer(self._map, dtype=np.float64).reshape(self.rows, columns)
         self.buffer.fill(np.nan)
+        self.count = shared_count()  # the samples the current request recorded, counted by its recorder
         self._workdir = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-", dir=scratch))
 
     @property
@@ -171,7 +176,7 @@ class PlantHost:
             os.close(request_write)
             os.close(answer_read)
             self.relay.in_child()
-            _host_child(self.serve, self.buffer, self._workdir, request_read, answer_write, parent)
+            _host_child(self.serve, self.buffer, self.count, self._workdir, request_read, answer_write, parent)
 
         try:
             fork_child(child, lambda pid: setattr(self, "pid", pid))
@@ -253,13 +258,13 @@ class PlantHost:
         self.busy = False
         self.deadline = math.inf
         if kind == "error":
-            return HostAnswer(failure=value, rows=rows_recorded(self.buffer))
+            return HostAnswer(failure=value, rows=rows_recorded(self.count, self.buffer))
         return HostAnswer(value=value)
 
     def _failed(self, reason: str) -> HostAnswer:
         self.busy = False
         self.deadline = math.inf
-        return HostAnswer(failure=reason, rows=rows_recorded(self.buffer))
+        return HostAnswer(failure=reason, rows=rows_recorded(self.count, self.buffer))
 
     def _reap(self, block: bool) -> bool:
         if self.pid <= 0 or self._status is not None:

@@ -4,7 +4,10 @@ After FMPy's `simulateCS`, whose `Recorder` collects the outputs and whose `step
 callback sees every step. Here the recorder is a preallocated (samples x columns) float64
 array, filled with NaN: its own, or a buffer it is given (a disk-backed map the supervising
 process reads, `supervision`), written in place by both steppers (the compiled loop writes
-into the same memory). `rows` counts the samples recorded; `trace()` is the Trace of them.
+into the same memory). `rows` counts the samples recorded: it lives in `count`, one int64 (its
+own, or a shared one the supervising process reads), set after each whole sample by whichever
+loop records it, the C loops included. The count is never read from the values: a NaN or an
+infinity in a row is a value like any other. `trace()` is the Trace of the counted rows.
 All samples are recorded; the scenario key record_every thins only the CSV (`traces`).
 """
 
@@ -18,11 +21,30 @@ import numpy as np
 from toggle_cosim.files.traces import Trace
 
 
+def row_count(count: np.ndarray | None = None) -> np.ndarray:
+    """The row count a recorder keeps its `rows` in: `count` (checked: one int64, set to 0), or a
+    new one. A supervising process passes one it shares with the child (`supervision`)."""
+    if count is None:
+        return np.zeros(1, dtype=np.int64)
+    if count.shape != (1,) or count.dtype != np.int64 or not count.flags.c_contiguous:
+        raise ValueError(f"the row count must be one C-contiguous int64, not {count.dtype} {count.shape}")
+    count[0] = 0
+    return count
+
+
 class Recorder:
     """Columns: time, the plant outputs, the inputs iq_ref and F_E, the controller's diagnostics,
-    then the plant's `extra` other inputs (`Run.plant.inputs`, col_x on); one row per sample 0 .. n."""
+    then the plant's `extra` other inputs (`Run.plant.inputs`, col_x on); one row per sample 0 .. n.
+    `count`: the shared row count (`row_count`); None: its own."""
 
-    def __init__(self, names: Sequence[str], n: int, buffer: np.ndarray | None = None, extra: int = 0) -> None:
+    def __init__(
+        self,
+        names: Sequence[str],
+        n: int,
+        buffer: np.ndarray | None = None,
+        extra: int = 0,
+        count: np.ndarray | None = None,
+    ) -> None:
         self.names = tuple(names)
         self.n = n
         shape = (n + 1, len(self.names))
@@ -34,7 +56,16 @@ class Recorder:
         self.n_out = self.col_u - 1
         self.i_x, self.i_v = self.names.index("x_B"), self.names.index("v_B")
         self.col_x = len(self.names) - extra  # the first of the other inputs' columns
-        self.rows = 0
+        self.count = row_count(count)
+
+    @property
+    def rows(self) -> int:
+        """The samples recorded (rows 0 .. rows - 1), as counted, whatever their values."""
+        return int(self.count[0])
+
+    @rows.setter
+    def rows(self, rows: int) -> None:
+        self.count[0] = rows
 
     def outputs(self, k: int) -> np.ndarray:
         """The plant-output cells of row k (a view: the session reads the FMU's outputs into it)."""
@@ -46,11 +77,12 @@ class Recorder:
         return (row[self.col_u], row[self.col_u + 1], *row[self.col_x :])
 
     def truncate(self, rows: int) -> None:
-        """Keep the first `rows` samples: the later ones are unset (NaN) again, in the buffer
-        too, so a supervising process that counts the set rows sees the same number."""
-        if rows < self.rows:
-            self.data[rows : self.rows] = np.nan
+        """Keep the first `rows` samples: the count goes back, and the later rows are unset (NaN)
+        again, in a shared buffer too."""
+        recorded = self.rows
+        if rows < recorded:
             self.rows = rows
+            self.data[rows:recorded] = np.nan
 
     def trace(self) -> Trace:
         """The samples recorded so far: a copy of an own array, a view of a given buffer."""

@@ -390,6 +390,7 @@ class CompiledStepper:
             z,
             controller,
             None if reference is None else reference.values,
+            recorder.count,
         )
         return cls(loop, session, recorder, timing, state, hooks, law if controller is not None else None)
 

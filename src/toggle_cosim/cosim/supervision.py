@@ -286,6 +286,7 @@ def _plant_process(
     write_fd: int,
     controller: Controller | None,
     buffer_fd: int,
+    count: np.ndarray,
 ) -> None:
     """The plant's process: build the user's controller if the parent has none (`_build_controller`),
     run, send the outcome (no trace) back, exit without cleanup. Its stdout and stderr are the
@@ -313,7 +314,12 @@ def _plant_process(
                 _send(write_fd, ("probed",))
                 os._exit(0)
         outcome = master.simulate(
-            run, plant, progress if progress_slot is not None else None, buffer=buffer, controller=controller
+            run,
+            plant,
+            progress if progress_slot is not None else None,
+            buffer=buffer,
+            controller=controller,
+            count=count,
         )
         if outcome.interrupted:  # SIGINT is ignored here: user code raised KeyboardInterrupt itself
             reason = "the run's code raised KeyboardInterrupt (not an interrupt of the command)"
@@ -354,12 +360,17 @@ def _plant_process(
     os._exit(code)  # the keeper (`_child`) then ends the helper processes the plant started
 
 
-def rows_recorded(buffer: np.ndarray) -> int:
-    """Samples the child finished: the leading rows whose last column (written last) is set."""
-    if buffer.shape[0] == 0:
-        return 0
-    unset = np.flatnonzero(np.isnan(buffer[:, -1]))
-    return int(unset[0]) if unset.size else buffer.shape[0]
+def shared_count() -> np.ndarray:
+    """A row count shared with the children forked after it (one int64 in an anonymous shared
+    map, 0): the child's recorder counts each sample in it as it records it (`recorder.row_count`,
+    the C loops too), so the parent knows how many rows a run recorded whatever ended it, without
+    reading the values (a NaN a run recorded is a value, not the end of the data)."""
+    return np.frombuffer(mmap.mmap(-1, 8), dtype=np.int64)
+
+
+def rows_recorded(count: np.ndarray, buffer: np.ndarray) -> int:
+    """The samples a child recorded in `buffer`: its count, within the buffer's rows."""
+    return max(0, min(int(count[0]), buffer.shape[0]))
 
 
 def _map_buffer(folder: Path, rows: int, columns: int) -> tuple[mmap.mmap, np.ndarray]:
@@ -445,6 +456,7 @@ class SupervisedRun:
         self._chunks: list[bytes] = []
         self._watch: list[int] = []
         self.buffer = np.full((0, len(self.names)), np.nan)
+        self.count = np.zeros(1, dtype=np.int64)  # the samples the child recorded (`shared_count`)
         self.progress_slot: np.ndarray | None = None
         self.deadline = math.inf
         self._with_progress = with_progress
@@ -483,6 +495,7 @@ class SupervisedRun:
             raise
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
+        self.count = shared_count()
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
         self.relay = OutputRelay()
@@ -500,6 +513,7 @@ class SupervisedRun:
                 write_fd,
                 self.controller,
                 self._buffer_fd,
+                self.count,
             )
             _child(parent, plant_process)
 
@@ -617,7 +631,7 @@ class SupervisedRun:
         if self.relay is not None:
             self.relay.relay()
         answer = _answer(self.messages())
-        rows = rows_recorded(self.buffer)
+        rows = rows_recorded(self.count, self.buffer)
         trace = Trace(self.names, self.buffer[:rows])
         wall = clock.perf_counter() - self.started
         reason = self.reason

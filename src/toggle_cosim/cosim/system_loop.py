@@ -67,7 +67,7 @@ _COMPONENT_POINTERS = (
     "scratch",
 )
 _COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late")
-_SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record")
+_SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record", "rows")
 _SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
 _SYSTEM_DOUBLES = ("T_s",)
 
@@ -154,6 +154,8 @@ class SystemLoop:
         n: the last sample (t_n = n T_s is recorded, and no doStep is made from it).
         T_s: the communication step [s].
         library: the compiled library (None: `system_library()`; ValueError when there is none).
+        rows: the trace's row count (one int64, `recorder.row_count`), set to k + 1 as soon as row
+            k is recorded; None: not counted in C.
     """
 
     def __init__(
@@ -165,6 +167,7 @@ class SystemLoop:
         n: int,
         T_s: float,
         library: ctypes.CDLL | None = None,
+        rows: np.ndarray | None = None,
     ) -> None:
         library = library if library is not None else system_library()
         if library is None:
@@ -180,10 +183,12 @@ class SystemLoop:
             raise ValueError(f"the trace must be a C-contiguous float64 array of {width} columns")
         if trace.shape[0] < n + 1:
             raise ValueError(f"the trace has {trace.shape[0]} rows, the run {n + 1}")
+        if rows is not None and (rows.shape != (1,) or rows.dtype != np.int64 or not rows.flags.c_contiguous):
+            raise ValueError("the row count must be one C-contiguous int64")
         self.plan, self.T_s, self.n = plan, float(T_s), n
         self._library = library
         table = (_component_struct() * count)()
-        keep: list[object] = [functions, signals, trace]
+        keep: list[object] = [functions, signals, trace, rows]
         for c, (entry, calls) in enumerate(zip(table, functions, strict=True)):
             inputs, outputs = plan.inputs[c], plan.outputs[c]
             if outputs and outputs != tuple(range(outputs[0], outputs[0] + len(outputs))):
@@ -219,6 +224,7 @@ class SystemLoop:
         s.components, s.buffer = ctypes.addressof(table), buffer.ctypes.data
         s.source, s.factor, s.offset = source.ctypes.data, factor.ctypes.data, offset.ctypes.data
         s.signals, s.trace, s.record = signals.ctypes.data, trace.ctypes.data, record.ctypes.data
+        s.rows = None if rows is None else rows.ctypes.data
         s.n_components, s.n_signals, s.n_record, s.n = count, m, len(plan.record), n
         s.T_s = self.T_s
         self._keep = keep  # everything the C side points into stays alive with the loop
@@ -246,11 +252,18 @@ class SystemLoop:
 
 
 def compiled_system(
-    plan: Plan, slaves: Sequence[object], signals: np.ndarray, trace: np.ndarray, n: int, T_s: float
+    plan: Plan,
+    slaves: Sequence[object],
+    signals: np.ndarray,
+    trace: np.ndarray,
+    n: int,
+    T_s: float,
+    rows: np.ndarray | None = None,
 ) -> SystemLoop | str:
     """The compiled loop over `slaves` (in plan.order, instantiated and initialised; each with a
     `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has), or why there is none: one
-    line naming the first component run in Python, or why the library is missing."""
+    line naming the first component run in Python, or why the library is missing. `rows`: as
+    `SystemLoop`'s."""
     library = system_library()
     if library is None:
         return f"no compiled system loop: {system_library_reason()}"
@@ -261,4 +274,4 @@ def compiled_system(
         if not isinstance(calls, CFunctions):
             return f"component {name} runs in Python ({type(slave).__name__}): the compiled system loop calls FMUs only"
         functions.append(calls)
-    return SystemLoop(plan, functions, signals, trace, n, T_s, library)
+    return SystemLoop(plan, functions, signals, trace, n, T_s, library, rows)

@@ -38,6 +38,8 @@ typedef struct {
     const double *signals;      /* (n + 1) x n_signals, row by row */
     double *trace;              /* (n + 1) x (1 + n_record), row by row */
     const long *record;         /* the recorded slots */
+    long long *rows;            /* the samples recorded, set after each whole row (NULL: not counted here);
+                                   a supervising process reads it, never the row's values */
     long n_components, n_signals, n_record, n;
     long k, failed, fault, status; /* next sample; on a failure the component, the call (1 get, 2 set, 3 step), its status */
     long no_prior;              /* doStep's noSetFMUStatePriorToCurrentPoint, for every component */
@@ -126,6 +128,7 @@ int system_run(system_t *s, long k_end) {
         }
         out[0] = t;
         for (i = 0; i < s->n_record; i++) { out[1 + i] = s->buffer[s->record[i]]; }
+        if (s->rows) { *s->rows = k + 1; }
         if (k == s->n) { s->k = k + 1; return DONE; }
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];

@@ -317,19 +317,17 @@ def system_columns(run: Run, plant: PlantInterface, controller: Controller | Non
 def _run_compiled(
     loop: SystemLoop,
     slaves: Sequence[Slave],
-    observer: TraceObserver,
-    data: np.ndarray,
     n: int,
     progress: Callable[[float], None] | None,
     run: Run,
 ) -> None:
     """Samples 0 .. n in C, in stretches of 1 % for the progress hook; a failed call raises the
-    SlaveError the Python execution raises for it (with the FMU's last log line)."""
+    SlaveError the Python execution raises for it (with the FMU's last log line). The loop counts
+    the rows it records in the observer's count."""
     every = max(n // 100, 1) if progress is not None else n + 1
     k = 0
     while k <= n:
         code, k_next = loop.run(k, min(k + every, n + 1))
-        observer.rows = k_next + (0 if np.isnan(data[k_next, 0]) else 1) if code == FMI_FAILED else k_next
         if code == FMI_FAILED:
             error = loop.failure()
             slave = slaves[loop.plan.order.index(error.component)]
@@ -351,6 +349,7 @@ def simulate_system(
     buffer: np.ndarray | None = None,
     controller: Controller | None = None,
     coupling: str | None = None,
+    count: np.ndarray | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
@@ -369,7 +368,7 @@ def simulate_system(
         return RunOutcome(run, Trace(("time",), np.empty((0, 1))), False, reason, wall, 0.0, None, record)
     plan = assembly.plan
     data = buffer if buffer is not None else np.full((n + 1, len(plan.names)), np.nan)
-    observer = TraceObserver(plan, data)
+    observer = TraceObserver(plan, data, count)
     hooks = []
     if progress is not None:
         every = max(n // 100, 1)
@@ -381,9 +380,9 @@ def simulate_system(
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
-        compiled = compiled_system(plan, assembly.slaves, assembly.signals, data, n, run.T_s)
+        compiled = compiled_system(plan, assembly.slaves, assembly.signals, data, n, run.T_s, observer.count)
         if isinstance(compiled, SystemLoop):
-            _run_compiled(compiled, assembly.slaves, observer, data, n, progress, run)
+            _run_compiled(compiled, assembly.slaves, n, progress, run)
         else:
             execution.advance(0, n + 1)
         loop_finished = clock.perf_counter()

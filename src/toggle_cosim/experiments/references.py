@@ -124,5 +124,7 @@ def check(outcome: RunOutcome, folder: Path) -> ReferenceCheck:
     solver = None
     if stored is not None or isinstance(current, dict):
         solver = compare_solver_statistics(stored, current)
-    invariants = check_invariants(outcome.trace, load_invariants(invariants_path(Path(str(stem) + "_ref.csv"))))
+    invariants = check_invariants(
+        outcome.trace, load_invariants(invariants_path(Path(str(stem) + "_ref.csv"))), run.T_s
+    )
     return ReferenceCheck(run.label, comparison, solver, invariants)

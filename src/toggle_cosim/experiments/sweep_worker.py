@@ -244,12 +244,13 @@ class CaseServer:
         self.session = self.sessions[inputs]
         return self.session
 
-    def __call__(self, payload: Mapping[str, Any], buffer: np.ndarray) -> dict[str, Any]:
+    def __call__(self, payload: Mapping[str, Any], buffer: np.ndarray, count: np.ndarray) -> dict[str, Any]:
         from toggle_cosim.cosim.master import simulate
 
         started = time.perf_counter()
         row = _empty_row(payload, self.sha256)
-        buffer.fill(np.nan)  # how far this case gets is what the parent reads if the host dies
+        count[0] = 0  # how far this case gets is what the parent reads if the host dies
+        buffer.fill(np.nan)
         try:
             with _captured_fmu_log() as log:
                 view = None
@@ -258,7 +259,7 @@ class CaseServer:
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
                     session = self._session(tuple(run.plant.inputs)) if run.system.is_pair else None
-                    outcome = simulate(run, self.plant, buffer=view, session=session)
+                    outcome = simulate(run, self.plant, buffer=view, session=session, count=count)
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
                     row["reason"] = error_text(error)
@@ -268,7 +269,7 @@ class CaseServer:
                 if view is not None:  # the samples written, as a supervised run counts them
                     from toggle_cosim.cosim.supervision import rows_recorded
 
-                    row["samples"] = rows_recorded(view)
+                    row["samples"] = rows_recorded(count, view)
             if row["status"] == "failed" and messages:
                 row["reason"] = bounded_text(f"{row['reason']} [FMU log: {' | '.join(messages[:3])}]")
         except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row
@@ -367,7 +368,6 @@ class CaseRunner:
     def service(self, answer: Any) -> tuple[dict[str, Any], np.ndarray | None]:
         """The row (and, with keep_traces, the trace) of the case this slot ran, from the host's answer."""
         from toggle_cosim.cosim.exit_reasons import controller_words, in_controller_reason, stopped_in_controller
-        from toggle_cosim.cosim.supervision import rows_recorded
 
         payload, self.payload = self.payload, None
         view = case_view(self.host.buffer, case_samples(payload), len(case_columns(payload, self.plant)))
@@ -379,7 +379,7 @@ class CaseRunner:
             if row.pop(RETIRED_KEY, False):
                 self.close()  # its plant answered Fatal and the host has ended: the next case gets a new one
             return row, trace
-        rows = rows_recorded(view) if view is not None else answer.rows  # the samples the case recorded
+        rows = answer.rows  # the samples the case recorded, as its recorder counted them
         self.close()  # a host that failed a case is gone (or dying): the next case gets a new one
         T_s = payload["parameters"]["T_s"]
         names = case_columns(payload, self.plant)
