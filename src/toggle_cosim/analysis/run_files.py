@@ -80,12 +80,18 @@ def record_units(
     record: Mapping[str, Any], names: Sequence[str], cache: dict[str, dict[str, str]] | None = None
 ) -> dict[str, str]:
     """{column: unit} of the trace columns `names` of the run that `record` (run.json) describes:
-    time in s, the rest from the plant FMU it names (`fmu_units`); a system's run records its
-    columns' units itself (`units`)."""
+    time in s, the plant's columns from the plant FMU it names (`fmu_units`), the law's
+    diagnostics e, S, phase by `control.controller.diagnostic_units` (as `Result` gives them); a
+    system's run records its columns' units itself (`units`)."""
     if isinstance(record.get("units"), Mapping):
         units = {str(name): str(unit) for name, unit in record["units"].items()}
         return {name: units[name] for name in names if name in units}
-    units = {"time": "s", **fmu_units((record.get("fmu") or {}).get("path"), cache)}
+    from toggle_cosim.control.controller import diagnostic_units
+
+    plant = fmu_units((record.get("fmu") or {}).get("path"), cache)
+    controller = (record.get("resolved") or {}).get("controller") or {}
+    objective = controller.get("objective", "x_B") if isinstance(controller, Mapping) else "x_B"
+    units = {"time": "s", **diagnostic_units(str(objective), plant), **plant}
     return {name: units[name] for name in names if name in units}
 
 

@@ -174,7 +174,7 @@ def write_runs_report(
     if comparisons:
         sections.append(comparison_section(comparisons))
     if runs:
-        sections += [overlay_section(runs, variables), records_section(runs)]
+        sections += [overlay_section(runs, variables), records_section(runs, folder=Path(output).parent)]
     return write_report(output, title, sections)
 
 
