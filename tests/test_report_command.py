@@ -297,7 +297,7 @@ def test_sweep_html_writes_the_sweeps_page_with_its_kept_traces(plant_fmu: Path,
     for _, title, _, _ in PANELS:  # a map per figure of merit of the PNG maps, in the dropdown
         spelt = to_json_plotly(title)
         assert text.count(f'"name":{spelt}') == 1 and f'"label":{spelt}' in text
-    assert '"xaxis":{"title":{"text":"plant.F_E"}' in text.replace(" ", "")
+    assert '"xaxis":{"title":{"text":"plant.F_E[N]"}' in text.replace(" ", "")  # with its unit
 
 
 def test_html_options_refuse_bad_input_before_any_run(tmp_path: Path) -> None:
