@@ -92,7 +92,7 @@ def fenced_blocks(path: Path, languages: tuple[str, ...]) -> list[Block]:
         if line.startswith("```"):
             if inside:
                 blocks.append(Block(path, start, language, "\n".join(lines), skip))
-                inside = False
+                inside, previous = False, line  # a mark applies to the next block only
             elif line[3:].strip() in languages:
                 mark = SKIP_MARK.fullmatch(previous.strip())
                 inside, start, lines, language, skip = (
@@ -459,9 +459,9 @@ def run_in_reading_order(blocks: list[Block], cwd: Path) -> list[str]:
     sessions: dict[Path, PythonSession] = {}
     try:
         for block in blocks:
-            where = f"{block.path.relative_to(ROOT)}:{block.line}"
             if block.skip:
                 continue
+            where = f"{os.path.relpath(block.path, ROOT)}:{block.line}"
             if block.language == "python":
                 if block.path not in sessions:
                     for session in sessions.values():  # one page at a time
@@ -479,6 +479,20 @@ def run_in_reading_order(blocks: list[Block], cwd: Path) -> list[str]:
         for session in sessions.values():
             session.close()
     return []
+
+
+def test_a_skip_mark_leaves_out_the_block_after_it_only(tmp_path: Path) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "# x\n\n<!-- docs-test: skip (needs a Dask cluster) -->\n\n```sh\ndask scheduler\n```\n\n"
+        "```python\nx = 1\n```\n\n```text\nnot run\n```\n"
+    )
+    blocks = fenced_blocks(page, ("sh", "bash", "python"))
+    assert [(b.language, b.text, b.skip) for b in blocks] == [
+        ("sh", "dask scheduler", "needs a Dask cluster"),
+        ("python", "x = 1", ""),
+    ]
+    assert run_in_reading_order(blocks[:1], tmp_path) == []  # skipped: not run, so no failure
 
 
 def test_the_skip_marks_are_few_and_say_why() -> None:
