@@ -1,22 +1,30 @@
 """Every example in the README and the documentation works when a reader runs it.
 
-The shell examples (```sh / ```bash blocks) of README.md and of the documentation pages, in the
-order a reader meets them (the README, then the pages in the order of mkdocs.yml's nav), are
-run one block after the other, each block as one bash script, in a working copy of the
-repository's top folder with `.venv/bin` first on PATH: so no example breaks the next. Only
-`scripts/test` is left out (it is the command that runs this test). Examples that cannot run
-here are written as ```text; their `toggle-cosim` lines are still parsed by the command itself.
-The documentation site builds with `mkdocs build --strict`."""
+The shell examples (```sh / ```bash blocks) and the Python examples (```python blocks) of
+README.md and of the documentation pages, in the order a reader meets them (the README, then the
+pages in the order of mkdocs.yml's nav), are run one block after the other in a working copy of
+the repository's top folder with `.venv/bin` first on PATH: each shell block as one bash script,
+the Python blocks of one page in one interpreter and one namespace (a page's later block uses
+what its earlier blocks defined), so no example breaks the next. What they write stays under
+`out/`, `fmus/` or a folder the reader names (`toggle-cosim init study`). Only `scripts/test`
+is left out (it is the command that runs this test), and a block the page marks with
+`<!-- docs-test: skip (why) -->` on the line before it (what needs a cluster or a server).
+Examples that cannot run as written (a signature, an error message) are written as ```text;
+their `toggle-cosim` lines are still parsed by the command itself. The documentation site
+builds with `mkdocs build --strict`."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
+import select
 import shlex
 import shutil
 import signal
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -40,6 +48,7 @@ ALLOWED_FIRST_WORDS = (
     "cd",
     "dask",
     "pythonfmu",  # the PythonFMU template plant (the test extra installs it)
+    ".venv/bin/jupyter",  # nbconvert of the example notebooks (the notebook extra)
     "kill",
     "mkdir",
     "cat",
@@ -60,21 +69,50 @@ def documents() -> list[Path]:
     return [README, *(ROOT / "docs" / page for page in _nav_pages(config["nav"]))]
 
 
-def code_blocks(path: Path, languages: tuple[str, ...]) -> list[tuple[int, str]]:
-    """(first line number, text) of each fenced block in one of `languages`."""
-    blocks: list[tuple[int, str]] = []
-    inside, start, lines = False, 0, []
+SKIP_MARK = re.compile(r"<!-- docs-test: skip \((.+)\) -->")
+
+
+@dataclass(frozen=True)
+class Block:
+    """A fenced block of a page: where it starts, its language, its text, and why the reading-order
+    test leaves it out (the page's `<!-- docs-test: skip (why) -->` on the line before; "" runs it)."""
+
+    path: Path
+    line: int
+    language: str
+    text: str
+    skip: str = ""
+
+
+def fenced_blocks(path: Path, languages: tuple[str, ...]) -> list[Block]:
+    """Every fenced block of `path` in one of `languages`, in the page's order."""
+    blocks: list[Block] = []
+    inside, start, lines, language, skip, previous = False, 0, [], "", "", ""
     for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         if line.startswith("```"):
             if inside:
-                blocks.append((start, "\n".join(lines)))
-                inside = False
+                blocks.append(Block(path, start, language, "\n".join(lines), skip))
+                inside, previous = False, line  # a mark applies to the next block only
             elif line[3:].strip() in languages:
-                inside, start, lines = True, number + 1, []
+                mark = SKIP_MARK.fullmatch(previous.strip())
+                inside, start, lines, language, skip = (
+                    True,
+                    number + 1,
+                    [],
+                    line[3:].strip(),
+                    mark.group(1) if mark else "",
+                )
             continue
         if inside:
             lines.append(line)
+        elif line.strip():
+            previous = line
     return blocks
+
+
+def code_blocks(path: Path, languages: tuple[str, ...]) -> list[tuple[int, str]]:
+    """(first line number, text) of each fenced block in one of `languages`."""
+    return [(block.line, block.text) for block in fenced_blocks(path, languages)]
 
 
 def shell_commands(text: str) -> list[str]:
@@ -123,6 +161,7 @@ def dry_parse(arguments: list[str]) -> None:
 
 
 SHELL_BLOCKS = [(path, line, text) for path in documents() for line, text in code_blocks(path, ("sh", "bash"))]
+RUN_BLOCKS = [block for path in documents() for block in fenced_blocks(path, ("sh", "bash", "python"))]
 CLI_LINES = [
     (f"{path.relative_to(ROOT)}:{line}", command)
     for path in documents()
@@ -194,6 +233,16 @@ def test_the_documents_describe_the_code_today() -> None:
             continue
         found = [match.group(0) for match in HISTORY.finditer(path.read_text(encoding="utf-8"))]
         assert not found, (path.name, found)
+
+
+def test_the_readme_counts_the_contracts_required_variables() -> None:
+    """The README's count of the plant contract's required variables is the contract's."""
+    from toggle_cosim.plant.contract import REQUIRED
+
+    words = {"four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8}
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    (count,) = re.findall(r"\((\w+) required variables: ([^;]+);", text)
+    assert words[count[0]] == len(REQUIRED) and count[1].split(", ") == list(REQUIRED)
 
 
 def test_the_readme_stays_short() -> None:
@@ -315,26 +364,148 @@ def working_copy(tmp_path: Path) -> Path:
     return copy
 
 
-def test_every_shell_example_runs_in_reading_order(working_copy: Path) -> None:
-    env = {**os.environ, "PATH": f"{ROOT / '.venv' / 'bin'}{os.pathsep}{os.environ['PATH']}"}
-    for path, line, text in SHELL_BLOCKS:
-        script = "\n".join(
-            row for row in text.splitlines() if not any(row.lstrip().startswith(skip) for skip in NOT_RUN)
-        )
-        process = subprocess.Popen(
-            ["bash", "-e", "-o", "pipefail", "-c", script],
-            cwd=working_copy,
+# the interpreter that runs a page's Python blocks: one namespace; a block's code arrives as one
+# JSON line on stdin, its outcome leaves as one JSON line on the original stdout (what the block
+# prints goes to stderr, into the log file)
+PYTHON_SESSION = """
+import json, os, sys, traceback
+replies = os.fdopen(os.dup(1), "w")
+os.dup2(2, 1)
+sys.stdout = sys.stderr
+namespace = {"__name__": "__main__"}
+for line in sys.stdin:
+    block = json.loads(line)
+    try:
+        exec(compile(block["code"], block["where"], "exec"), namespace)
+        reply = {"ok": True}
+    except BaseException:
+        reply = {"ok": False, "error": traceback.format_exc()[-4000:]}
+    replies.write(json.dumps(reply) + "\\n")
+    replies.flush()
+"""
+BLOCK_TIMEOUT_S = 900.0  # a block that takes longer hangs: the test fails naming it
+
+
+class PythonSession:
+    """One interpreter for the Python blocks of one page (started in its own process group, ended
+    with it)."""
+
+    def __init__(self, cwd: Path, env: dict[str, str], log: Path) -> None:
+        self.log = log.open("w")
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", PYTHON_SESSION],
+            cwd=cwd,
             env=env,
+            stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
+            stderr=self.log,
             text=True,
-            start_new_session=True,  # its own process group: whatever the block left running is ended below
+            start_new_session=True,
         )
+
+    def run(self, where: str, code: str) -> str | None:
+        """Run one block; None when it ran, else its traceback (or why it did not answer)."""
+        assert self.process.stdin is not None and self.process.stdout is not None
+        self.process.stdin.write(json.dumps({"where": where, "code": code}) + "\n")
+        self.process.stdin.flush()
+        ready, _, _ = select.select([self.process.stdout], [], [], BLOCK_TIMEOUT_S)
+        line = self.process.stdout.readline() if ready else ""
+        if not line:
+            return f"no answer within {BLOCK_TIMEOUT_S:.0f} s, or the interpreter ended"
+        reply = json.loads(line)
+        return None if reply["ok"] else reply["error"]
+
+    def close(self) -> None:
         try:
-            output, _ = process.communicate(timeout=600)
-        finally:
-            try:
-                os.killpg(process.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-        assert process.returncode == 0, f"{path.relative_to(ROOT)}:{line}: exit {process.returncode}\n{output[-3000:]}"
+            os.killpg(self.process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.process.wait()
+        self.log.close()
+
+
+def run_shell_block(block: Block, cwd: Path, env: dict[str, str]) -> tuple[int, str]:
+    script = "\n".join(
+        row for row in block.text.splitlines() if not any(row.lstrip().startswith(skip) for skip in NOT_RUN)
+    )
+    process = subprocess.Popen(
+        ["bash", "-e", "-o", "pipefail", "-c", script],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,  # its own process group: whatever the block left running is ended below
+    )
+    try:
+        output, _ = process.communicate(timeout=BLOCK_TIMEOUT_S)
+    finally:
+        try:
+            os.killpg(process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    return process.returncode, output
+
+
+def run_in_reading_order(blocks: list[Block], cwd: Path) -> list[str]:
+    """Run `blocks` in order in `cwd` (shell blocks by bash, each page's Python blocks in one
+    session); the failures, each naming the page and line. Stops at the first failure, since
+    later examples build on earlier ones."""
+    env = {
+        **os.environ,
+        "PATH": f"{ROOT / '.venv' / 'bin'}{os.pathsep}{os.environ['PATH']}",
+        "MPLBACKEND": "Agg",
+    }
+    sessions: dict[Path, PythonSession] = {}
+    try:
+        for block in blocks:
+            if block.skip:
+                continue
+            where = f"{os.path.relpath(block.path, ROOT)}:{block.line}"
+            if block.language == "python":
+                if block.path not in sessions:
+                    for session in sessions.values():  # one page at a time
+                        session.close()
+                    sessions = {block.path: PythonSession(cwd, env, cwd.parent / f"{block.path.stem}.python.log")}
+                error = sessions[block.path].run(where, block.text)
+                if error is not None:
+                    log = (cwd.parent / f"{block.path.stem}.python.log").read_text(errors="replace")[-2000:]
+                    return [f"{where}: {error}\n{log}"]
+                continue
+            code, output = run_shell_block(block, cwd, env)
+            if code != 0:
+                return [f"{where}: exit {code}\n{output[-3000:]}"]
+    finally:
+        for session in sessions.values():
+            session.close()
+    return []
+
+
+def test_a_skip_mark_leaves_out_the_block_after_it_only(tmp_path: Path) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "# x\n\n<!-- docs-test: skip (needs a Dask cluster) -->\n\n```sh\ndask scheduler\n```\n\n"
+        "```python\nx = 1\n```\n\n```text\nnot run\n```\n"
+    )
+    blocks = fenced_blocks(page, ("sh", "bash", "python"))
+    assert [(b.language, b.text, b.skip) for b in blocks] == [
+        ("sh", "dask scheduler", "needs a Dask cluster"),
+        ("python", "x = 1", ""),
+    ]
+    assert run_in_reading_order(blocks[:1], tmp_path) == []  # skipped: not run, so no failure
+
+
+def test_the_skip_marks_are_few_and_say_why() -> None:
+    """A skipped block is the exception: each mark gives its reason."""
+    skipped = [block for block in RUN_BLOCKS if block.skip]
+    assert len(skipped) <= 3, [(block.path.name, block.line) for block in skipped]
+    assert all(len(block.skip) > 10 for block in skipped)
+    assert sum(block.language == "python" for block in RUN_BLOCKS) >= 20
+
+
+def test_every_shell_and_python_example_runs_in_reading_order(working_copy: Path) -> None:
+    before = set(os.listdir(working_copy))
+    failures = run_in_reading_order(RUN_BLOCKS, working_copy)
+    assert not failures, failures[0]
+    left = sorted(set(os.listdir(working_copy)) - before - {"out", "fmus", "study"})
+    assert not left, f"the examples wrote {left} in the top folder: write under out/ (or a folder the reader names)"

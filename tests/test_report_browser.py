@@ -241,7 +241,8 @@ def test_a_sweep_cell_click_shows_that_cases_trace(browser, tmp_path: Path) -> N
     assert result.exit_code == 0, result.output
     page = Page(browser, tmp_path / "sweep" / "report.html")
     assert page.curves("sweep-map-0")[0]["visible"]
-    assert not any(c["visible"] for c in page.curves("sweep-trace-0"))
+    first = [(c["meta"], c["name"]) for c in page.curves("sweep-trace-0") if c["visible"]]
+    assert first == [(cases[0], "x_B"), (cases[0], "iq_ref")]  # the first case's until a click: no empty axes
     empty = page.page.evaluate("Number.isNaN(Number(document.getElementById('sweep-map-0')._fullData[0].z[1][2]))")
     assert empty  # the failed case (F_E 100 N, m_B 8.86 kg) is an empty cell
 

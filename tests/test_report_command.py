@@ -127,6 +127,52 @@ def test_plot_vars_overlays_runs_of_two_plants_with_the_fmus_units(two_plants: t
         assert np.array_equal(drawn, runs[1].trace.column(name))  # 301 samples: drawn as they are
 
 
+@pytest.fixture
+def three_controllers(tmp_path: Path) -> list[Path]:
+    """The same scenario and variant run by three controllers, each into its own output folder."""
+    trace = _trace(PAPER_COLUMNS)
+    return [_write_run(tmp_path / name, "fig5_external_force", "friction", trace) for name in ("pid", "vsc", "lqr")]
+
+
+def test_runs_of_the_same_scenario_and_variant_are_named_by_their_folders(three_controllers: list[Path]) -> None:
+    """Where scenario/variant repeats, the legend shows the run's folder (the leading parts the
+    runs share left out), not "(2)", "(3)"; the same folder given twice is told apart by place."""
+    from toggle_cosim.analysis.run_files import load_runs
+
+    runs = load_runs(three_controllers)
+    assert [run.label for run in runs] == [
+        "pid/fig5_external_force/friction",
+        "vsc/fig5_external_force/friction",
+        "lqr/fig5_external_force/friction",
+    ]
+    twice = load_runs([three_controllers[0], three_controllers[0]])
+    assert [run.label for run in twice] == ["fig5_external_force/friction", "fig5_external_force/friction (2)"]
+
+
+def test_plot_label_names_each_result_in_the_legend(three_controllers: list[Path]) -> None:
+    """`plot --label` (one per RESULTS) and `tc.plot(..., labels=)` name the curves; a count
+    other than one per result is one line, exit 2, and no figure."""
+    import toggle_cosim as tc
+
+    figure = tc.plot(three_controllers, vars="x_B", labels=["PID", "VSC", "LQR"])
+    (ax,) = [ax for ax in figure.axes if ax.get_visible()]
+    assert [line.get_label() for line in ax.get_lines()] == ["PID", "VSC", "LQR"]
+
+    out = three_controllers[0].parent / "labelled.png"
+    arguments = ["plot", *map(str, three_controllers), "--vars", "x_B", "--out", str(out)]
+    labelled = [*arguments, "--label", "PID", "--label", "VSC", "--label", "LQR"]
+    result = CliRunner().invoke(main, labelled)
+    assert result.exit_code == 0, result.output
+    assert out.stat().st_size > 10_000
+    out.unlink()
+    result = CliRunner().invoke(main, [*arguments, "--label", "PID", "--label", "VSC"])
+    assert result.exit_code == 2 and not out.exists()
+    (line,) = result.stderr.splitlines()
+    assert "--label given 2 time(s) for 3 RESULTS" in line
+    with pytest.raises(ValueError, match="2 label"):
+        tc.plot(three_controllers, vars="x_B", labels=["PID", "VSC"])
+
+
 def test_an_unknown_variable_names_the_run_and_what_it_has(two_plants: tuple[Path, Path]) -> None:
     ours, foreign = two_plants
     out = ours.parent / "overlay.png"
@@ -267,7 +313,7 @@ def test_sweep_html_writes_the_sweeps_page_with_its_kept_traces(plant_fmu: Path,
     for _, title, _, _ in PANELS:  # a map per figure of merit of the PNG maps, in the dropdown
         spelt = to_json_plotly(page_text(title))
         assert text.count(f'"name":{spelt}') == 1 and f'"label":{spelt}' in text
-    assert '"xaxis":{"title":{"text":"plant.F_E"}' in text.replace(" ", "")
+    assert '"xaxis":{"title":{"text":"plant.F_E[N]"}' in text.replace(" ", "")  # with its unit
 
 
 def test_html_options_refuse_bad_input_before_any_run(tmp_path: Path) -> None:

@@ -106,8 +106,9 @@ def test_written_files_follow_the_umask(tmp_path: Path, plant_fmu: Path) -> None
         assert mode == 0o666 & ~mask, (name, oct(mode))
 
 
-def test_the_time_limit_key_ends_a_slow_run_as_failed(tmp_path: Path, plant_fmu: Path) -> None:
-    """solver.maxStep = 1e-7 s makes the plant far slower than real time; time_limit: 1 stops it."""
+def test_the_time_limit_key_ends_a_slow_run_as_failed_with_a_partial_summary(tmp_path: Path, plant_fmu: Path) -> None:
+    """solver.maxStep = 1e-7 s makes the plant far slower than real time; time_limit: 1 stops it.
+    The samples it recorded have their figures of merit, marked as a partial run's."""
     out = tmp_path / "out"
     plant = {**BASE["plant"], "parameters": {"solver.maxStep": 1e-7}}
     result = CliRunner().invoke(
@@ -117,7 +118,12 @@ def test_the_time_limit_key_ends_a_slow_run_as_failed(tmp_path: Path, plant_fmu:
     assert result.exit_code == 1, result.output
     record = json.loads((out / "small" / "run" / "run.json").read_text())
     assert record["status"] == "failed" and record["reason"].startswith("time limit 1 s exceeded at t = ")
-    assert read_csv(out / "small" / "run" / "trace.csv").data.shape[0] == record["samples"] < 401
+    trace = read_csv(out / "small" / "run" / "trace.csv")
+    assert trace.data.shape[0] == record["samples"] < 401
+    assert record["samples"] >= 2, "the run recorded too few samples for a summary: raise time_limit"
+    assert record["summary"]["final_error_m"] == pytest.approx(0.3199 - trace.column("x_B")[-1])
+    assert record["summary"]["peak_iq_ref_A"] == pytest.approx(abs(trace.column("iq_ref")).max())
+    assert record["summary_partial"] is True
 
 
 @pytest.mark.parametrize("binary", ["script", "no-symbols"])

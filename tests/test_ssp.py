@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -765,6 +766,30 @@ def test_ssp_refuses_a_missing_controller_fmu_and_a_plant_it_cannot_feed(
     )
     assert "the controller's input 'x_B' is in mm, the plant's output in m" in line
     assert not out.exists()
+
+
+def test_ssp_finds_the_controller_beside_the_plant_from_any_working_folder(
+    plant_fmu: Path, controller_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without --plant and --controller, `ssp` takes the plant by the scenario's fmu: key
+    (relative to the scenario) and the controller ToggleVSC.fmu beside that plant, so it runs
+    from another folder as from the study's; a missing one is named where it was looked for."""
+    study = tmp_path / "study"
+    (study / "scenarios").mkdir(parents=True)
+    (study / "fmus").mkdir()
+    shutil.copy(ROOT / "scenarios" / "fig4_nominal.yaml", study / "scenarios" / "fig4_nominal.yaml")
+    shutil.copy(plant_fmu, study / "fmus" / "ToggleLSM.fmu")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    arguments = ["ssp", str(study / "scenarios" / "fig4_nominal.yaml"), "--out", "fig4.ssp"]
+    line = _one_line(CliRunner().invoke(main, arguments), tmp_path / "none")
+    beside_plant = study / "scenarios" / ".." / "fmus" / "ToggleVSC.fmu"  # the fmu: key's folder
+    assert line.startswith(f"error: {beside_plant}: no controller FMU there"), line
+    shutil.copy(controller_fmu, study / "fmus" / "ToggleVSC.fmu")
+    result = CliRunner().invoke(main, arguments)
+    assert result.exit_code == 0, result.output
+    assert "resources/ToggleVSC.fmu" in _members(elsewhere / "fig4.ssp")
 
 
 def test_an_ssp_is_written_whole_or_not_at_all(

@@ -27,6 +27,7 @@ extreme kept); the numbers in tables are never thinned.
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,7 +39,7 @@ from toggle_cosim.analysis.compare import ComparisonResult, VariableResult
 from toggle_cosim.analysis.display_points import DISPLAY_POINTS, thin
 from toggle_cosim.analysis.page_text import page_text, script_json, separators_escaped
 from toggle_cosim.analysis.run_files import LoadedRun
-from toggle_cosim.analysis.sweep_heatmaps import value_label
+from toggle_cosim.analysis.sweep_heatmaps import axis_title, value_label
 from toggle_cosim.files.outputs import HTML, write_file
 from toggle_cosim.files.traces import Trace
 
@@ -360,6 +361,14 @@ def _grid_of(group: Any, x: str, y: str) -> tuple[list[Any], list[Any], np.ndarr
     return xs, ys, rows, cols
 
 
+def _with_unit(name: str) -> str:
+    """A plant variable's axis title with its unit from the plant contract (`x_B [m]`)."""
+    from toggle_cosim.plant.contract import contract_unit
+
+    unit = contract_unit(name)
+    return f"{name} [{unit}]" if unit else name
+
+
 def _click_script(traces_id: str, x: str, y: str) -> str:
     """SWEEP_CLICK for the figure of traces `traces_id` and the axes `x`, `y`: the names as
     Plotly shows them (`page_text`) in script-safe literals (`script_json`)."""
@@ -423,8 +432,8 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
         ]
         figure.update_layout(
             updatemenus=_dropdown(buttons),
-            xaxis_title=page_text(sweep.x),
-            yaxis_title=page_text(sweep.y),
+            xaxis_title=page_text(axis_title(sweep.x)),
+            yaxis_title=page_text(axis_title(sweep.y)),
             height=480,
             margin={"t": 90},
             template="plotly_white",
@@ -450,7 +459,7 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
                             y=_display(y),
                             name=page_text(name),
                             meta=page_text(case),
-                            visible=False,
+                            visible=case == kept[0],  # the first case's until a cell is clicked: no empty axes
                             mode="lines",
                             showlegend=False,
                             line={"width": 1.5},
@@ -459,12 +468,12 @@ def sweep_section(sweep: SweepCase, title: str = "Sweep") -> Section:
                         col=1,
                     )
         for row, name in enumerate(shown, start=1):
-            panel.update_yaxes(title_text=page_text(name), row=row, col=1)
+            panel.update_yaxes(title_text=page_text(_with_unit(name)), row=row, col=1)
         panel.update_xaxes(title_text="time [s]", row=len(shown), col=1)
         panel.update_layout(
             height=180 + 200 * len(shown),
             template="plotly_white",
-            title={"text": "click a cell of the map above to show its case's trace", "x": 0.5},
+            title={"text": f"case {kept[0]}: click a cell of the map above to show its case's trace", "x": 0.5},
         )
         parts.append(
             _figure_html(figure, map_id, post_script=_click_script(traces_id, sweep.x, sweep.y))
@@ -481,6 +490,7 @@ def _controller(record: Mapping[str, Any]) -> str:
     return ", ".join(str(part) for part in (kind, f"law {law}" if law else "") if part)
 
 
+_PATH_FIELDS = ("scenario file", "plant FMU")  # shown relative to the report's folder
 _RECORD_FIELDS = (
     ("status", lambda r: r.get("status")),
     ("reason", lambda r: r.get("reason") or ""),
@@ -500,9 +510,20 @@ _RECORD_FIELDS = (
 )
 
 
-def records_section(runs: Sequence[LoadedRun], title: str = "Run records") -> Section:
+def _cell(name: str, value: Any, folder: Path | None) -> str:
+    """A record field as its table cell shows it: a number to 5 significant digits, a path
+    relative to the report's `folder` (where the page is opened from)."""
+    if isinstance(value, float):
+        return f"{value:.5g}"
+    if name in _PATH_FIELDS and value and folder is not None:
+        return os.path.relpath(Path(str(value)).absolute(), Path(folder).absolute())
+    return str(value)
+
+
+def records_section(runs: Sequence[LoadedRun], title: str = "Run records", folder: Path | None = None) -> Section:
     """A row per run with its record's status, controller, coupling, loop (which ran, and why),
-    warnings; the whole record (settings, solver statistics, versions) in a fold below."""
+    warnings; the whole record (settings, solver statistics, versions) in a fold below. Numbers
+    are shown to 5 significant digits and paths relative to `folder`, the report's."""
     head = "<tr><th>run</th>" + "".join(f"<th>{page_text(name)}</th>" for name, _ in _RECORD_FIELDS) + "</tr>"
     rows, folds = [], []
     for run in runs:
@@ -511,7 +532,7 @@ def records_section(runs: Sequence[LoadedRun], title: str = "Run records") -> Se
             rows.append(f"<tr><td>{page_text(run.label)}</td><td colspan={len(_RECORD_FIELDS)}>no run record</td></tr>")
             continue
         warned = ' class="fail"' if run.incomplete else ' class="warn"' if record.get("warnings") else ""
-        cells = "".join(f"<td>{page_text(read(record))}</td>" for _, read in _RECORD_FIELDS)
+        cells = "".join(f"<td>{page_text(_cell(name, read(record), folder))}</td>" for name, read in _RECORD_FIELDS)
         rows.append(f"<tr{warned}><td>{page_text(run.label)}</td>{cells}</tr>")
         folds.append(
             f"<details><summary>{page_text(run.label)}: the whole run.json</summary>"
@@ -528,6 +549,7 @@ table { border-collapse: collapse; font-size: .85em; margin: .5em 0; }
 td, th { border: 1px solid #ddd; padding: .2em .5em; text-align: left; vertical-align: top; }
 table.numbers td:nth-child(n+4) { font-family: monospace; text-align: right; }
 tr.fail td, h3.fail { color: #b00; } h3.pass { color: #060; } tr.warn { background: #fff6e0; }
+table.records td { overflow-wrap: anywhere; max-width: 22em; }
 pre { background: #f6f6f6; padding: .6em; overflow: auto; max-height: 30em; font-size: .8em; }
 """
 

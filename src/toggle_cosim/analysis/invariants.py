@@ -13,7 +13,8 @@ Each metric is one of `cosim.summary.VscMetrics`' (computed from the result's tr
 time, iq_ref, S, phase by `vsc_metrics`, their one definition); it passes when
 |measured − value| <= max(atol, rtol |value|) (atol and rtol default to 0). A metric the result
 does not have (no S column) fails. `toggle-cosim compare` and `references` check the file when
-it is there; `references --update` re-measures the values and keeps the tolerances.
+it is there; `references --update` re-measures the values and keeps the tolerances, the
+comments and the layout, writing a value that moved at its tolerance's precision.
 
 The metrics depend on the sampling: the command's total variation and S's sign changes over
 every 10th sample are not those over every sample. The stored values are measured on the run's
@@ -46,8 +47,10 @@ __all__ = [
     "invariants_path",
     "load_invariants",
     "sampled_every",
+    "stored_text",
     "trace_metrics",
     "update_invariants",
+    "updated_text",
 ]
 
 METRICS = tuple(f.name for f in fields(VscMetrics))
@@ -178,18 +181,59 @@ def check_invariants(
     return tuple(InvariantResult(invariant, measured[name]) for name, invariant in invariants.items())
 
 
+def stored_text(value: float, tolerance: float) -> str:
+    """`value` as the invariants file writes it: at the precision of its tolerance, the fewest
+    decimals that round it by less than tolerance/10 (all of its digits without a tolerance)."""
+    if tolerance <= 0 or not math.isfinite(tolerance):
+        return repr(float(value))
+    decimals = max(0, math.ceil(-math.log10(tolerance / 20)))
+    return f"{value:.{decimals}f}"
+
+
+def _value_spans(text: str) -> dict[str, tuple[int, int]]:
+    """{metric: (start, end)} of each metric's `value:` scalar in the file's text (PyYAML's node
+    marks), so that only those characters change and the comments, order and layout stay."""
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    spans: dict[str, tuple[int, int]] = {}
+    for key, entries in root.value:
+        if key.value != "invariants":
+            continue
+        for metric, entry in entries.value:
+            for field, scalar in entry.value:
+                if field.value == "value":
+                    spans[metric.value] = (scalar.start_mark.index, scalar.end_mark.index)
+    return spans
+
+
+def updated_text(text: str, invariants: Mapping[str, Invariant], measured: Mapping[str, float]) -> str:
+    """The invariants file's `text` with each metric's value re-measured: a value the
+    measurement moved by less than a tenth of its tolerance keeps its text, another is written at
+    its tolerance's precision (`stored_text`); nothing else in the text changes. Pure."""
+    spans = _value_spans(text)
+    for name, (start, end) in sorted(spans.items(), key=lambda item: item[1], reverse=True):
+        invariant, value = invariants[name], float(measured[name])
+        tolerance = max(invariant.atol, invariant.rtol * abs(value))
+        if abs(value - invariant.value) < tolerance / 10:
+            continue
+        text = text[:start] + stored_text(value, tolerance) + text[end:]
+    return text
+
+
 def update_invariants(path: Path, trace: Trace) -> Path | None:
-    """Re-measure the values of an existing invariants file from `trace`, keeping its metrics and
-    tolerances (`references --update`); None when there is no file."""
+    """Re-measure the values of an existing invariants file from `trace`, keeping its metrics,
+    tolerances, comments and layout (`references --update`; `updated_text`); the file is left
+    as it is when no value moved. None when there is no file."""
+    from toggle_cosim.files.bounded import YAML_LIMIT, read_text_bounded
+
     invariants = load_invariants(path)
     if not invariants:
         return None
     measured = trace_metrics(trace)
-    document = {"invariants": {}}
-    for name, invariant in invariants.items():
+    for name in invariants:
         if measured[name] is None:
             raise CompareInputError(f"{path}: the run has no {name} (no S column?); remove the entry")
-        entry = {"value": float(measured[name])}
-        entry.update({k: getattr(invariant, k) for k in ("atol", "rtol") if getattr(invariant, k)})
-        document["invariants"][name] = entry
-    return write_text(path, yaml.safe_dump(document, sort_keys=False), "invariants", kind=INVARIANTS)
+    text = read_text_bounded(path, YAML_LIMIT, "invariants file")
+    updated = updated_text(text, invariants, {name: float(measured[name]) for name in invariants})
+    if updated == text:
+        return path
+    return write_text(path, updated, "invariants", kind=INVARIANTS)

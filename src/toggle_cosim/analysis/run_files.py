@@ -31,7 +31,16 @@ import numpy as np
 from toggle_cosim.analysis.results_figure import ResultsError, read_run_record
 from toggle_cosim.files.traces import Trace
 
-__all__ = ["LoadedRun", "check_variables", "fmu_units", "load_runs", "record_units", "run_folders"]
+__all__ = [
+    "LoadedRun",
+    "check_variables",
+    "distinct_labels",
+    "fmu_units",
+    "load_runs",
+    "record_units",
+    "label_groups",
+    "run_folders",
+]
 
 TRACE_FILE = "trace.csv"
 RECORD_FILE = "run.json"
@@ -89,12 +98,18 @@ def record_units(
     record: Mapping[str, Any], names: Sequence[str], cache: dict[str, dict[str, str]] | None = None
 ) -> dict[str, str]:
     """{column: unit} of the trace columns `names` of the run that `record` (run.json) describes:
-    time in s, the rest from the plant FMU it names (`fmu_units`); a system's run records its
-    columns' units itself (`units`)."""
+    time in s, the plant's columns from the plant FMU it names (`fmu_units`), the law's
+    diagnostics e, S, phase by `control.controller.diagnostic_units` (as `Result` gives them); a
+    system's run records its columns' units itself (`units`)."""
     if isinstance(record.get("units"), Mapping):
         units = {str(name): str(unit) for name, unit in record["units"].items()}
         return {name: units[name] for name in names if name in units}
-    units = {"time": "s", **fmu_units((record.get("fmu") or {}).get("path"), cache)}
+    from toggle_cosim.control.controller import diagnostic_units
+
+    plant = fmu_units((record.get("fmu") or {}).get("path"), cache)
+    controller = (record.get("resolved") or {}).get("controller") or {}
+    objective = controller.get("objective", "x_B") if isinstance(controller, Mapping) else "x_B"
+    units = {"time": "s", **diagnostic_units(str(objective), plant), **plant}
     return {name: units[name] for name in names if name in units}
 
 
@@ -164,16 +179,19 @@ def _from_trace_file(path: Path, cache: dict[str, dict[str, str]], incomplete: b
     return LoadedRun(label, trace, record_units(record, trace.names, cache), record, path)
 
 
-def load_runs(paths: Iterable[Path], incomplete: bool = False) -> list[LoadedRun]:
-    """Every run at `paths` (see the module text), in the order given; a label met twice gets
-    the number of its place appended. With `incomplete`, a run that did not complete is loaded
-    with the samples it has, even none. Raises ResultsError naming the path for one that holds
-    no run or cannot be read."""
+def load_runs(paths: Iterable[Path], labels: Sequence[str] | None = None, incomplete: bool = False) -> list[LoadedRun]:
+    """Every run at `paths` (see the module text), in the order given, labelled by
+    `distinct_labels`, or by `labels`: one per path (a path holding several runs labels each
+    `LABEL: scenario/variant`). With `incomplete`, a run that did not complete is loaded with
+    the samples it has, even none. Raises ResultsError naming the path for one that holds no run
+    or cannot be read, and for a number of labels other than the number of paths."""
+    paths = [Path(path) for path in paths]
+    _check_label_count(labels, len(paths))  # before any file is read
     cache: dict[str, dict[str, str]] = {}
-    runs: list[LoadedRun] = []
-    for path in map(Path, paths):
+    groups: list[list[LoadedRun]] = []
+    for path in paths:
         if path.is_file():
-            runs.append(_from_trace_file(path, cache, incomplete))
+            groups.append([_from_trace_file(path, cache, incomplete)])
             continue
         if not path.is_dir():
             raise ResultsError(f"{path}: no such results folder or trace file; give a folder 'toggle-cosim run' wrote")
@@ -182,15 +200,66 @@ def load_runs(paths: Iterable[Path], incomplete: bool = False) -> list[LoadedRun
             raise ResultsError(
                 f"{path}: no run results here (expected <variant>/trace.csv; run 'toggle-cosim run' first)"
             )
-        runs += [_from_trace_file(folder / TRACE_FILE, cache, incomplete) for folder in folders]
-    seen: dict[str, int] = {}
-    unique = []
-    for run in runs:
-        seen[run.label] = seen.get(run.label, 0) + 1
-        if seen[run.label] > 1:
-            run = LoadedRun(f"{run.label} ({seen[run.label]})", run.trace, run.units, run.record, run.source)
-        unique.append(run)
-    return unique
+        groups.append([_from_trace_file(folder / TRACE_FILE, cache, incomplete) for folder in folders])
+    return label_groups(groups, labels)
+
+
+def _check_label_count(labels: Sequence[str] | None, results: int) -> None:
+    if labels is not None and len(labels) != results:
+        raise ResultsError(f"{len(labels)} label(s) for {results} result(s); give one label per result, in order")
+
+
+def label_groups(groups: Sequence[Sequence[LoadedRun]], labels: Sequence[str] | None) -> list[LoadedRun]:
+    """The runs of `groups` (the runs of each result given, in order) labelled by `labels`, one
+    per group (`LABEL: scenario/variant` for each run of a group of several), or by
+    `distinct_labels` when None. Raises ResultsError for a number of labels other than the
+    number of groups."""
+    from dataclasses import replace
+
+    runs = [run for group in groups for run in group]
+    if labels is None:
+        return [replace(run, label=label) for run, label in zip(runs, distinct_labels(runs), strict=True)]
+    _check_label_count(labels, len(groups))
+    named = [
+        label if len(group) == 1 else f"{label}: {run.label}"
+        for label, group in zip(labels, groups, strict=True)
+        for run in group
+    ]
+    return [replace(run, label=label) for run, label in zip(runs, named, strict=True)]
+
+
+def _folder_parts(source: Path) -> tuple[str, ...]:
+    """The parts of the folder a run came from (its trace file's folder, or the file itself for
+    a bare trace file), relative to the working folder when it is under it."""
+    place = source.parent if source.name == TRACE_FILE else source
+    place = Path(place).absolute()
+    try:
+        place = place.relative_to(Path.cwd())
+    except ValueError:
+        pass
+    return place.parts
+
+
+def distinct_labels(runs: Sequence[LoadedRun]) -> list[str]:
+    """Each run's label (scenario/variant), where it is unique; runs that share one are told
+    apart by their folders: the folder's path with the leading parts those runs' paths share left out
+    (`pid/fig5_external_force/friction` for `out/pid/...` beside `out/vsc/...`), and by their
+    place (`label (2)`) when even the folders are the same."""
+    labels = [run.label for run in runs]
+    for label in dict.fromkeys(labels):
+        members = [index for index, other in enumerate(labels) if other == label]
+        if len(members) < 2:
+            continue
+        parts = [_folder_parts(runs[index].source) for index in members]
+        lead = 0
+        while all(len(p) > lead + 1 for p in parts) and len({p[lead] for p in parts}) == 1:
+            lead += 1
+        shown = ["/".join(p[lead:]) for p in parts]
+        if len(set(shown)) < len(shown):  # the same folder given twice: the place tells them apart
+            shown = [label if n == 0 else f"{label} ({n + 1})" for n in range(len(members))]
+        for index, text in zip(members, shown, strict=True):
+            labels[index] = text
+    return labels
 
 
 def check_variables(runs: Sequence[LoadedRun], variables: Sequence[str]) -> None:

@@ -22,6 +22,31 @@ PANELS = (
 )
 
 
+# units of the scenario keys a sweep varies that are not a plant variable (`axis_title`)
+KEY_UNITS = {"T_s": "s", "t_end": "s", "stroke.x_start": "m", "stroke.x_target": "m"}
+
+
+def axis_title(key: str) -> str:
+    """A sweep axis as the maps label it: `plant.F_E [N]`, the unit of a plant variable from the
+    plant contract (`plant.contract.contract_unit`), of a few scenario keys from KEY_UNITS; the key
+    alone where neither gives one (a gain, an FMU parameter by its own name)."""
+    from toggle_cosim.plant.contract import contract_unit
+
+    unit = KEY_UNITS.get(key) or (contract_unit(key.removeprefix("plant.")) if key.startswith("plant.") else None)
+    return f"{key} [{unit}]" if unit else key
+
+
+def constant_value(grid: Any) -> float | None:
+    """The one value of a map whose finite cells are all equal (its colour bar would say
+    nothing), else None."""
+    import numpy as np
+
+    finite = grid[np.isfinite(grid)]
+    if finite.size and finite.min() == finite.max():
+        return float(finite[0])
+    return None
+
+
 def value_label(value: Any) -> str:
     """A sweep value as the maps label it: a float to 4 significant digits."""
     if isinstance(value, float):
@@ -101,7 +126,9 @@ def write_heatmaps(
             image = ax.imshow(
                 np.ma.masked_invalid(grid), origin="lower", aspect="auto", cmap=colormap, interpolation="nearest"
             )
-            figure.colorbar(image, ax=ax, shrink=0.9)
+            constant = constant_value(grid)
+            if constant is None:
+                figure.colorbar(image, ax=ax, shrink=0.9)
             for i, j in zip(*np.nonzero(failed), strict=True):
                 ax.text(j, i, "✗", ha="center", va="center", color="red", fontsize=9)
             if annotate:
@@ -124,9 +151,9 @@ def write_heatmaps(
             step_y = max(1, len(ys) // 12)
             ax.set_xticks(range(0, len(xs), step_x), [value_label(v) for v in xs[::step_x]], rotation=45, fontsize=8)
             ax.set_yticks(range(0, len(ys), step_y), [value_label(v) for v in ys[::step_y]], fontsize=8)
-            ax.set_xlabel(x)
-            ax.set_ylabel(y)
-            ax.set_title(title)
+            ax.set_xlabel(axis_title(x))
+            ax.set_ylabel(axis_title(y))
+            ax.set_title(title if constant is None else f"{title}\nconstant: {constant:.4g}")
         n_failed = int((group["status"] != "ok").sum())
         figure.suptitle(
             f"{sweep.name}{': ' + tag if tag else ''}  ({len(group)} cases, {n_failed} failed ✗,"

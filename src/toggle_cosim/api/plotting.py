@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from toggle_cosim.analysis.run_files import LoadedRun, check_variables, load_runs
+from toggle_cosim.analysis.run_files import LoadedRun, check_variables, label_groups, load_runs
 from toggle_cosim.files.traces import Trace
 
 if TYPE_CHECKING:
@@ -66,6 +66,7 @@ def plot(
     vars: Sequence[str] | str | None = None,  # noqa: A002 - the name the command line's --vars has
     reference: Result | Trace | str | Path | None = None,
     *,
+    labels: Sequence[str] | None = None,
     title: str = "",
     out: str | Path | None = None,
 ) -> Figure:
@@ -77,16 +78,20 @@ def plot(
         vars: variable names (or "x_B,iq_ref"); default: the variables every run has.
         reference: a reference (trace file, `Result` or `Trace`) drawn in black with its funnel
             band around the first run's variables (tolerance files by place for a file).
+        labels: the legend's name of each item of `results`, in order (an item holding several
+            runs names each `LABEL: scenario/variant`); default: each run's scenario/variant,
+            and where that repeats, its folder's path without the leading parts they share.
         out: also write the figure as a PNG there.
 
     Raises:
-        ValueError (ResultsError): a run lacks a variable; the message names the run and what it has.
+        ValueError (ResultsError): a run lacks a variable (the message names the run and what
+            it has); `labels` has not one label per item of `results`.
         CompareInputError: the reference cannot be compared with the first run.
     """
     from toggle_cosim.analysis.variable_figure import default_variables, save_figure, variables_figure
 
     items = [results] if isinstance(results, (str, Path)) or _is_result(results) else list(results)
-    runs = [run for item in items for run in _loaded(item)]
+    runs = label_groups([_loaded(item) for item in items], None if labels is None else list(labels))
     if not runs:
         raise ValueError("plot: no runs given")
     names = [n.strip() for n in vars.split(",")] if isinstance(vars, str) else list(vars or default_variables(runs))

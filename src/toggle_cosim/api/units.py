@@ -16,13 +16,13 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from toggle_cosim.control.controller import MEASURED, diagnostic_units
 from toggle_cosim.plant.contract import INPUTS, PlantInterface
 
 __all__ = ["OBJECTIVE_VARIABLES", "declared_unit", "trace_units"]
 
 # the plant outputs the built-in law regulates for each objective: (measured variable, its rate)
-OBJECTIVE_VARIABLES = {"x_B": ("x_B", "v_B"), "theta1": ("theta1", "omega1")}
-DIMENSIONLESS = "1"
+OBJECTIVE_VARIABLES = MEASURED
 
 
 def declared_unit(variable: Any) -> str | None:
@@ -31,18 +31,6 @@ def declared_unit(variable: Any) -> str | None:
         return str(variable.unit)
     declared = variable.declaredType
     return str(declared.unit) if declared is not None and declared.unit is not None else None
-
-
-def _controller_units(objective: str, plant: Mapping[str, str]) -> dict[str, str]:
-    measured, rate = OBJECTIVE_VARIABLES[objective]
-    units = {"phase": DIMENSIONLESS}
-    if measured in plant:
-        units["e"] = plant[measured]
-    if rate in plant:
-        units["S"] = plant[rate]
-    elif measured in plant:
-        units["S"] = f"{plant[measured]}/s"
-    return units
 
 
 def trace_units(
@@ -57,6 +45,6 @@ def trace_units(
             described[variable.name] = unit
     known = {"time": "s"}
     known.update((name, described[name]) for name in (*plant.recorded_outputs, *INPUTS) if name in described)
-    known.update(_controller_units(objective, described))
+    known.update(diagnostic_units(objective, described))
     known.update(extra or {})
     return {name: known[name] for name in names if name in known}

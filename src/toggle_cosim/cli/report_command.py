@@ -25,12 +25,12 @@ def parse_vars(text: str | None) -> list[str] | None:
     return list(dict.fromkeys(names))
 
 
-def _loaded(paths: Sequence[Path], incomplete: bool = False) -> list[Any]:
+def _loaded(paths: Sequence[Path], labels: Sequence[str] | None = None, incomplete: bool = False) -> list[Any]:
     from toggle_cosim.analysis.results_figure import ResultsError
     from toggle_cosim.analysis.run_files import load_runs
 
     try:
-        return load_runs(paths, incomplete)
+        return load_runs(paths, labels, incomplete)
     except ResultsError as error:
         raise InputError(str(error)) from error
 
@@ -71,15 +71,20 @@ def _default_output(first: Path, name: str) -> Path:
 
 
 def plot_variables(
-    results: Sequence[Path], variables: list[str] | None, reference: Path | None, output: Path | None
+    results: Sequence[Path],
+    variables: list[str] | None,
+    reference: Path | None,
+    output: Path | None,
+    labels: Sequence[str] | None = None,
 ) -> Path:
-    """`plot RUN... --vars ... [--reference REF]`: every run overlaid into one PNG (default
-    RUN/variables.png of the first RUN); without --vars the variables every run has."""
+    """`plot RUN... --vars ... [--reference REF] [--label NAME]...`: every run overlaid into one
+    PNG (default RUN/variables.png of the first RUN), each named by its --label (one per RUN)
+    or by `run_files.distinct_labels`; without --vars the variables every run has."""
     from toggle_cosim.analysis.results_figure import ResultsError
     from toggle_cosim.analysis.run_files import check_variables
     from toggle_cosim.analysis.variable_figure import default_variables, save_figure, variables_figure
 
-    runs = _loaded(results)
+    runs = _loaded(results, labels)
     chosen = variables or default_variables(runs)
     try:
         check_variables(runs, chosen)
@@ -87,7 +92,7 @@ def plot_variables(
         raise InputError(str(error)) from error
     band = _reference_band(runs, reference, chosen) if reference is not None else None
     output = output or _default_output(results[0], "variables.png")
-    title = ", ".join(dict.fromkeys(run.label.split("/")[0] for run in runs))
+    title = ", ".join(dict.fromkeys(str(run.record.get("scenario") or run.label.split("/")[0]) for run in runs))
     try:
         return save_figure(variables_figure(runs, chosen, title, band), output)
     except OSError as error:
@@ -190,7 +195,7 @@ def write_runs_report(
     if any(run.drawable for run in runs):
         sections.append(overlay_section(runs, variables))
     if runs:
-        sections.append(records_section(runs))
+        sections.append(records_section(runs, folder=Path(output).parent))
     return write_report(output, title, sections)
 
 

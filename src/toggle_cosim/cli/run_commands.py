@@ -108,16 +108,34 @@ def _plot_scenario(folder: Path, output: Path | None) -> Path:
     default=None,
     help="A reference trace drawn with its funnel band (tolerance files by place, as compare).",
 )
-def plot(results: tuple[Path, ...], output: Path | None, variables: str | None, reference: Path | None) -> None:
+@click.option(
+    "--label",
+    "labels",
+    multiple=True,
+    metavar="NAME",
+    help="The legend's name of each RESULTS, in order (repeat: one per RESULTS; implies --vars' overlay). "
+    "Default: scenario/variant, and where that repeats, the run's folder.",
+)
+def plot(
+    results: tuple[Path, ...],
+    output: Path | None,
+    variables: str | None,
+    reference: Path | None,
+    labels: tuple[str, ...],
+) -> None:
     """Draw results folders or trace files: the paper's nine-panel figure per scenario folder (variants
-    overlaid), or with --vars/--reference every run overlaid variable by variable (any scenario or plant)."""
+    overlaid), or with --vars/--reference/--label every run overlaid variable by variable (any scenario or plant)."""
     from toggle_cosim.cli.report_command import is_paper_plant, parse_vars, plot_variables
 
     require("matplotlib")
     names = parse_vars(variables)
-    if names is not None or reference is not None:
+    if labels and len(labels) != len(results):
+        raise InputError(
+            f"--label given {len(labels)} time(s) for {len(results)} RESULTS; give one --label per RESULTS, in order"
+        )
+    if names is not None or reference is not None or labels:
         check_output(output, "figure (--out)", PNG)
-        click.echo(f"wrote {plot_variables(results, names, reference, output)}")
+        click.echo(f"wrote {plot_variables(results, names, reference, output, labels or None)}")
         return
     if output is not None and len(results) > 1:
         raise InputError("--out names one file, so give one RESULTS folder with it")

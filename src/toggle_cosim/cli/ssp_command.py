@@ -22,9 +22,8 @@ from toggle_cosim.files.outputs import SSP
 @click.option(
     "--controller",
     type=click.Path(path_type=Path),
-    default=DEFAULT_CONTROLLER,
-    show_default=True,
-    help="Controller FMU.",
+    default=None,
+    help=f"Controller FMU (default: {DEFAULT_CONTROLLER.name} beside the plant FMU, where build writes it).",
 )
 @click.option(
     "--variant",
@@ -33,7 +32,7 @@ from toggle_cosim.files.outputs import SSP
     metavar="NAME",
     help="Write only this variant (repeat for several; default: every variant, the first as SystemStructure.ssd).",
 )
-def ssp(scenario: Path, output: Path, plant: Path | None, controller: Path, variants: tuple[str, ...]) -> None:
+def ssp(scenario: Path, output: Path, plant: Path | None, controller: Path | None, variants: tuple[str, ...]) -> None:
     """Write SCENARIO as an SSP 1.0 archive: one root SSD per variant (SystemStructure.ssd the first), with the
     plant and controller FMUs and one parameter set per component."""
     from toggle_cosim.experiments.scenario import ScenarioError

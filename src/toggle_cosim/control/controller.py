@@ -52,12 +52,28 @@ from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters, MotorParameters
 
-__all__ = ["VSCController", "ControllerState", "ControlOutput", "MEASURED", "hitting_time"]
+__all__ = ["VSCController", "ControllerState", "ControlOutput", "MEASURED", "diagnostic_units", "hitting_time"]
 
 Objective = Literal["x_B", "theta1"]
 Law = Literal["paper", "integral"]
 Phase = Literal["reaching", "sliding"]
 MEASURED = {"x_B": ("x_B", "v_B"), "theta1": ("theta1", "omega1")}  # the plant outputs each objective reads
+
+
+def diagnostic_units(objective: str, plant_units: Mapping[str, str]) -> dict[str, str]:
+    """The units of the built-in law's diagnostics columns from the plant's units: e = target −
+    measured (eqs. (19), (26)) in the unit of the variable the objective regulates, S = C e + ė in
+    the unit of its rate (or the measured unit per second where the plant has no rate), and the
+    phase r of eq. (25) a pure number, "1". A unit the plant does not give is left out."""
+    measured, rate = MEASURED.get(objective, MEASURED["x_B"])
+    units = {"phase": "1"}
+    if measured in plant_units:
+        units["e"] = plant_units[measured]
+    if rate in plant_units:
+        units["S"] = plant_units[rate]
+    elif measured in plant_units:
+        units["S"] = f"{plant_units[measured]}/s"
+    return units
 
 
 def hitting_time(S0: float, gains: ControllerGains) -> float:

@@ -93,7 +93,9 @@ def run_record(
     `plant_contract` the optional contract variables the plant does not have, `inputs` each
     signal-driven input's definition (`signals.definitions.describe`: a table's CSV with its
     path and SHA-256), `controller` which
-    controller ran (`controllers.controller_record`; None: not known, e.g. it could not be built)."""
+    controller ran (`controllers.controller_record`; None: not known, e.g. it could not be built);
+    `summary_partial` that `summary` is of the samples recorded before the run failed or was
+    interrupted, not of the whole run."""
     return {
         "scenario": run.scenario,
         "variant": run.variant,
@@ -124,6 +126,7 @@ def run_record(
         "loop_time_s": loop_seconds,
         "real_time_factor": max(rows - 1, 0) * run.T_s / max(loop_seconds, 1e-12),
         "summary": summary.as_dict() if summary else None,
+        "summary_partial": summary is not None and status != "complete",  # of the samples before the run ended
         "solver_statistics": solver_statistics,
         "versions": dict(installed_versions()),  # a fresh dict for every record
     }

@@ -64,7 +64,7 @@ from toggle_cosim.cosim.stepper import (
     Timing,
     compiled_controller,
 )
-from toggle_cosim.cosim.summary import summarize
+from toggle_cosim.cosim.summary import RunSummary, summarize
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.physics.mechanism import working_range
@@ -76,6 +76,7 @@ __all__ = [
     "JACOBI_REASON",
     "RunOutcome",
     "close_controller",
+    "pair_summary",
     "open_session",
     "refused_outcome",
     "simulate_pair",
@@ -103,6 +104,31 @@ def _diagnostics(trace: Trace, names: tuple[str, ...]) -> tuple[np.ndarray | Non
     if all(name in trace.names for name in names):
         return tuple(trace.column(name) for name in names)
     return tuple(None for _ in names)
+
+
+def pair_summary(run: Run, trace: Trace, controller: object) -> tuple[RunSummary | None, list[str]]:
+    """A pair's figures of merit and plausibility warnings from its trace, whole or partial (a
+    run that failed or hit its time limit: the samples it recorded); (None, []) before its
+    second sample or without the columns x_B and iq_ref. `controller` gives T_h and S0 when it
+    has them."""
+    if trace.data.shape[0] < 2 or not {"x_B", "iq_ref"} <= set(trace.names):
+        return None, []
+    x_B, iq_ref = trace.column("x_B"), trace.column("iq_ref")
+    summary = summarize(
+        trace.time,
+        x_B,
+        iq_ref,
+        trace.column("E_in") if "E_in" in trace.names else None,
+        trace.column("E_fric") if "E_fric" in trace.names else None,
+        run.x_start,
+        run.x_target,
+        _number(getattr(controller, "T_h", None)),
+        _number(getattr(controller, "S0", None)),
+        *_diagnostics(trace, ("S", "phase")),
+        None if run.x_final == run.x_target else run.x_final,
+    )
+    limits = run.plant.working_range or working_range(MechanismParameters())
+    return summary, plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
 
 
 def open_session(plant: PlantInterface, instance_name: str, inputs: tuple[str, ...] = ()) -> PlantSession:
@@ -243,24 +269,7 @@ def simulate_pair(
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
     reason = bounded_text(reason) if reason is not None else None  # one line, whatever the plant or controller said
     complete = reason is None and rows == n + 1
-    summary, warnings = None, []
-    if rows > 1:
-        x_B, iq_ref = trace.column("x_B"), trace.column("iq_ref")
-        summary = summarize(
-            trace.time,
-            x_B,
-            iq_ref,
-            trace.column("E_in") if "E_in" in trace.names else None,
-            trace.column("E_fric") if "E_fric" in trace.names else None,
-            run.x_start,
-            run.x_target,
-            _number(getattr(state.controller, "T_h", None)),
-            _number(getattr(state.controller, "S0", None)),
-            *_diagnostics(trace, ("S", "phase")),
-            None if run.x_final == run.x_target else run.x_final,
-        )
-        limits = run.plant.working_range or working_range(MechanismParameters())
-        warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
+    summary, warnings = pair_summary(run, trace, state.controller)
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     loop_seconds = loop_finished - loop_started

@@ -64,6 +64,7 @@ from toggle_cosim.cosim.exit_reasons import (
     in_controller_reason,
     stopped_in_controller,
 )
+from toggle_cosim.cosim.pair import pair_summary
 from toggle_cosim.cosim.systems import SystemError_, system_columns
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, error_text
@@ -673,8 +674,12 @@ class SupervisedRun:
             controller = None
         else:
             controller = controller_record(run, self.controller)
-        record = outcomes.run_record(run, plant, status_word, reason, rows, wall, wall, controller=controller)
-        return outcomes.RunOutcome(run, trace, False, reason, wall, wall, None, record, self.interrupted)
+        # the samples recorded before the end: their figures of merit, a partial summary
+        summary, warnings = pair_summary(run, trace, self._built[2] if self._built is not None else self.controller)
+        record = outcomes.run_record(
+            run, plant, status_word, reason, rows, wall, wall, summary, warnings=warnings, controller=controller
+        )
+        return outcomes.RunOutcome(run, trace, False, reason, wall, wall, summary, record, self.interrupted)
 
     def _exit_reason(self, answer: tuple | None) -> str:
         if answer is not None and answer[0] == "error":

@@ -88,6 +88,12 @@ OUTPUTS = tuple(v.name for v in CONTRACT if v.causality == "output")  # the trac
 REQUIRED = tuple(v.name for v in CONTRACT if v.required)
 
 
+def contract_unit(name: str) -> str | None:
+    """The unit the contract fixes for the variable `name` ("1": dimensionless); None for a
+    variable the contract does not have or whose unit it does not check."""
+    return next((v.unit for v in CONTRACT if v.name == name), None)
+
+
 def objective_requirements(objective: str) -> tuple[str, ...]:
     """The optional variables a controller objective needs (theta1: theta1 and omega1)."""
     return tuple(v.name for v in CONTRACT if objective in v.required_for)

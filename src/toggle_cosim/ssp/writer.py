@@ -26,6 +26,7 @@ from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
+from toggle_cosim.experiments.shipped import DEFAULT_CONTROLLER
 from toggle_cosim.files.outputs import SSP, replacing
 from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.runs.definition import Run
@@ -34,7 +35,7 @@ from toggle_cosim.ssp.checks import Element, SspError, schema_problem
 from toggle_cosim.ssp.fmus import FmuVariables, describe
 from toggle_cosim.system.model import Connection, Port, Wiring
 
-__all__ = ["ParameterSet", "controller_values", "parameter_sets", "write_ssp"]
+__all__ = ["ParameterSet", "controller_values", "default_controller", "parameter_sets", "write_ssp"]
 
 # LawParameters fields the controller FMU computes itself at its first sample
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -375,17 +376,25 @@ def _chosen(path: Path, runs: list[Run], variants: Sequence[str]) -> list[Run]:
     return [known[name] for name in dict.fromkeys(variants)]
 
 
+def default_controller(plant_fmu: Path) -> Path:
+    """The controller FMU an SSP takes when none is named: `ToggleVSC.fmu` beside the plant FMU,
+    where `toggle-cosim build` writes both, so it is found by the rule that finds the plant
+    (the scenario's fmu: key, relative to the scenario file) from any working folder."""
+    return Path(plant_fmu).with_name(DEFAULT_CONTROLLER.name)
+
+
 def write_ssp(
     scenario: Path,
     output: Path,
     plant_fmu: Path | None,
-    controller_fmu: Path,
+    controller_fmu: Path | None,
     variants: Sequence[str] = (),
     runs: Sequence[Run] | None = None,
 ) -> Path:
     """Write the SSP of `scenario` to `output` (whole or not at all) and return `output`.
 
-    `plant_fmu`: the plant (None: the scenario's fmu: key); `variants`: the variants to write, the
+    `plant_fmu`: the plant (None: the scenario's fmu: key, relative to the scenario file);
+    `controller_fmu`: the controller (None: `default_controller`, beside the plant); `variants`: the variants to write, the
     first as SystemStructure.ssd (none: every variant in the scenario's order); `runs`: the
     scenario's runs as already loaded (None: loaded from `scenario`). A run's system (`Run.system`:
     parts, connections) is written as it is; its `record` list is no part of an SSD. Raises ScenarioError for a scenario
@@ -415,7 +424,8 @@ def write_ssp(
         except SettingError as error:
             raise SspError(f"{scenario}: {error}") from None
     plant_variables = FmuVariables.of(plant.path, plant.model_description)
-    controller_variables = describe(Path(controller_fmu))
+    controller_fmu = Path(controller_fmu) if controller_fmu is not None else default_controller(plant.path)
+    controller_variables = describe(controller_fmu)
     controller_variables.check_controller(plant_variables)
     sets = parameter_sets(runs, plant)
     for parameter_set in sets:
