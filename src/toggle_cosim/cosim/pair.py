@@ -258,7 +258,9 @@ def simulate_pair(
             None if run.x_final == run.x_target else run.x_final,
         )
         limits = run.plant.working_range or working_range(MechanismParameters())
-        warnings = plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
+        warnings = plausibility_warnings(
+            trace.time, x_B, iq_ref, run.plant.rated_current, limits, *_diagnostics(trace, ("S", "phase"))
+        )
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     loop_seconds = loop_finished - loop_started
