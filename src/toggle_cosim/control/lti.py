@@ -104,20 +104,20 @@ def discrete_system(system: Any, T_s: float, discretise: str | None = None) -> A
 
     dt = system.dt
     if discretise is not None and discretise not in DISCRETISE_METHODS:
-        raise ValueError(f"discretise: {discretise!r} is not one of {', '.join(DISCRETISE_METHODS)}")
+        raise ValueError(f"controller.discretise: {discretise!r} is not one of {', '.join(DISCRETISE_METHODS)}")
     if dt is None or dt is True:
         raise ValueError(f"a system without a sample time (dt = {dt}); give dt = T_s = {T_s:g} s")
     if dt is False or dt == 0:
         if discretise is None:
             raise ValueError(
-                "a continuous-time system (dt = 0); give dt = T_s, or name a discretisation method"
-                f" (discretise: {' | '.join(DISCRETISE_METHODS)}, e.g. tustin: control.sample_system at T_s = {T_s:g} s)"
+                f"a continuous-time system (dt = 0); sample it at T_s = {T_s:g} s (control.sample_system(sys, {T_s:g},"
+                f" method='tustin')), or name the method in controller.discretise ({' | '.join(DISCRETISE_METHODS)})"
             )
         return control.sample_system(system, T_s, method=discretise)
     if discretise is not None:
         raise ValueError(
-            f"a discrete-time system (dt = {dt:g} s) with discretise: {discretise}; only a continuous-time system is"
-            " discretised (remove discretise)"
+            f"a discrete-time system (dt = {dt:g} s) with controller.discretise: {discretise}; only a continuous-time"
+            " system is discretised (remove controller.discretise)"
         )
     if not math.isclose(float(dt), T_s, rel_tol=1e-9, abs_tol=0.0):
         raise ValueError(f"a system with dt = {dt:g} s, not the run's T_s = {T_s:g} s (give dt = T_s)")

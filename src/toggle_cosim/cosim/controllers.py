@@ -40,6 +40,7 @@ from typing import Any
 from toggle_cosim import interrupts
 from toggle_cosim.control import trajectory
 from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.lti import INPUTS
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
 from toggle_cosim.control.trajectory import SampledReference
@@ -181,13 +182,13 @@ def is_python_control_system(candidate: object) -> bool:
     return control is not None and isinstance(candidate, control.LTI)
 
 
-def system_controller(system: Any, run: Run, outputs: Sequence[str] = ()) -> Any:
+def system_controller(system: Any, run: Run, outputs: Sequence[str] = (), factory: str | None = None) -> Any:
     """The controller of a python-control `system` in `run` (`control.lti.DiscreteSystemController`):
     it reads the plant output controller.error.output (default: the objective's, x_B or theta1),
     its reference r is the run's stroke.trajectory or else controller.error.target (default
     `_error_target`), and a continuous-time system is sampled at T_s by controller.discretise.
-    Raises ControllerError naming the key and the fix (the system's own problem under
-    controller.python)."""
+    `factory`: the controller.python that returned the system (None: the user gave it). Raises
+    ControllerError naming the key and the fix (the system's own problem under controller.python)."""
     from toggle_cosim.control.lti import DiscreteSystemController
 
     settings = run.controller
@@ -213,9 +214,9 @@ def system_controller(system: Any, run: Run, outputs: Sequence[str] = ()) -> Any
             discretise=settings.discretise,
         )
     except ValueError as error:
-        if settings.python is None:  # a system given to simulate
+        if factory is None:  # a system given to simulate
             raise ControllerError(f"the python-control system is {error}") from None
-        raise ControllerError(f"key controller.python: {settings.python} returned {error}") from None
+        raise ControllerError(f"key controller.python: {factory} returned {error}") from None
 
 
 def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
@@ -335,7 +336,7 @@ def _controller_for(run: Run, outputs: Sequence[str]) -> Controller:
                     f"key controller.error: missing; {settings.python} returned a python-control system, so name the"
                     " plant output it reads (error: {output: x_B})"
                 )
-            controller = system_controller(controller, run, outputs)
+            controller = system_controller(controller, run, outputs, settings.python)
         elif settings.error is not None or settings.discretise is not None:
             key = "error" if settings.error is not None else "discretise"
             raise ControllerError(
@@ -360,6 +361,14 @@ def controller_record(run: Run, controller: object) -> dict[str, Any]:
         "class": f"{user_code.shown(kind.__module__)}.{kind.__qualname__}",
         "diagnostics": list(getattr(controller, "diagnostics", ())),
     }
+    matrices = getattr(controller, "matrices", None)
+    if is_python_control_system(getattr(controller, "system", None)) and matrices is not None:
+        record["system"] = {  # a python-control system's adapter (`control.lti`)
+            "states": matrices.n,
+            "inputs": INPUTS.get(matrices.m),
+            "discretise": run.controller.discretise,
+            "reference": "stroke.trajectory" if getattr(controller, "reference", None) is not None else "target",
+        }
     fmu = getattr(controller, "fmu", None)
     if run.controller.fmu is not None and isinstance(fmu, ControllerFmu):
         record["fmu"] = {
