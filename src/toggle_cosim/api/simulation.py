@@ -154,9 +154,10 @@ def simulate(
         controller: any object that meets the controller protocol (`toggle_cosim.control.protocol`:
             start, step, diagnostics) instead of the scenario's controller; it runs in the Python
             loop at every sample (docs/controllers.md). Or a python-control system
-            (`control.StateSpace`/`TransferFunction`, dt = T_s; one input e = r − y, or two, [r, y]),
-            adapted by `DiscreteSystemController` to read the run's controller.error output
-            (default x_B) against its trajectory or target; it runs in the compiled loop.
+            (`control.StateSpace`/`TransferFunction`, dt = T_s; one input e = r − y, or two,
+            [r − y0, y − y0]), adapted by `DiscreteSystemController` to read the run's
+            controller.error output (default x_B) against its trajectory or target; it runs in
+            the compiled loop.
         coupling: "gauss-seidel" (the plant gets the command computed from its outputs at the
             same sample) or "jacobi" (the previous sample's command); default: the scenario's
             coupling key, else gauss-seidel (docs/controllers.md, "Coupling").

@@ -13,7 +13,7 @@ A scenario names a user's controller by a factory::
 The factory is called as ``factory(context, **parameters)`` with a `ControllerContext` (T_s, the
 stroke, the scenario's built-in controller, ...) and returns an object that meets the protocol,
 or a python-control system (`control.StateSpace`/`TransferFunction` with dt = T_s, one input
-e = r − y or two, [r, y]), which `system_controller` adapts (`control.lti`), as it adapts one
+e = r − y or two, [r − y0, y − y0]), which `system_controller` adapts (`control.lti`), as it adapts one
 given to `tc.simulate`. Or it names a controller FMU::
 
     controller:
@@ -40,7 +40,7 @@ from typing import Any
 from toggle_cosim import interrupts
 from toggle_cosim.control import trajectory
 from toggle_cosim.control.controller import VSCController
-from toggle_cosim.control.lti import INPUTS
+from toggle_cosim.control.lti import INPUTS, DiscreteSystemController
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
 from toggle_cosim.control.trajectory import SampledReference
@@ -182,15 +182,15 @@ def is_python_control_system(candidate: object) -> bool:
     return control is not None and isinstance(candidate, control.LTI)
 
 
-def system_controller(system: Any, run: Run, outputs: Sequence[str] = (), factory: str | None = None) -> Any:
+def system_controller(
+    system: Any, run: Run, outputs: Sequence[str] = (), factory: str | None = None
+) -> DiscreteSystemController:
     """The controller of a python-control `system` in `run` (`control.lti.DiscreteSystemController`):
     it reads the plant output controller.error.output (default: the objective's, x_B or theta1),
     its reference r is the run's stroke.trajectory or else controller.error.target (default
     `_error_target`), and a continuous-time system is sampled at T_s by controller.discretise.
     `factory`: the controller.python that returned the system (None: the user gave it). Raises
     ControllerError naming the key and the fix (the system's own problem under controller.python)."""
-    from toggle_cosim.control.lti import DiscreteSystemController
-
     settings = run.controller
     output = settings.error.output if settings.error is not None else settings.objective
     given = settings.error.target if settings.error is not None else None
@@ -361,13 +361,12 @@ def controller_record(run: Run, controller: object) -> dict[str, Any]:
         "class": f"{user_code.shown(kind.__module__)}.{kind.__qualname__}",
         "diagnostics": list(getattr(controller, "diagnostics", ())),
     }
-    matrices = getattr(controller, "matrices", None)
-    if is_python_control_system(getattr(controller, "system", None)) and matrices is not None:
-        record["system"] = {  # a python-control system's adapter (`control.lti`)
-            "states": matrices.n,
-            "inputs": INPUTS.get(matrices.m),
+    if isinstance(controller, DiscreteSystemController):  # a python-control system's adapter
+        record["system"] = {
+            "states": controller.matrices.n,
+            "inputs": INPUTS[controller.matrices.m],
             "discretise": run.controller.discretise,
-            "reference": "stroke.trajectory" if getattr(controller, "reference", None) is not None else "target",
+            "reference": "target" if controller.reference is None else "stroke.trajectory",
         }
     fmu = getattr(controller, "fmu", None)
     if run.controller.fmu is not None and isinstance(fmu, ControllerFmu):
