@@ -1,9 +1,11 @@
-"""Plausibility flags: a run whose command exceeds the motor's rating or whose slider leaves the
-linkage's working range is flagged (run.json, summary table, console), its status unchanged."""
+"""Plausibility flags: a run whose command exceeds the motor's rating, whose slider leaves the
+linkage's working range or whose command chatters is flagged (run.json, summary table, console),
+its status unchanged."""
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +14,8 @@ import yaml
 from click.testing import CliRunner
 
 from toggle_cosim.cli import main
-from toggle_cosim.cosim.plausibility import plausibility_warnings
+from toggle_cosim.control.protocol import ControlStep
+from toggle_cosim.cosim.plausibility import CHATTER_SIGN_CHANGES, CHATTER_TOTAL_VARIATION, plausibility_warnings
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 from toggle_cosim.physics.mechanism import working_range
 from toggle_cosim.physics.parameters import MechanismParameters
@@ -34,6 +37,49 @@ def test_each_limit_is_flagged_with_when_and_how_much() -> None:
     assert "working range 0.1800 m to 0.3600 m (plant.working_range) at t = 0.2 s" in position
     assert "x_B spans 0.17000 m to 0.23000 m" in position
     assert plausibility_warnings(time, x_B, iq, 12.0, (0.17, 0.36)) == []  # limits are inclusive
+
+
+def test_a_70_hz_oscillation_of_the_command_is_flagged_as_chattering() -> None:
+    """±3 A at 70 Hz gives about 840 A/s of total variation, over the 500 A/s limit; the same command
+    without the oscillation (a decaying 3 A, a few A/s, as the shipped runs) is not flagged, nor
+    is the oscillation's S outside the sliding phase; S changing sign at 140/s while sliding is."""
+    time = np.arange(2001) * 0.0005  # 1 s at T_s
+    x_B = np.full_like(time, 0.3)
+    smooth = 3.0 * np.exp(-5.0 * time)
+    oscillation = 3.0 * np.sin(2 * np.pi * 70.0 * time)
+    (flag,) = plausibility_warnings(time, x_B, smooth + oscillation, 10.0, (0.18, 0.36))
+    assert flag.startswith("the command chatters: i_q* varies by 83") and "A/s (limits 500 A/s" in flag
+    assert CHATTER_TOTAL_VARIATION == 500.0 and CHATTER_SIGN_CHANGES == 100.0
+    assert plausibility_warnings(time, x_B, smooth, 10.0, (0.18, 0.36)) == []
+    S = 0.01 * np.sin(2 * np.pi * 70.0 * time)
+    reaching, sliding = np.zeros_like(time), np.ones_like(time)
+    assert plausibility_warnings(time, x_B, smooth, 10.0, (0.18, 0.36), S, reaching) == []
+    (flag,) = plausibility_warnings(time, x_B, smooth, 10.0, (0.18, 0.36), S, sliding)
+    assert re.search(r"S changes sign 1[34]\d times/s while sliding", flag), flag  # 2 x 70 Hz
+
+
+class _Resonating:
+    """A PD on x_B with ±3 A at 70 Hz added: a loop that resonates."""
+
+    diagnostics = ("e",)
+
+    def start(self, t0, measurement):  # noqa: ANN001, ANN201
+        return None
+
+    def step(self, state, t, measurement):  # noqa: ANN001, ANN201
+        e = 0.3199 - measurement["x_B"]
+        return ControlStep(12.0 * e - 2.5 * measurement["v_B"] + 3.0 * np.sin(2 * np.pi * 70.0 * t), (e,), state)
+
+
+def test_a_resonating_run_stays_complete_and_is_flagged(plant_fmu: Path) -> None:
+    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.plant.contract import check_plant
+
+    (run,) = runs_from_document({**_fig4(), "t_end": 0.5})
+    outcome = simulate(run, check_plant(plant_fmu), controller=_Resonating())
+    assert outcome.complete
+    (flag,) = outcome.warnings
+    assert flag.startswith("the command chatters: i_q* varies by ") and outcome.record["warnings"] == [flag]
 
 
 def _fig4(**plant: object) -> dict:

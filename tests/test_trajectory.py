@@ -156,7 +156,19 @@ TRAPEZOID = {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0}
             TRAPEZOID,
             {"python": "mod:make"},
             0.8,
-            r"^key stroke\.trajectory: only the built-in law \(or its controller FMU\) tracks a trajectory",
+            r"^key stroke\.trajectory: only the built-in law, its controller FMU or a python-control system",
+        ),
+        (
+            TRAPEZOID,
+            {"python": "mod:make", "error": {"output": "theta1"}},
+            0.8,
+            r"^key controller\.error\.output: stroke\.trajectory is a profile of x_B, not of 'theta1'",
+        ),
+        (
+            TRAPEZOID,
+            {"python": "mod:make", "error": {"output": "x_B", "target": 0.3}},
+            0.8,
+            r"^key controller\.error\.target: the reference is stroke\.trajectory",
         ),
         (
             {"kind": "ramp", "v_max": 0.2, "a_max": 2.0},

@@ -212,12 +212,24 @@ def _bad_scenario(folder: Path, controller: dict, **extra) -> Path:
         ({"python": "no_such_module:make"}, "key controller.python: cannot import 'no_such_module'"),
         ({"error": {"output": "x_B"}}, "key controller.error: only with controller.python"),
         ({"python": "not a module"}, "key controller.python"),
+        # a python-control system (controller.error given): built in a supervised child before any run
+        (
+            {"python": "user_laws:continuous", "error": {"output": "x_B"}},
+            "key controller.python: user_laws:continuous returned a continuous-time system (dt = 0); sample it at"
+            " T_s = 0.0005 s",
+        ),
+        ({"python": "user_laws:wrong_dt", "error": {"output": "x_B"}}, "dt = 0.001 s, not the run's T_s = 0.0005 s"),
+        ({"python": "user_laws:no_step", "error": {"output": "x_B"}}, "the error is for python-control systems only"),
+        ({"python": "user_laws:raises", "error": {"output": "x_B"}}, "raised RuntimeError: the gains file is missing"),
     ],
 )
 def test_bad_controller_is_one_line_exit_2_before_any_run(
     tmp_path: Path, plant_fmu: Path, controller: dict, message: str
 ) -> None:
-    """What the command checks without running the user's code: one line, exit 2, nothing written."""
+    """What the command checks before any run: without running the user's code, or, for a
+    python-control system, by building it in a supervised child: one line, exit 2, nothing
+    written, and the command's own process never imported the module."""
+    before = set(sys.modules)
     path = _bad_scenario(tmp_path, controller)
     out = tmp_path / "out"
     result = CliRunner().invoke(main, ["run", str(path), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
@@ -225,6 +237,7 @@ def test_bad_controller_is_one_line_exit_2_before_any_run(
     assert result.exit_code == 2, result.output
     assert len(lines) == 1 and lines[0].startswith(f"error: {path}: ") and message in lines[0], lines
     assert "Traceback" not in result.output and not out.exists()
+    assert not any(name.startswith(("user_laws", "toggle_cosim_scenario_")) for name in set(sys.modules) - before)
 
 
 @pytest.mark.parametrize(
@@ -235,10 +248,7 @@ def test_bad_controller_is_one_line_exit_2_before_any_run(
         ({"python": "user_laws:fails", "parameters": {"Kp": 1.0}}, "raised TypeError"),
         ({"python": "user_laws:no_step"}, "user_laws.NoStep has no step() method"),
         ({"python": "user_laws:clashing"}, "diagnostic 'x_B' is already a column of the trace"),
-        ({"python": "user_laws:continuous", "error": {"output": "x_B"}}, "a continuous-time system"),
-        ({"python": "user_laws:wrong_dt", "error": {"output": "x_B"}}, "dt = 0.001 s, not the run's T_s = 0.0005 s"),
         ({"python": "user_laws:wrong_dt"}, "key controller.error: missing"),
-        ({"python": "user_laws:no_step", "error": {"output": "x_B"}}, "the error is for python-control systems only"),
     ],
 )
 def test_a_controller_that_cannot_be_built_fails_its_run_in_one_line(

@@ -48,6 +48,7 @@ _PUBLIC = {
     "tune": "toggle_cosim.api.tuning",
     "TuneError": "toggle_cosim.api.tuning",
     "TuneResult": "toggle_cosim.api.tuning",
+    "DiscreteSystemController": "toggle_cosim.control.lti",
 }
 __all__ = ["__version__", *_PUBLIC]
 

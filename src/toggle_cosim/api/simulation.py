@@ -67,9 +67,11 @@ def _one_run(run: Run | Scenario) -> Run:
 
 def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> None:
     """What the command line checks before a run starts: the settings against the plant's
-    variables, the user's controller without running its code (`check_user_controller`) and the
-    size of the trace buffer (ScenarioError, one line)."""
+    variables, the user's controller without running its code (`check_user_controller`; a
+    python-control system's factory, controller.error given, built in a supervised child) and
+    the size of the trace buffer (ScenarioError, one line)."""
     from toggle_cosim.cosim.controllers import check_user_controller
+    from toggle_cosim.cosim.supervision import probe_columns
     from toggle_cosim.cosim.systems import SystemError_, system_columns
     from toggle_cosim.experiments.resources import ResourceError, check_runs
     from toggle_cosim.plant.settings import SettingError, check_settings
@@ -78,6 +80,8 @@ def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> Non
         check_settings(run, plant)
         if own_controller:  # the scenario's, not one given to simulate
             check_user_controller(run, plant.recorded_outputs)
+            if run.controller.python is not None and run.controller.error is not None:
+                probe_columns(run, plant)  # a python-control system: built in a supervised child, checked
             if not run.system.is_pair and run.controller.python is None:
                 system_columns(run, plant)  # connections, units, order: every check, nothing loaded
         check_runs([(run, plant)], None)
@@ -85,6 +89,21 @@ def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> Non
         raise ScenarioError(f"{run.source or run.label}: {error}") from None
     except ResourceError as error:
         raise ScenarioError(f"{run.source or run.label}: {error.message}") from None
+
+
+def _adapted(controller: object, run: Run, plant: PlantInterface) -> Controller | None:
+    """The controller given to simulate, a python-control system adapted as a scenario's is
+    (`cosim.controllers.system_controller`: its reference the run's trajectory or target, the
+    run's controller.error and controller.discretise); any other object as given. Raises
+    ValueError for a system the run cannot take (a continuous-time one without discretise)."""
+    from toggle_cosim.cosim.controllers import is_python_control_system, system_controller
+
+    if not is_python_control_system(controller):
+        return controller  # type: ignore[return-value]
+    try:
+        return system_controller(controller, run, plant.recorded_outputs)
+    except ControllerError as error:
+        raise ValueError(f"controller: {error}") from None
 
 
 def _outcome(
@@ -114,7 +133,7 @@ def simulate(
     supervised: bool = True,
     time_limit: float | None = None,
     progress: Callable[[float], None] | None = None,
-    controller: Controller | None = None,
+    controller: Controller | object | None = None,
     coupling: str | None = None,
 ) -> Result:
     """Simulate one run (one variant of a scenario: `scenario["friction"]`; a scenario with one
@@ -134,7 +153,11 @@ def simulate(
         progress: called with the fraction of the run done, every 1 %.
         controller: any object that meets the controller protocol (`toggle_cosim.control.protocol`:
             start, step, diagnostics) instead of the scenario's controller; it runs in the Python
-            loop at every sample (docs/controllers.md).
+            loop at every sample (docs/controllers.md). Or a python-control system
+            (`control.StateSpace`/`TransferFunction`, dt = T_s; one input e = r − y, or two,
+            [r − y0, y − y0]), adapted by `DiscreteSystemController` to read the run's
+            controller.error output (default x_B) against its trajectory or target; it runs in
+            the compiled loop.
         coupling: "gauss-seidel" (the plant gets the command computed from its outputs at the
             same sample) or "jacobi" (the previous sample's command); default: the scenario's
             coupling key, else gauss-seidel (docs/controllers.md, "Coupling").
@@ -147,7 +170,9 @@ def simulate(
         ContractError: the FMU is missing or does not meet the plant's interface contract.
         RunInterrupted: an interrupt (Ctrl-C, the notebook's stop button) stopped the run; the
             partial result is its `.result`.
-        ValueError: a `coupling` or `time_limit` that is not one of the allowed values.
+        ValueError: a `coupling` or `time_limit` that is not one of the allowed values, or a
+            python-control system the run cannot take (continuous-time without the scenario's
+            controller.discretise, a dt other than T_s, other than one or two inputs).
 
     Example:
         ```python
@@ -171,6 +196,7 @@ def simulate(
         raise ValueError(f"time_limit: give a positive number of seconds, not {time_limit!r}")
     plant = checked_plant(os.fspath(chosen))
     _checks(run, plant, own_controller=controller is None)
+    controller = _adapted(controller, run, plant)
     if controller is not None:
         try:
             check_controller(controller, plant.recorded_outputs)

@@ -61,6 +61,7 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
     pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.controllers import check_user_controller, controller_for
+    from toggle_cosim.cosim.supervision import probe_columns
     from toggle_cosim.cosim.systems import SystemError_, system_columns
     from toggle_cosim.plant.settings import SettingError, check_settings
 
@@ -72,6 +73,11 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
             # a user's controller: checked without running its code, which runs in the run's child alone
             fmu = check_user_controller(run, plant.recorded_outputs)
+            if run.controller.python is not None and run.controller.error is not None:
+                # a python-control system: built and checked in a supervised child, as a sweep's
+                # controllers are, so a system the run cannot take (continuous-time, another dt,
+                # other inputs) is refused before any run
+                probe_columns(run, plant)
             if not run.system.is_pair and run.controller.python is None:
                 system_columns(run, plant)  # connections, units, order: every check, nothing loaded
         except (SettingError, ControllerError, SystemError_) as error:

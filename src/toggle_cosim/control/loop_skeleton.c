@@ -7,8 +7,10 @@
    a controller FMU called through its function pointers (CTRL_FMU) in the order
    cosim/fmu_controller.py's FmuController.step calls it: the previous sample's doStep (deferred
    to this sample), set its inputs from the row, get iq_ref and its diagnostics; or a discrete
-   LTI system (CTRL_LTI), u = C x + D e, x <- A x + B e on the error e of one plant output, summed
-   in the order of control/lti.py's lti_step. plant_exchange is the plant's part of one sample
+   LTI system (CTRL_LTI), u = C x + D v, x <- A x + B v on its inputs v: the error e = r - y of one
+   plant output y (one input) or (r - y0, y - y0) (two; y0 the output at the first sample), r the
+   reference row's q* or the constant target,
+   summed in the order of control/lti.py's lti_step. plant_exchange is the plant's part of one sample
    for the Python loop (cosim/stepper.py's PythonStepper). */
 #include <stdbool.h>
 #include <stddef.h>
@@ -37,7 +39,7 @@ typedef struct {
     double *plant_in;       /* the plant's inputs as sent: the command, then the load row (1 + n_load) */
     const long *ctrl_cols;  /* CTRL_FMU: the row's columns of the controller's inputs; -1 - i: ref's value i */
     double *ctrl_in, *ctrl_out; /* CTRL_FMU: its input values, its outputs (iq_ref, diagnostics) */
-    const double *lti_a, *lti_b, *lti_c; /* CTRL_LTI: A (n x n, row by row), B, C (n each) */
+    const double *lti_a, *lti_b, *lti_c, *lti_d; /* CTRL_LTI: A (n x n), B (n x m), row by row; C (n); D (m) */
     double *lti_x, *lti_xn; /* CTRL_LTI: the state at sample k, the next state (scratch) */
     long long *rows;        /* the samples recorded, set after each whole row (NULL: not counted here);
                                a supervising process reads it, never the row's values */
@@ -47,10 +49,11 @@ typedef struct {
     long no_prior;          /* doStep's noSetFMUStatePriorToCurrentPoint: 1 only if no checkpoint is restored */
     long kind;              /* CTRL_LAW or CTRL_FMU */
     long ctrl_n_in, ctrl_n_out, ctrl_due; /* CTRL_FMU: counts; 1 when the doStep from ctrl_t is due */
-    long lti_n, lti_col;    /* CTRL_LTI: the number of states; the row's column of the output e is formed from */
+    long lti_n, lti_m, lti_col; /* CTRL_LTI: the numbers of states and inputs (1: e; 2: r, y); the row's column of y */
     double T_s, z;          /* z: the law's state (an integrator) at sample k */
     double ctrl_t;          /* CTRL_FMU: the time of the sample its last outputs were read at */
-    double lti_d, lti_target; /* CTRL_LTI: D; the target, e = target - row[lti_col] */
+    double lti_target;      /* CTRL_LTI: the reference r without ref (with ref: ref's q* of the sample) */
+    double lti_origin;      /* CTRL_LTI: y0, the output at the first sample (two inputs: r - y0, y - y0) */
     law_t law;
 } kernel_t;
 
@@ -120,23 +123,29 @@ static int fmu_control(kernel_t *s, double t, const double *row, long k) {
     return DONE;
 }
 
-/* The LTI system's sample from the row: out = (u, e), the next state in s->lti_xn. Returns DONE,
-   or HAND_BACK (nothing committed) where the plant outputs i_q, i_qd, e, u or the next state is
-   not finite: the Python adapter then evaluates the sample itself, from the same state. */
-static int lti_control(kernel_t *s, const double *row, double out[2]) {
-    long i, j, n = s->lti_n;
-    double e, u, acc;
+/* The LTI system's sample k from the row: out = (u, e), the next state in s->lti_xn. Its inputs
+   are (e) or (r - y0, y - y0), y = row[lti_col], r the reference's q* at k (s->ref) or the
+   constant target, e = r - y, y0 = s->lti_origin. Returns DONE, or HAND_BACK (nothing committed) where the plant outputs i_q, i_qd, e,
+   u or the next state is not finite: the Python adapter then evaluates the sample itself, from
+   the same state. */
+static int lti_control(kernel_t *s, const double *row, long k, double out[2]) {
+    long i, j, n = s->lti_n, m = s->lti_m;
+    double r, y, e, u, acc, v[2];
     if (!(isfinite(row[s->i_q]) && isfinite(row[s->i_qd]))) { return HAND_BACK; }
-    e = s->lti_target - row[s->lti_col];
+    r = s->ref ? s->ref[3 * k] : s->lti_target;
+    y = row[s->lti_col];
+    e = r - y;
     if (!isfinite(e)) { return HAND_BACK; }
+    v[0] = m == 1 ? e : r - s->lti_origin;
+    v[1] = y - s->lti_origin;
     u = 0.0;
     for (j = 0; j < n; j++) { u = u + s->lti_c[j] * s->lti_x[j]; }
-    u = u + s->lti_d * e;
+    for (j = 0; j < m; j++) { u = u + s->lti_d[j] * v[j]; }
     if (!isfinite(u)) { return HAND_BACK; }
     for (i = 0; i < n; i++) {
         acc = 0.0;
         for (j = 0; j < n; j++) { acc = acc + s->lti_a[i * n + j] * s->lti_x[j]; }
-        acc = acc + s->lti_b[i] * e;
+        for (j = 0; j < m; j++) { acc = acc + s->lti_b[i * m + j] * v[j]; }
         if (!isfinite(acc)) { return HAND_BACK; }
         s->lti_xn[i] = acc;
     }
@@ -170,7 +179,7 @@ int kernel_run(kernel_t *s, long k_end) {
             for (j = 1; j < s->ctrl_n_out; j++) { row[s->col_u + 1 + j] = s->ctrl_out[j]; }
             in[0] = s->ctrl_out[0];
         } else if (s->kind == CTRL_LTI) {
-            status = lti_control(s, row, c);
+            status = lti_control(s, row, k, c);
             if (status != DONE) { s->k = k; return status; }
             row[0] = t;
             row[s->col_u] = c[0];

@@ -8,8 +8,8 @@ of three kinds: the generated law; a controller FMU (`ControllerCalls`), whose f
 loop calls through their pointers in the order `fmu_controller.FmuController.step` calls them
 (its doStep from the previous sample, deferred to this one; its inputs set from the row; its
 command and diagnostics read); or a discrete LTI system (`LtiCalls`, a python-control system
-adapted by `control.lti`), whose matrices the loop multiplies in the order `control.lti.lti_step`
-sums in. Each way the trace has the Python loop's bits.
+adapted by `control.lti`: one input, the error, or two, the reference and the measurement), whose
+matrices the loop multiplies in the order `control.lti.lti_step` sums in. Each way the trace has the Python loop's bits.
 
 Nothing of the law is written twice. The C source is assembled here from
 * the struct `law_t`, generated from the fields of `control.parameters.LawParameters`;
@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from toggle_cosim.control.lti import LtiMatrices
+from toggle_cosim.control.lti import LtiMatrices, LtiState
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.native import CachedLibrary, cached_library_from, load_library_from
 
@@ -71,15 +71,16 @@ _POINTERS = (
     "lti_a",
     "lti_b",
     "lti_c",
+    "lti_d",
     "lti_x",
     "lti_xn",
     "rows",
 )
 _LONGS = (
     *("n_out", "ncols", "i_q", "i_qd", "col_u", "n", "n_load", "col_x", "k", "fault", "status", "no_prior"),
-    *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due", "lti_n", "lti_col"),
+    *("kind", "ctrl_n_in", "ctrl_n_out", "ctrl_due", "lti_n", "lti_m", "lti_col"),
 )
-_DOUBLES = ("T_s", "z", "ctrl_t", "lti_d", "lti_target")
+_DOUBLES = ("T_s", "z", "ctrl_t", "lti_target", "lti_origin")
 CTRL_LAW, CTRL_FMU, CTRL_LTI = 0, 1, 2  # the controller kinds of the skeleton
 
 
@@ -100,13 +101,14 @@ class ControllerCalls:
 @dataclass(frozen=True)
 class LtiCalls:
     """A discrete LTI controller as the compiled loop runs it (`control.lti.DiscreteSystemController`):
-    its matrices, the trace column of the output its error is formed from, that output's target,
-    and its state at the first sample the loop runs."""
+    its matrices (one input e = r − y, or two, r − y0 and y − y0), the trace column of the output y
+    it reads, the constant reference r (the loop reads the trajectory's q* instead when it is given
+    one), and its state at the first sample the loop runs (x and y0)."""
 
     matrices: LtiMatrices
     column: int
     target: float
-    x: tuple[float, ...]
+    state: LtiState
 
 
 @functools.cache
@@ -245,10 +247,11 @@ class CompiledLoop:
     `controller` (a controller FMU's calls) the loop calls it instead, in the order
     `FmuController.step` does, and hands a sample whose columns i_q, i_qd (x_B, v_B) are not
     finite back before calling it; `law`, `z` and `reference` are unused. With an `LtiCalls` the
-    loop runs that system (diagnostic e), handing back a sample where i_q, i_qd, e, the command or
-    the next state is not finite; `lti_state()` is its state. `rows` (one int64, the recorder's
-    `count`), if given, is set to k + 1 as soon as row k is whole, so a supervising process knows
-    how many rows a run that crashed in C recorded without reading their values.
+    loop runs that system (diagnostic e) on the reference q* of `reference` (None: its constant
+    target), handing back a sample where i_q, i_qd, e, the command or the next state is not
+    finite; `lti_state()` is its state. `rows` (one int64, the recorder's `count`), if given, is
+    set to k + 1 as soon as row k is whole, so a supervising process knows how many rows a run
+    that crashed in C recorded without reading their values.
     """
 
     def __init__(
@@ -302,12 +305,13 @@ class CompiledLoop:
         if isinstance(controller, LtiCalls):
             m, size = controller.matrices, max(controller.matrices.n, 1)
             a = (ctypes.c_double * max(m.n * m.n, 1))(*(value for row in m.A for value in row))
-            b, c = (ctypes.c_double * size)(*m.B), (ctypes.c_double * size)(*m.C)
-            x, xn = (ctypes.c_double * size)(*controller.x), (ctypes.c_double * size)()
-            buffers = (a, b, c, x, xn)
-            k.lti_a, k.lti_b, k.lti_c, k.lti_x, k.lti_xn = (ctypes.addressof(v) for v in buffers)
-            k.kind, k.lti_n, k.lti_col = CTRL_LTI, m.n, controller.column
-            k.lti_d, k.lti_target = m.D, controller.target
+            b = (ctypes.c_double * max(m.n * m.m, 1))(*(value for row in m.B for value in row))
+            c, d = (ctypes.c_double * size)(*m.C), (ctypes.c_double * m.m)(*m.D)
+            x, xn = (ctypes.c_double * size)(*controller.state.x), (ctypes.c_double * size)()
+            buffers = (a, b, c, d, x, xn)
+            k.lti_a, k.lti_b, k.lti_c, k.lti_d, k.lti_x, k.lti_xn = (ctypes.addressof(v) for v in buffers)
+            k.kind, k.lti_n, k.lti_m, k.lti_col = CTRL_LTI, m.n, m.m, controller.column
+            k.lti_target, k.lti_origin = controller.target, controller.state.origin
             self._x = x
         elif controller is not None:
             n_in = len(controller.columns)
@@ -366,10 +370,10 @@ class CompiledLoop:
         """The controller FMU's state: the time of its last sample, whose doStep is deferred."""
         return float(self._state.ctrl_t)
 
-    def lti_state(self) -> tuple[float, ...]:
+    def lti_state(self) -> LtiState:
         """The LTI controller's state at the next sample (`LtiCalls`)."""
         assert self._x is not None, "not an LTI controller"
-        return tuple(self._x[: self._state.lti_n])
+        return LtiState(tuple(self._x[: self._state.lti_n]), float(self._state.lti_origin))
 
     def controller_outputs(self) -> tuple[float, ...]:
         """The controller FMU's outputs read at its last sample (iq_ref, then the diagnostics)."""

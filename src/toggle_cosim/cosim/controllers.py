@@ -6,13 +6,15 @@ A scenario names a user's controller by a factory::
     controller:
       python: "my_controllers:make_pid"    # module:callable, beside the scenario file or on sys.path (`user_code`)
       parameters: {Kp: 40.0, Ki: 5.0}       # passed to the factory as keyword arguments
-      error: {output: x_B}                  # python-control systems only: e = target − output
+      error: {output: x_B}                  # python-control systems only: y = x_B, r = target (or stroke.trajectory)
       command: iq_ref                       # python-control systems only: the input the system drives
+      discretise: tustin                    # python-control systems only: sample a continuous-time system at T_s
 
 The factory is called as ``factory(context, **parameters)`` with a `ControllerContext` (T_s, the
 stroke, the scenario's built-in controller, ...) and returns an object that meets the protocol,
-or a python-control discrete-time system (`control.StateSpace`/`TransferFunction` with dt = T_s),
-which `control.lti` adapts. Or it names a controller FMU::
+or a python-control system (`control.StateSpace`/`TransferFunction` with dt = T_s, one input
+e = r − y or two, [r − y0, y − y0]), which `system_controller` adapts (`control.lti`), as it adapts one
+given to `tc.simulate`. Or it names a controller FMU::
 
     controller:
       fmu: controllers/MyLaw.fmu            # relative to the scenario file
@@ -38,6 +40,7 @@ from typing import Any
 from toggle_cosim import interrupts
 from toggle_cosim.control import trajectory
 from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.lti import INPUTS, DiscreteSystemController
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.control.protocol import Controller, ControllerContext, ControllerError, check_controller
 from toggle_cosim.control.trajectory import SampledReference
@@ -57,8 +60,11 @@ __all__ = [
     "controller_for",
     "controller_record",
     "fmu_settings",
+    "is_python_control_system",
     "load_factory",
     "one_line",
+    "run_reference",
+    "system_controller",
 ]
 
 
@@ -77,10 +83,16 @@ def builtin_controller(run: Run) -> VSCController:
         K_I=run.controller.K_I,
         i_max=run.controller.i_max,
         T_s=run.T_s,
-        reference=None
-        if run.trajectory is None
-        else SampledReference.of(trajectory.build(run.trajectory), run.steps, run.T_s),
+        reference=run_reference(run),
     )
+
+
+def run_reference(run: Run) -> SampledReference | None:
+    """The run's stroke.trajectory sampled on its grid (what the built-in law and a python-control
+    system track), or None for a constant target."""
+    if run.trajectory is None:
+        return None
+    return SampledReference.of(trajectory.build(run.trajectory), run.steps, run.T_s)
 
 
 def one_line(error: BaseException) -> str:
@@ -164,9 +176,47 @@ def _error_target(run: Run, output: str, given: float | None) -> float:
     )
 
 
-def _is_python_control_system(candidate: object) -> bool:
-    control = sys.modules.get("control")  # imported by the user's factory if it made such a system
+def is_python_control_system(candidate: object) -> bool:
+    """Whether `candidate` is a python-control system (an LTI object: StateSpace, TransferFunction)."""
+    control = sys.modules.get("control")  # imported by whoever made such a system
     return control is not None and isinstance(candidate, control.LTI)
+
+
+def system_controller(
+    system: Any, run: Run, outputs: Sequence[str] = (), factory: str | None = None
+) -> DiscreteSystemController:
+    """The controller of a python-control `system` in `run` (`control.lti.DiscreteSystemController`):
+    it reads the plant output controller.error.output (default: the objective's, x_B or theta1),
+    its reference r is the run's stroke.trajectory or else controller.error.target (default
+    `_error_target`), and a continuous-time system is sampled at T_s by controller.discretise.
+    `factory`: the controller.python that returned the system (None: the user gave it). Raises
+    ControllerError naming the key and the fix (the system's own problem under controller.python)."""
+    settings = run.controller
+    output = settings.error.output if settings.error is not None else settings.objective
+    given = settings.error.target if settings.error is not None else None
+    if outputs and output not in outputs:
+        raise ControllerError(
+            f"key controller.error.output: the plant has no output {output!r} (choose one of {', '.join(outputs)})"
+        )
+    reference = run_reference(run)
+    if reference is not None and output != "x_B":
+        raise ControllerError(
+            f"key controller.error.output: stroke.trajectory is a profile of x_B, not of {output!r} (read x_B,"
+            " or remove stroke.trajectory)"
+        )
+    try:
+        return DiscreteSystemController(
+            system,
+            output,
+            _error_target(run, output, given) if reference is None else run.x_target,
+            run.T_s,
+            reference=reference,
+            discretise=settings.discretise,
+        )
+    except ValueError as error:
+        if factory is None:  # a system given to simulate
+            raise ControllerError(f"the python-control system is {error}") from None
+        raise ControllerError(f"key controller.python: {factory} returned {error}") from None
 
 
 def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
@@ -280,28 +330,17 @@ def _controller_for(run: Run, outputs: Sequence[str]) -> Controller:
                 f"key controller.python: {settings.python} raised {one_line(error)} (called with the context and"
                 f" controller.parameters: {names}; fix the factory or the parameters)"
             ) from None
-        if _is_python_control_system(controller):
-            from toggle_cosim.control.lti import DiscreteSystemController
-
+        if is_python_control_system(controller):
             if settings.error is None:
                 raise ControllerError(
                     f"key controller.error: missing; {settings.python} returned a python-control system, so name the"
-                    " plant output its error acts on (error: {output: x_B})"
+                    " plant output it reads (error: {output: x_B})"
                 )
-            output = settings.error.output
-            if outputs and output not in outputs:
-                raise ControllerError(
-                    f"key controller.error.output: the plant has no output {output!r} (choose one of {', '.join(outputs)})"
-                )
-            try:
-                controller = DiscreteSystemController(
-                    controller, output, _error_target(run, output, settings.error.target), run.T_s
-                )
-            except ValueError as error:
-                raise ControllerError(f"key controller.python: {settings.python} returned {error}") from None
-        elif settings.error is not None:
+            controller = system_controller(controller, run, outputs, settings.python)
+        elif settings.error is not None or settings.discretise is not None:
+            key = "error" if settings.error is not None else "discretise"
             raise ControllerError(
-                f"key controller.error: {settings.python} returned a controller, not a python-control system; the error"
+                f"key controller.{key}: {settings.python} returned a controller, not a python-control system; the {key}"
                 " is for python-control systems only (remove it: the controller reads the measurement itself)"
             )
     try:
@@ -322,6 +361,13 @@ def controller_record(run: Run, controller: object) -> dict[str, Any]:
         "class": f"{user_code.shown(kind.__module__)}.{kind.__qualname__}",
         "diagnostics": list(getattr(controller, "diagnostics", ())),
     }
+    if isinstance(controller, DiscreteSystemController):  # a python-control system's adapter
+        record["system"] = {
+            "states": controller.matrices.n,
+            "inputs": INPUTS[controller.matrices.m],
+            "discretise": run.controller.discretise,
+            "reference": "target" if controller.reference is None else "stroke.trajectory",
+        }
     fmu = getattr(controller, "fmu", None)
     if run.controller.fmu is not None and isinstance(fmu, ControllerFmu):
         record["fmu"] = {

@@ -128,7 +128,8 @@ def pair_summary(run: Run, trace: Trace, controller: object) -> tuple[RunSummary
         None if run.x_final == run.x_target else run.x_final,
     )
     limits = run.plant.working_range or working_range(MechanismParameters())
-    return summary, plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits)
+    diagnostics = _diagnostics(trace, ("S", "phase"))
+    return summary, plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits, *diagnostics)
 
 
 def open_session(plant: PlantInterface, instance_name: str, inputs: tuple[str, ...] = ()) -> PlantSession:

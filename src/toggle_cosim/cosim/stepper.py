@@ -32,7 +32,7 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.controller import ControllerState, VSCController
-from toggle_cosim.control.lti import DiscreteSystemController
+from toggle_cosim.control.lti import INPUTS, DiscreteSystemController, LtiState
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.control.protocol import Controller, ControllerError, ControlStep, Measurement, checked_command
 from toggle_cosim.control.trajectory import SampledReference
@@ -127,8 +127,8 @@ def compiled_controller(
                 )
         if controller.diagnostics != DiscreteSystemController.diagnostics:
             return "the controller's diagnostics are not DiscreteSystemController's: the compiled loop records only e"
-        if not (isinstance(state, tuple) and len(state) == controller.matrices.n):
-            return "the controller's state is not a tuple of its system's states"
+        if not (isinstance(state, LtiState) and len(state.x) == controller.matrices.n):
+            return "the controller's state is not an LtiState of its system's states"
         return controller
     if not isinstance(controller, FmuController):
         return compiled_law(controller, state)
@@ -322,8 +322,8 @@ class CompiledStepper:
             self.reason = "the built-in law, generated from control.laws; C compiler available"
         elif isinstance(controller, DiscreteSystemController):
             self.reason = (
-                f"the python-control system ({controller.matrices.n} states) as matrices in C, summed as "
-                "control.lti sums them; C compiler available"
+                f"the python-control system ({controller.matrices.n} states, inputs "
+                f"{INPUTS[controller.matrices.m]}) as matrices in C, summed as control.lti sums them; C compiler available"
             )
         else:
             self.reason = (
@@ -347,8 +347,8 @@ class CompiledStepper:
         built-in law to run, the controller FMU to call, or the python-control system's adapter
         (`compiled_controller`), `measured` the plant outputs it reads, `reference` the trajectory
         the built-in law tracks (its `VSCController.reference`; None: the constant target; a
-        controller FMU's is its own)."""
-        if isinstance(law, FmuController):
+        controller FMU's and a python-control system's are their own)."""
+        if isinstance(law, (FmuController, DiscreteSystemController)):
             reference = law.reference
         if reference is not None and (reference.T_s != timing.T_s or reference.values.shape != (timing.n + 1, 3)):
             return "the law's reference is not sampled on the run's grid (T_s, t_end): the Python loop evaluates it"

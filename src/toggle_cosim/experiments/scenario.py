@@ -35,6 +35,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from toggle_cosim.control.lti import DISCRETISE_METHODS
 from toggle_cosim.control.trajectory import KINDS as TRAJECTORY_KINDS
 from toggle_cosim.control.trajectory import ProfileSpec, build
 from toggle_cosim.limits import MAX_SECONDS
@@ -139,6 +140,7 @@ _CONTROLLER = {
             },
         },
         "command": {"enum": ["iq_ref"]},
+        "discretise": {"enum": list(DISCRETISE_METHODS)},  # a continuous-time system, sampled at T_s
     },
 }
 _TRAJECTORY = {
@@ -417,7 +419,7 @@ def _user_controller(controller_doc: Mapping[str, Any], suffix: str, source: Pat
             f"key controller.fmu{suffix}: controller.python and controller.fmu name two controllers (keep one)"
         )
     if "fmu" in controller_doc:
-        extra = [key for key in ("error", "command") if key in controller_doc]
+        extra = [key for key in ("error", "command", "discretise") if key in controller_doc]
         if extra:
             raise ScenarioError(
                 f"key controller.{extra[0]}{suffix}: only with controller.python (a controller FMU reads the plant"
@@ -428,7 +430,7 @@ def _user_controller(controller_doc: Mapping[str, Any], suffix: str, source: Pat
             fmu = source.parent / fmu
         return {"fmu": fmu, "parameters": copy.deepcopy(dict(controller_doc.get("parameters", {})))}
     if "python" not in controller_doc:
-        extra = [key for key in ("parameters", "error", "command") if key in controller_doc]
+        extra = [key for key in ("parameters", "error", "command", "discretise") if key in controller_doc]
         if extra:
             raise ScenarioError(
                 f"key controller.{extra[0]}{suffix}: only with controller.python or controller.fmu (name the"
@@ -441,6 +443,7 @@ def _user_controller(controller_doc: Mapping[str, Any], suffix: str, source: Pat
         "parameters": copy.deepcopy(dict(controller_doc.get("parameters", {}))),
         "error": None if error is None else ErrorSignal(error["output"], error.get("target")),
         "command": controller_doc.get("command", "iq_ref"),
+        "discretise": controller_doc.get("discretise"),
     }
 
 
@@ -491,10 +494,20 @@ def _trajectory(
             )
     if kind == "scurve" and "j_max" not in doc:
         raise ScenarioError(f"{key}: an S-curve needs a jerk limit (add j_max in m/s3, or use kind: trapezoid)")
-    if controller.python is not None:
+    if controller.python is not None and controller.error is None:
         raise ScenarioError(
-            f"{key}: only the built-in law (or its controller FMU) tracks a trajectory (remove stroke.trajectory,"
-            " or controller.python)"
+            f"{key}: only the built-in law, its controller FMU or a python-control system (controller.error) tracks a"
+            " trajectory (remove stroke.trajectory, or controller.python)"
+        )
+    if controller.error is not None and controller.error.output != "x_B":
+        raise ScenarioError(
+            f"key controller.error.output{suffix}: stroke.trajectory is a profile of x_B, not of"
+            f" {controller.error.output!r} (read x_B, or remove stroke.trajectory)"
+        )
+    if controller.error is not None and controller.error.target is not None:
+        raise ScenarioError(
+            f"key controller.error.target{suffix}: the reference is stroke.trajectory (remove error.target, or the"
+            " trajectory)"
         )
     if controller.objective != "x_B":
         raise ScenarioError(

@@ -46,8 +46,9 @@ class PlantSettings:
 
 @dataclass(frozen=True)
 class ErrorSignal:
-    """The error a python-control system acts on: e = target − the plant output `output`
-    (target None: stroke.x_target for x_B, θ1* of eq. (26) for theta1)."""
+    """What a python-control system reads: the plant output `output` (y) and its reference r, the
+    run's stroke.trajectory or else `target` (None: stroke.x_target for x_B, θ1* of eq. (26) for
+    theta1); a one-input system acts on e = r − y, a two-input one on [r, y]."""
 
     output: str
     target: float | None = None
@@ -70,6 +71,7 @@ class ControllerSettings:
     parameters: Mapping[str, Any] = field(default_factory=dict)  # the factory's keyword arguments
     error: ErrorSignal | None = None  # python-control systems: the error they act on
     command: Literal["iq_ref"] = "iq_ref"  # python-control systems: the plant input they drive
+    discretise: str | None = None  # python-control systems: sample a continuous one at T_s by this method
     fmu: Path | None = None  # a controller FMU (resolved from the scenario's folder); None: not an FMU
 
 
