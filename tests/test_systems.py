@@ -325,3 +325,53 @@ def test_a_python_controller_reads_its_connected_inputs_only(plant) -> None:
     half = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("controller.iq_ref -> plant.iq_ref")))
     failed = master.simulate(dataclasses.replace(run, system=half), plant, controller=_PD())
     assert not failed.complete and "KeyError" in failed.reason and "'v_B'" in failed.reason
+
+
+def _folder_bytes(folder: Path) -> int:
+    return sum(path.stat().st_size for path in folder.rglob("*") if path.is_file() and not path.is_symlink())
+
+
+def test_one_fmu_used_by_many_components_is_unzipped_once(
+    plant, press_parts: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """20 sensors of one FMU padded with a 5 MiB member: the temporary disk the run uses once
+    every component is instantiated is under two unzipped copies (one shared by the 20, the
+    plant's own), and nothing is left behind after the run."""
+    import os
+    import shutil
+    import tempfile
+    import zipfile
+
+    from toggle_cosim.cosim.slaves import FmuSlave
+
+    parts = tmp_path / "parts"
+    parts.mkdir(mode=0o755)
+    padded = parts / "Sensor.fmu"
+    shutil.copy(press_parts["PositionSensor"], padded)
+    with zipfile.ZipFile(padded, "a") as archive:
+        archive.writestr("resources/padding.bin", os.urandom(5 << 20), compress_type=zipfile.ZIP_STORED)
+    padded.chmod(0o644)
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    used: list[int] = []
+    enter = FmuSlave.enter_initialization
+
+    def measured(self: FmuSlave) -> None:  # every component is unzipped by now (Execution.initialize)
+        used.append(_folder_bytes(scratch))
+        enter(self)
+
+    monkeypatch.setattr(FmuSlave, "enter_initialization", measured)
+    n = 20
+    sensors = tuple(Part(f"s{i}", padded) for i in range(n))
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), *(_c(f"plant.x_B -> s{i}.x") for i in range(n)))
+    run = dataclasses.replace(
+        load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0],
+        t_end=0.01,
+        system=Wiring(parts=sensors, connections=wires, record=(Port("plant", "x_B"), Port(f"s{n - 1}", "x_m"))),
+    )
+    outcome = master.simulate(run, plant)
+    assert outcome.complete, outcome.reason
+    assert outcome.trace.column(f"s{n - 1}.x_m")[-1] > 0.2  # the last sensor ran, reading x_B
+    assert used and 5 << 20 < max(used) < 2 * (5 << 20)
+    assert list(scratch.iterdir()) == []
