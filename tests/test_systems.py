@@ -375,3 +375,15 @@ def test_one_fmu_used_by_many_components_is_unzipped_once(
     assert outcome.trace.column(f"s{n - 1}.x_m")[-1] > 0.2  # the last sensor ran, reading x_B
     assert used and 5 << 20 < max(used) < 2 * (5 << 20)
     assert list(scratch.iterdir()) == []
+
+
+@pytest.mark.parametrize("factor", [0.0, float("nan"), float("inf")])
+def test_a_unit_defined_with_factor_zero_or_not_finite_is_refused_naming_it(factor: float) -> None:
+    """An FMU's UnitDefinitions read for a connection: a factor of 0 (every value 0, a conversion
+    into it a division by 0) or a number that is not finite is refused as the connection's error."""
+    from types import SimpleNamespace
+
+    base = SimpleNamespace(kg=0, m=1, s=0, A=0, K=0, mol=0, cd=0, rad=0, factor=factor, offset=0.0)
+    description = SimpleNamespace(unitDefinitions=[SimpleNamespace(name="mm", baseUnit=base)])
+    with pytest.raises(systems.SystemError_, match=r"plant\.x_B -> s\.x: the unit 'mm' is defined with factor"):
+        systems.unit_conversion(_c("plant.x_B -> s.x"), ("m", None), ("mm", description))

@@ -55,7 +55,7 @@ from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
 from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
-from toggle_cosim.system.units import BASE, conversion, unit_meaning
+from toggle_cosim.system.units import BASE, UnitDefinitionError, conversion, unit_meaning
 
 __all__ = ["SystemError_", "Assembly", "assemble", "simulate_system", "system_columns", "unit_conversion"]
 
@@ -92,7 +92,10 @@ def unit_conversion(
     (unit_s, desc_s), (unit_e, desc_e) = start, end
     if not unit_s or not unit_e or unit_s == unit_e:
         return None
-    m_s, m_e = unit_meaning(unit_s, desc_s), unit_meaning(unit_e, desc_e)
+    try:
+        m_s, m_e = unit_meaning(unit_s, desc_s), unit_meaning(unit_e, desc_e)
+    except UnitDefinitionError as error:
+        raise SystemError_(f"the connection {connection}: {error}") from None
     if m_s is None or m_e is None:
         unknown = unit_s if m_s is None else unit_e
         raise SystemError_(
