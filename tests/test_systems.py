@@ -387,3 +387,36 @@ def test_a_unit_defined_with_factor_zero_or_not_finite_is_refused_naming_it(fact
     description = SimpleNamespace(unitDefinitions=[SimpleNamespace(name="mm", baseUnit=base)])
     with pytest.raises(systems.SystemError_, match=r"plant\.x_B -> s\.x: the unit 'mm' is defined with factor"):
         systems.unit_conversion(_c("plant.x_B -> s.x"), ("m", None), ("mm", description))
+
+
+@pytest.mark.parametrize(
+    ("parameters", "message"),
+    [
+        ("{nope: 1}", "the FMU has no variable 'nope'"),
+        ("{x_m: 1}", "'x_m' is an output of the FMU, not a parameter or input"),
+        ("{x_f: 0.3}", "'x_f' is a local variable (a state or an internal one) of the FMU, not a parameter or input"),
+    ],
+)
+def test_a_parts_value_it_cannot_take_is_one_refusal_before_any_run(
+    plant_fmu: Path, press_parts: dict[str, Path], tmp_path: Path, parameters: str, message: str
+) -> None:
+    """A part's parameters are checked as an SSP's bindings are (`system.interfaces.check_settable`):
+    an unknown name, an output or a state is one line, exit 2, before any run, nothing written."""
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+
+    path = _scenario(
+        tmp_path,
+        f"""\
+        fmu: {plant_fmu}
+        components: {{s: {{fmu: {press_parts["PositionSensor"]}, parameters: {parameters}}}}}
+        connections: [plant.x_B -> controller.x_B, plant.v_B -> controller.v_B, controller.iq_ref -> plant.iq_ref,
+                      plant.x_B -> s.x]
+        """,
+    )
+    result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out"), "-q"])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1, result.output
+    assert lines[0].startswith(f"error: {path}: key components.s.parameters: {message}"), lines[0]
+    assert "Traceback" not in result.output and not (tmp_path / "out").exists()

@@ -40,6 +40,7 @@ from toggle_cosim.ssp.checks import Element, SspError, open_archive
 from toggle_cosim.ssp.fmus import FmuVariables, describe
 from toggle_cosim.ssp.variants import Variant, check_set_names, choose, root_ssds
 from toggle_cosim.ssp.wiring import connectors_of, is_pair_loop, read_connections
+from toggle_cosim.system.interfaces import SettableError, settable_type
 from toggle_cosim.system.model import Connection, Part, Wiring
 
 __all__ = ["Component", "SspStudy", "open_ssp", "open_ssp_variants", "read_ssp", "read_ssp_variants"]
@@ -208,11 +209,10 @@ def _meets_contract(fmu: FmuVariables) -> bool:
 
 def _typed(fmu: FmuVariables, name: str, value: Value, kind: str, unit: str | None, where: str) -> Value:
     """The value as the FMU variable's type, checked: a parameter or input, of its type, its unit."""
-    variable = fmu.variables.get(name)
-    if variable is None or variable.causality not in ("parameter", "input"):
-        what = "no variable" if variable is None else f"a {variable.causality}, not a parameter or input,"
-        raise SspError(f"{fmu.label}: the FMU has {what} {name!r}, which {where} sets (fix the name)")
-    target = fmu.value_type(name, value)
+    try:
+        target = settable_type(fmu.variables.get(name), name, value)
+    except SettableError as error:
+        raise SspError(f"{fmu.label}: {error}, which {where} sets (fix the name or the value)") from None
     if target == "Boolean" and kind != "Boolean":
         raise SspError(f"{where}: {name} is a Boolean; give it as <ssv:Boolean>, not {kind} {value!r}")
     if target != "Boolean" and kind == "Boolean":
