@@ -306,3 +306,24 @@ def test_without_python_control_the_model_names_the_extra(plant, base_run, monke
     with pytest.raises(ModuleNotFoundError, match=r"pip install 'toggle-cosim\[design\]'"):
         _ = model.system
     assert model.A.shape == (3, 3)  # the matrices need no extra
+
+
+@pytest.mark.parametrize("x_B", [0.5, 0.05])
+def test_a_point_beyond_the_linkages_reach_is_one_line(plant_fmu, tmp_path, x_B):
+    """A plant.working_range may reach past the toggle's dead points; a point beyond them (where
+    the plant cannot be initialised) is refused naming the value and the reach, nothing written."""
+    import yaml
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+
+    document = yaml.safe_load((ROOT / "scenarios" / "fig5_external_force.yaml").read_text())
+    document["plant"]["working_range"] = [0.01, 0.9]
+    scenario = tmp_path / "wide.yaml"
+    scenario.write_text(yaml.safe_dump({**document, "fmu": str(plant_fmu)}))
+    out = tmp_path / "far.npz"
+    result = CliRunner().invoke(main, ["linearize", str(scenario), "--x-B", str(x_B), "--out", str(out)])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2 and "Traceback" not in result.output and not out.exists(), result.output
+    assert lines[-1].startswith(f"error: {scenario}: x_B = {x_B:g} m is beyond the linkage's reach, 0.17 m (folded)")
+    assert len(lines) <= 2  # the friction-free warning at most, then the error

@@ -511,7 +511,7 @@ def test_keys_of_mixed_types(tmp_path: Path) -> None:
     document[1] = 2
     document["speed"] = 3
     document[None] = 4
-    one_line_error(write_doc(tmp_path, document), "unknown key", "allowed here:")
+    one_line_error(write_doc(tmp_path, document), "key (top level): the key 1 is not a name: YAML reads an unquoted")
 
 
 @pytest.mark.parametrize(
@@ -580,3 +580,35 @@ def test_finite_numbers_from_yaml_spellings(tmp_path: Path) -> None:
     text = text.replace("t_end: 1.5", "t_end: 0b10").replace("T_s: 0.0005", "T_s: 5.0e-4")
     run = load_scenario(write_text(tmp_path, text))[0]
     assert run.t_end == 2.0 and run.T_s == 0.0005 and math.isfinite(run.t_end)
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("components: {true: {fmu: x.fmu}}", "key components: the key True is not a name: YAML reads"),
+        ("components: {yes: {fmu: x.fmu}}", "key components: the key True is not a name"),
+        ("plant: {inputs: {1: 2.0}}", "key plant.inputs: the key 1 is not a name"),
+        ("variants: {null: {t_end: 1.0}}", "key variants: the key None is not a name"),
+        (
+            "plant: {F_E: {kind: points, points: [" + ", ".join(f"[{i}, 0]" for i in range(10_001)) + "]}}",
+            "key plant.F_E.points: [[0, 0], [1, 0], [2, 0], [3, 0], [4, 0], [5, 0], [6, 0], [7, 0], ...] "
+            "(a list of 10001) is too long",
+        ),
+    ],
+)
+def test_a_key_that_is_no_name_or_a_huge_value_is_one_short_line_before_any_run(
+    tmp_path: Path, text: str, needle: str
+) -> None:
+    """A YAML boolean, null or number as a name (a component `true:`) is refused naming the key,
+    not a traceback; a value too long for the schema is shown by its first elements and size."""
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+
+    base = yaml.safe_dump({k: v for k, v in BASE.items() if k not in ("plant", "variants")}, sort_keys=False)
+    path = write_text(tmp_path, f"{base}{text}\n")
+    result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out"), "-q"])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1, result.output[:2000]
+    assert lines[0].startswith(f"error: {path}: {needle}"), lines[0][:2000]
+    assert len(lines[0]) < 500 and "Traceback" not in result.output and not (tmp_path / "out").exists()

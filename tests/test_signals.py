@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
+from toggle_cosim.signals import tables
 from toggle_cosim.signals.definitions import (
     Constant,
     Pulse,
@@ -119,11 +120,11 @@ def test_csv_table_reads_units_columns_and_records_its_hash(tmp_path: Path) -> N
 
     path = _csv(tmp_path, "time [s],other [V],F_E [N]\n0,9,0\n0.5,9,10\n1.0,9,20\n")
     table = read_table(path, "linear", "F_E")
-    assert table.times == (0.0, 0.5, 1.0) and table.values == (0.0, 10.0, 20.0)
+    assert table.times.tolist() == [0.0, 0.5, 1.0] and table.values.tolist() == [0.0, 10.0, 20.0]
     assert table.source.column == "F_E" and table.source.unit == "N"
     assert table.source.sha256 == hashlib.sha256(path.read_bytes()).hexdigest()
     assert describe(table)["sha256"] == table.source.sha256
-    assert read_table(path, "hold", "F_E", column="other").values == (9.0, 9.0, 9.0)
+    assert read_table(path, "hold", "F_E", column="other").values.tolist() == [9.0, 9.0, 9.0]
     two = _csv(tmp_path, "time,force\n0,1\n1,2\n", "two.csv")
     assert read_table(two, "hold", "F_E").source.unit is None  # the second of two columns, no unit
 
@@ -147,6 +148,31 @@ def test_csv_table_errors_name_the_file_and_the_line(tmp_path: Path, text: str, 
     path = _csv(tmp_path, text)
     with pytest.raises(SignalError, match=f"^{path}: {message}"):
         read_table(path, "hold", "F_E")
+
+
+def test_a_csv_table_is_read_once_into_read_only_float_arrays_its_runs_share(tmp_path: Path) -> None:
+    path = _csv(tmp_path, "time [s],F_E [N]\n0,0\n0.5,10\n1.0,20\n")
+    table = read_table(path, "linear", "F_E")
+    assert table.times.dtype == np.float64 and not table.times.flags.writeable and not table.values.flags.writeable
+    assert read_table(path, "linear", "F_E") is table  # unchanged: the same arrays, not a second copy
+    path.write_text("time [s],F_E [N]\n0,0\n0.5,10\n1.0,20\n2.0,30\n", encoding="utf-8")
+    assert read_table(path, "linear", "F_E").values.tolist() == [0.0, 10.0, 20.0, 30.0]  # changed: read again
+
+
+@pytest.mark.parametrize("cell", ["5", '"5"'])  # numpy's parser, and the row-by-row reader (quotes)
+def test_a_csv_table_over_the_row_limit_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, cell: str) -> None:
+    monkeypatch.setattr(tables, "TABLE_ROWS", 3)
+    rows = "".join(f"{t},{cell}\n" for t in range(4))
+    path = _csv(tmp_path, f"time [s],F_E [N]\n{rows}")
+    with pytest.raises(SignalError, match=f"^{path}: more than 3 rows"):
+        read_table(path, "hold", "F_E")
+    assert read_table(_csv(tmp_path, f"time,F_E\n{rows[: rows.rindex('3,')]}", "three.csv"), "hold", "F_E")
+
+
+def test_cells_numpy_does_not_take_are_read_as_python_reads_them(tmp_path: Path) -> None:
+    path = _csv(tmp_path, 'time,F_E\n\n0,"1_0"\n 1 , 2.5 \n')
+    table = read_table(path, "hold", "F_E")
+    assert table.times.tolist() == [0.0, 1.0] and table.values.tolist() == [10.0, 2.5]
 
 
 def test_a_missing_or_unreadable_table_is_one_line(tmp_path: Path) -> None:

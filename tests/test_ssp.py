@@ -354,6 +354,14 @@ def _ssv_edit(stem: str, old: str, new: str):  # noqa: ANN202
     return _ssd_edit(old, new, f"resources/{stem}.ssv")
 
 
+def _twice(members: dict[str, bytes], name: str) -> None:
+    """The SSD with its component `name` written twice."""
+    text = members[layout.SSD_MEMBER].decode()
+    start = text.index(f'<ssd:Component name="{name}"')
+    end = text.index("</ssd:Component>", start) + len("</ssd:Component>")
+    members[layout.SSD_MEMBER] = (text[:end] + text[start:end] + text[end:]).encode()
+
+
 def _both(*changes):  # noqa: ANN002, ANN202
     def change(members: dict[str, bytes]) -> None:
         for one in changes:
@@ -550,6 +558,22 @@ BAD_SSPS = {
         lambda m: m.update({"../escape.txt": b"x"}),
         "unsafe or corrupt archive: member '../escape.txt' has a '..'",
     ),
+    "a component name with a dot": (
+        _ssd_edit('<ssd:Component name="controller"', '<ssd:Component name="ctl.r"'),
+        "SystemStructure.ssd: component name 'ctl.r' is not a name the master can use (no dots",
+    ),
+    "two components of one name": (
+        lambda m: _twice(m, "controller"),
+        "SystemStructure.ssd: two components are named 'controller' (give each its own name)",
+    ),
+    **{
+        f"an SSD unit of factor {factor}": (
+            _ssd_edit('<ssc:BaseUnit m="1"/>', f'<ssc:BaseUnit m="1" factor="{factor}"/>'),
+            f"SystemStructure.ssd: the unit 'm' is defined with factor '{factor}', offset 0 (a unit's factor is a "
+            "finite number other than 0",
+        )
+        for factor in ("0", "NaN", "INF")
+    },
 }
 
 
@@ -1007,3 +1031,54 @@ def test_ssp_variant_writes_the_variants_named_and_refuses_names_that_collide(
         line = _one_line(ssp(bad), tmp_path / "none")
         assert expected in line and "names are compared ignoring case" in line, line
         assert not out.exists()
+
+
+def test_an_ssv_is_parsed_once_however_often_it_is_bound(
+    fig5_ssp: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every variant's plant and controller bind an .ssv; the archive's checks and each variant's
+    read use it again: each member is parsed (and schema-checked) once."""
+    from toggle_cosim.ssp import bindings
+
+    parsed: list[str] = []
+    parse = bindings.parse_member
+
+    def counted(archive, member, kind, where):  # noqa: ANN001, ANN202
+        parsed.append(member)
+        return parse(archive, member, kind, where)
+
+    monkeypatch.setattr(bindings, "parse_member", counted)
+    with open_ssp_variants(fig5_ssp, [None, "no_friction"]) as studies:
+        assert len(studies) == 2
+    assert parsed and sorted(parsed) == sorted(set(parsed))
+
+
+@pytest.mark.parametrize(
+    ("limit", "value", "message"),
+    [
+        ("MAX_PARAMETERS", 3, "more than 3 parameters in one parameter set (refused;"),
+        ("MAX_BOUND_VALUES", 5, ": its parameter bindings apply more than 5 values over its components (refused;"),
+    ],
+)
+def test_parameter_bindings_past_their_bounds_are_refused_in_one_line(
+    fig5_ssp: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, limit: str, value: int, message: str
+) -> None:
+    from toggle_cosim.ssp import bindings
+
+    monkeypatch.setattr(bindings, limit, value)
+    line = _run_ssp(fig5_ssp, tmp_path / "out")
+    assert line.startswith(f"error: {fig5_ssp}: ") and message in line, line
+
+
+def test_a_variant_is_chosen_by_its_ssd_name_before_any_file_name(fig5_ssp: Path, tmp_path: Path) -> None:
+    """no_friction.ssd renamed "SystemStructure": --variant SystemStructure is that SSD (a name),
+    not SystemStructure.ssd (whose file stem it is); a member's whole file name still chooses it."""
+    renamed = _rewrite(
+        fig5_ssp,
+        tmp_path / "renamed.ssp",
+        _ssd_edit('name="no_friction"', 'name="SystemStructure"', member="no_friction.ssd"),
+    )
+    assert read_ssp(renamed, "SystemStructure").member == "no_friction.ssd"
+    assert read_ssp(renamed, "SystemStructure.ssd").member == layout.SSD_MEMBER
+    with pytest.raises(SspError, match="no variant 'no_friction'"):
+        read_ssp(renamed, "no_friction")

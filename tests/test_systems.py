@@ -370,3 +370,96 @@ def test_a_part_output_that_turns_nan_is_written_in_every_row_of_the_trace(
     assert np.all(np.isfinite(y[:FINITE])) and np.all(np.isnan(y[FINITE:]))
     assert np.array_equal(y[:FINITE], trace.column("plant.x_B")[:FINITE])
     assert np.all(np.isfinite(trace.column("plant.x_B")))
+def _folder_bytes(folder: Path) -> int:
+    return sum(path.stat().st_size for path in folder.rglob("*") if path.is_file() and not path.is_symlink())
+
+
+def test_one_fmu_used_by_many_components_is_unzipped_once(
+    plant, press_parts: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """20 sensors of one FMU padded with a 5 MiB member: the temporary disk the run uses once
+    every component is instantiated is under two unzipped copies (one shared by the 20, the
+    plant's own), and nothing is left behind after the run."""
+    import os
+    import shutil
+    import tempfile
+    import zipfile
+
+    from toggle_cosim.cosim.slaves import FmuSlave
+
+    parts = tmp_path / "parts"
+    parts.mkdir(mode=0o755)
+    padded = parts / "Sensor.fmu"
+    shutil.copy(press_parts["PositionSensor"], padded)
+    with zipfile.ZipFile(padded, "a") as archive:
+        archive.writestr("resources/padding.bin", os.urandom(5 << 20), compress_type=zipfile.ZIP_STORED)
+    padded.chmod(0o644)
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    used: list[int] = []
+    enter = FmuSlave.enter_initialization
+
+    def measured(self: FmuSlave) -> None:  # every component is unzipped by now (Execution.initialize)
+        used.append(_folder_bytes(scratch))
+        enter(self)
+
+    monkeypatch.setattr(FmuSlave, "enter_initialization", measured)
+    n = 20
+    sensors = tuple(Part(f"s{i}", padded) for i in range(n))
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), *(_c(f"plant.x_B -> s{i}.x") for i in range(n)))
+    run = dataclasses.replace(
+        load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0],
+        t_end=0.01,
+        system=Wiring(parts=sensors, connections=wires, record=(Port("plant", "x_B"), Port(f"s{n - 1}", "x_m"))),
+    )
+    outcome = master.simulate(run, plant)
+    assert outcome.complete, outcome.reason
+    assert outcome.trace.column(f"s{n - 1}.x_m")[-1] > 0.2  # the last sensor ran, reading x_B
+    assert used and 5 << 20 < max(used) < 2 * (5 << 20)
+    assert list(scratch.iterdir()) == []
+
+
+@pytest.mark.parametrize("factor", [0.0, float("nan"), float("inf")])
+def test_a_unit_defined_with_factor_zero_or_not_finite_is_refused_naming_it(factor: float) -> None:
+    """An FMU's UnitDefinitions read for a connection: a factor of 0 (every value 0, a conversion
+    into it a division by 0) or a number that is not finite is refused as the connection's error."""
+    from types import SimpleNamespace
+
+    base = SimpleNamespace(kg=0, m=1, s=0, A=0, K=0, mol=0, cd=0, rad=0, factor=factor, offset=0.0)
+    description = SimpleNamespace(unitDefinitions=[SimpleNamespace(name="mm", baseUnit=base)])
+    with pytest.raises(systems.SystemError_, match=r"plant\.x_B -> s\.x: the unit 'mm' is defined with factor"):
+        systems.unit_conversion(_c("plant.x_B -> s.x"), ("m", None), ("mm", description))
+
+
+@pytest.mark.parametrize(
+    ("parameters", "message"),
+    [
+        ("{nope: 1}", "the FMU has no variable 'nope'"),
+        ("{x_m: 1}", "'x_m' is an output of the FMU, not a parameter or input"),
+        ("{x_f: 0.3}", "'x_f' is a local variable (a state or an internal one) of the FMU, not a parameter or input"),
+    ],
+)
+def test_a_parts_value_it_cannot_take_is_one_refusal_before_any_run(
+    plant_fmu: Path, press_parts: dict[str, Path], tmp_path: Path, parameters: str, message: str
+) -> None:
+    """A part's parameters are checked as an SSP's bindings are (`system.interfaces.check_settable`):
+    an unknown name, an output or a state is one line, exit 2, before any run, nothing written."""
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+
+    path = _scenario(
+        tmp_path,
+        f"""\
+        fmu: {plant_fmu}
+        components: {{s: {{fmu: {press_parts["PositionSensor"]}, parameters: {parameters}}}}}
+        connections: [plant.x_B -> controller.x_B, plant.v_B -> controller.v_B, controller.iq_ref -> plant.iq_ref,
+                      plant.x_B -> s.x]
+        """,
+    )
+    result = CliRunner().invoke(main, ["run", str(path), "--out", str(tmp_path / "out"), "-q"])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1, result.output
+    assert lines[0].startswith(f"error: {path}: key components.s.parameters: {message}"), lines[0]
+    assert "Traceback" not in result.output and not (tmp_path / "out").exists()

@@ -3,7 +3,8 @@
 A reason comes from anywhere (a user's exception whose text is a 10-million-element list, a
 plant's log line, an FMU's error); what the console, run.json, a sweep's table and an error line
 say about it is `bounded_text(reason)`: its whitespace collapsed to single spaces, and if still
-longer than the limit, its start, "…" and how long it was.
+longer than the limit, its start, "…" and how long it was. A value a user gave, echoed in an
+error, is shown by `value_text`: at most VALUE_CHARS characters, its first elements and its size.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import reprlib
 
 MESSAGE_CHARS = 400  # a reason's length in a console line, run.json or a sweep row
+VALUE_CHARS = 200  # a user's value as an error line shows it (`value_text`)
 
 
 def bounded_text(text: str, limit: int = MESSAGE_CHARS) -> str:
@@ -53,4 +55,23 @@ def short_repr(value: object, limit: int = 120) -> str:
     return bounded_text(text, limit)
 
 
-__all__ = ["MESSAGE_CHARS", "bounded_text", "error_text", "short_repr"]
+def value_text(value: object, limit: int = VALUE_CHARS) -> str:
+    """A user's value as an error line shows it: its repr when at most `limit` characters, else
+    `short_repr` (its first elements, "...", and its size), so 10 001 inline points are not echoed."""
+    try:
+        whole = repr(value)
+    except Exception:  # noqa: BLE001 - a value whose __repr__ fails
+        return short_repr(value, limit)
+    return whole if len(whole) <= limit else short_repr(value, limit)
+
+
+def schema_text(message: str, value: object) -> str:
+    """A schema checker's message about `value` (jsonschema writes the value's repr whole, e.g.
+    "[[0, 0], ...] is too long") with the value shown by `value_text`, on one bounded line."""
+    whole = repr(value)
+    if len(whole) > VALUE_CHARS and whole in message:
+        message = message.replace(whole, value_text(value))
+    return bounded_text(message)
+
+
+__all__ = ["MESSAGE_CHARS", "VALUE_CHARS", "bounded_text", "error_text", "schema_text", "short_repr", "value_text"]

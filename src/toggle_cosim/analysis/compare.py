@@ -53,6 +53,7 @@ from toggle_cosim.analysis.csv_traces import CompareInputError, check_finite, ch
 from toggle_cosim.analysis.sampling import RESULT_GRID, SpanMismatch, check_points, reference_range
 from toggle_cosim.files.outputs import CSV, PNG, replacing, write_file
 from toggle_cosim.files.traces import Trace, write_csv
+from toggle_cosim.messages import schema_text
 
 __all__ = [
     "DEFAULT_TOLERANCE",
@@ -558,7 +559,7 @@ def load_tolerances(path: Path | str) -> tuple[Tolerance, dict[str, Tolerance]]:
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
     if error is not None:
         key = ".".join(str(part) for part in error.absolute_path) or "(top level)"
-        raise CompareInputError(f"{path}: key {key!r}: {error.message}; {_FIX}")
+        raise CompareInputError(f"{path}: key {key!r}: {schema_text(error.message, error.instance)}; {_FIX}")
 
     base = {"atol": DEFAULT_TOLERANCE.atol, "rtol": DEFAULT_TOLERANCE.rtol, "ttol": DEFAULT_TOLERANCE.ttol}
     base.update(document.get("default", {}))

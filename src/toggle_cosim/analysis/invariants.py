@@ -38,6 +38,7 @@ from toggle_cosim.analysis.csv_traces import CompareInputError
 from toggle_cosim.cosim.summary import VscMetrics, vsc_metrics
 from toggle_cosim.files.outputs import INVARIANTS, write_text
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.messages import schema_text
 
 __all__ = [
     "METRICS",
@@ -145,7 +146,7 @@ def load_invariants(path: Path | str) -> dict[str, Invariant]:
     error = jsonschema.exceptions.best_match(jsonschema.Draft202012Validator(SCHEMA).iter_errors(document))
     if error is not None:
         key = ".".join(str(part) for part in error.absolute_path) or "(top level)"
-        raise CompareInputError(f"{path}: key {key!r}: {error.message}; {_FIX}")
+        raise CompareInputError(f"{path}: key {key!r}: {schema_text(error.message, error.instance)}; {_FIX}")
     return {name: Invariant(name, **entry) for name, entry in document["invariants"].items()}
 
 

@@ -23,8 +23,11 @@ from toggle_cosim.experiments.shipped import (  # noqa: F401 - the commands' def
     SHIPPED_SCENARIOS,
 )
 from toggle_cosim.files.outputs import OutputError, OutputKind, check_destination
+from toggle_cosim.messages import bounded_text
 
 DEFAULT_OUT = Path("out")
+# an error line, file names and the fix included; a value in it is shorter (messages.value_text)
+INPUT_ERROR_CHARS = 1000
 # The optional extras (pyproject.toml) and the top-level modules that each brings.
 EXTRAS = {
     "modelica": "build",
@@ -44,12 +47,12 @@ EXTRAS = {
 
 
 class InputError(click.ClickException):
-    """Bad input: one line on stderr, exit status 2."""
+    """Bad input: one line on stderr (at most INPUT_ERROR_CHARS, whatever value it echoes), exit status 2."""
 
     exit_code = 2
 
     def show(self, file=None) -> None:  # noqa: ANN001 - click's signature
-        click.echo(f"error: {self.message}", err=True)
+        click.echo(f"error: {bounded_text(self.message, INPUT_ERROR_CHARS)}", err=True)
 
 
 class RunFailed(click.ClickException):

@@ -16,17 +16,15 @@ FMU is not called again (FMI 2.0, 2.1.3).
 from __future__ import annotations
 
 import ctypes
-import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
-
-from fmpy import extract
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
 from toggle_cosim.cosim.fmi_pointers import FMI2_NAMES, FMI3_NAMES, fmu_functions
 from toggle_cosim.cosim.session import CFunctions, bound_function
+from toggle_cosim.cosim.unzipped import release, unzipped
 from toggle_cosim.messages import error_text
 from toggle_cosim.plant.fmi_calls import (
     FATAL,
@@ -116,9 +114,10 @@ class FmuSlave:
             raise self._fail(function, None, getattr(error, "status", error_text(error))) from None
 
     def instantiate(self, t_end: float) -> None:
-        """Unzip, load, instantiate, (FMI 2.0: setupExperiment) and set `values`."""
+        """Unzip (once for every instance of the FMU in this process: `unzipped`), load,
+        instantiate, (FMI 2.0: setupExperiment) and set `values`."""
         description = self.description
-        self._unzipped = Path(extract(str(self.path)))
+        self._unzipped = unzipped(self.path, self.sha256, description)
         kwargs = dict(
             unzipDirectory=str(self._unzipped),
             modelIdentifier=description.coSimulation.modelIdentifier,
@@ -198,7 +197,8 @@ class FmuSlave:
         self._stepping = True
 
     def close(self) -> None:
-        """Terminate and free the instance (not after a fatal status), remove the unzipped copy."""
+        """Terminate and free the instance (not after a fatal status), give back the unzipped
+        copy (removed with its last user)."""
         slave, self._slave = self._slave, None
         folder, self._unzipped = self._unzipped, None
         try:
@@ -213,7 +213,7 @@ class FmuSlave:
             pass
         finally:
             if folder is not None:
-                shutil.rmtree(folder, ignore_errors=True)
+                release(folder)
             last_log_line(self._instance, forget=True)
             quiet(self._instance, on=False)
 

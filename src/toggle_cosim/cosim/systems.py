@@ -53,9 +53,10 @@ from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterfac
 from toggle_cosim.plant.controller_contract import check_controller_fmu
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
+from toggle_cosim.system.interfaces import SettableError, check_settable
 from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
-from toggle_cosim.system.units import BASE, conversion, unit_meaning
+from toggle_cosim.system.units import BASE, UnitDefinitionError, conversion, unit_meaning
 
 __all__ = ["SystemError_", "Assembly", "assemble", "simulate_system", "system_columns", "unit_conversion"]
 
@@ -92,7 +93,10 @@ def unit_conversion(
     (unit_s, desc_s), (unit_e, desc_e) = start, end
     if not unit_s or not unit_e or unit_s == unit_e:
         return None
-    m_s, m_e = unit_meaning(unit_s, desc_s), unit_meaning(unit_e, desc_e)
+    try:
+        m_s, m_e = unit_meaning(unit_s, desc_s), unit_meaning(unit_e, desc_e)
+    except UnitDefinitionError as error:
+        raise SystemError_(f"the connection {connection}: {error}") from None
     if m_s is None or m_e is None:
         unknown = unit_s if m_s is None else unit_e
         raise SystemError_(
@@ -274,8 +278,9 @@ def _read_part(path: Path, size: int, mtime_ns: int, missing: str) -> FmuArchive
 def _checked_part(part: Part, source: Path | None) -> FmuArchive:
     """A part's FMU checked as any FMU the master runs (a zip archive, safe, FMI 2.0 or 3.0,
     Co-Simulation, a binary for this platform: `plant.contract.read_fmu`) and, being code this
-    command runs, owned by the user (`user_code.check_owned`): the checked archive (path, model
-    description, SHA-256), or SystemError_ naming the key and the fix."""
+    command runs, owned by the user (`user_code.check_owned`), its values each a parameter or
+    input of the FMU, of its type (`system.interfaces.check_settable`): the checked archive (path,
+    model description, SHA-256), or SystemError_ naming the key and the fix."""
     ssp = source is not None and Path(source).suffix.lower() == ".ssp"
     key = f"component {part.name!r}" if ssp else f"key components.{part.name}.fmu"
     try:
@@ -291,6 +296,13 @@ def _checked_part(part: Part, source: Path | None) -> FmuArchive:
         raise SystemError_(f"{key}: {error}") from None
     except ControllerError as error:
         raise SystemError_(str(error)) from None
+    try:  # the one check of a component's values (the SSP reader's too), before any run
+        check_settable(archive.model_description, part.values)
+    except SettableError as error:
+        where = f"component {part.name!r}" if ssp else f"key components.{part.name}.parameters"
+        raise SystemError_(
+            f"{where}: {error} ({part.fmu.name}; give a parameter or input of its FMU, or fix the name or the value)"
+        ) from None
     return archive
 
 

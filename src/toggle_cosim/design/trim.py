@@ -22,7 +22,7 @@ import numpy as np
 from toggle_cosim.cosim.master import plant_settings
 from toggle_cosim.design.model_exchange import ModelExchangeError, ModelExchangePlant, state_info
 from toggle_cosim.design.roles import SHIPPED, PlantStates
-from toggle_cosim.physics.mechanism import working_range
+from toggle_cosim.physics.mechanism import folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
@@ -82,13 +82,23 @@ def external_force(run: Run) -> float:
 
 
 def _check_position(run: Run, x_B: float) -> None:
+    """x_B finite, in the working range, and strictly inside the linkage's reach (the folded and
+    the toggle position: beyond them eq. (26) has no solution and the plant cannot be initialised;
+    a plant.working_range may reach past them)."""
     if not np.isfinite(x_B):
         raise TrimError(f"x_B = {x_B!r}: give a finite position of slider B in metres")
-    low, high = run.plant.working_range or working_range(MechanismParameters())
+    geometry = MechanismParameters()
+    low, high = run.plant.working_range or working_range(geometry)
     if not low <= x_B <= high:
         raise TrimError(
             f"x_B = {x_B:g} m is outside the working range {low:.4g} to {high:.4g} m of {run.label} "
             "(the toggle's dead points lie beyond it; choose x_B inside, or set plant.working_range)"
+        )
+    folded, toggle = folded_limit(geometry), toggle_limit(geometry)
+    if not folded < x_B < toggle:
+        raise TrimError(
+            f"x_B = {x_B:g} m is beyond the linkage's reach, {folded:.4g} m (folded) to {toggle:.4g} m (toggle), "
+            f"although within {run.label}'s plant.working_range (slider B cannot be there; choose x_B inside the reach)"
         )
 
 

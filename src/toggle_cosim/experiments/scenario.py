@@ -39,6 +39,7 @@ from toggle_cosim.control.lti import DISCRETISE_METHODS
 from toggle_cosim.control.trajectory import KINDS as TRAJECTORY_KINDS
 from toggle_cosim.control.trajectory import ProfileSpec, build
 from toggle_cosim.limits import MAX_SECONDS
+from toggle_cosim.messages import schema_text, value_text
 from toggle_cosim.physics.mechanism import SINGULARITY_MARGIN, folded_limit, toggle_limit, working_range
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.runs.definition import COUPLINGS, ControllerSettings, ErrorSignal, PlantSettings, Run
@@ -280,21 +281,22 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
         where = f"{key}." if error.absolute_path else ""
         return f"unknown key {where}{extra[0]} (allowed here: {allowed})"
     if error.validator == "required":
-        return f"missing key: {error.message}"
+        return f"missing key: {schema_text(error.message, error.instance)}"
     if error.validator in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
         relation = {"minimum": ">=", "exclusiveMinimum": ">", "maximum": "<=", "exclusiveMaximum": "<"}
-        return f"key {key}: {error.instance!r} is out of range (must be {relation[error.validator]} {error.validator_value})"
+        bound = f"{relation[error.validator]} {error.validator_value}"
+        return f"key {key}: {value_text(error.instance)} is out of range (must be {bound})"
     if error.validator == "type" and isinstance(error.validator_value, list):
         kinds = " or ".join("mapping" if kind == "object" else kind for kind in error.validator_value)
-        return f"key {key}: {error.instance!r} is not of type {kinds} (write a {kinds})"
+        return f"key {key}: {value_text(error.instance)} is not of type {kinds} (write a {kinds})"
     if error.validator == "type":
-        return f"key {key}: {error.instance!r} is not of type {error.validator_value} (write a {error.validator_value})"
+        kind = error.validator_value
+        return f"key {key}: {value_text(error.instance)} is not of type {kind} (write a {kind})"
     if error.validator == "enum":
-        return (
-            f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
-        )
+        choices = ", ".join(map(str, error.validator_value))
+        return f"key {key}: {value_text(error.instance)} is not allowed (choose one of {choices})"
     if error.validator == "pattern" and error.validator_value in _PATTERN_HINTS:
-        return f"key {key}: {error.instance!r} is not {_PATTERN_HINTS[error.validator_value]}"
+        return f"key {key}: {value_text(error.instance)} is not {_PATTERN_HINTS[error.validator_value]}"
     if error.validator == "not" and error.absolute_path and error.absolute_path[0] == "components":
         name = _part(error.instance)
         return f"key {key}: {name!r} is taken by the scenario's own {name} (give the part another name)"
@@ -302,15 +304,16 @@ def _schema_message(error: jsonschema.ValidationError) -> str:
         return (
             f"key {key}: {_part(error.instance)!r} is not a component name (letters, digits and _, not first a digit)"
         )
-    return f"key {key}: {error.message}"
+    return f"key {key}: {schema_text(error.message, error.instance)}"
 
 
 _MAX_VALUES = 100_000  # a scenario holds a few dozen; YAML aliases can expand a 1 KB file to billions
 
 
 def _reject_non_finite(document: Any) -> None:
-    """Reject NaN, infinities and integers beyond float range (as values or keys), self-containing YAML
-    aliases and alias bombs, before the schema (whose messages repr the values) sees them."""
+    """Reject NaN, infinities and integers beyond float range (as values or keys), keys that are not
+    text (a component `true:`), self-containing YAML aliases and alias bombs, before the schema
+    (whose messages repr the values) sees them."""
     seen = 0
     open_containers: set[int] = set()
 
@@ -341,6 +344,11 @@ def _reject_non_finite(document: Any) -> None:
         if isinstance(node, dict):
             for k, v in node.items():
                 check_number(k, path, "the key ")
+                if not isinstance(k, str):
+                    raise ScenarioError(
+                        f"key {_key(path)}: the key {k!r} is not a name: YAML reads an unquoted true, false, yes, no, "
+                        "on, off, null or number as that value (quote the name, or choose another)"
+                    )
                 visit(v, (*path, k))
         else:
             for i, v in enumerate(node):

@@ -49,6 +49,7 @@ from typing import Any
 from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, merge_documents, runs_from_document
+from toggle_cosim.messages import schema_text, value_text
 from toggle_cosim.signals.schema import signal_keys
 
 STANDARD_PARAMETERS = ("plant.F_E", "plant.m_B", "plant.mu", "T_s", "t_end")
@@ -328,14 +329,13 @@ def schema_message(error: Any) -> str:  # a jsonschema.ValidationError
         where = f"{key}." if error.absolute_path else ""
         return f"unknown key {where}{extra[0]} (allowed here: {allowed})"
     if error.validator == "required":
-        return f"missing key{' in ' + key if error.absolute_path else ''}: {error.message}"
+        return f"missing key{' in ' + key if error.absolute_path else ''}: {schema_text(error.message, error.instance)}"
     if error.validator in ("minProperties", "maxProperties") and len(error.absolute_path) == 2:
         return f"key {key}: give exactly one of values, linspace, random"
     if error.validator == "enum":
-        return (
-            f"key {key}: {error.instance!r} is not allowed (choose one of {', '.join(map(str, error.validator_value))})"
-        )
-    return f"key {key}: {' '.join(error.message.split())}"
+        choices = ", ".join(map(str, error.validator_value))
+        return f"key {key}: {value_text(error.instance)} is not allowed (choose one of {choices})"
+    return f"key {key}: {schema_text(error.message, error.instance)}"
 
 
 def checked_document(

@@ -20,7 +20,7 @@ and their metadata: `signals.schema` generates the scenario's JSON Schema from t
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar, Literal
 
@@ -150,26 +150,57 @@ class TableSource:
     unit: str | None
 
 
-@dataclass(frozen=True)
+def frozen_floats(values: Any) -> np.ndarray:
+    """`values` as a read-only one-dimensional float64 array, copied unless it already is one: a
+    table's columns are shared by every run that reads them and never changed."""
+    if (
+        isinstance(values, np.ndarray)
+        and values.dtype == np.float64
+        and values.ndim == 1
+        and not values.flags.writeable
+    ):
+        return values
+    array = np.array(values, dtype=np.float64).reshape(-1)
+    array.flags.writeable = False
+    return array
+
+
+@dataclass(frozen=True, eq=False)
 class Table:
     """Values at times (strictly increasing, finite), between them `hold` (the last row's value)
     or `linear` (np.interp). A table must cover the run: first time ≤ 0, last ≥ t_end
-    (`check_covers`). `points` in a scenario, or a CSV file (`source`)."""
+    (`check_covers`). `points` in a scenario, or a CSV file (`source`). The times and values
+    are read-only float64 arrays (8 bytes a number, however long the table); two tables are
+    equal when their rows, interpolation and source are."""
 
     kind: ClassVar[str] = "table"
-    times: tuple[float, ...]
-    values: tuple[float, ...]
+    times: np.ndarray
+    values: np.ndarray
     interpolation: Literal["hold", "linear"] = "linear"
     source: TableSource | None = None
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "times", frozen_floats(self.times))
+        object.__setattr__(self, "values", frozen_floats(self.values))
         check_table(self.times, self.values)
         if self.interpolation not in INTERPOLATIONS:
             raise SignalError(f"interpolation {self.interpolation!r}: choose hold or linear")
 
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Table):
+            return NotImplemented
+        return (
+            (self.interpolation, self.source) == (other.interpolation, other.source)
+            and np.array_equal(self.times, other.times)
+            and np.array_equal(self.values, other.values)
+        )
+
+    def __hash__(self) -> int:
+        return hash((self.interpolation, self.source, len(self.times), float(self.times[0]), float(self.values[0])))
+
     def at(self, times: np.ndarray) -> np.ndarray:
         t = np.asarray(times, dtype=float)
-        xp, fp = np.asarray(self.times), np.asarray(self.values)
+        xp, fp = self.times, self.values
         if self.interpolation == "linear":
             return np.interp(t, xp, fp)
         rows = np.searchsorted(xp, t + EDGE_TOLERANCE, side="right") - 1
@@ -186,28 +217,29 @@ class Table:
             )
 
 
-def check_table(times: Sequence[float], values: Sequence[float], labels: Sequence[str] | None = None) -> None:
+def check_table(times: Sequence[float], values: Sequence[float], label: Callable[[int], str] | None = None) -> None:
     """Raise SignalError unless times and values are as long, at least 2, finite, and the times
-    strictly increasing; the message names the first bad row (`labels[i]`, default "row i + 1")."""
+    strictly increasing; the message names the first bad row (`label(i)`, default "row i + 1")."""
     if len(times) != len(values):
         raise SignalError(f"{len(times)} times and {len(values)} values (give one value per time)")
     if len(times) < 2:
         raise SignalError(f"a table needs at least 2 rows, not {len(times)}")
+    if label is None:
 
-    def label(i: int) -> str:
-        return labels[i] if labels is not None else f"row {i + 1}"
+        def label(i: int) -> str:
+            return f"row {i + 1}"
 
     t, v = np.asarray(times, dtype=float), np.asarray(values, dtype=float)
     bad = np.flatnonzero(~(np.isfinite(t) & np.isfinite(v)))
     if bad.size:
         i = int(bad[0])
-        raise SignalError(f"{label(i)}: ({times[i]!r}, {values[i]!r}) is not finite (give finite numbers)")
+        raise SignalError(f"{label(i)}: ({float(t[i])!r}, {float(v[i])!r}) is not finite (give finite numbers)")
     back = np.flatnonzero(np.diff(t) <= 0)
     if back.size:
         i = int(back[0]) + 1  # the first row whose time does not increase
         what = "repeats" if t[i] == t[i - 1] else "comes before"
         raise SignalError(
-            f"{label(i)}: time {times[i]!r} {what} the time of {label(i - 1)} ({times[i - 1]!r}); "
+            f"{label(i)}: time {float(t[i])!r} {what} the time of {label(i - 1)} ({float(t[i - 1])!r}); "
             "times must increase strictly (sort the table, drop repeated times)"
         )
 
@@ -243,11 +275,11 @@ def describe(signal: Signal) -> dict[str, Any]:
             "kind": "table",
             "interpolation": signal.interpolation,
             "rows": len(signal.times),
-            "t_first": signal.times[0],
-            "t_last": signal.times[-1],
+            "t_first": float(signal.times[0]),
+            "t_last": float(signal.times[-1]),
         }
         if signal.source is None:
-            record["points"] = [list(p) for p in zip(signal.times, signal.values, strict=True)]
+            record["points"] = [list(p) for p in zip(signal.times.tolist(), signal.values.tolist(), strict=True)]
         else:
             source = signal.source
             record |= {"file": source.path, "sha256": source.sha256, "column": source.column, "unit": source.unit}

@@ -5,6 +5,12 @@ priority over the components' own. A binding's values come from an .ssv member o
 (`source`, relative to the SSD at the archive's top level) or inline (ParameterValues); a
 binding's `prefix` is prepended to its names.
 
+An .ssv that many components bind is read and checked once per opened archive (`bindings_of`
+keeps its values by member); a parameter set holds at most MAX_PARAMETERS parameters, and the
+values bound in one SSD (every binding of every component and the system, counted as applied)
+at most MAX_BOUND_VALUES (`BindingBudget`), so a small archive cannot make the reader apply
+millions of values.
+
 Refused, one SspError line each naming the SSD and the binding: a source outside the archive
 or resolved against the component (`sourceBase="component"`), a type other than a parameter set,
 a ParameterMapping, a value that is not a finite Real, an Integer or a Boolean, and (checked by
@@ -14,6 +20,7 @@ the reader against the FMUs) a name that no component has.
 from __future__ import annotations
 
 import math
+import weakref
 import zipfile
 from dataclasses import dataclass
 from pathlib import PurePosixPath
@@ -23,11 +30,33 @@ from lxml import etree
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError, parse_member
 
-__all__ = ["Binding", "Value", "bindings_of", "merged"]
+__all__ = ["MAX_BOUND_VALUES", "MAX_PARAMETERS", "Binding", "BindingBudget", "Value", "bindings_of", "merged"]
 
 NS = layout.NAMESPACES
 SET_TYPE = "application/x-ssp-parameter-set"
 Value = float | int | bool
+MAX_PARAMETERS = 10_000  # parameters of one parameter set (ours have a few dozen)
+MAX_BOUND_VALUES = 200_000  # values one SSD's bindings apply, over all its components and the system
+Values = tuple[tuple[str, Value, str, str | None], ...]
+# the values of each .ssv member read from an open archive, without prefix: parsed once however
+# many components bind it (the archive object's lifetime; another archive is read afresh)
+_READ: weakref.WeakKeyDictionary[zipfile.ZipFile, dict[str, tuple[str | None, Values]]] = weakref.WeakKeyDictionary()
+
+
+@dataclass
+class BindingBudget:
+    """How many values an SSD's bindings have applied (MAX_BOUND_VALUES at most); `where` names it."""
+
+    where: str
+    spent: int = 0
+
+    def spend(self, count: int) -> None:
+        self.spent += count
+        if self.spent > MAX_BOUND_VALUES:
+            raise SspError(
+                f"{self.where}: its parameter bindings apply more than {MAX_BOUND_VALUES} values over its components "
+                "(refused; bind each component the values it needs)"
+            )
 
 
 @dataclass(frozen=True)
@@ -53,9 +82,14 @@ def _value(element: Element, name: str, where: str) -> Value:
     return value
 
 
-def _values(parameter_set: Element, prefix: str, where: str) -> tuple[tuple[str, Value, str, str | None], ...]:
+def _values(parameter_set: Element, prefix: str, where: str) -> Values:
     found = []
     for parameter in parameter_set.iterfind("ssv:Parameters/ssv:Parameter", NS):
+        if len(found) == MAX_PARAMETERS:
+            raise SspError(
+                f"{where}: more than {MAX_PARAMETERS} parameters in one parameter set (refused; an SSP's set "
+                "holds the parameters of its components)"
+            )
         name = prefix + parameter.get("name")
         typed = next((child for child in parameter if etree.QName(child).namespace == layout.SSV_NS), None)
         kind = etree.QName(typed).localname if typed is not None else "nothing"
@@ -78,9 +112,21 @@ def _member(source: str, archive: zipfile.ZipFile, where: str) -> str:
     return member
 
 
-def bindings_of(owner: Element, archive: zipfile.ZipFile, path: str, where: str) -> list[Binding]:
+def _ssv(archive: zipfile.ZipFile, member: str, path: str) -> tuple[str | None, Values]:
+    """The .ssv member's set name and values (no prefix), read and checked once per archive."""
+    read = _READ.setdefault(archive, {})
+    if member not in read:
+        root = parse_member(archive, member, "ssv", f"{path}: {member}")
+        read[member] = (root.get("name"), _values(root, "", f"{path}: {member}"))
+    return read[member]
+
+
+def bindings_of(
+    owner: Element, archive: zipfile.ZipFile, path: str, where: str, budget: BindingBudget | None = None
+) -> list[Binding]:
     """The bindings of a component or system element, in document order; `path` names the SSP
-    in messages, `where` the SSD and the element."""
+    in messages, `where` the SSD and the element; `budget` counts the values applied."""
+    budget = budget if budget is not None else BindingBudget(where)
     found = []
     for binding in owner.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS):
         kind = binding.get("type", SET_TYPE)
@@ -97,13 +143,18 @@ def bindings_of(owner: Element, archive: zipfile.ZipFile, path: str, where: str)
         source = binding.get("source")
         if source:
             member = _member(source, archive, where)
-            root = parse_member(archive, member, "ssv", f"{path}: {member}")
-            found.append(Binding(root.get("name"), member, _values(root, prefix, f"{path}: {member}")))
+            set_name, values = _ssv(archive, member, path)
+            budget.spend(len(values))
+            if prefix:
+                values = tuple((prefix + name, *rest) for name, *rest in values)
+            found.append(Binding(set_name, member, values))
             continue
         inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
         if inline is None:
             raise SspError(f"{where}: a parameter binding with neither a source nor inline ParameterValues")
-        found.append(Binding(inline.get("name"), "inline", _values(inline, prefix, f"{where} (inline values)")))
+        values = _values(inline, prefix, f"{where} (inline values)")
+        budget.spend(len(values))
+        found.append(Binding(inline.get("name"), "inline", values))
     return found
 
 

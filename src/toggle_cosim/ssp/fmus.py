@@ -13,19 +13,10 @@ from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.plant.contract import declared_unit
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import SspError
-from toggle_cosim.system.interfaces import fmu_interface
+from toggle_cosim.system.interfaces import SettableError, fmu_interface, settable_type
 from toggle_cosim.system.model import Interface
 
 __all__ = ["FmuVariables", "describe"]
-
-_TYPES = {
-    "Real": "Real",
-    "Float64": "Real",
-    "Float32": "Real",
-    "Boolean": "Boolean",
-    "Integer": "Integer",
-    "Int32": "Integer",
-}
 
 
 @dataclass(frozen=True)
@@ -74,30 +65,24 @@ class FmuVariables:
         ]
 
     def value_type(self, name: str, value: object) -> str:
-        """The SSV element of a parameter: the FMU variable's type (Real, Integer, Boolean)."""
-        variable = self.variable(name)
-        kind = _TYPES.get(variable.type)
-        if kind is None:
-            raise SspError(
-                f"{self.label}: variable {name!r} is of type {variable.type}; an SSP here sets Real, Integer, Boolean"
-            )
-        if kind == "Boolean" and not isinstance(value, bool):
-            raise SspError(f"{self.label}: variable {name!r} is a Boolean, but its value is {value!r}")
-        if kind == "Integer" and (isinstance(value, bool) or float(value) != int(value)):
-            raise SspError(f"{self.label}: variable {name!r} is an Integer, but its value is {value!r}")
-        return kind
+        """The SSV element of a parameter: the FMU variable's type (Real, Integer, Boolean),
+        checked as every component's value is (`system.interfaces.settable_type`)."""
+        try:
+            return settable_type(self.variable(name), name, value)
+        except SettableError as error:
+            raise SspError(f"{self.label}: {error}") from None
 
     def check_parameters(self, values: Sequence[tuple[str, object]], component: str, source: str) -> None:
-        """Every name of `values` (given by `source`) is a parameter or an input of the FMU."""
+        """Every name of `values` (given by `source`) is a parameter or an input of the FMU, and
+        its value of the variable's type (`system.interfaces.settable_type`)."""
         for name, value in values:
-            variable = self.variables.get(name)
-            if variable is None or variable.causality not in ("parameter", "input"):
-                what = "no variable" if variable is None else f"a {variable.causality}, not a parameter or input,"
+            try:
+                settable_type(self.variables.get(name), name, value)
+            except SettableError as error:
                 raise SspError(
-                    f"{self.label}: the {component} FMU has {what} {name!r}, which {source} sets "
-                    f"(give the {component} FMU that has it, or fix the name)"
-                )
-            self.value_type(name, value)
+                    f"{self.label}: the {component} FMU: {error}, which {source} sets (give the {component} FMU "
+                    "that has it, or fix the name or the value)"
+                ) from None
 
     def check_controller(self, plant: FmuVariables) -> None:
         """The controller FMU fits the plant: Co-Simulation, an output iq_ref, and every input

@@ -35,11 +35,12 @@ from typing import Any
 from toggle_cosim.files.checksums import file_sha256
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
-from toggle_cosim.ssp.bindings import Binding, Value, bindings_of, merged
+from toggle_cosim.ssp.bindings import Binding, BindingBudget, Value, bindings_of, merged
 from toggle_cosim.ssp.checks import Element, SspError, open_archive
 from toggle_cosim.ssp.fmus import FmuVariables, describe
 from toggle_cosim.ssp.variants import Variant, check_set_names, choose, root_ssds
 from toggle_cosim.ssp.wiring import connectors_of, is_pair_loop, read_connections
+from toggle_cosim.system.interfaces import SettableError, settable_type
 from toggle_cosim.system.model import Connection, Part, Wiring
 
 __all__ = ["Component", "SspStudy", "open_ssp", "open_ssp_variants", "read_ssp", "read_ssp_variants"]
@@ -108,7 +109,17 @@ def _elements(ssd: Element, where: str) -> list[Element]:
         raise SspError(f"{where}: the system has connectors of its own (not supported; connect the components)")
     elements = system.find("ssd:Elements", NS)
     children = list(elements) if elements is not None else []
+    seen: set[str] = set()
     for child in children:
+        name = child.get("name") or ""
+        if "." in name or not name.isprintable() or not name.strip():
+            raise SspError(
+                f"{where}: component name {name!r} is not a name the master can use (no dots, no control "
+                "characters: it writes a component's variables as component.variable; rename it)"
+            )
+        if name in seen:
+            raise SspError(f"{where}: two components are named {name!r} (give each its own name)")
+        seen.add(name)
         kind = child.tag.rsplit("}", 1)[-1]
         if kind != "Component":
             raise SspError(f"{where}: a {kind} in the system (our master runs FMU components only; remove it)")
@@ -198,11 +209,10 @@ def _meets_contract(fmu: FmuVariables) -> bool:
 
 def _typed(fmu: FmuVariables, name: str, value: Value, kind: str, unit: str | None, where: str) -> Value:
     """The value as the FMU variable's type, checked: a parameter or input, of its type, its unit."""
-    variable = fmu.variables.get(name)
-    if variable is None or variable.causality not in ("parameter", "input"):
-        what = "no variable" if variable is None else f"a {variable.causality}, not a parameter or input,"
-        raise SspError(f"{fmu.label}: the FMU has {what} {name!r}, which {where} sets (fix the name)")
-    target = fmu.value_type(name, value)
+    try:
+        target = settable_type(fmu.variables.get(name), name, value)
+    except SettableError as error:
+        raise SspError(f"{fmu.label}: {error}, which {where} sets (fix the name or the value)") from None
     if target == "Boolean" and kind != "Boolean":
         raise SspError(f"{where}: {name} is a Boolean; give it as <ssv:Boolean>, not {kind} {value!r}")
     if target != "Boolean" and kind == "Boolean":
@@ -257,10 +267,16 @@ def _start(fmu: FmuVariables, name: str) -> Value | None:
 
 
 def _component_values(
-    component: Element, extra: list[Binding], fmu: FmuVariables, archive: zipfile.ZipFile, path: Path, where: str
+    component: Element,
+    extra: list[Binding],
+    fmu: FmuVariables,
+    archive: zipfile.ZipFile,
+    path: Path,
+    where: str,
+    budget: BindingBudget,
 ) -> tuple[tuple[str, Value], ...]:
     """Every value set on the component: its bindings, then the system's (priority), checked."""
-    own = bindings_of(component, archive, str(path), f"{where}: component {component.get('name')!r}")
+    own = bindings_of(component, archive, str(path), f"{where}: component {component.get('name')!r}", budget)
     values = merged([*own, *extra])
     return tuple(
         (name, _typed(fmu, name, value, kind, unit, f"{where}: component {component.get('name')!r}"))
@@ -268,11 +284,13 @@ def _component_values(
     )
 
 
-def _system_bindings(ssd: Element, archive: zipfile.ZipFile, path: Path, where: str, names: list[str]):  # noqa: ANN202
+def _system_bindings(  # noqa: ANN202
+    ssd: Element, archive: zipfile.ZipFile, path: Path, where: str, names: list[str], budget: BindingBudget
+):
     """The system's bindings, split by component (`plant.mu` -> plant's mu)."""
     system = ssd.find("ssd:System", NS)
     split: dict[str, list[Binding]] = {name: [] for name in names}
-    for binding in bindings_of(system, archive, str(path), f"{where}: the system"):
+    for binding in bindings_of(system, archive, str(path), f"{where}: the system", budget):
         parts: dict[str, list] = {name: [] for name in names}
         for name, value, kind, unit in binding.values:
             element, _, variable = name.partition(".")
@@ -324,12 +342,13 @@ def _components(variant: Variant, archive: zipfile.ZipFile, path: Path, fmus: _E
                 f"{fmu.label}: component {name!r}'s FMU has no Co-Simulation interface (Model Exchange only; our "
                 "master runs Co-Simulation FMUs: export it for Co-Simulation)"
             )
-    system = _system_bindings(variant.ssd, archive, path, where, list(found))
+    budget = BindingBudget(where)
+    system = _system_bindings(variant.ssd, archive, path, where, list(found), budget)
     components = {}
     for child in children:
         name = child.get("name")
         member, fmu_path, fmu, sha256 = found[name]
-        values = _component_values(child, system[name], fmu, archive, path, where)
+        values = _component_values(child, system[name], fmu, archive, path, where, budget)
         components[name] = Component(name, member, fmu_path, sha256, values)
     parts = tuple(components[name] for name in components if name not in (plant, controller))
     if not parts and is_pair_loop(connections, plant, controller, variables):

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from toggle_cosim.ssp import layout
-from toggle_cosim.ssp.bindings import bindings_of
+from toggle_cosim.ssp.bindings import BindingBudget, bindings_of
 from toggle_cosim.ssp.checks import Element, SspError, open_archive, parse_member
 
 __all__ = ["SAFE_NAME", "Variant", "check_set_names", "choose", "root_ssds", "variants"]
@@ -72,8 +72,9 @@ def check_set_names(variants_found: list[Variant], archive: zipfile.ZipFile, pat
     sources: dict[tuple[str, str | None], str] = {}
     for variant in variants_found:
         where = f"{path}: {variant.member}"
+        budget = BindingBudget(where)
         for component in variant.ssd.iterfind("ssd:System/ssd:Elements/ssd:Component", NS):
-            for binding in bindings_of(component, archive, str(path), where):
+            for binding in bindings_of(component, archive, str(path), where, budget):
                 if binding.source == "inline":
                     continue
                 key = (component.get("name"), binding.set_name)
@@ -92,10 +93,15 @@ def variants(path: Path) -> tuple[str, ...]:
 
 
 def choose(found: list[Variant], asked: str | None, path: Path) -> Variant:
+    """The variant `asked` names (None: the default, the first): a root SSD's name first, else
+    its member's file name (`no_friction.ssd`); a file name without .ssd is no variant's name."""
     if asked is None:
         return found[0]
     for variant in found:
-        if asked in (variant.name, variant.member, variant.member.removesuffix(layout.SSD_SUFFIX)):
+        if asked == variant.name:
+            return variant
+    for variant in found:
+        if asked == variant.member:
             return variant
     raise SspError(
         f"{path}: no variant {asked!r} (choose one of {', '.join(v.name for v in found)} with --variant; "

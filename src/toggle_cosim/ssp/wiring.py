@@ -37,7 +37,7 @@ from toggle_cosim.ssp.checks import Element, SspError
 from toggle_cosim.ssp.fmus import FmuVariables
 from toggle_cosim.system.graph import algebraic_loop
 from toggle_cosim.system.model import Connection, Port, Wiring
-from toggle_cosim.system.units import BASE, Meaning, conversion, unit_meaning
+from toggle_cosim.system.units import BASE, Meaning, UnitDefinitionError, conversion, meaning, unit_meaning
 
 __all__ = ["Connector", "connectors_of", "conversion", "is_pair_loop", "meaning_of", "read_connections"]
 
@@ -77,15 +77,17 @@ def connectors_of(component: Element, fmu: FmuVariables, where: str) -> dict[str
 
 
 def ssd_units(ssd: Element) -> dict[str, Meaning]:
-    """The SSD's own Units by name."""
+    """The SSD's own Units by name (`system.units.meaning`: UnitDefinitionError for a factor of 0
+    or a number that is not finite)."""
     units = {}
     for unit in ssd.iterfind("ssd:Units/ssc:Unit", NS):
         base = unit.find("ssc:BaseUnit", NS)
         attributes = dict(base.attrib) if base is not None else {}
-        units[unit.get("name")] = (
-            *(float(attributes.get(key, 0)) for key in BASE),
-            float(attributes.get("factor", 1)),
-            float(attributes.get("offset", 0)),
+        units[unit.get("name")] = meaning(
+            unit.get("name"),
+            [attributes.get(key, 0) for key in BASE],
+            attributes.get("factor", 1),
+            attributes.get("offset", 0),
         )
     return units
 
@@ -274,11 +276,14 @@ def read_connections(
         if end in driven:
             raise SspError(f"{where}: the connections {driven[end]} and {start} -> {end} both drive {end}")
         driven[end] = f"{start} -> {end}"
-    units = ssd_units(ssd)
     found = []
-    for element, start, end in ends:
-        factor, offset = _scaling(element, start, end, connectors, fmus, units, where)
-        found.append(Connection(start, end, factor, offset))
+    try:
+        units = ssd_units(ssd)
+        for element, start, end in ends:
+            factor, offset = _scaling(element, start, end, connectors, fmus, units, where)
+            found.append(Connection(start, end, factor, offset))
+    except UnitDefinitionError as error:
+        raise SspError(f"{where}: {error}") from None
     return tuple(found)
 
 

@@ -9,9 +9,59 @@ from typing import Any
 
 from toggle_cosim.system.model import Interface
 
-__all__ = ["REAL_TYPES", "fmu_interface", "variable_unit"]
+__all__ = ["REAL_TYPES", "SettableError", "check_settable", "fmu_interface", "settable_type", "variable_unit"]
 
 REAL_TYPES = ("Real", "Float64", "Float32")
+# the FMI types a value may be given for before initialisation, as the SSV element that sets them
+SETTABLE_TYPES = {
+    "Real": "Real",
+    "Float64": "Real",
+    "Float32": "Real",
+    "Boolean": "Boolean",
+    "Integer": "Integer",
+    "Int32": "Integer",
+}
+
+
+_CAUSALITIES = {
+    "output": "an output",
+    "local": "a local variable (a state or an internal one)",
+    "independent": "the independent variable (time)",
+    "calculatedParameter": "a calculated parameter",
+    "structuralParameter": "a structural parameter",
+}
+
+
+class SettableError(ValueError):
+    """A value that cannot be set on an FMU before initialisation; str() says why, naming the
+    variable (the caller adds the FMU and the key)."""
+
+
+def settable_type(variable: Any, name: str, value: object) -> str:
+    """The type (Real, Integer, Boolean) under which `value` is set on the FMU `variable`
+    (named `name`; None: the FMU has none): a parameter or an input, of a type set here, the value
+    of that type. Raises SettableError: the one check of a component's values, before any run,
+    for an SSP's bindings and a scenario's `components.NAME.parameters` alike."""
+    if variable is None or variable.causality not in ("parameter", "input"):
+        if variable is None:
+            raise SettableError(f"the FMU has no variable {name!r}")
+        what = _CAUSALITIES.get(variable.causality, f"a {variable.causality} variable")
+        raise SettableError(f"{name!r} is {what} of the FMU, not a parameter or input")
+    kind = SETTABLE_TYPES.get(variable.type)
+    if kind is None:
+        raise SettableError(f"variable {name!r} is of type {variable.type}; values are set on Real, Integer, Boolean")
+    if kind == "Boolean" and not isinstance(value, bool):
+        raise SettableError(f"variable {name!r} is a Boolean, but its value is {value!r}")
+    if kind == "Integer" and (isinstance(value, bool) or float(value) != int(value)):  # type: ignore[arg-type]
+        raise SettableError(f"variable {name!r} is an Integer, but its value is {value!r}")
+    return kind
+
+
+def check_settable(description: Any, values: Sequence[tuple[str, object]]) -> None:
+    """Every (name, value) of `values` can be set on the FMU of `description` (`settable_type`)."""
+    variables = {v.name: v for v in description.modelVariables}
+    for name, value in values:
+        settable_type(variables.get(name), name, value)
 
 
 def variable_unit(variable: Any) -> str | None:

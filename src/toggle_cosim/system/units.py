@@ -10,12 +10,14 @@ unknown unless defined.
 
 from __future__ import annotations
 
+import math
 import re
+from collections.abc import Sequence
 from typing import Any
 
 from toggle_cosim.fmu_export.units import UnitError, base_exponents
 
-__all__ = ["BASE", "Meaning", "conversion", "defined_meaning", "unit_meaning"]
+__all__ = ["BASE", "Meaning", "UnitDefinitionError", "conversion", "defined_meaning", "meaning", "unit_meaning"]
 
 BASE = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 Meaning = tuple[float, ...]  # the SI exponents of BASE, then factor and offset
@@ -24,15 +26,37 @@ Meaning = tuple[float, ...]  # the SI exponents of BASE, then factor and offset
 _SCALED = re.compile(r"(^|[./])(g|deg)(-?\d+)?(?=$|[./])")
 
 
+class UnitDefinitionError(ValueError):
+    """A unit defined with a factor of 0 or a number that is not finite; str() names the unit."""
+
+
+def meaning(unit: str, exponents: Sequence[object], factor: object, offset: object) -> Meaning:
+    """The meaning of a unit's definition (a FMU's UnitDefinitions, an SSD's Units): refused, as
+    UnitDefinitionError, unless every number is finite and the factor is not 0 (a factor of 0
+    would make every value 0, or a conversion into it divide by 0)."""
+    try:
+        values = (*(float(e) for e in exponents), float(factor), float(offset))  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        values = (math.nan,)
+    if not all(math.isfinite(v) for v in values) or values[-2] == 0.0:
+        raise UnitDefinitionError(
+            f"the unit {unit!r} is defined with factor {factor!r}, offset {offset!r} (a unit's factor is a finite "
+            "number other than 0, its offset and exponents finite: fix its definition)"
+        )
+    return values
+
+
 def defined_meaning(unit: str, description: Any) -> Meaning | None:
-    """The meaning a model description's UnitDefinitions give `unit`, or None."""
+    """The meaning a model description's UnitDefinitions give `unit` (`meaning`: raises
+    UnitDefinitionError for a factor of 0 or a number that is not finite), or None."""
     for definition in getattr(description, "unitDefinitions", None) or ():
         if definition.name == unit and definition.baseUnit is not None:
             base = definition.baseUnit
-            return (
-                *(float(getattr(base, key, 0) or 0) for key in BASE),
-                float(base.factor if base.factor is not None else 1.0),
-                float(base.offset or 0.0),
+            return meaning(
+                unit,
+                [getattr(base, key, 0) or 0 for key in BASE],
+                base.factor if base.factor is not None else 1.0,
+                base.offset or 0.0,
             )
     return None
 
