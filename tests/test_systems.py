@@ -370,6 +370,8 @@ def test_a_part_output_that_turns_nan_is_written_in_every_row_of_the_trace(
     assert np.all(np.isfinite(y[:FINITE])) and np.all(np.isnan(y[FINITE:]))
     assert np.array_equal(y[:FINITE], trace.column("plant.x_B")[:FINITE])
     assert np.all(np.isfinite(trace.column("plant.x_B")))
+
+
 def _folder_bytes(folder: Path) -> int:
     return sum(path.stat().st_size for path in folder.rglob("*") if path.is_file() and not path.is_symlink())
 
