@@ -5,9 +5,12 @@ samples, the first 20 finite)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import yaml
+
+from toggle_cosim.files.traces import Trace
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLES = 101  # t_end 0.05 s at T_s 0.5 ms: samples 0 .. 100
@@ -109,3 +112,17 @@ def nan_part_scenario(folder: Path, part: Path, record: list[str]) -> Path:
     path = folder / "nan_part.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
     return path
+
+
+def run_scenario(scenario: Path, plant_fmu: Path, out: Path) -> tuple[dict, Trace]:
+    """`toggle-cosim run SCENARIO --fmu PLANT --out OUT -q`, which must exit 0: the one run's
+    run.json and trace.csv, read back."""
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+    from toggle_cosim.files.traces import read_csv
+
+    result = CliRunner().invoke(main, ["run", str(scenario), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    folder = out / "user_controllers" / "run"
+    return json.loads((folder / "run.json").read_text(encoding="utf-8")), read_csv(folder / "trace.csv")

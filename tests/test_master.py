@@ -123,19 +123,10 @@ def test_a_diagnostic_that_turns_nan_is_written_in_every_row_of_the_trace(
     """Issue 37, item 1: a Python controller whose diagnostic is NaN from t = 0.01 s, in the
     trace's last column or not. The run is complete (a diagnostic is a recorded value, not a
     measurement), trace.csv has every sample, run.json counts them, and the NaN read back."""
-    from click.testing import CliRunner
-    from nan_values import FINITE, SAMPLES, nan_controller_scenario
-
-    from toggle_cosim.cli import main
-    from toggle_cosim.files.traces import read_csv
+    from nan_values import FINITE, SAMPLES, nan_controller_scenario, run_scenario
 
     scenario = nan_controller_scenario(tmp_path, which)
-    out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["run", str(scenario), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
-    assert result.exit_code == 0, result.output
-    folder = out / "user_controllers" / "run"
-    record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
-    trace = read_csv(folder / "trace.csv")
+    record, trace = run_scenario(scenario, plant_fmu, tmp_path / "out")
     assert record["status"] == "complete" and record["samples"] == trace.data.shape[0] == SAMPLES
     assert trace.names[-2:] == ("e", "flag")
     column = trace.column(("e", "flag")[which])

@@ -9,7 +9,6 @@ the order, the algebraic loops, the units and the scenario keys behave as docume
 from __future__ import annotations
 
 import dataclasses
-import json
 import re
 import subprocess
 import sys
@@ -348,21 +347,11 @@ def test_a_part_output_that_turns_nan_is_written_in_every_row_of_the_trace(
     or not, by the compiled system loop or the Python execution. The run is complete (the part's
     output is recorded, not measured by the controller), trace.csv has every sample, run.json
     counts them, and the NaN read back."""
-    from click.testing import CliRunner
-    from nan_values import FINITE, SAMPLES, nan_part_scenario
-
-    from toggle_cosim.cli import main
-    from toggle_cosim.files.traces import read_csv
+    from nan_values import FINITE, SAMPLES, nan_part_scenario, run_scenario
 
     if engine == "python":
         monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    scenario = nan_part_scenario(tmp_path, nan_part, record)
-    out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["run", str(scenario), "--fmu", str(plant_fmu), "--out", str(out), "-q"])
-    assert result.exit_code == 0, result.output
-    folder = out / "user_controllers" / "run"
-    run_record = json.loads((folder / "run.json").read_text(encoding="utf-8"))
-    trace = read_csv(folder / "trace.csv")
+    run_record, trace = run_scenario(nan_part_scenario(tmp_path, nan_part, record), plant_fmu, tmp_path / "out")
     assert run_record["status"] == "complete" and run_record["samples"] == trace.data.shape[0] == SAMPLES
     assert run_record["loop"]["kind"] == f"system, {engine}"
     assert trace.names == ("time", *record)
