@@ -153,6 +153,29 @@ def test_the_pair_as_a_system_gives_the_fixed_loops_bits(
     assert set(np.unique(fixed.trace.column("phase"))) == {0.0, 1.0}
 
 
+@pytest.mark.parametrize("law", ["built-in", "fmu"])
+def test_a_system_at_another_sample_time_gives_the_pairs_bits(plant, vsc_fmu: Path, law: str) -> None:
+    """At T_s = 1 ms (the law's FMU has 0.5 ms as its default step, and steps at its parameter
+    T_s, which the master sets to the run's): the pair wired as a system, and `record:` alone,
+    run the built-in law's FMU (or a controller FMU of the built-in law) in the compiled system
+    loop and give the pair's fixed loop at 1 ms bit for bit."""
+    run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], T_s=0.001)
+    if law == "fmu":
+        run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
+    fixed = master.simulate(run, plant)
+    assert fixed.complete, fixed.reason
+    wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
+    recorded = Wiring(record=(Port("plant", "x_B"), Port("controller", "iq_ref")))
+    for wiring in (wired, recorded):
+        system = master.simulate(dataclasses.replace(run, system=wiring), plant)
+        assert system.complete, system.reason
+        assert system.record["loop"]["kind"] == "system, compiled"
+        assert len(system.trace.time) == 301 and system.trace.time[1] == 0.001
+        for name in ("x_B", "iq_ref"):
+            column = f"{'plant' if name == 'x_B' else 'controller'}.{name}"
+            assert np.array_equal(fixed.trace.column(name), system.trace.column(column)), name
+
+
 def test_a_crossed_wiring_changes_the_trace(plant, vsc_fmu: Path) -> None:
     """x_B and v_B crossed (both in m and m/s: refused), and the command into F_E: runs, but as wired."""
     run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
