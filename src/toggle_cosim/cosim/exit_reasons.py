@@ -12,7 +12,14 @@ import numpy as np
 
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["building_reason", "controller_words", "exit_reason", "in_controller_reason", "stopped_in_controller"]
+__all__ = [
+    "building_reason",
+    "controller_words",
+    "ended_cleanly",
+    "exit_reason",
+    "in_controller_reason",
+    "stopped_in_controller",
+]
 
 
 def exit_reason(status: int | None) -> str:
@@ -24,6 +31,12 @@ def exit_reason(status: int | None) -> str:
     if status is not None:
         return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
     return "the plant process ended without an answer"
+
+
+def ended_cleanly(status: int | None) -> bool:
+    """Whether a run's process ended as a run that sent its answer ends: exit status 0 (None: its
+    status is unknown, already reaped)."""
+    return status is None or (os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0)
 
 
 def stopped_in_controller(buffer: np.ndarray, rows: int, n_outputs: int, names: tuple[str, ...]) -> bool:
