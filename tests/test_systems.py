@@ -9,6 +9,7 @@ the order, the algebraic loops, the units and the scenario keys behave as docume
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 import subprocess
 import sys
@@ -348,3 +349,75 @@ def test_a_python_controller_reads_its_connected_inputs_only(plant) -> None:
     half = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("controller.iq_ref -> plant.iq_ref")))
     failed = master.simulate(dataclasses.replace(run, system=half), plant, controller=_PD())
     assert not failed.complete and "KeyError" in failed.reason and "'v_B'" in failed.reason
+
+
+FAULTY_PART = '''
+import ctypes
+import time
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+
+
+class FaultyPart(Fmi2Slave):
+    """y = x; its doStep from t = 0.005 s dereferences a null pointer (mode 0) or never returns (mode 1)."""
+
+    author = "toggle-cosim tests"
+    description = "a part that crashes or hangs"
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.x, self.mode = 0.0, 0.0
+        self.register_variable(Real("x", causality=Fmi2Causality.input))
+        self.register_variable(Real("mode", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed))
+        self.register_variable(Real("y", causality=Fmi2Causality.output, getter=lambda: self.x))
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if current_time >= 0.005:
+            if self.mode == 0.0:
+                ctypes.string_at(0)
+            time.sleep(600)
+        return True
+'''
+
+
+@pytest.mark.parametrize(
+    ("mode", "kernel", "said"),
+    [
+        (0, "1", "ended the run's process: it was killed by SIGSEGV while the master called it"),
+        (0, "0", "ended the run's process: it was killed by SIGSEGV while the master called it"),
+        (1, "1", "did not return: time limit 2 s exceeded while the master called it"),
+    ],
+)
+def test_a_part_that_crashes_or_hangs_is_named_in_the_reason(
+    plant_fmu: Path, tmp_path: Path, mode: int, kernel: str, said: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A part's doStep from t = 0.005 s segfaults (in the compiled system loop and in the Python
+    one) or hangs: the run fails with a reason that names the component and its FMU, not the
+    plant; the trace holds the samples before it."""
+    from python_fmus import build_python_fmu
+
+    build_python_fmu(FAULTY_PART, tmp_path, "FaultyPart")
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", kernel)
+    path = _scenario(
+        tmp_path,
+        f"""\
+        fmu: {plant_fmu}
+        components: {{faulty: {{fmu: FaultyPart.fmu, parameters: {{mode: {mode}}}}}}}
+        connections:
+          - plant.x_B -> controller.x_B
+          - plant.v_B -> controller.v_B
+          - controller.iq_ref -> plant.iq_ref
+          - plant.x_B -> faulty.x
+        """,
+    )
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "toggle_cosim", "run", str(path), "--out", str(out), "-q", "--time-limit", "2"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 1, done.stderr
+    record = json.loads((out / "system" / "run" / "run.json").read_text(encoding="utf-8"))
+    assert record["status"] == "failed"
+    assert record["reason"] == f"component 'faulty' (FaultyPart.fmu) {said} at t = 0.005 s", record["reason"]
+    assert record["samples"] == 11  # t = 0 .. 0.005 s recorded, the step from 0.005 s not done

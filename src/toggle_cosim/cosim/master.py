@@ -56,6 +56,7 @@ def simulate(
     controller: Controller | None = None,
     session: PlantSession | None = None,
     coupling: str | None = None,
+    calling: np.ndarray | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`: the plain pair in its fixed loop, any other
     system as an execution of its components (module docstring). Never raises for a plant, part
@@ -64,7 +65,9 @@ def simulate(
     `controller`: any object that meets the controller protocol (`control.protocol`); None: the
     run's own. `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN).
     `session` (the plain pair only, `open_session`): a plant already loaded that the caller keeps.
-    `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`)."""
+    `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`). `calling`
+    (a system only): where the execution writes which component it calls
+    (`systems.simulate_system`)."""
     if run.system.is_pair:
         return simulate_pair(run, plant, progress, buffer, controller, session, coupling)
     if coupling is not None and coupling not in COUPLINGS:
@@ -72,4 +75,4 @@ def simulate(
     if session is not None:
         close_controller(controller)
         raise ValueError("a system's run loads its own components: simulate it without session=")
-    return simulate_system(run, plant, progress, buffer, controller, coupling)
+    return simulate_system(run, plant, progress, buffer, controller, coupling, calling)

@@ -66,10 +66,11 @@ _COMPONENT_POINTERS = (
     "late_slot",
     "scratch",
 )
-_COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late")
+_COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id")
 _SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record")
 _SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
 _SYSTEM_DOUBLES = ("T_s",)
+_SYSTEM_AFTER = ("calling",)  # pointers after T_s
 
 
 class ComponentCallError(RuntimeError):
@@ -93,6 +94,7 @@ def _system_struct() -> type[ctypes.Structure]:
     fields = [*((name, ctypes.c_void_p) for name in _SYSTEM_POINTERS)]
     fields += [(name, ctypes.c_long) for name in _SYSTEM_LONGS]
     fields += [(name, ctypes.c_double) for name in _SYSTEM_DOUBLES]
+    fields += [(name, ctypes.c_void_p) for name in _SYSTEM_AFTER]
     return type("_System", (ctypes.Structure,), {"_fields_": fields})
 
 
@@ -154,6 +156,9 @@ class SystemLoop:
         n: the last sample (t_n = n T_s is recorded, and no doStep is made from it).
         T_s: the communication step [s].
         library: the compiled library (None: `system_library()`; ValueError when there is none).
+        calling: an int64 array whose element 0 the loop sets, before each call of a component,
+            to that component's entry of `ids` (per component in plan.order; default 1, 2, ...):
+            a supervising process that shares it knows whose call ended the process.
     """
 
     def __init__(
@@ -165,6 +170,8 @@ class SystemLoop:
         n: int,
         T_s: float,
         library: ctypes.CDLL | None = None,
+        calling: np.ndarray | None = None,
+        ids: Sequence[int] | None = None,
     ) -> None:
         library = library if library is not None else system_library()
         if library is None:
@@ -207,6 +214,7 @@ class SystemLoop:
             entry.fmi3 = 1 if calls.fmi3 else 0
             entry.n_out, entry.out0 = len(outputs), outputs[0] if outputs else 0
             entry.n_early, entry.n_late = len(early), len(late)
+            entry.id = ids[c] if ids is not None else c + 1
         buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
         source = np.ascontiguousarray(plan.feed_source, dtype=np.int64)
         factor = np.ascontiguousarray(plan.feed_factor, dtype=np.float64)
@@ -214,13 +222,18 @@ class SystemLoop:
         record = np.ascontiguousarray(plan.record, dtype=np.int64)
         if ctypes.sizeof(ctypes.c_long) != 8:  # the C tables are longs
             source, record = source.astype(np.int32), record.astype(np.int32)
-        keep += [table, buffer, source, factor, offset, record]
+        if calling is None:
+            calling = np.zeros(1, dtype=np.int64)
+        if calling.dtype != np.int64 or calling.size < 1:
+            raise ValueError("calling must be an int64 array of at least one element")
+        keep += [table, buffer, source, factor, offset, record, calling]
         s = _system_struct()()
         s.components, s.buffer = ctypes.addressof(table), buffer.ctypes.data
         s.source, s.factor, s.offset = source.ctypes.data, factor.ctypes.data, offset.ctypes.data
         s.signals, s.trace, s.record = signals.ctypes.data, trace.ctypes.data, record.ctypes.data
         s.n_components, s.n_signals, s.n_record, s.n = count, m, len(plan.record), n
         s.T_s = self.T_s
+        s.calling = calling.ctypes.data
         self._keep = keep  # everything the C side points into stays alive with the loop
         self._functions = tuple(functions)
         self._state = s
@@ -246,11 +259,19 @@ class SystemLoop:
 
 
 def compiled_system(
-    plan: Plan, slaves: Sequence[object], signals: np.ndarray, trace: np.ndarray, n: int, T_s: float
+    plan: Plan,
+    slaves: Sequence[object],
+    signals: np.ndarray,
+    trace: np.ndarray,
+    n: int,
+    T_s: float,
+    calling: np.ndarray | None = None,
+    ids: Sequence[int] | None = None,
 ) -> SystemLoop | str:
     """The compiled loop over `slaves` (in plan.order, instantiated and initialised; each with a
     `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has), or why there is none: one
-    line naming the first component run in Python, or why the library is missing."""
+    line naming the first component run in Python, or why the library is missing. `calling`,
+    `ids`: as for `SystemLoop`."""
     library = system_library()
     if library is None:
         return f"no compiled system loop: {system_library_reason()}"
@@ -261,4 +282,4 @@ def compiled_system(
         if not isinstance(calls, CFunctions):
             return f"component {name} runs in Python ({type(slave).__name__}): the compiled system loop calls FMUs only"
         functions.append(calls)
-    return SystemLoop(plan, functions, signals, trace, n, T_s, library)
+    return SystemLoop(plan, functions, signals, trace, n, T_s, library, calling, ids)

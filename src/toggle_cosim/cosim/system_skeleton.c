@@ -28,6 +28,7 @@ typedef struct {
     const long *early_slot, *late_slot;         /* their buffer slots */
     double *scratch;                            /* max(n_early, n_late) values, gathered for one setReal */
     long fmi3, n_out, out0, n_early, n_late;    /* out0: the buffer slot of its first output */
+    long id;                                    /* what *calling holds while it is called */
 } component_t;
 
 typedef struct {
@@ -42,6 +43,8 @@ typedef struct {
     long k, failed, fault, status; /* next sample; on a failure the component, the call (1 get, 2 set, 3 step), its status */
     long no_prior;              /* doStep's noSetFMUStatePriorToCurrentPoint, for every component */
     double T_s;
+    long long *calling;         /* the id of the component being called, written before each call: a
+                                   supervising process reads it when a call ends the process */
 } system_t;
 
 enum { DONE = 0, FMI_FAILED = 2 };
@@ -110,6 +113,7 @@ int system_run(system_t *s, long k_end) {
         double t = (double)k * s->T_s, *out = s->trace + k * (1 + s->n_record);
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
+            *s->calling = p->id;
             if (p->n_early) {
                 compute(s, p, p->early_slot, p->n_early, row);
                 status = set_inputs(p, p->early_vr, p->n_early, p->scratch);
@@ -130,12 +134,14 @@ int system_run(system_t *s, long k_end) {
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
             if (p->n_late) {
+                *s->calling = p->id;
                 for (i = 0; i < p->n_late; i++) { p->scratch[i] = s->buffer[p->late_slot[i]]; }
                 status = set_inputs(p, p->late_vr, p->n_late, p->scratch);
                 if (FAILED(status)) { return fail(s, k, c, CALL_SET, status); }
             }
         }
         for (c = 0; c < s->n_components; c++) {
+            *s->calling = s->components[c].id;
             status = do_step(&s->components[c], t, s->T_s, s->no_prior != 0);
             if (FAILED(status)) { return fail(s, k, c, CALL_STEP, status); }
         }

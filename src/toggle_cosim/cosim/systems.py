@@ -57,7 +57,15 @@ from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
 from toggle_cosim.system.units import BASE, conversion, unit_meaning
 
-__all__ = ["SystemError_", "Assembly", "assemble", "simulate_system", "system_columns", "unit_conversion"]
+__all__ = [
+    "SystemError_",
+    "Assembly",
+    "assemble",
+    "component_names",
+    "simulate_system",
+    "system_columns",
+    "unit_conversion",
+]
 
 COMMAND = "iq_ref"
 
@@ -107,6 +115,13 @@ def unit_conversion(
     if m_s[-2:] == m_e[-2:]:
         return None
     return conversion(m_s, m_e)
+
+
+def component_names(wiring: Wiring) -> tuple[str, ...]:
+    """A system's components as a run lists them: the plant, the controller, then the parts in
+    the order written. A component's id while the master calls it is 1 + its place here
+    (`simulate_system`'s `calling`)."""
+    return (wiring.plant, wiring.controller, *(part.name for part in wiring.parts))
 
 
 def pair_connections(wiring: Wiring, controller_inputs: Sequence[str]) -> tuple[Connection, ...]:
@@ -351,10 +366,13 @@ def simulate_system(
     buffer: np.ndarray | None = None,
     controller: Controller | None = None,
     coupling: str | None = None,
+    calling: np.ndarray | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
-    ControllerError for a system that cannot be assembled."""
+    ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
+    word shared with a supervising process): element 0 holds, while a component is called, its
+    id (`component_names`), and 0 outside the run's loop."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
         run = dataclasses.replace(run, coupling=coupling)
@@ -374,14 +392,19 @@ def simulate_system(
     if progress is not None:
         every = max(n // 100, 1)
         hooks.append(lambda k: progress(k * run.T_s / run.t_end) if k % every == 0 else None)
-    execution = Execution(plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks)
+    calling = calling if calling is not None else np.zeros(1, dtype=np.int64)
+    names = component_names(run.system)
+    ids = [names.index(name) + 1 for name in plan.order]
+    execution = Execution(
+        plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks, calling, ids
+    )
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
     compiled: SystemLoop | str = "the run ended before its first sample"
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
-        compiled = compiled_system(plan, assembly.slaves, assembly.signals, data, n, run.T_s)
+        compiled = compiled_system(plan, assembly.slaves, assembly.signals, data, n, run.T_s, calling, ids)
         if isinstance(compiled, SystemLoop):
             _run_compiled(compiled, assembly.slaves, observer, data, n, progress, run)
         else:
@@ -394,6 +417,7 @@ def simulate_system(
         loop_finished = clock.perf_counter()
         reason = str(error)
     finally:
+        calling[0] = 0
         assembly.close()
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])
