@@ -421,3 +421,69 @@ def test_a_part_that_crashes_or_hangs_is_named_in_the_reason(
     assert record["status"] == "failed"
     assert record["reason"] == f"component 'faulty' (FaultyPart.fmu) {said} at t = 0.005 s", record["reason"]
     assert record["samples"] == 11  # t = 0 .. 0.005 s recorded, the step from 0.005 s not done
+
+
+# -- recording variables of other types ---------------------------------------------------------
+@pytest.fixture(scope="module")
+def typed_part(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """tests/models/typed_part: an FMI 2.0 part in C whose Integer `count` (the doSteps taken) and
+    Boolean `flag` (count is odd) share value references 1 and 2 with the Reals y = x + 1000 and
+    z = -7, as FMI 2.0 allows; a String local `label` too. Built with the C compiler."""
+    import shutil
+    import zipfile
+
+    source = ROOT / "tests" / "models" / "typed_part"
+    folder = tmp_path_factory.mktemp("typed-part")
+    library = folder / "SharedRefs.so"
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    subprocess.run([compiler, "-shared", "-fPIC", "-O1", "-o", str(library), str(source / "SharedRefs.c")], check=True)
+    fmu = folder / "SharedRefs.fmu"
+    with zipfile.ZipFile(fmu, "w") as archive:
+        archive.write(source / "modelDescription.xml", "modelDescription.xml")
+        archive.write(library, "binaries/linux64/SharedRefs.so")
+    fmu.chmod(0o644)
+    return fmu
+
+
+@pytest.mark.parametrize("engine", ["compiled", "python"])
+def test_integer_and_boolean_variables_are_recorded_with_their_type(
+    plant, typed_part: Path, engine: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`record:` of a part's Integer and Boolean outputs (sharing value references with Reals) and
+    of the plant's Integer solver.steps reads each with its own getter: count is the sample k,
+    flag k mod 2, y = x_B + 1000 (not the Real of count's reference), solver.steps the plant's
+    integrator steps (0 at t = 0, growing); the same values in both loops."""
+    if engine == "python":
+        monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+    run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.01)
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> shared.x"))
+    chosen = tuple(
+        Port.parse(p) for p in ("shared.count", "shared.flag", "shared.y", "plant.x_B", "plant.solver.steps")
+    )
+    wiring = Wiring(parts=(Part("shared", typed_part),), connections=wires, record=chosen)
+    outcome = master.simulate(dataclasses.replace(run, system=wiring), plant)
+    assert outcome.complete, outcome.reason
+    assert outcome.record["loop"]["kind"] == f"system, {engine}"
+    k = np.arange(21)
+    assert np.array_equal(outcome.trace.column("shared.count"), k)
+    assert np.array_equal(outcome.trace.column("shared.flag"), k % 2)
+    assert np.array_equal(outcome.trace.column("shared.y"), outcome.trace.column("plant.x_B") + 1000.0)
+    steps = outcome.trace.column("plant.solver.steps")
+    assert steps[0] == 0 and np.all(np.diff(steps) > 0) and np.all(steps == np.round(steps))
+
+
+def test_a_string_is_not_recorded_and_an_integer_is_not_connected(plant, typed_part: Path) -> None:
+    """A String variable in `record:`, and a connection from an Integer output: each refused in one
+    line before anything is loaded."""
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> shared.x"))
+    label = Wiring(parts=(Part("shared", typed_part),), connections=wires, record=(Port("shared", "label"),))
+    with pytest.raises(systems.SystemError_, match=r"key record: shared\.label is a String variable; the trace holds"):
+        systems.system_columns(dataclasses.replace(run, system=label), plant)
+    counted = Wiring(
+        parts=(Part("shared", typed_part),),
+        connections=(*wires, _c("shared.count -> plant.F_E")),
+        record=(Port("shared", "count"),),
+    )
+    with pytest.raises(systems.SystemError_, match=r"starts at shared\.count, which is not a Real output of 'shared'"):
+        systems.system_columns(dataclasses.replace(run, system=counted), plant)

@@ -5,7 +5,8 @@ connection table, for any number of FMUs (FMI 2.0 and 3.0 Co-Simulation).
 `fmi_pointers.fmu_functions` of an fmpy slave: its outputs' value references in the plan's
 `output_names[c]` order, its fed inputs' in `input_names[c]` order) and runs samples k0 .. k_end - 1
 as the plan's docstring says (cosim/system_skeleton.c): per component one setReal for its early
-inputs and one getReal for its outputs, then one setReal for its late inputs and a doStep each.
+inputs and one getReal for its outputs (then one getter call per recorded output of another type,
+`CFunctions.reads`), then one setReal for its late inputs and a doStep each.
 Each sample's row goes into the caller's preallocated trace: column 0 t_k = k T_s, column 1 + i
 the value of the slot plan.record[i]. An input fed through a unit conversion gets factor · value
 + offset with Python's bits (compiled without contraction); an identity connection copies.
@@ -52,6 +53,7 @@ __all__ = [
 
 DONE, FMI_FAILED = 0, 2  # system_run's return codes (system_skeleton.c)
 _CALLS = {1: "get", 2: "set", 3: "step"}
+_TYPED = 4  # fault 4 + i: the component's typed read i (`fmi_pointers.TypedRead`)
 
 # The C structs' fields, in their order in system_skeleton.c.
 _COMPONENT_POINTERS = (
@@ -65,8 +67,12 @@ _COMPONENT_POINTERS = (
     "early_slot",
     "late_slot",
     "scratch",
+    "typed_get",
+    "typed_vr",
+    "typed_kind",
+    "typed_slot",
 )
-_COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id")
+_COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id", "n_typed")
 _SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record")
 _SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
 _SYSTEM_DOUBLES = ("T_s",)
@@ -198,21 +204,35 @@ class SystemLoop:
             in_vr = (ctypes.c_uint32 * len(inputs)).from_address(calls.in_vr) if inputs else ()
             early = plan.early[c]
             late = plan.late(c)
+            reads = calls.reads
             arrays = (
                 (ctypes.c_uint32 * max(len(early), 1))(*(in_vr[i] for i in early)),
                 (ctypes.c_uint32 * max(len(late), 1))(*(in_vr[i] for i in late)),
                 _longs([inputs[i] for i in early]),
                 _longs([inputs[i] for i in late]),
                 (ctypes.c_double * max(len(inputs), 1))(),
+                (ctypes.c_void_p * max(len(reads), 1))(*(read.address for read in reads)),
+                (ctypes.c_uint32 * max(len(reads), 1))(*(read.vr for read in reads)),
+                _longs([read.kind for read in reads]),
+                _longs([outputs[read.position] for read in reads]),
             )
             keep.append(arrays)
             entry.get, entry.set, entry.step, entry.component = calls.get, calls.set, calls.step, calls.component
             entry.out_vr = calls.out_vr
-            entry.early_vr, entry.late_vr, entry.early_slot, entry.late_slot, entry.scratch = (
-                ctypes.addressof(a) for a in arrays
-            )
+            (
+                entry.early_vr,
+                entry.late_vr,
+                entry.early_slot,
+                entry.late_slot,
+                entry.scratch,
+                entry.typed_get,
+                entry.typed_vr,
+                entry.typed_kind,
+                entry.typed_slot,
+            ) = (ctypes.addressof(a) for a in arrays)
             entry.fmi3 = 1 if calls.fmi3 else 0
-            entry.n_out, entry.out0 = len(outputs), outputs[0] if outputs else 0
+            entry.n_out, entry.out0 = len(outputs) - len(reads), outputs[0] if outputs else 0
+            entry.n_typed = len(reads)
             entry.n_early, entry.n_late = len(early), len(late)
             entry.id = ids[c] if ids is not None else c + 1
         buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
@@ -252,9 +272,12 @@ class SystemLoop:
     def failure(self) -> ComponentCallError:
         """The error of the failed call of the last `run` that returned FMI_FAILED."""
         s = self._state
-        c = int(s.failed)
+        c, fault = int(s.failed), int(s.fault)
         names = self._functions[c].names
-        function = getattr(names, _CALLS[int(s.fault)])
+        if fault >= _TYPED:
+            function = self._functions[c].reads[fault - _TYPED].name
+        else:
+            function = getattr(names, _CALLS[fault])
         return ComponentCallError(self.plan.order[c], function, int(s.status), int(s.k) * self.T_s)
 
 

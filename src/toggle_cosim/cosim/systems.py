@@ -39,6 +39,7 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import controller_for, fmu_settings
 from toggle_cosim.cosim.execution import Execution, TraceObserver
+from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.law_fmu import law_fmu
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
@@ -143,7 +144,9 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
                     f"{where}: the connection {connection} names the component {port.component!r}, which the system "
                     f"does not have (its components: {', '.join(interfaces)})"
                 )
-            wanted = interface.outputs if side == "start" else interface.inputs
+            wanted = (
+                tuple(v for v in interface.outputs if v not in interface.typed) if side == "start" else interface.inputs
+            )
             if port.variable not in wanted:
                 kind = "output" if side == "start" else "input"
                 known = ", ".join(wanted) or "none"
@@ -253,6 +256,12 @@ def assemble(
                 raise SystemError_(
                     f"{where}: key record: {port} is not a variable of the system (its components: "
                     f"{', '.join(interfaces)}; an FMU's variables by their names in its modelDescription.xml)"
+                )
+            kind = interface.typed.get(port.variable)
+            if kind is not None and kind not in RECORDED_TYPES:
+                raise SystemError_(
+                    f"{where}: key record: {port} is a {kind} variable; the trace holds numbers (record Real, Integer,"
+                    " Boolean or Enumeration variables)"
                 )
             if port.variable in interface.inputs and port not in fed and port not in signal_ports:
                 raise SystemError_(
