@@ -424,25 +424,30 @@ def test_a_part_that_crashes_or_hangs_is_named_in_the_reason(
 
 
 # -- recording variables of other types ---------------------------------------------------------
-@pytest.fixture(scope="module")
-def typed_part(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """tests/models/typed_part: an FMI 2.0 part in C whose Integer `count` (the doSteps taken) and
-    Boolean `flag` (count is odd) share value references 1 and 2 with the Reals y = x + 1000 and
-    z = -7, as FMI 2.0 allows; a String local `label` too. Built with the C compiler."""
+def _typed_part(folder: Path, *defines: str) -> Path:
+    """tests/models/typed_part built into `folder`: an FMI 2.0 part in C whose Integer `count`
+    (the doSteps taken) and Boolean `flag` (count is odd) share value references 1 and 2 with the
+    Reals y = x + 1000 and z = -7, as FMI 2.0 allows; a String local `label` too. `defines`: -D
+    options for the C compiler."""
     import shutil
     import zipfile
 
     source = ROOT / "tests" / "models" / "typed_part"
-    folder = tmp_path_factory.mktemp("typed-part")
     library = folder / "SharedRefs.so"
     compiler = shutil.which("cc") or shutil.which("gcc")
-    subprocess.run([compiler, "-shared", "-fPIC", "-O1", "-o", str(library), str(source / "SharedRefs.c")], check=True)
+    command = [compiler, "-shared", "-fPIC", "-O1", *defines, "-o", str(library), str(source / "SharedRefs.c")]
+    subprocess.run(command, check=True)
     fmu = folder / "SharedRefs.fmu"
     with zipfile.ZipFile(fmu, "w") as archive:
         archive.write(source / "modelDescription.xml", "modelDescription.xml")
         archive.write(library, "binaries/linux64/SharedRefs.so")
     fmu.chmod(0o644)
     return fmu
+
+
+@pytest.fixture(scope="module")
+def typed_part(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _typed_part(tmp_path_factory.mktemp("typed-part"))
 
 
 @pytest.mark.parametrize("engine", ["compiled", "python"])
@@ -487,3 +492,17 @@ def test_a_string_is_not_recorded_and_an_integer_is_not_connected(plant, typed_p
     )
     with pytest.raises(systems.SystemError_, match=r"starts at shared\.count, which is not a Real output of 'shared'"):
         systems.system_columns(dataclasses.replace(run, system=counted), plant)
+
+
+def test_a_part_whose_binary_lacks_a_function_fails_naming_it(plant, tmp_path: Path) -> None:
+    """The part's library does not export fmi2CancelStep, which fmpy binds when it loads it: the
+    run fails with a reason naming the component, its FMU and the missing function (not a Python
+    error said of the plant)."""
+    part = _typed_part(tmp_path, "-Dfmi2CancelStep=notExported")
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> shared.x"))
+    wiring = Wiring(parts=(Part("shared", part),), connections=wires)
+    outcome = master.simulate(dataclasses.replace(run, system=wiring), plant)
+    assert not outcome.complete
+    assert outcome.reason.startswith("component 'shared' (SharedRefs.fmu): its binary could not be loaded (")
+    assert "fmi2CancelStep" in outcome.reason

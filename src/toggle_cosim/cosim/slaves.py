@@ -138,7 +138,12 @@ class FmuSlave:
             instanceName=self._instance,
             guid=description.guid if not self.fmi3 else description.instantiationToken,
         )
-        slave = (FMU3SlaveChecked if self.fmi3 else FMU2SlaveChecked)(**kwargs)
+        try:  # fmpy loads the binary and binds every FMI function here
+            slave = (FMU3SlaveChecked if self.fmi3 else FMU2SlaveChecked)(**kwargs)
+        except Exception as error:  # noqa: BLE001 - a binary that does not load, or lacks a function
+            raise SlaveError(
+                f"component {self.name!r} ({self.path.name}): its binary could not be loaded ({error_text(error, 200)})"
+            ) from None
         self._slave = slave
         last_log_line(self._instance, forget=True)
         quiet(self._instance)
