@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from toggle_cosim.cosim import master, systems
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
@@ -506,3 +507,35 @@ def test_a_part_whose_binary_lacks_a_function_fails_naming_it(plant, tmp_path: P
     assert not outcome.complete
     assert outcome.reason.startswith("component 'shared' (SharedRefs.fmu): its binary could not be loaded (")
     assert "fmi2CancelStep" in outcome.reason
+
+
+def test_a_sweep_case_whose_part_crashes_names_the_part(plant_fmu: Path, tmp_path: Path) -> None:
+    """In a sweep, a case whose part segfaults in its doStep (its plant host dies) fails with the
+    reason naming the component and its FMU; the sweep goes on to the next case."""
+    from python_fmus import build_python_fmu
+
+    from toggle_cosim.experiments.sweep import read_results, run_sweep
+
+    build_python_fmu(FAULTY_PART, tmp_path, "FaultyPart")
+    _scenario(
+        tmp_path,
+        f"""\
+        fmu: {plant_fmu}
+        components: {{faulty: {{fmu: FaultyPart.fmu, parameters: {{mode: 0}}}}}}
+        connections:
+          - plant.x_B -> controller.x_B
+          - plant.v_B -> controller.v_B
+          - controller.iq_ref -> plant.iq_ref
+          - plant.x_B -> faulty.x
+        """,
+    )
+    sweep = {"base": "system.yaml", "axes": {"plant.F_E": {"values": [0.0, 10.0]}}, "output": "swept"}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    assert run_sweep(tmp_path / "sweep.yaml", None, 1, plant_fmu, progress=False, keep_traces=False) == 1
+    table = read_results(tmp_path / "swept")
+    assert list(table["status"]) == ["failed", "failed"]
+    for reason in table["reason"]:
+        assert reason == (
+            "component 'faulty' (FaultyPart.fmu) ended the run's process: it was killed by SIGSEGV while the master"
+            " called it at t = 0.005 s"
+        ), reason
