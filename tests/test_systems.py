@@ -539,3 +539,17 @@ def test_a_sweep_case_whose_part_crashes_names_the_part(plant_fmu: Path, tmp_pat
             "component 'faulty' (FaultyPart.fmu) ended the run's process: it was killed by SIGSEGV while the master"
             " called it at t = 0.005 s"
         ), reason
+
+
+def test_a_sweep_over_the_sample_time_runs_a_system_at_each(plant_fmu: Path, tmp_path: Path) -> None:
+    """`record:` makes the pair a system, whose built-in law runs as its FMU: a sweep over T_s
+    (0.5 ms, the FMU's default step, and 1 ms) completes every case."""
+    from toggle_cosim.experiments.sweep import read_results, run_sweep
+
+    _scenario(tmp_path, f"fmu: {plant_fmu}\nrecord: [plant.x_B, controller.iq_ref]\n")
+    sweep = {"base": "system.yaml", "axes": {"T_s": {"values": [0.0005, 0.001]}}, "output": "swept"}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    assert run_sweep(tmp_path / "sweep.yaml", None, 1, plant_fmu, progress=False, keep_traces=False) == 0
+    table = read_results(tmp_path / "swept")
+    assert list(table["status"]) == ["ok", "ok"], list(table["reason"])
+    assert list(table["samples"]) == [201, 101]
