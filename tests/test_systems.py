@@ -553,3 +553,32 @@ def test_a_sweep_over_the_sample_time_runs_a_system_at_each(plant_fmu: Path, tmp
     table = read_results(tmp_path / "swept")
     assert list(table["status"]) == ["ok", "ok"], list(table["reason"])
     assert list(table["samples"]) == [201, 101]
+
+
+def test_a_sample_time_of_its_own_for_the_law_fmu_is_refused_in_one_line(
+    plant_fmu: Path, vsc_fmu: Path, tmp_path: Path
+) -> None:
+    """A controller FMU of the built-in law steps at its parameter T_s, which the master sets to the
+    run's: controller.parameters.T_s other than the run's is refused before any run, exit 2, one
+    line naming the key (the FMU would refuse every step); the run's own value is accepted."""
+    out = tmp_path / "out"
+    for given, code in ((0.0005, 2), (0.001, 0)):
+        path = _scenario(
+            tmp_path,
+            f"fmu: {plant_fmu}\ncontroller: {{fmu: {vsc_fmu}, parameters: {{T_s: {given}}}}}\n",
+        )
+        text = path.read_text(encoding="utf-8").replace("T_s: 0.0005\n", "T_s: 0.001\n", 1)
+        path.write_text(text.replace("t_end: 0.1", "t_end: 0.01"), encoding="utf-8")
+        done = subprocess.run(
+            [sys.executable, "-m", "toggle_cosim", "run", str(path), "--out", str(out), "-q"],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert done.returncode == code, done.stderr
+        if code == 2:
+            assert done.stderr.count("\n") == 1, done.stderr
+            assert "key controller.parameters.T_s: the controller FMU ToggleVSC.fmu steps at its parameter T_s" in (
+                done.stderr
+            )
+            assert not out.exists()
