@@ -639,10 +639,11 @@ class SupervisedRun:
             return master.refused_outcome(run, plant, self.refused, self.started)
         if answer is not None and answer[0] == "refused" and reason is None:
             return master.refused_outcome(run, plant, answer[1], self.started)
-        if answer is not None and answer[0] == "outcome" and reason is None and not ended_cleanly(self.status):
-            # its answer came, but the process was killed (by the run's own code: a controller that
-            # killed its parent) or exited with an error after sending it: the run fails
-            reason = exit_reason(self.status)
+        if answer is not None and answer[0] == "outcome" and answer[1] and reason is None:
+            if not ended_cleanly(self.status):
+                # its complete answer came, but then the process was killed (by the run's own code: a
+                # controller that killed its parent) or exited with an error: the run fails
+                reason = f"{exit_reason(self.status)} after the run's last sample"
         if answer is not None and answer[0] == "outcome" and reason is None:
             _, complete, child_reason, _, loop_s, summary, record, child_interrupted = answer
             record["wall_time_s"] = wall
