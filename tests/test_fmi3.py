@@ -605,3 +605,34 @@ def test_the_python_loops_plant_exchange_gives_the_three_calls_trace(
     through, three = _run(plant, monkeypatch, True), _run(plant, monkeypatch, False)
     assert through.complete and through.record["samples"] == 1001
     _same(through, three)
+
+
+@pytest.mark.parametrize("kernel", ["1", "0"])
+def test_record_reads_an_fmi3_plants_int64_and_boolean_with_their_getters(
+    plant3_fmu: Path, plant_fmu: Path, kernel: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`record:` of the FMI 3.0 plant's Int64 solver.steps and Boolean idealCurrentLoop reads them
+    by fmi3GetInt64 and fmi3GetBoolean (compiled and Python system loop): the FMI 2.0 plant's values,
+    read by fmi2GetInteger and fmi2GetBoolean, the same solver's counts."""
+    import dataclasses
+
+    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.experiments.scenario import load_scenario
+    from toggle_cosim.plant.contract import check_plant
+    from toggle_cosim.system.model import Port, Wiring
+
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", kernel)
+    run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.02)
+    chosen = tuple(Port("plant", name) for name in ("x_B", "solver.steps", "idealCurrentLoop"))
+    run = dataclasses.replace(run, system=Wiring(record=chosen))
+    traces = []
+    for fmu in (plant3_fmu, plant_fmu):
+        outcome = simulate(run, check_plant(fmu))
+        assert outcome.complete, outcome.reason
+        assert outcome.record["loop"]["kind"] == f"system, {'compiled' if kernel == '1' else 'python'}"
+        traces.append(outcome.trace)
+    steps = traces[0].column("plant.solver.steps")
+    assert steps[0] == 0 and steps[-1] > 40 and np.all(np.diff(steps) > 0)
+    assert np.all(traces[0].column("plant.idealCurrentLoop") == 0.0)
+    for name in ("plant.x_B", "plant.solver.steps", "plant.idealCurrentLoop"):
+        assert np.array_equal(traces[0].column(name), traces[1].column(name)), name

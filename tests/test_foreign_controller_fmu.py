@@ -211,7 +211,21 @@ REFUSALS = {
         lambda fmu, out: _edited(fmu, out, ("<CoSimulation", "<ModelExchange")),
         "the FMU does not support Co-Simulation",
     ),
+    "a fixed step of its own": (
+        lambda fmu, out: _fixed_step(fmu, out),
+        "the controller FMU steps only at its own step 0.001 s, not T_s = 0.0005 s",
+    ),
 }
+
+
+def _fixed_step(fmu: Path, out: Path) -> Path:
+    """A copy of `fmu` that steps only at its own step, 1 ms (no parameter T_s: not the built-in law's)."""
+    return _edited(
+        fmu,
+        out,
+        ('canHandleVariableCommunicationStepSize="true"', 'canHandleVariableCommunicationStepSize="false"'),
+        ("<ModelVariables>", '<DefaultExperiment stepSize="0.001"/>\n\t<ModelVariables>'),
+    )
 
 
 @pytest.mark.parametrize("case", sorted(REFUSALS))
@@ -232,6 +246,25 @@ def test_a_controller_fmu_that_breaks_the_contract_is_refused_in_one_line(
     else:
         assert expected in lines[0]
     assert not out.exists()  # nothing written
+
+
+def test_a_fixed_step_fmu_in_a_system_is_refused_in_one_line(tmp_path: Path, plant_fmu: Path, pd_fmu: Path) -> None:
+    """A controller FMU that steps only at 1 ms, in a system (`record:`) at T_s = 0.5 ms: one line
+    naming the file and the fix, exit 2, before any run, nothing written."""
+    bad = _fixed_step(pd_fmu, tmp_path / "Fixed.fmu")
+    scenario = _scenario(tmp_path, plant_fmu, "Fixed.fmu")
+    document = yaml.safe_load(scenario.read_text(encoding="utf-8"))
+    document["record"] = ["plant.x_B", "controller.iq_ref"]
+    scenario.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(scenario), "--out", str(out), "-q"])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1, result.output
+    assert lines[0].startswith(
+        f"error: {scenario}: key controller.fmu: {bad}: the controller FMU steps only at its own"
+    )
+    assert "(set T_s to its step, or rebuild it for T_s)" in lines[0]
+    assert not out.exists()
 
 
 def test_the_unit_of_iq_ref_must_be_ampere(tmp_path: Path, pd_fmu: Path) -> None:

@@ -327,3 +327,39 @@ def test_a_point_beyond_the_linkages_reach_is_one_line(plant_fmu, tmp_path, x_B)
     assert result.exit_code == 2 and "Traceback" not in result.output and not out.exists(), result.output
     assert lines[-1].startswith(f"error: {scenario}: x_B = {x_B:g} m is beyond the linkage's reach, 0.17 m (folded)")
     assert len(lines) <= 2  # the friction-free warning at most, then the error
+
+
+def test_a_system_is_refused_naming_what_linearize_would_drop(plant_fmu, press_parts, tmp_path):
+    """The press example (a sensor, and a die whose force feeds plant.F_E): `linearize` would take
+    the plant alone at F_E = 0, so it refuses in one line naming the parts and the connection into
+    the plant, exit 2, nothing written; tc.trim and tc.linearize raise the same TrimError. The
+    pair with a `record:` list alone is still the plant's run."""
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+    from toggle_cosim.system.model import Port, Wiring
+
+    source = (ROOT / "examples" / "press_system" / "press.yaml").read_text(encoding="utf-8")
+    for name, path in press_parts.items():
+        source = source.replace(f"../../fmus/{name}.fmu", str(path))
+    scenario = tmp_path / "press.yaml"
+    scenario.write_text(source.replace("../../fmus/ToggleLSM.fmu", str(plant_fmu)), encoding="utf-8")
+    out = tmp_path / "press.npz"
+    result = CliRunner().invoke(main, ["linearize", str(scenario), "--x-B", "0.3", "--out", str(out)])
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1, result.output
+    assert lines[0].startswith(f"error: {scenario}: keys components:/connections: press_system/paper is a system")
+    assert "components sensor, die; connections die.F -> plant.F_E" in lines[0]
+    assert not out.exists()
+    run = tc.load_scenario(scenario)["paper"]
+    with pytest.raises(TrimError, match="would drop them"):
+        tc.trim(run, 0.3)
+    point = trim(
+        plant=checked_plant(plant_fmu),
+        run=tc.load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")["friction"],
+        x_B=0.3,
+    )
+    with pytest.raises(TrimError, match="would drop them"):
+        tc.linearize(run, point)
+    recorded = dataclasses.replace(run, system=Wiring(record=(Port("plant", "x_B"),)))
+    assert tc.trim(recorded, 0.3, fmu=plant_fmu).x_B == pytest.approx(0.3)

@@ -9,6 +9,7 @@ the order, the algebraic loops, the units and the scenario keys behave as docume
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 import subprocess
 import sys
@@ -17,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from toggle_cosim.cosim import master, systems
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
@@ -151,6 +153,29 @@ def test_the_pair_as_a_system_gives_the_fixed_loops_bits(
         assert np.array_equal(fixed.trace.column(name), system.trace.column(column)), name
     # the phase switch happened inside the window: the comparison covers both phases
     assert set(np.unique(fixed.trace.column("phase"))) == {0.0, 1.0}
+
+
+@pytest.mark.parametrize("law", ["built-in", "fmu"])
+def test_a_system_at_another_sample_time_gives_the_pairs_bits(plant, vsc_fmu: Path, law: str) -> None:
+    """At T_s = 1 ms (the law's FMU has 0.5 ms as its default step, and steps at its parameter
+    T_s, which the master sets to the run's): the pair wired as a system, and `record:` alone,
+    run the built-in law's FMU (or a controller FMU of the built-in law) in the compiled system
+    loop and give the pair's fixed loop at 1 ms bit for bit."""
+    run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], T_s=0.001)
+    if law == "fmu":
+        run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
+    fixed = master.simulate(run, plant)
+    assert fixed.complete, fixed.reason
+    wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
+    recorded = Wiring(record=(Port("plant", "x_B"), Port("controller", "iq_ref")))
+    for wiring in (wired, recorded):
+        system = master.simulate(dataclasses.replace(run, system=wiring), plant)
+        assert system.complete, system.reason
+        assert system.record["loop"]["kind"] == "system, compiled"
+        assert len(system.trace.time) == 301 and system.trace.time[1] == 0.001
+        for name in ("x_B", "iq_ref"):
+            column = f"{'plant' if name == 'x_B' else 'controller'}.{name}"
+            assert np.array_equal(fixed.trace.column(name), system.trace.column(column)), name
 
 
 def test_a_crossed_wiring_changes_the_trace(plant, vsc_fmu: Path) -> None:
@@ -325,6 +350,238 @@ def test_a_python_controller_reads_its_connected_inputs_only(plant) -> None:
     half = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("controller.iq_ref -> plant.iq_ref")))
     failed = master.simulate(dataclasses.replace(run, system=half), plant, controller=_PD())
     assert not failed.complete and "KeyError" in failed.reason and "'v_B'" in failed.reason
+
+
+FAULTY_PART = '''
+import ctypes
+import time
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+
+
+class FaultyPart(Fmi2Slave):
+    """y = x; its doStep from t = 0.005 s dereferences a null pointer (mode 0) or never returns (mode 1)."""
+
+    author = "toggle-cosim tests"
+    description = "a part that crashes or hangs"
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.x, self.mode = 0.0, 0.0
+        self.register_variable(Real("x", causality=Fmi2Causality.input))
+        self.register_variable(Real("mode", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed))
+        self.register_variable(Real("y", causality=Fmi2Causality.output, getter=lambda: self.x))
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        if current_time >= 0.005:
+            if self.mode == 0.0:
+                ctypes.string_at(0)
+            time.sleep(600)
+        return True
+'''
+
+
+@pytest.mark.parametrize(
+    ("mode", "kernel", "said"),
+    [
+        (0, "1", "ended the run's process: it was killed by SIGSEGV while the master called it"),
+        (0, "0", "ended the run's process: it was killed by SIGSEGV while the master called it"),
+        (1, "1", "did not return: time limit 2 s exceeded while the master called it"),
+    ],
+)
+def test_a_part_that_crashes_or_hangs_is_named_in_the_reason(
+    plant_fmu: Path, tmp_path: Path, mode: int, kernel: str, said: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A part's doStep from t = 0.005 s segfaults (in the compiled system loop and in the Python
+    one) or hangs: the run fails with a reason that names the component and its FMU, not the
+    plant; the trace holds the samples before it."""
+    from python_fmus import build_python_fmu
+
+    build_python_fmu(FAULTY_PART, tmp_path, "FaultyPart")
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", kernel)
+    path = _scenario(
+        tmp_path,
+        f"""\
+        fmu: {plant_fmu}
+        components: {{faulty: {{fmu: FaultyPart.fmu, parameters: {{mode: {mode}}}}}}}
+        connections:
+          - plant.x_B -> controller.x_B
+          - plant.v_B -> controller.v_B
+          - controller.iq_ref -> plant.iq_ref
+          - plant.x_B -> faulty.x
+        """,
+    )
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "toggle_cosim", "run", str(path), "--out", str(out), "-q", "--time-limit", "2"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 1, done.stderr
+    record = json.loads((out / "system" / "run" / "run.json").read_text(encoding="utf-8"))
+    assert record["status"] == "failed"
+    assert record["reason"] == f"component 'faulty' (FaultyPart.fmu) {said} at t = 0.005 s", record["reason"]
+    assert record["samples"] == 11  # t = 0 .. 0.005 s recorded, the step from 0.005 s not done
+
+
+# -- recording variables of other types ---------------------------------------------------------
+def _typed_part(folder: Path, *defines: str) -> Path:
+    """tests/models/typed_part built into `folder`: an FMI 2.0 part in C whose Integer `count`
+    (the doSteps taken) and Boolean `flag` (count is odd) share value references 1 and 2 with the
+    Reals y = x + 1000 and z = -7, as FMI 2.0 allows; a String local `label` too. `defines`: -D
+    options for the C compiler."""
+    import shutil
+    import zipfile
+
+    source = ROOT / "tests" / "models" / "typed_part"
+    library = folder / "SharedRefs.so"
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    command = [compiler, "-shared", "-fPIC", "-O1", *defines, "-o", str(library), str(source / "SharedRefs.c")]
+    subprocess.run(command, check=True)
+    fmu = folder / "SharedRefs.fmu"
+    with zipfile.ZipFile(fmu, "w") as archive:
+        archive.write(source / "modelDescription.xml", "modelDescription.xml")
+        archive.write(library, "binaries/linux64/SharedRefs.so")
+    fmu.chmod(0o644)
+    return fmu
+
+
+@pytest.fixture(scope="module")
+def typed_part(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _typed_part(tmp_path_factory.mktemp("typed-part"))
+
+
+@pytest.mark.parametrize("engine", ["compiled", "python"])
+def test_integer_and_boolean_variables_are_recorded_with_their_type(
+    plant, typed_part: Path, engine: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`record:` of a part's Integer and Boolean outputs (sharing value references with Reals) and
+    of the plant's Integer solver.steps reads each with its own getter: count is the sample k,
+    flag k mod 2, y = x_B + 1000 (not the Real of count's reference), solver.steps the plant's
+    integrator steps (0 at t = 0, growing); the same values in both loops."""
+    if engine == "python":
+        monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+    run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.01)
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> shared.x"))
+    chosen = tuple(
+        Port.parse(p) for p in ("shared.count", "shared.flag", "shared.y", "plant.x_B", "plant.solver.steps")
+    )
+    wiring = Wiring(parts=(Part("shared", typed_part),), connections=wires, record=chosen)
+    outcome = master.simulate(dataclasses.replace(run, system=wiring), plant)
+    assert outcome.complete, outcome.reason
+    assert outcome.record["loop"]["kind"] == f"system, {engine}"
+    k = np.arange(21)
+    assert np.array_equal(outcome.trace.column("shared.count"), k)
+    assert np.array_equal(outcome.trace.column("shared.flag"), k % 2)
+    assert np.array_equal(outcome.trace.column("shared.y"), outcome.trace.column("plant.x_B") + 1000.0)
+    steps = outcome.trace.column("plant.solver.steps")
+    assert steps[0] == 0 and np.all(np.diff(steps) > 0) and np.all(steps == np.round(steps))
+
+
+def test_a_string_is_not_recorded_and_an_integer_is_not_connected(plant, typed_part: Path) -> None:
+    """A String variable in `record:`, and a connection from an Integer output: each refused in one
+    line before anything is loaded."""
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> shared.x"))
+    label = Wiring(parts=(Part("shared", typed_part),), connections=wires, record=(Port("shared", "label"),))
+    with pytest.raises(systems.SystemError_, match=r"key record: shared\.label is a String variable; the trace holds"):
+        systems.system_columns(dataclasses.replace(run, system=label), plant)
+    counted = Wiring(
+        parts=(Part("shared", typed_part),),
+        connections=(*wires, _c("shared.count -> plant.F_E")),
+        record=(Port("shared", "count"),),
+    )
+    with pytest.raises(systems.SystemError_, match=r"starts at shared\.count, which is not a Real output of 'shared'"):
+        systems.system_columns(dataclasses.replace(run, system=counted), plant)
+
+
+def test_a_part_whose_binary_lacks_a_function_fails_naming_it(plant, tmp_path: Path) -> None:
+    """The part's library does not export fmi2CancelStep, which fmpy binds when it loads it: the
+    run fails with a reason naming the component, its FMU and the missing function (not a Python
+    error said of the plant)."""
+    part = _typed_part(tmp_path, "-Dfmi2CancelStep=notExported")
+    run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
+    wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> shared.x"))
+    wiring = Wiring(parts=(Part("shared", part),), connections=wires)
+    outcome = master.simulate(dataclasses.replace(run, system=wiring), plant)
+    assert not outcome.complete
+    assert outcome.reason.startswith("component 'shared' (SharedRefs.fmu): its binary could not be loaded (")
+    assert "fmi2CancelStep" in outcome.reason
+
+
+def test_a_sweep_case_whose_part_crashes_names_the_part(plant_fmu: Path, tmp_path: Path) -> None:
+    """In a sweep, a case whose part segfaults in its doStep (its plant host dies) fails with the
+    reason naming the component and its FMU; the sweep goes on to the next case."""
+    from python_fmus import build_python_fmu
+
+    from toggle_cosim.experiments.sweep import read_results, run_sweep
+
+    build_python_fmu(FAULTY_PART, tmp_path, "FaultyPart")
+    _scenario(
+        tmp_path,
+        f"""\
+        fmu: {plant_fmu}
+        components: {{faulty: {{fmu: FaultyPart.fmu, parameters: {{mode: 0}}}}}}
+        connections:
+          - plant.x_B -> controller.x_B
+          - plant.v_B -> controller.v_B
+          - controller.iq_ref -> plant.iq_ref
+          - plant.x_B -> faulty.x
+        """,
+    )
+    sweep = {"base": "system.yaml", "axes": {"plant.F_E": {"values": [0.0, 10.0]}}, "output": "swept"}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    assert run_sweep(tmp_path / "sweep.yaml", None, 1, plant_fmu, progress=False, keep_traces=False) == 1
+    table = read_results(tmp_path / "swept")
+    assert list(table["status"]) == ["failed", "failed"]
+    for reason in table["reason"]:
+        assert reason == (
+            "component 'faulty' (FaultyPart.fmu) ended the run's process: it was killed by SIGSEGV while the master"
+            " called it at t = 0.005 s"
+        ), reason
+
+
+def test_a_sweep_over_the_sample_time_runs_a_system_at_each(plant_fmu: Path, tmp_path: Path) -> None:
+    """`record:` makes the pair a system, whose built-in law runs as its FMU: a sweep over T_s
+    (0.5 ms, the FMU's default step, and 1 ms) completes every case."""
+    from toggle_cosim.experiments.sweep import read_results, run_sweep
+
+    _scenario(tmp_path, f"fmu: {plant_fmu}\nrecord: [plant.x_B, controller.iq_ref]\n")
+    sweep = {"base": "system.yaml", "axes": {"T_s": {"values": [0.0005, 0.001]}}, "output": "swept"}
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
+    assert run_sweep(tmp_path / "sweep.yaml", None, 1, plant_fmu, progress=False, keep_traces=False) == 0
+    table = read_results(tmp_path / "swept")
+    assert list(table["status"]) == ["ok", "ok"], list(table["reason"])
+    assert list(table["samples"]) == [201, 101]
+
+
+def test_a_sample_time_of_its_own_for_the_law_fmu_is_refused_in_one_line(
+    plant_fmu: Path, vsc_fmu: Path, tmp_path: Path
+) -> None:
+    """A controller FMU of the built-in law steps at its parameter T_s, which the master sets to the
+    run's: controller.parameters.T_s other than the run's is refused before any run, exit 2, one
+    line naming the key (the FMU would refuse every step); the run's own value is accepted."""
+    out = tmp_path / "out"
+    for given, code in ((0.0005, 2), (0.001, 0)):
+        path = _scenario(
+            tmp_path,
+            f"fmu: {plant_fmu}\ncontroller: {{fmu: {vsc_fmu}, parameters: {{T_s: {given}}}}}\n",
+        )
+        text = path.read_text(encoding="utf-8").replace("T_s: 0.0005\n", "T_s: 0.001\n", 1)
+        path.write_text(text.replace("t_end: 0.1", "t_end: 0.01"), encoding="utf-8")
+        done = subprocess.run(
+            [sys.executable, "-m", "toggle_cosim", "run", str(path), "--out", str(out), "-q"],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert done.returncode == code, done.stderr
+        if code == 2:
+            assert done.stderr.count("\n") == 1, done.stderr
+            assert "key controller.parameters.T_s: the controller FMU ToggleVSC.fmu steps at its parameter T_s" in (
+                done.stderr
+            )
+            assert not out.exists()
 
 
 @pytest.fixture(scope="module")

@@ -408,6 +408,64 @@ def test_a_sweep_survives_a_controller_that_kills_its_parent(tmp_path: Path, pla
         ), table["reason"][case]
 
 
+PARTING = """
+import os
+import signal
+import time
+
+import toggle_cosim.cosim.supervision as supervision
+from toggle_cosim.control.protocol import ControlStep
+
+_send = supervision._send
+
+
+def _send_then_kill(fd, message):
+    _send(fd, message)
+    if message[0] == "outcome":  # the run's answer is out: now kill the process's parent
+        os.kill(os.getppid(), signal.SIGKILL)
+        time.sleep(5)  # ended meanwhile: its process dies with its parent
+
+
+class Law:
+    diagnostics = ()
+    measured = ("x_B",)
+
+    def start(self, t0, measurement):
+        return None
+
+    def step(self, state, t, measurement):
+        return ControlStep(40.0 * (0.3199 - measurement["x_B"]), (), state)
+
+
+def make(context):
+    supervision._send = _send_then_kill  # in the run's child, where the factory is called
+    return Law()
+"""
+
+
+def test_a_controller_that_kills_its_parent_after_the_answer_fails_its_run(tmp_path: Path, plant_fmu: Path) -> None:
+    """The controller's code kills its process's parent (SIGKILL) right after the run's complete
+    answer went out, the latest moment it can: the run is failed with the signal in the reason,
+    not complete (docs/security.md), in the pair and as a system; the run after it completes."""
+    (tmp_path / "parting.py").write_text(PARTING, encoding="utf-8")
+    variants = {"pair": {}, "system": {"record": ["plant.x_B", "controller.iq_ref"]}}
+    path = _scenario(tmp_path, "parting", {"python": "parting:make"})
+    document = yaml.safe_load(path.read_text(encoding="utf-8"))
+    system = {**document, "name": "parting_system", "record": variants["system"]["record"]}
+    (tmp_path / "parting_system.yaml").write_text(yaml.safe_dump(system), encoding="utf-8")
+    after = _scenario(tmp_path, "after", None)
+    out = tmp_path / "out"
+    code, output = _run(
+        str(path), str(tmp_path / "parting_system.yaml"), str(after), "--fmu", str(plant_fmu), "--out", str(out), "-q"
+    )
+    assert code == 1, output
+    for name in ("parting", "parting_system"):
+        record = json.loads((out / name / "run" / "run.json").read_text(encoding="utf-8"))
+        assert record["status"] == "failed", (name, record["reason"])
+        assert record["reason"] == "the plant process was killed by SIGKILL after the run's last sample at t = 0.02 s"
+    assert json.loads((out / "after" / "run" / "run.json").read_text(encoding="utf-8"))["status"] == "complete"
+
+
 @pytest.mark.parametrize(
     ("how", "said"),
     [

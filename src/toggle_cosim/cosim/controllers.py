@@ -223,7 +223,8 @@ def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
     """The parameters set on a controller FMU before initialisation, in order: for an FMU of the
     built-in law, the scenario's controller settings (`builtin_controller(run).law_parameters()`,
     by name, t0 and T_h excepted), then controller.parameters by name. Raises ControllerError
-    for a parameter the FMU does not have."""
+    for a parameter the FMU does not have, and for a T_s other than the run's on an FMU of the
+    built-in law (it steps at its parameter T_s)."""
     settings: dict[str, Any] = {}
     if fmu.law_parameters:
         settings.update(
@@ -243,6 +244,12 @@ def fmu_settings(run: Run, fmu: ControllerFmu) -> list[tuple[str, Any]]:
             raise ControllerError(
                 f"key controller.parameters.{name}: the controller FMU {fmu.path.name}'s parameter {name!r} is of"
                 f" type {fmu.types.get(name, 'Real')}, so give {wanted}, not {bounded_text(repr(value), 60)}"
+            )
+        if fmu.law_parameters and name == "T_s" and value != run.T_s:
+            raise ControllerError(
+                f"key controller.parameters.T_s: the controller FMU {fmu.path.name} steps at its parameter T_s, which"
+                f" is the run's T_s = {run.T_s:g} s; {bounded_text(repr(value), 60)} would refuse every step (remove"
+                " it, or set the scenario's T_s)"
             )
         settings[name] = value
     return list(settings.items())

@@ -15,7 +15,8 @@ execution, algorithm and observers).
   (the plan's recorded slots), a progress hook reports.
 
 A failed call raises `SlaveError` (the component, the call, the time); the samples before it are
-in the trace.
+in the trace. Before each call of a slave its id goes into `calling[0]` (the compiled loop does
+the same), so a supervising process that shares that word knows whose call ended the process.
 """
 
 from __future__ import annotations
@@ -74,8 +75,14 @@ class Execution:
         t_end: float,
         observers: Sequence[Observer] = (),
         hooks: Sequence[Callable[[int], None]] = (),
+        calling: np.ndarray | None = None,
+        ids: Sequence[int] | None = None,
     ) -> None:
+        """`calling`: an int64 array whose element 0 gets, before each call of a slave, its entry
+        of `ids` (per slave, in plan order; default 1, 2, ...)."""
         self.plan, self.slaves, self.signals = plan, tuple(slaves), signals
+        self.calling = calling if calling is not None else np.zeros(1, dtype=np.int64)
+        self.ids = tuple(ids) if ids is not None else tuple(range(1, len(self.slaves) + 1))
         self.n, self.T_s, self.t_end = n, float(T_s), float(t_end)
         self.observers, self.hooks = tuple(observers), tuple(hooks)
         self.values = np.zeros(plan.size, dtype=np.float64)
@@ -116,7 +123,9 @@ class Execution:
     ) -> list[list[float]]:
         """Every component in order: its early inputs set, its outputs read; then the values of
         the late inputs, per component (computed into the buffer, not yet set)."""
+        calling, ids = self.calling, self.ids
         for c, slave in enumerate(self.slaves):
+            calling[0] = ids[c]
             if early[c]:
                 slave.set(early[c], self._feed(c, early[c], k), t)
             self._read(c, t)
@@ -125,22 +134,27 @@ class Execution:
     def _set_late(self, t: float, late: Sequence[tuple[int, ...]], values: Sequence[Sequence[float]]) -> None:
         for c, slave in enumerate(self.slaves):
             if late[c]:
+                self.calling[0] = self.ids[c]
                 slave.set(late[c], values[c], t)
 
     def initialize(self) -> None:
         """Instantiate, set values, initialise every slave with its inputs from one pass at t = 0."""
-        for slave in self.slaves:
+        for c, slave in enumerate(self.slaves):
+            self.calling[0] = self.ids[c]
             slave.instantiate(self.t_end)
-        for slave in self.slaves:
+        for c, slave in enumerate(self.slaves):
+            self.calling[0] = self.ids[c]
             slave.enter_initialization()
         late = tuple(self.plan.late(c, initial=True) for c in range(len(self.slaves)))
         self._set_late(0.0, late, self._pass(0, 0.0, self.plan.init_early, late))
-        for slave in self.slaves:
+        for c, slave in enumerate(self.slaves):
+            self.calling[0] = self.ids[c]
             slave.exit_initialization()
 
     def advance(self, k: int, stop: int) -> int:
         """Samples k .. stop - 1 (the last, n, is read and recorded, not stepped); the next sample."""
         T_s, n, slaves, observers, hooks = self.T_s, self.n, self.slaves, self.observers, self.hooks
+        calling, ids = self.calling, self.ids
         early, late = self._early, self._late
         while k < stop:
             t = k * T_s
@@ -150,7 +164,8 @@ class Execution:
             if k == n:
                 return k + 1
             self._set_late(t, late, values)
-            for slave in slaves:
+            for c, slave in enumerate(slaves):
+                calling[0] = ids[c]
                 slave.do_step(t, T_s)
             for hook in hooks:
                 hook(k)

@@ -12,7 +12,16 @@ import numpy as np
 
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["building_reason", "controller_words", "exit_reason", "in_controller_reason", "stopped_in_controller"]
+__all__ = [
+    "building_reason",
+    "component_reason",
+    "component_words",
+    "controller_words",
+    "ended_cleanly",
+    "exit_reason",
+    "in_controller_reason",
+    "stopped_in_controller",
+]
 
 
 def exit_reason(status: int | None) -> str:
@@ -24,6 +33,12 @@ def exit_reason(status: int | None) -> str:
     if status is not None:
         return f"the plant process exited with status {os.waitstatus_to_exitcode(status)} before the run ended"
     return "the plant process ended without an answer"
+
+
+def ended_cleanly(status: int | None) -> bool:
+    """Whether a run's process ended as a run that sent its answer ends: exit status 0 (None: its
+    status is unknown, already reaped)."""
+    return status is None or (os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0)
 
 
 def stopped_in_controller(buffer: np.ndarray, rows: int, n_outputs: int, names: tuple[str, ...]) -> bool:
@@ -53,6 +68,30 @@ def in_controller_reason(reason: str, words: str, t: float, by_limit: bool) -> s
         return f"controller: {words} did not finish its step: {reason}{sample}"
     said = reason.replace("the plant process", "it", 1) if reason.startswith("the plant process") else reason
     return f"controller: {words} ended the run's process: {said}{sample}"
+
+
+def component_words(run: Run, plant: Path, name: str) -> str:
+    """A system's component in words, for a failure while the master called it: its name and its
+    FMU's file (the plant's `plant`, a part's), or what the controller is."""
+    wiring = run.system
+    if name == wiring.plant:
+        what = Path(plant).name
+    elif name == wiring.controller:
+        python, fmu = run.controller.python, run.controller.fmu
+        what = controller_words(python, fmu) if python or fmu else "the built-in law"
+    else:
+        what = next((Path(part.fmu).name for part in wiring.parts if part.name == name), "")
+    return f"component {name!r} ({what})"
+
+
+def component_reason(reason: str, words: str, at: str, by_limit: bool) -> str:
+    """Why a system's run failed whose process ended (`reason`, said of the plant process) or
+    reached its time limit (`by_limit`) while the master called the component `words`
+    (`component_words`; `at`: " at t = ..." of the last sample recorded)."""
+    if by_limit:
+        return f"{words} did not return: {reason} while the master called it{at}"
+    said = reason.replace("the plant process", "it", 1) if reason.startswith("the plant process") else reason
+    return f"{words} ended the run's process: {said} while the master called it{at}"
 
 
 def building_reason(run: Run, limit: str | None, answer: tuple | None, status: int | None) -> str:

@@ -57,6 +57,7 @@ def simulate(
     session: PlantSession | None = None,
     coupling: str | None = None,
     count: np.ndarray | None = None,
+    calling: np.ndarray | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`: the plain pair in its fixed loop, any other
     system as an execution of its components (module docstring). Never raises for a plant, part
@@ -67,7 +68,9 @@ def simulate(
     and `count`, if given, the one int64 the number of samples recorded is kept in as they are
     recorded (both shared with a supervising process, `supervision`).
     `session` (the plain pair only, `open_session`): a plant already loaded that the caller keeps.
-    `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`)."""
+    `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`). `calling`
+    (a system only): where the execution writes which component it calls
+    (`systems.simulate_system`)."""
     if run.system.is_pair:
         return simulate_pair(run, plant, progress, buffer, controller, session, coupling, count)
     if coupling is not None and coupling not in COUPLINGS:
@@ -75,4 +78,4 @@ def simulate(
     if session is not None:
         close_controller(controller)
         raise ValueError("a system's run loads its own components: simulate it without session=")
-    return simulate_system(run, plant, progress, buffer, controller, coupling, count)
+    return simulate_system(run, plant, progress, buffer, controller, coupling, count, calling)

@@ -92,6 +92,7 @@ class CFunctions:
     fmi3: bool
     names: FunctionNames
     owner: Any
+    reads: tuple[Any, ...] = ()  # a system's typed reads after the Real outputs (`fmi_pointers.TypedRead`)
 
     @classmethod
     def of(

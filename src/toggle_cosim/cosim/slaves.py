@@ -10,7 +10,9 @@ user's Python controller, a python-control system).
 `set` takes positions in the slave's fed inputs (`Interface.inputs`, the plan's order) and their
 values, `get` fills its outputs. An FMU's call that fails raises `SlaveError` naming the
 component, the FMI function, the time and the FMU's last log line; after a fatal status the
-FMU is not called again (FMI 2.0, 2.1.3).
+FMU is not called again (FMI 2.0, 2.1.3). An FMU's outputs of other types than Real/Float64 (a
+recorded Integer, Boolean, Enumeration: `Interface.typed`) are read by their own getters and
+given as numbers (`fmi_pointers.typed_reads`).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any, Protocol
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
-from toggle_cosim.cosim.fmi_pointers import FMI2_NAMES, FMI3_NAMES, fmu_functions
+from toggle_cosim.cosim.fmi_pointers import FMI2_NAMES, FMI3_NAMES, fmu_functions, read_typed, typed_reads
 from toggle_cosim.cosim.session import CFunctions, bound_function
 from toggle_cosim.cosim.unzipped import release, unzipped
 from toggle_cosim.messages import error_text
@@ -36,7 +38,7 @@ from toggle_cosim.plant.fmi_calls import (
     quiet,
     typed_setter,
 )
-from toggle_cosim.system.interfaces import fmu_interface
+from toggle_cosim.system.interfaces import FLOAT64_TYPES, fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
 __all__ = ["ControllerSlave", "FmuSlave", "Slave", "SlaveError"]
@@ -77,16 +79,27 @@ class FmuSlave:
         self._unzipped: Path | None = None
         self._fatal = False
         self._stepping = False
+        self._reads: tuple = ()
         self._instance = f"{name}"
         self.origin = ""  # what the FMU stands for, when not a file the user named (run.json)
         self.bind(self.interface.inputs, self.interface.outputs)
 
     def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
-        """The inputs the plan sets (by position) and the outputs it reads, in its order."""
+        """The inputs the plan sets (by position) and the outputs it reads, in its order: those
+        read by getReal / getFloat64 first, then those of other types (`fmu_interface`'s order)."""
         self._fed = tuple(fed)
-        self._read = tuple(outputs)
+        kinds = [self.variables[n].type for n in outputs]
+        n_real = next((i for i, kind in enumerate(kinds) if kind not in FLOAT64_TYPES), len(kinds))
+        if any(kind in FLOAT64_TYPES for kind in kinds[n_real:]):
+            raise ValueError(f"component {self.name!r}: its Real outputs must come before those of other types")
+        self._read = tuple(outputs[:n_real])
+        self._typed = tuple(
+            (i, self.variables[n].valueReference, kinds[i]) for i, n in enumerate(outputs) if i >= n_real
+        )
+        if self._slave is not None:
+            self._reads = self._typed_reads()
         self._in_refs = tuple(self.variables[n].valueReference for n in fed)
-        self._out_refs = tuple(self.variables[n].valueReference for n in outputs)
+        self._out_refs = tuple(self.variables[n].valueReference for n in self._read)
         self._in_vr = (ctypes.c_uint32 * max(len(fed), 1))(*self._in_refs)
         self._out_vr = (ctypes.c_uint32 * max(len(outputs), 1))(*self._out_refs)
         self._buffer = (ctypes.c_double * max(len(fed), 1))()
@@ -124,7 +137,12 @@ class FmuSlave:
             instanceName=self._instance,
             guid=description.guid if not self.fmi3 else description.instantiationToken,
         )
-        slave = (FMU3SlaveChecked if self.fmi3 else FMU2SlaveChecked)(**kwargs)
+        try:  # fmpy loads the binary and binds every FMI function here
+            slave = (FMU3SlaveChecked if self.fmi3 else FMU2SlaveChecked)(**kwargs)
+        except Exception as error:  # noqa: BLE001 - a binary that does not load, or lacks a function
+            raise SlaveError(
+                f"component {self.name!r} ({self.path.name}): its binary could not be loaded ({error_text(error, 200)})"
+            ) from None
         self._slave = slave
         last_log_line(self._instance, forget=True)
         quiet(self._instance)
@@ -142,6 +160,7 @@ class FmuSlave:
             raise SlaveError(
                 f"component {self.name!r}: {self.path.name} does not export {names.set}, {names.get}, {names.step}"
             )
+        self._reads = self._typed_reads()
         if self.fmi3:
             self._step_outputs = tuple(ctypes.byref(ctypes.c_bool()) for _ in range(3)) + (
                 ctypes.byref(ctypes.c_double()),
@@ -151,6 +170,13 @@ class FmuSlave:
             self._call("fmi2SetupExperiment", lambda: slave.setupExperiment(startTime=0.0, stopTime=t_end))
         for name, value in self.values:
             self._set_value(name, value)
+
+    def _typed_reads(self) -> tuple:
+        """The getters of the outputs of other types than Real (`fmi_pointers.typed_reads`)."""
+        try:
+            return typed_reads(self._slave, self._typed)
+        except ValueError as error:
+            raise SlaveError(f"component {self.name!r} ({self.path.name}): {error}") from None
 
     def _quiet_logging(self, slave: Any) -> None:
         """Logging stays on for what a failure's reason needs: where the FMU declares log
@@ -234,18 +260,23 @@ class FmuSlave:
             raise self._fail(self.names.set, t, status)
 
     def get(self, values: Any, t: float) -> None:
-        """Read the outputs into `values` (a ctypes double array of len(outputs))."""
+        """Read the outputs into `values` (a ctypes double array of len(outputs)): the Real ones
+        in one getReal / getFloat64, then each of another type by its getter, as a number."""
         n = len(self._read)
-        if not n:
-            return
         component = self._slave.component
-        status = (
-            self._get(component, self._out_vr, n, values, n)
-            if self.fmi3
-            else self._get(component, self._out_vr, n, values)
-        )
-        if failed(status):
-            raise self._fail(self.names.get, t, status)
+        if n:
+            status = (
+                self._get(component, self._out_vr, n, values, n)
+                if self.fmi3
+                else self._get(component, self._out_vr, n, values)
+            )
+            if failed(status):
+                raise self._fail(self.names.get, t, status)
+        for read in self._reads:
+            status, value = read_typed(read, component, self.fmi3)
+            if failed(status):
+                raise self._fail(read.name, t, status)
+            values[read.position] = value
 
     def do_step(self, t: float, h: float) -> None:
         component = self._slave.component
@@ -258,7 +289,7 @@ class FmuSlave:
     def c_functions(self) -> CFunctions:
         """What a C loop calls (`fmi_pointers.fmu_functions`): the three functions, the instance,
         the value references of its outputs and fed inputs, in the plan's order."""
-        return fmu_functions(self._slave, self._out_refs, self._in_refs)
+        return fmu_functions(self._slave, self._out_refs, self._in_refs, self._reads)
 
 
 class ControllerSlave:

@@ -59,13 +59,16 @@ from toggle_cosim.cosim import outcome as outcomes
 from toggle_cosim.cosim.controllers import controller_for, controller_record
 from toggle_cosim.cosim.exit_reasons import (
     building_reason,
+    component_reason,
+    component_words,
     controller_words,
+    ended_cleanly,
     exit_reason,
     in_controller_reason,
     stopped_in_controller,
 )
 from toggle_cosim.cosim.pair import pair_summary
-from toggle_cosim.cosim.systems import SystemError_, system_columns
+from toggle_cosim.cosim.systems import SystemError_, component_names, system_columns
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.plant.contract import PlantInterface
@@ -288,6 +291,7 @@ def _plant_process(
     controller: Controller | None,
     buffer_fd: int,
     count: np.ndarray,
+    calling: np.ndarray | None = None,
 ) -> None:
     """The plant's process: build the user's controller if the parent has none (`_build_controller`),
     run, send the outcome (no trace) back, exit without cleanup. Its stdout and stderr are the
@@ -321,6 +325,7 @@ def _plant_process(
             buffer=buffer,
             controller=controller,
             count=count,
+            calling=calling,
         )
         if outcome.interrupted:  # SIGINT is ignored here: user code raised KeyboardInterrupt itself
             reason = "the run's code raised KeyboardInterrupt (not an interrupt of the command)"
@@ -459,6 +464,8 @@ class SupervisedRun:
         self.buffer = np.full((0, len(self.names)), np.nan)
         self.count = np.zeros(1, dtype=np.int64)  # the samples the child recorded (`shared_count`)
         self.progress_slot: np.ndarray | None = None
+        # a system's run writes here which component it calls (`systems.simulate_system`)
+        self.calling: np.ndarray | None = None
         self.deadline = math.inf
         self._with_progress = with_progress
         self._scratch = Path(scratch) if scratch is not None else Path(tempfile.gettempdir())
@@ -497,6 +504,8 @@ class SupervisedRun:
         if self._with_progress:
             self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
         self.count = shared_count()
+        if not self.run.system.is_pair:
+            self.calling = np.frombuffer(mmap.mmap(-1, 8), dtype=np.int64)
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
         self.relay = OutputRelay()
@@ -515,6 +524,7 @@ class SupervisedRun:
                 self.controller,
                 self._buffer_fd,
                 self.count,
+                self.calling,
             )
             _child(parent, plant_process)
 
@@ -640,6 +650,11 @@ class SupervisedRun:
             return master.refused_outcome(run, plant, self.refused, self.started)
         if answer is not None and answer[0] == "refused" and reason is None:
             return master.refused_outcome(run, plant, answer[1], self.started)
+        if answer is not None and answer[0] == "outcome" and answer[1] and reason is None:
+            if not ended_cleanly(self.status):
+                # its complete answer came, but then the process was killed (by the run's own code: a
+                # controller that killed its parent) or exited with an error: the run fails
+                reason = f"{exit_reason(self.status)} after the run's last sample"
         if answer is not None and answer[0] == "outcome" and reason is None:
             _, complete, child_reason, _, loop_s, summary, record, child_interrupted = answer
             record["wall_time_s"] = wall
@@ -661,7 +676,10 @@ class SupervisedRun:
                 and self.status is not None
                 and stopped_in_controller(self.buffer, rows, len(plant.recorded_outputs), self.names)
             )
-            if in_controller:  # the plant's outputs of the next sample read, no command yet
+            called = self._called()
+            if called is not None and not self.interrupted:  # a system's component was being called
+                reason = component_reason(reason, called, at, by_limit=self.reason is not None)
+            elif in_controller:  # the plant's outputs of the next sample read, no command yet
                 words = controller_words(run.controller.python, run.controller.fmu)
                 reason = in_controller_reason(reason, words, rows * run.T_s, by_limit=self.reason is not None)
             else:
@@ -680,6 +698,17 @@ class SupervisedRun:
             run, plant, status_word, reason, rows, wall, wall, summary, warnings=warnings, controller=controller
         )
         return outcomes.RunOutcome(run, trace, False, reason, wall, wall, summary, record, self.interrupted)
+
+    def _called(self) -> str | None:
+        """The component of a system whose call was under way when its process ended, in words
+        (`component_words`); None for the pair, or outside any call."""
+        if self.calling is None:
+            return None
+        number = int(self.calling[0])
+        names = component_names(self.run.system)
+        if not 1 <= number <= len(names):
+            return None
+        return component_words(self.run, self.plant.path, names[number - 1])
 
     def _exit_reason(self, answer: tuple | None) -> str:
         if answer is not None and answer[0] == "error":

@@ -5,7 +5,8 @@ connection table, for any number of FMUs (FMI 2.0 and 3.0 Co-Simulation).
 `fmi_pointers.fmu_functions` of an fmpy slave: its outputs' value references in the plan's
 `output_names[c]` order, its fed inputs' in `input_names[c]` order) and runs samples k0 .. k_end - 1
 as the plan's docstring says (cosim/system_skeleton.c): per component one setReal for its early
-inputs and one getReal for its outputs, then one setReal for its late inputs and a doStep each.
+inputs and one getReal for its outputs (then one getter call per recorded output of another type,
+`CFunctions.reads`), then one setReal for its late inputs and a doStep each.
 Each sample's row goes into the caller's preallocated trace: column 0 t_k = k T_s, column 1 + i
 the value of the slot plan.record[i]. An input fed through a unit conversion gets factor · value
 + offset with Python's bits (compiled without contraction); an identity connection copies.
@@ -52,6 +53,7 @@ __all__ = [
 
 DONE, FMI_FAILED = 0, 2  # system_run's return codes (system_skeleton.c)
 _CALLS = {1: "get", 2: "set", 3: "step"}
+_TYPED = 4  # fault 4 + i: the component's typed read i (`fmi_pointers.TypedRead`)
 
 # The C structs' fields, in their order in system_skeleton.c.
 _COMPONENT_POINTERS = (
@@ -65,11 +67,16 @@ _COMPONENT_POINTERS = (
     "early_slot",
     "late_slot",
     "scratch",
+    "typed_get",
+    "typed_vr",
+    "typed_kind",
+    "typed_slot",
 )
-_COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late")
+_COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id", "n_typed")
 _SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record", "rows")
 _SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
 _SYSTEM_DOUBLES = ("T_s",)
+_SYSTEM_AFTER = ("calling",)  # pointers after T_s
 
 
 class ComponentCallError(RuntimeError):
@@ -93,6 +100,7 @@ def _system_struct() -> type[ctypes.Structure]:
     fields = [*((name, ctypes.c_void_p) for name in _SYSTEM_POINTERS)]
     fields += [(name, ctypes.c_long) for name in _SYSTEM_LONGS]
     fields += [(name, ctypes.c_double) for name in _SYSTEM_DOUBLES]
+    fields += [(name, ctypes.c_void_p) for name in _SYSTEM_AFTER]
     return type("_System", (ctypes.Structure,), {"_fields_": fields})
 
 
@@ -156,6 +164,9 @@ class SystemLoop:
         library: the compiled library (None: `system_library()`; ValueError when there is none).
         rows: the trace's row count (one int64, `recorder.row_count`), set to k + 1 as soon as row
             k is recorded; None: not counted in C.
+        calling: an int64 array whose element 0 the loop sets, before each call of a component,
+            to that component's entry of `ids` (per component in plan.order; default 1, 2, ...):
+            a supervising process that shares it knows whose call ended the process.
     """
 
     def __init__(
@@ -168,6 +179,8 @@ class SystemLoop:
         T_s: float,
         library: ctypes.CDLL | None = None,
         rows: np.ndarray | None = None,
+        calling: np.ndarray | None = None,
+        ids: Sequence[int] | None = None,
     ) -> None:
         library = library if library is not None else system_library()
         if library is None:
@@ -196,22 +209,37 @@ class SystemLoop:
             in_vr = (ctypes.c_uint32 * len(inputs)).from_address(calls.in_vr) if inputs else ()
             early = plan.early[c]
             late = plan.late(c)
+            reads = calls.reads
             arrays = (
                 (ctypes.c_uint32 * max(len(early), 1))(*(in_vr[i] for i in early)),
                 (ctypes.c_uint32 * max(len(late), 1))(*(in_vr[i] for i in late)),
                 _longs([inputs[i] for i in early]),
                 _longs([inputs[i] for i in late]),
                 (ctypes.c_double * max(len(inputs), 1))(),
+                (ctypes.c_void_p * max(len(reads), 1))(*(read.address for read in reads)),
+                (ctypes.c_uint32 * max(len(reads), 1))(*(read.vr for read in reads)),
+                _longs([read.kind for read in reads]),
+                _longs([outputs[read.position] for read in reads]),
             )
             keep.append(arrays)
             entry.get, entry.set, entry.step, entry.component = calls.get, calls.set, calls.step, calls.component
             entry.out_vr = calls.out_vr
-            entry.early_vr, entry.late_vr, entry.early_slot, entry.late_slot, entry.scratch = (
-                ctypes.addressof(a) for a in arrays
-            )
+            (
+                entry.early_vr,
+                entry.late_vr,
+                entry.early_slot,
+                entry.late_slot,
+                entry.scratch,
+                entry.typed_get,
+                entry.typed_vr,
+                entry.typed_kind,
+                entry.typed_slot,
+            ) = (ctypes.addressof(a) for a in arrays)
             entry.fmi3 = 1 if calls.fmi3 else 0
-            entry.n_out, entry.out0 = len(outputs), outputs[0] if outputs else 0
+            entry.n_out, entry.out0 = len(outputs) - len(reads), outputs[0] if outputs else 0
+            entry.n_typed = len(reads)
             entry.n_early, entry.n_late = len(early), len(late)
+            entry.id = ids[c] if ids is not None else c + 1
         buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
         source = np.ascontiguousarray(plan.feed_source, dtype=np.int64)
         factor = np.ascontiguousarray(plan.feed_factor, dtype=np.float64)
@@ -219,7 +247,11 @@ class SystemLoop:
         record = np.ascontiguousarray(plan.record, dtype=np.int64)
         if ctypes.sizeof(ctypes.c_long) != 8:  # the C tables are longs
             source, record = source.astype(np.int32), record.astype(np.int32)
-        keep += [table, buffer, source, factor, offset, record]
+        if calling is None:
+            calling = np.zeros(1, dtype=np.int64)
+        if calling.dtype != np.int64 or calling.size < 1:
+            raise ValueError("calling must be an int64 array of at least one element")
+        keep += [table, buffer, source, factor, offset, record, calling]
         s = _system_struct()()
         s.components, s.buffer = ctypes.addressof(table), buffer.ctypes.data
         s.source, s.factor, s.offset = source.ctypes.data, factor.ctypes.data, offset.ctypes.data
@@ -227,6 +259,7 @@ class SystemLoop:
         s.rows = None if rows is None else rows.ctypes.data
         s.n_components, s.n_signals, s.n_record, s.n = count, m, len(plan.record), n
         s.T_s = self.T_s
+        s.calling = calling.ctypes.data
         self._keep = keep  # everything the C side points into stays alive with the loop
         self._functions = tuple(functions)
         self._state = s
@@ -245,9 +278,12 @@ class SystemLoop:
     def failure(self) -> ComponentCallError:
         """The error of the failed call of the last `run` that returned FMI_FAILED."""
         s = self._state
-        c = int(s.failed)
+        c, fault = int(s.failed), int(s.fault)
         names = self._functions[c].names
-        function = getattr(names, _CALLS[int(s.fault)])
+        if fault >= _TYPED:
+            function = self._functions[c].reads[fault - _TYPED].name
+        else:
+            function = getattr(names, _CALLS[fault])
         return ComponentCallError(self.plan.order[c], function, int(s.status), int(s.k) * self.T_s)
 
 
@@ -259,11 +295,13 @@ def compiled_system(
     n: int,
     T_s: float,
     rows: np.ndarray | None = None,
+    calling: np.ndarray | None = None,
+    ids: Sequence[int] | None = None,
 ) -> SystemLoop | str:
     """The compiled loop over `slaves` (in plan.order, instantiated and initialised; each with a
     `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has), or why there is none: one
-    line naming the first component run in Python, or why the library is missing. `rows`: as
-    `SystemLoop`'s."""
+    line naming the first component run in Python, or why the library is missing. `rows`,
+    `calling`, `ids`: as for `SystemLoop`."""
     library = system_library()
     if library is None:
         return f"no compiled system loop: {system_library_reason()}"
@@ -274,4 +312,4 @@ def compiled_system(
         if not isinstance(calls, CFunctions):
             return f"component {name} runs in Python ({type(slave).__name__}): the compiled system loop calls FMUs only"
         functions.append(calls)
-    return SystemLoop(plan, functions, signals, trace, n, T_s, library, rows)
+    return SystemLoop(plan, functions, signals, trace, n, T_s, library, rows, calling, ids)

@@ -8,9 +8,12 @@
        compute the late inputs;  record row k;  if k < n: set each component's late inputs
        (one setReal each), then doStep every component from t_k = k T_s over T_s.
    An input's value is its feed: a copy of an output slot (factor 1, offset 0), factor * slot +
-   offset (compiled with -ffp-contract=off: Python's bits), or column j of the signal table's row k. */
+   offset (compiled with -ffp-contract=off: Python's bits), or column j of the signal table's row k.
+   A component's outputs of other types (a recorded Integer, Boolean, ...) follow its Real ones:
+   each is read by its own getter after the getReal and stored as a double (get_typed). */
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
 typedef int (*get2_t)(void *, const unsigned int *, size_t, double *);
 typedef int (*set2_t)(void *, const unsigned int *, size_t, const double *);
@@ -27,7 +30,12 @@ typedef struct {
     const unsigned int *early_vr, *late_vr;     /* n_early, n_late: its fed inputs set early / late */
     const long *early_slot, *late_slot;         /* their buffer slots */
     double *scratch;                            /* max(n_early, n_late) values, gathered for one setReal */
-    long fmi3, n_out, out0, n_early, n_late;    /* out0: the buffer slot of its first output */
+    void *const *typed_get;                     /* n_typed: the getter of each output of another type */
+    const unsigned int *typed_vr;               /* its value reference */
+    const long *typed_kind, *typed_slot;        /* its kind (get_typed) and buffer slot */
+    long fmi3, n_out, out0, n_early, n_late;    /* n_out Real outputs; out0: the buffer slot of the first */
+    long id;                                    /* what *calling holds while it is called */
+    long n_typed;
 } component_t;
 
 typedef struct {
@@ -41,13 +49,16 @@ typedef struct {
     long long *rows;            /* the samples recorded, set after each whole row (NULL: not counted here);
                                    a supervising process reads it, never the row's values */
     long n_components, n_signals, n_record, n;
-    long k, failed, fault, status; /* next sample; on a failure the component, the call (1 get, 2 set, 3 step), its status */
+    long k, failed, fault, status; /* next sample; on a failure the component, the call (1 get, 2 set, 3 step,
+                                      4 + i its typed read i), its status */
     long no_prior;              /* doStep's noSetFMUStatePriorToCurrentPoint, for every component */
     double T_s;
+    long long *calling;         /* the id of the component being called, written before each call: a
+                                   supervising process reads it when a call ends the process */
 } system_t;
 
 enum { DONE = 0, FMI_FAILED = 2 };
-enum { CALL_GET = 1, CALL_SET = 2, CALL_STEP = 3 };
+enum { CALL_GET = 1, CALL_SET = 2, CALL_STEP = 3, CALL_TYPED = 4 };
 
 /* Only OK (0) and Warning (1) let the loop go on: Discard, Error, Fatal, Pending and any value
    the standard does not define fail the run. */
@@ -57,6 +68,32 @@ static int get_outputs(const component_t *c, double *values) {
     size_t n = (size_t)c->n_out;
     return c->fmi3 ? ((get3_t)c->get)(c->component, c->out_vr, n, values, n)
                    : ((get2_t)c->get)(c->component, c->out_vr, n, values);
+}
+
+/* One value of another type than Real, by its getter, as a double (the kind codes of
+   cosim/fmi_pointers.py's KINDS: 0 an FMI 2.0 Integer, Enumeration or Boolean, all ints; then FMI
+   3.0's Int8, UInt8, Int16, UInt16, Int32, UInt32, Int64 (and Enumeration), UInt64, Boolean, Float32). */
+#define GET3(type) { type v = 0; status = ((int (*)(void *, const unsigned int *, size_t, type *, size_t))f)( \
+                         c->component, vr, 1, &v, 1); *value = (double)v; return status; }
+static int get_typed(const component_t *c, long i, double *value) {
+    void *f = c->typed_get[i];
+    const unsigned int *vr = c->typed_vr + i;
+    int status;
+    switch (c->typed_kind[i]) {
+    case 0: { int v = 0; status = ((int (*)(void *, const unsigned int *, size_t, int *))f)(c->component, vr, 1, &v);
+              *value = (double)v; return status; }
+    case 1: GET3(int8_t)
+    case 2: GET3(uint8_t)
+    case 3: GET3(int16_t)
+    case 4: GET3(uint16_t)
+    case 5: GET3(int32_t)
+    case 6: GET3(uint32_t)
+    case 7: GET3(int64_t)
+    case 8: GET3(uint64_t)
+    case 9: GET3(bool)
+    case 10: GET3(float)
+    default: return 3; /* fmi2Error: a kind this loop does not know */
+    }
 }
 
 static int set_inputs(const component_t *c, const unsigned int *vr, long count, const double *values) {
@@ -112,6 +149,7 @@ int system_run(system_t *s, long k_end) {
         double t = (double)k * s->T_s, *out = s->trace + k * (1 + s->n_record);
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
+            *s->calling = p->id;
             if (p->n_early) {
                 compute(s, p, p->early_slot, p->n_early, row);
                 status = set_inputs(p, p->early_vr, p->n_early, p->scratch);
@@ -120,6 +158,10 @@ int system_run(system_t *s, long k_end) {
             if (p->n_out) {
                 status = get_outputs(p, s->buffer + p->out0);
                 if (FAILED(status)) { return fail(s, k, c, CALL_GET, status); }
+            }
+            for (i = 0; i < p->n_typed; i++) {
+                status = get_typed(p, i, s->buffer + p->typed_slot[i]);
+                if (FAILED(status)) { return fail(s, k, c, CALL_TYPED + i, status); }
             }
         }
         for (c = 0; c < s->n_components; c++) {
@@ -133,12 +175,14 @@ int system_run(system_t *s, long k_end) {
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
             if (p->n_late) {
+                *s->calling = p->id;
                 for (i = 0; i < p->n_late; i++) { p->scratch[i] = s->buffer[p->late_slot[i]]; }
                 status = set_inputs(p, p->late_vr, p->n_late, p->scratch);
                 if (FAILED(status)) { return fail(s, k, c, CALL_SET, status); }
             }
         }
         for (c = 0; c < s->n_components; c++) {
+            *s->calling = s->components[c].id;
             status = do_step(&s->components[c], t, s->T_s, s->no_prior != 0);
             if (FAILED(status)) { return fail(s, k, c, CALL_STEP, status); }
         }

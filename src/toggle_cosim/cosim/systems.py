@@ -39,6 +39,7 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import controller_for, fmu_settings
 from toggle_cosim.cosim.execution import Execution, TraceObserver
+from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.law_fmu import law_fmu
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
@@ -58,7 +59,15 @@ from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
 from toggle_cosim.system.units import BASE, UnitDefinitionError, conversion, unit_meaning
 
-__all__ = ["SystemError_", "Assembly", "assemble", "simulate_system", "system_columns", "unit_conversion"]
+__all__ = [
+    "SystemError_",
+    "Assembly",
+    "assemble",
+    "component_names",
+    "simulate_system",
+    "system_columns",
+    "unit_conversion",
+]
 
 COMMAND = "iq_ref"
 
@@ -113,6 +122,13 @@ def unit_conversion(
     return conversion(m_s, m_e)
 
 
+def component_names(wiring: Wiring) -> tuple[str, ...]:
+    """A system's components as a run lists them: the plant, the controller, then the parts in
+    the order written. A component's id while the master calls it is 1 + its place here
+    (`simulate_system`'s `calling`)."""
+    return (wiring.plant, wiring.controller, *(part.name for part in wiring.parts))
+
+
 def pair_connections(wiring: Wiring, controller_inputs: Sequence[str]) -> tuple[Connection, ...]:
     """The pair's wiring: each controller input from the plant output of its name, the command to the plant."""
     p, c = wiring.plant, wiring.controller
@@ -132,7 +148,9 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
                     f"{where}: the connection {connection} names the component {port.component!r}, which the system "
                     f"does not have (its components: {', '.join(interfaces)})"
                 )
-            wanted = interface.outputs if side == "start" else interface.inputs
+            wanted = (
+                tuple(v for v in interface.outputs if v not in interface.typed) if side == "start" else interface.inputs
+            )
             if port.variable not in wanted:
                 kind = "output" if side == "start" else "input"
                 known = ", ".join(wanted) or "none"
@@ -242,6 +260,12 @@ def assemble(
                 raise SystemError_(
                     f"{where}: key record: {port} is not a variable of the system (its components: "
                     f"{', '.join(interfaces)}; an FMU's variables by their names in its modelDescription.xml)"
+                )
+            kind = interface.typed.get(port.variable)
+            if kind is not None and kind not in RECORDED_TYPES:
+                raise SystemError_(
+                    f"{where}: key record: {port} is a {kind} variable; the trace holds numbers (record Real, Integer,"
+                    " Boolean or Enumeration variables)"
                 )
             if port.variable in interface.inputs and port not in fed and port not in signal_ports:
                 raise SystemError_(
@@ -362,10 +386,13 @@ def simulate_system(
     controller: Controller | None = None,
     coupling: str | None = None,
     count: np.ndarray | None = None,
+    calling: np.ndarray | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
-    ControllerError for a system that cannot be assembled."""
+    ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
+    word shared with a supervising process): element 0 holds, while a component is called, its
+    id (`component_names`), and 0 outside the run's loop."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
         run = dataclasses.replace(run, coupling=coupling)
@@ -385,14 +412,21 @@ def simulate_system(
     if progress is not None:
         every = max(n // 100, 1)
         hooks.append(lambda k: progress(k * run.T_s / run.t_end) if k % every == 0 else None)
-    execution = Execution(plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks)
+    calling = calling if calling is not None else np.zeros(1, dtype=np.int64)
+    names = component_names(run.system)
+    ids = [names.index(name) + 1 for name in plan.order]
+    execution = Execution(
+        plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks, calling, ids
+    )
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
     compiled: SystemLoop | str = "the run ended before its first sample"
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
-        compiled = compiled_system(plan, assembly.slaves, assembly.signals, data, n, run.T_s, observer.count)
+        compiled = compiled_system(
+            plan, assembly.slaves, assembly.signals, data, n, run.T_s, observer.count, calling, ids
+        )
         if isinstance(compiled, SystemLoop):
             _run_compiled(compiled, assembly.slaves, n, progress, run)
         else:
@@ -405,6 +439,7 @@ def simulate_system(
         loop_finished = clock.perf_counter()
         reason = str(error)
     finally:
+        calling[0] = 0
         assembly.close()
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])

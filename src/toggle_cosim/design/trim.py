@@ -27,7 +27,7 @@ from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
 
-__all__ = ["OperatingPoint", "TrimError", "external_force", "open_at", "trim"]
+__all__ = ["OperatingPoint", "TrimError", "check_plant_alone", "external_force", "open_at", "trim"]
 
 INPUTS = ("iq_ref", "F_E")
 TRIM_TOLERANCE = 1e-9  # rad/s²: |dω/dt| left at the trimmed point (measured: below 1e-12)
@@ -113,9 +113,33 @@ def _check_states(plant: PlantInterface, roles: PlantStates) -> None:
         )
 
 
+def check_plant_alone(run: Run) -> None:
+    """TrimError (one line) for a run that is a system with parts or connections of its own:
+    trim and linearize take the plant FMU alone with the run's settings, so they would drop its
+    parts and wiring (a die's force on plant.F_E, a sensor) and answer for another plant. The
+    pair with a `record:` list alone is the pair."""
+    wiring = run.system
+    if not wiring.parts and wiring.connections is None:
+        return
+    what = []
+    if wiring.parts:
+        what.append(f"components {', '.join(part.name for part in wiring.parts)}")
+    fed = [str(c) for c in wiring.connections or () if c.end.component == wiring.plant and c.end.variable != INPUTS[0]]
+    if fed:
+        what.append(f"connections {', '.join(fed)}")
+    elif wiring.connections is not None:
+        what.append("connections of its own")
+    raise TrimError(
+        f"keys components:/connections: {run.label} is a system ({'; '.join(what)}); trim and linearize take its"
+        " plant FMU alone, so they would drop them (linearise a scenario without components: and connections:,"
+        " with the load you want as plant.F_E)"
+    )
+
+
 def open_at(run: Run, plant: PlantInterface, x_B: float) -> ModelExchangePlant:
     """The plant as a Model Exchange instance with the run's settings, friction off, initialised
-    at rest with slider B at x_B."""
+    at rest with slider B at x_B; the run's plant alone (`check_plant_alone`)."""
+    check_plant_alone(run)
     _check_states(plant, SHIPPED)
     settings = [(name, value) for name, value in plant_settings(run, plant) if name not in ("x_B0", "mu")]
     settings += [("mu", 0.0), ("x_B0", float(x_B))]

@@ -17,6 +17,7 @@ import contextlib
 import copy
 import dataclasses
 import hashlib
+import mmap
 import os
 import socket
 import sys
@@ -224,9 +225,10 @@ def resolve_plant(fmu: str, sha256: str, data: bytes | None = None) -> Any:
 class CaseServer:
     """The plant host's side (in the child): the plant loaded once, a case per request -> its row."""
 
-    def __init__(self, plant: Any, fmu_sha256: str) -> None:
+    def __init__(self, plant: Any, fmu_sha256: str, calling: np.ndarray | None = None) -> None:
         self.plant = plant
         self.sha256 = fmu_sha256
+        self.calling = calling  # shared with the sweep's side: which component a system's case calls
         self.session: Any = None
         self.sessions: dict[tuple[str, ...], Any] = {}  # by the plant's other inputs the cases set
         self.retired = False  # the plant answered Fatal: this host serves no more (`plant_host`)
@@ -251,6 +253,8 @@ class CaseServer:
         row = _empty_row(payload, self.sha256)
         count[0] = 0  # how far this case gets is what the parent reads if the host dies
         buffer.fill(np.nan)
+        if self.calling is not None:
+            self.calling[0] = 0
         try:
             with _captured_fmu_log() as log:
                 view = None
@@ -259,7 +263,7 @@ class CaseServer:
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
                     session = self._session(tuple(run.plant.inputs)) if run.system.is_pair else None
-                    outcome = simulate(run, self.plant, buffer=view, session=session, count=count)
+                    outcome = simulate(run, self.plant, buffer=view, session=session, count=count, calling=self.calling)
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
                     row["reason"] = error_text(error)
@@ -327,6 +331,7 @@ class CaseRunner:
         self.keep_traces = keep_traces
         self.scratch = scratch
         self.host: Any = None
+        self.calling: np.ndarray | None = None  # the host's word: which component a system's case calls
         self.payload: Mapping[str, Any] | None = None
         self.cases_run = 0  # by the current host
         self.hosts_started = 0
@@ -340,8 +345,10 @@ class CaseRunner:
         from toggle_cosim.cosim.plant_host import PlantHost
 
         self.close()
+        self.calling = np.frombuffer(mmap.mmap(-1, 8), dtype=np.int64)  # shared with the host's child
         with interrupts.deferred():  # the host and its folder are known here before an interrupt acts
-            self.host = PlantHost(CaseServer(self.plant, self.sha256), max(rows, self.rows), self.columns, self.scratch)
+            server = CaseServer(self.plant, self.sha256, self.calling)
+            self.host = PlantHost(server, max(rows, self.rows), self.columns, self.scratch)
             self.host.start()
         self.hosts_started += 1
         self.cases_run = 0
@@ -380,8 +387,15 @@ class CaseRunner:
                 self.close()  # its plant answered Fatal and the host has ended: the next case gets a new one
             return row, trace
         rows = answer.rows  # the samples the case recorded, as its recorder counted them
+        called = self._called(payload)
         self.close()  # a host that failed a case is gone (or dying): the next case gets a new one
         T_s = payload["parameters"]["T_s"]
+        at = f" at t = {max(rows - 1, 0) * T_s:.6g} s" if rows else " before the first sample"
+        if called is not None:  # a system's component was being called
+            from toggle_cosim.cosim.exit_reasons import component_reason
+
+            limited = answer.failure.startswith("time limit")
+            return crash_row(payload, self.sha256, component_reason(answer.failure, called, at, limited), rows), None
         names = case_columns(payload, self.plant)
         controller = payload["document"].get("controller") or {}
         users = "python" in controller or "fmu" in controller  # the built-in law neither crashes nor hangs
@@ -391,8 +405,24 @@ class CaseRunner:
             return crash_row(
                 payload, self.sha256, in_controller_reason(answer.failure, words, rows * T_s, limited), rows
             ), None
-        at = f" at t = {max(rows - 1, 0) * T_s:.6g} s" if rows else " before the first sample"
         return crash_row(payload, self.sha256, f"{answer.failure}{at}", rows), None
+
+    def _called(self, payload: Mapping[str, Any]) -> str | None:
+        """The component a system's case was calling when its host ended, in words
+        (`exit_reasons.component_words`); None for the pair, or outside any call."""
+        number = int(self.calling[0]) if self.calling is not None else 0
+        if number <= 0:
+            return None
+        from toggle_cosim.cosim.exit_reasons import component_words
+        from toggle_cosim.cosim.systems import component_names
+
+        source = payload.get("source")
+        try:
+            (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
+        except Exception:  # noqa: BLE001 - a case that ran was read before: no words, the plain reason
+            return None
+        names = component_names(run.system)
+        return component_words(run, self.plant.path, names[number - 1]) if number <= len(names) else None
 
     def close(self) -> None:
         """Stop the host and remove its folder; an interrupt meanwhile (say, one sent again after

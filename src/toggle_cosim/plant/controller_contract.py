@@ -6,7 +6,8 @@ the master runs it as one more controller (`cosim.fmu_controller`). Before any r
 
 * is not a safe, readable FMU archive, is not FMI 2.0 or 3.0, has no Co-Simulation interface or
   no binary for this platform (the plant's checks: `contract.read_fmu`);
-* can only step at a fixed step of its own that is not T_s;
+* can only step at a fixed step of its own that is not T_s (an FMU of the built-in law steps at
+  its parameter T_s, which the master sets to the run's: `cosim.controllers.fmu_settings`);
 * has no output ``iq_ref`` (the command, Real/Float64 in A: a missing unit is a warning, as for
   plants), or an output that is not Real/Float64 (the others are its diagnostics);
 * has an input that is not a recorded output of the plant, or whose unit differs from that
@@ -106,19 +107,23 @@ def check_controller_fmu(path: Path, outputs: Sequence[str], T_s: float | None =
     return _checked(path.resolve() if key else path, key, tuple(outputs), T_s)
 
 
-@functools.lru_cache(maxsize=32)
-def _checked(path: Path, _key: object, outputs: tuple[str, ...], T_s: float | None) -> ControllerFmu:
-    archive = read_fmu(path, missing="fix the path of key controller.fmu, relative to the scenario file")
-    md = archive.model_description
-    cs = md.coSimulation
-    fixed = not getattr(cs, "canHandleVariableCommunicationStepSize", True)
+def _check_step(path: Path, md: object, T_s: float) -> None:
+    """ContractError when the FMU steps only at a fixed step of its own (it cannot handle a
+    variable communication step, and its default experiment names that step) other than T_s."""
+    fixed = not getattr(md.coSimulation, "canHandleVariableCommunicationStepSize", True)
     experiment = md.defaultExperiment
     own_step = float(experiment.stepSize) if experiment is not None and experiment.stepSize else None
-    if T_s is not None and fixed and own_step is not None and abs(own_step - T_s) > 1e-9 * T_s:
+    if fixed and own_step is not None and abs(own_step - T_s) > 1e-9 * T_s:
         raise ContractError(
             f"{path}: the controller FMU steps only at its own step {own_step:g} s, not T_s = {T_s:g} s"
             " (set T_s to its step, or rebuild it for T_s)"
         )
+
+
+@functools.lru_cache(maxsize=32)
+def _checked(path: Path, _key: object, outputs: tuple[str, ...], T_s: float | None) -> ControllerFmu:
+    archive = read_fmu(path, missing="fix the path of key controller.fmu, relative to the scenario file")
+    md = archive.model_description
     warnings: list[str] = []
     inputs, diagnostics, parameters, reference_inputs = [], [], [], []
     references: dict[str, int] = {}
@@ -157,6 +162,9 @@ def _checked(path: Path, _key: object, outputs: tuple[str, ...], T_s: float | No
                 diagnostics.append(variable.name)
     if command is None:
         raise ContractError(f"{path}: the controller FMU has no output {COMMAND!r} (the command i_q* in A; {_FIX})")
+    law_parameters = set(LAW_PARAMETERS) - set(OPTIONAL_LAW_PARAMETERS) <= set(parameters)
+    if T_s is not None and not law_parameters:  # the built-in law's FMU steps at its parameter T_s, set to the run's
+        _check_step(path, md, T_s)
     warning = _unit_problem(path, COMMAND, declared_unit(command), COMMAND_UNIT, "output")
     if warning:
         warnings.append(warning)
@@ -170,7 +178,7 @@ def _checked(path: Path, _key: object, outputs: tuple[str, ...], T_s: float | No
         references=references,
         types=types,
         parameters=tuple(parameters),
-        law_parameters=set(LAW_PARAMETERS) - set(OPTIONAL_LAW_PARAMETERS) <= set(parameters),
+        law_parameters=law_parameters,
         warnings=tuple(warnings),
         reference_inputs=tuple(reference_inputs),
     )

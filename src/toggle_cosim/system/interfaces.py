@@ -9,9 +9,18 @@ from typing import Any
 
 from toggle_cosim.system.model import Interface
 
-__all__ = ["REAL_TYPES", "SettableError", "check_settable", "fmu_interface", "settable_type", "variable_unit"]
+__all__ = [
+    "FLOAT64_TYPES",
+    "REAL_TYPES",
+    "SettableError",
+    "check_settable",
+    "fmu_interface",
+    "settable_type",
+    "variable_unit",
+]
 
 REAL_TYPES = ("Real", "Float64", "Float32")
+FLOAT64_TYPES = ("Real", "Float64")  # read by getReal / getFloat64; any other type by its own getter
 # the FMI types a value may be given for before initialisation, as the SSV element that sets them
 SETTABLE_TYPES = {
     "Real": "Real",
@@ -75,7 +84,9 @@ def variable_unit(variable: Any) -> str | None:
 def fmu_interface(description: Any, observed: Sequence[str] = ()) -> Interface:
     """An FMU's Real inputs and outputs (then `observed`: other variables read as outputs, those
     it has), each output's direct dependencies on inputs from its ModelStructure (an output that
-    declares none depends on every input), and the units."""
+    declares none depends on every input), and the units. The outputs read by getReal /
+    getFloat64 come first, then those of other types (`Interface.typed`: an observed Integer,
+    Boolean, ...; FMI 3.0's Float32), which a system records but does not connect."""
     variables = {v.name: v for v in description.modelVariables}
     real = [v for v in description.modelVariables if v.type in REAL_TYPES]
     inputs = tuple(v.name for v in real if v.causality == "input")
@@ -90,4 +101,7 @@ def fmu_interface(description: Any, observed: Sequence[str] = ()) -> Interface:
             depends[name] = tuple(v.name for v in unknown.dependencies if v.name in inputs)
     extra = tuple(name for name in observed if name not in outputs and name not in inputs and name in variables)
     units = {name: variable_unit(variables[name]) for name in (*inputs, *outputs, *extra)}
-    return Interface(inputs, (*outputs, *extra), depends, units)
+    read = (*outputs, *extra)
+    first = tuple(name for name in read if variables[name].type in FLOAT64_TYPES)
+    typed = {name: variables[name].type for name in extra if variables[name].type not in REAL_TYPES}
+    return Interface(inputs, (*first, *(name for name in read if name not in first)), depends, units, typed)

@@ -94,7 +94,8 @@ class Wiring:
 
 @dataclass(frozen=True)
 class Interface:
-    """A component's connectors as the master sees them: its inputs and outputs (Real), each
+    """A component's connectors as the master sees them: its inputs and outputs (Real; then the
+    other variables it records, `typed` giving the type of those that are not Real), each
     output's direct dependencies on inputs (an FMU's ModelStructure; a controller's outputs
     depend on every input), and units (None: none declared)."""
 
@@ -102,6 +103,7 @@ class Interface:
     outputs: tuple[str, ...]
     depends: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     units: Mapping[str, str | None] = field(default_factory=dict)
+    typed: Mapping[str, str] = field(default_factory=dict)  # outputs of other types than Real: recorded, not connected
 
     def feedthrough(self, variable: str) -> bool:
         """Whether some output depends directly on the input `variable`."""
