@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -550,12 +551,32 @@ def test_a_scheduler_that_is_not_dask_is_one_line_within_the_timeout(tmp_path, p
     assert not (tmp_path / "out").exists()
 
 
-def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them(tmp_path, plant_fmu, capsys):
+def _held_under(pid: int, marks: Path) -> bool:
+    """True once a process below `pid` (its plant host) holds a case: it has written its pid
+    to `marks` (the fault shim's TOGGLE_FAULT_MARK) and is still there."""
+    from toggle_cosim import process_tree
+
+    held = {int(line) for line in marks.read_text().split()} if marks.exists() else set()
+    return bool(held & process_tree.descendants(pid))
+
+
+def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them(
+    tmp_path, shim_fmu, capsys, monkeypatch
+):
     """A worker killed mid-sweep with no retries allowed: its cases are not run (not failed),
-    one line says so, exit 1; the same command again runs exactly those."""
+    one line says so, exit 1; the same command again runs exactly those. Every case holds in
+    fmi2DoStep from 0.1 s (the fault shim) until the test releases it: the victim is killed
+    while it holds one of its cases, then the rest are released and finish on the other worker."""
     distributed = pytest.importorskip("distributed")
     import dask
+    from fault_plants import fault_environment
 
+    from toggle_cosim.plant.contract import check_plant
+
+    marks, release = tmp_path / "held", tmp_path / "release"
+    references = check_plant(shim_fmu).references
+    for key, value in fault_environment("", 0.1, references, hold=release, mark=marks).items():
+        monkeypatch.setenv(key, value)  # before the cluster starts: its workers and their hosts inherit it
     base = {**BASE, "t_end": 1.5}
     path = write_sweep(tmp_path, {"plant.F_E": {"linspace": [0, 150, 16]}}, base)
     config = {"distributed.scheduler.allowed-failures": 0, "distributed.comm.timeouts.connect": "10s"}
@@ -566,26 +587,37 @@ def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them
     ):
         victim = sorted(client.scheduler_info()["workers"])[0]
         pid = client.run(os.getpid, workers=[victim])[victim]
+        seen = []
 
-        def kill_when_busy() -> None:
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline and not client.processing(workers=[victim]).get(victim):
+        def kill_when_holding() -> None:
+            deadline = time.monotonic() + 60  # hang guard: the victim takes a case at once
+            while time.monotonic() < deadline and not _held_under(pid, marks):
                 time.sleep(0.01)
-            time.sleep(0.3)
-            os.kill(pid, signal.SIGKILL)
+            seen.append(_held_under(pid, marks))
+            gone = os.pidfd_open(pid)
+            try:
+                os.kill(pid, signal.SIGKILL)
+                select.select([gone], [], [], 60)  # the victim has exited: its case can no longer finish
+            finally:
+                os.close(gone)
+                release.touch()
 
-        killer = threading.Thread(target=kill_when_busy)
+        killer = threading.Thread(target=kill_when_holding)
         killer.start()
-        code = run_sweep(path, cluster.scheduler_address, None, plant_fmu, progress=False)
-        killer.join()
+        try:
+            code = run_sweep(path, cluster.scheduler_address, None, shim_fmu, progress=False)
+        finally:
+            release.touch()  # whatever happened: no case stays held
+            killer.join()
         captured = capsys.readouterr()
+        assert seen == [True], "the victim never held a case"
         table = read_results(tmp_path / "out")
         assert code == 1 and 0 < len(table) < 16, (code, len(table), captured.err)
         assert (table["status"] == "ok").all()  # lost cases are not failed rows
         lost = 16 - len(table)
         assert f"warning: the Dask cluster lost {lost} cases" in captured.err
         assert f"{lost} not run, of 16 cases" in captured.out and "Traceback" not in captured.err
-        assert run_sweep(path, cluster.scheduler_address, None, plant_fmu, progress=False) == 0
+        assert run_sweep(path, cluster.scheduler_address, None, shim_fmu, progress=False) == 0
         assert f"ran {lost} cases" in capsys.readouterr().out
 
 
