@@ -18,6 +18,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from fault_plants import SCENARIO, fault_environment, make_faulty_fmu
+from process_events import marked, wait_gone, wait_until
 
 from toggle_cosim import process_tree
 from toggle_cosim.cli import main
@@ -80,30 +81,7 @@ def test_log_messages_in_any_bytes_and_status_are_printed(shim_fmu: Path, tmp_pa
     assert log_line(3, b"\xff ok") == "[ERROR] \ufffd ok" and log_line(-2, None) == "[STATUS -2] "
 
 
-def _marked(mark: str) -> list[int]:
-    """The processes whose environment carries `mark` (the helpers of one test)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                if mark.encode() in (entry / "environ").read_bytes():
-                    found.append(int(entry.name))
-            except OSError:
-                continue
-    return found
-
-
-HELPER_SECONDS = "600"  # the helpers' own life: far beyond any wait below, so only a kill ends them in time
-GONE_WITHIN_S = 30.0  # hang guard: a helper killed is gone long before this, one left lives HELPER_SECONDS
-
-
-def _gone(mark: str) -> list[int]:
-    """Wait until no process carries `mark` (the helpers were killed and have exited: a kill
-    takes effect a moment after the command returns); those left after GONE_WITHIN_S."""
-    deadline = time.monotonic() + GONE_WITHIN_S
-    while (left := _marked(mark)) and time.monotonic() < deadline:
-        time.sleep(0.01)
-    return left
+HELPER_SECONDS = "600"  # the helpers' own life: only a kill ends them within the waits below
 
 
 @pytest.mark.parametrize(
@@ -138,9 +116,9 @@ def test_a_plants_helper_process_ends_with_its_run(
             record = json.loads((tmp_path / "out" / "faulty" / "hit" / "run.json").read_text())
             assert record["reason"].startswith(f"time limit {limit} s exceeded")
         assert "Traceback" not in result.stderr
-        assert _gone(mark) == []
+        wait_gone(mark)
     finally:
-        for pid in _marked(mark):
+        for pid in marked(mark):
             os.kill(pid, 9)
 
 
@@ -158,7 +136,7 @@ def test_a_helper_in_its_own_session_is_ended_with_the_tree() -> None:
             if os.fork() == 0:  # the daemon: own session, its parent gone
                 os.setsid()
                 os.write(write_fd, str(os.getpid()).encode() + b"\n")
-                time.sleep(30)
+                time.sleep(600)  # beyond the wait below: only the kill ends it in time
             os._exit(0)
         os.waitpid(helper, 0)
         time.sleep(30)
@@ -167,18 +145,18 @@ def test_a_helper_in_its_own_session_is_ended_with_the_tree() -> None:
     os.close(write_fd)
     daemon = int(os.read(read_fd, 64).split()[0])
     os.close(read_fd)
-    deadline = time.monotonic() + 5
-    while daemon not in process_tree.descendants(pid) and time.monotonic() < deadline:
-        time.sleep(0.01)  # adopted by the child once its parent has exited
-    assert daemon in process_tree.descendants(pid)
+    # adopted by the child once its parent has exited
+    wait_until(lambda: daemon in process_tree.descendants(pid), "the daemon adopted by the child")
     process_tree.finish(pid)
-    deadline = time.monotonic() + 5
-    while Path(f"/proc/{daemon}").exists() and time.monotonic() < deadline:
-        state = (Path(f"/proc/{daemon}") / "stat").read_text().rsplit(")", 1)[1].split()[0]
-        if state == "Z":  # killed, waiting for init to reap it
-            break
-        time.sleep(0.01)
-    assert not Path(f"/proc/{daemon}").exists() or state == "Z"
+    wait_until(lambda: _ended(daemon), "the daemon killed with the tree")
+
+
+def _ended(pid: int) -> bool:
+    """True once `pid` has exited: gone, or a zombie (killed, waiting for init to reap it)."""
+    try:
+        return (Path(f"/proc/{pid}") / "stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
 
 
 def test_the_probe_ends_a_helper_its_binary_starts(shim_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -188,9 +166,9 @@ def test_the_probe_ends_a_helper_its_binary_starts(shim_fmu: Path, monkeypatch: 
     monkeypatch.setenv(mark, "1")
     try:
         probe_binary(check_plant(shim_fmu))  # within PROBE_SECONDS, whatever the helper does
-        assert _gone(mark) == []
+        wait_gone(mark)
     finally:
-        for pid in _marked(mark):
+        for pid in marked(mark):
             os.kill(pid, 9)
 
 
