@@ -372,7 +372,7 @@ def fault_environment(
         "TOGGLE_FAULT_TIME": repr(time),
         "TOGGLE_FAULT_MIN_FE": repr(min_F_E),
         "TOGGLE_FAULT_FE_VR": str(plant_references["F_E"]),
-        # small enough that the alloc fault reaches it well inside the tests' 2 s time limit:
-        # touching fresh pages costs about 1-2 s per GiB on these machines (0.5-1.3 s for 576 MiB)
+        # small enough that the alloc fault reaches it soon (touching fresh pages costs about
+        # 1-2 s per GiB); its run ends by itself there (abort), under no time limit
         "TOGGLE_COSIM_PLANT_MEMORY": "128M",
     }

@@ -68,9 +68,16 @@ def fault(faulty_fmu: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path):
     return arm
 
 
-def _scenario(folder: Path) -> Path:
+LOOP_LIMIT_S = 2  # the time limit that ends a plant's endless loop; every other run keeps the default (30 s)
+
+
+def _scenario(folder: Path, kind: str = "") -> Path:
+    """SCENARIO; for the loop fault, its hit run limited to LOOP_LIMIT_S (nothing else ends it)."""
+    document = yaml.safe_load(yaml.safe_dump(SCENARIO))
+    if kind == "loop":
+        document["variants"]["hit"]["time_limit"] = LOOP_LIMIT_S
     path = folder / "faulty.yaml"
-    path.write_text(yaml.safe_dump(SCENARIO, sort_keys=False))
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
     return path
 
 
@@ -79,7 +86,7 @@ def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tm
     scratch = fault(kind)
     out = tmp_path / "out"
     result = CliRunner().invoke(
-        main, ["run", str(_scenario(tmp_path)), "--fmu", str(faulty_fmu), "--out", str(out), "-q", "--time-limit", "2"]
+        main, ["run", str(_scenario(tmp_path, kind)), "--fmu", str(faulty_fmu), "--out", str(out), "-q"]
     )
     assert result.exit_code == 1, result.output
     assert "Traceback" not in result.output
@@ -122,7 +129,8 @@ def _sweep_file(folder: Path) -> Path:
 def test_sweep_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
     scratch = fault(kind)
     path = _sweep_file(tmp_path)
-    code = run_sweep(path, fmu=faulty_fmu, workers=1, progress=False, case_timeout=2.0)
+    timeout = LOOP_LIMIT_S if kind == "loop" else None  # nothing else ends the loop; the cases keep 30 s
+    code = run_sweep(path, fmu=faulty_fmu, workers=1, progress=False, case_timeout=timeout)
     assert code == 1
     rows = {row["plant.F_E"]: row for row in pq.read_table(tmp_path / "out" / "results.parquet").to_pylist()}
     assert rows[60.0]["status"] == "failed" and REASONS[kind] in rows[60.0]["reason"]

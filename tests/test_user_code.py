@@ -286,12 +286,13 @@ def test_user_code_that_ends_hangs_or_interrupts_fails_its_own_run_only(
         r"killed by SIGSEGV while it computed the sample at t = 0\.005 s",
     }
     variants = {how: {"controller": {"parameters": {"how": how}}} for how in [*reasons, "exit_close"]}
+    variants["sleep"]["time_limit"] = 2.5  # it sleeps 600 s; the other runs keep the default limit (30 s)
     variants["after"] = {}
     path = _scenario(tmp_path / "work", "hostile", {"python": "hostile:make"}, variants=variants)
     monkeypatch.chdir(tmp_path / "work")
     monkeypatch.setenv("HOSTILE_CHDIR", "1")
     before = set(sys.modules)
-    code, output = _run(path.name, "--fmu", str(plant_fmu), "--out", "out", "--time-limit", "2.5", "-q")
+    code, output = _run(path.name, "--fmu", str(plant_fmu), "--out", "out", "-q")
     assert not any(name.startswith(("hostile", "toggle_cosim_scenario_")) for name in set(sys.modules) - before)
     assert code == 1, output
     for how, reason in reasons.items():
