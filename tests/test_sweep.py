@@ -204,7 +204,8 @@ def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
 
 def test_a_worker_killed_from_outside_fails_only_its_case(tmp_path, plant_fmu):
     """SIGKILL to a plant host's pid: the case it was running is failed with the reason, a new
-    host takes the next case, every other case is ok."""
+    host takes the next case, every other case is ok. The kill comes when the third case is
+    handed back (nine are still to run), from the loop that collects them."""
     psutil = pytest.importorskip("psutil")
     base = {**BASE, "t_end": 1.5}
     path = write_sweep(tmp_path, {"plant.F_E": {"linspace": [0, 150, 12]}}, base)
@@ -214,16 +215,6 @@ def test_a_worker_killed_from_outside_fails_only_its_case(tmp_path, plant_fmu):
     before = {child.pid for child in own.children(recursive=True)}
     finished = []
 
-    def kill_a_host() -> None:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and len(finished) < 3:
-            time.sleep(0.002)
-        for child in own.children(recursive=False):
-            if child.pid not in before:
-                child.kill()
-                killed.append(child.pid)
-                return
-
     from toggle_cosim.experiments import sweep_exec
 
     original = sweep_exec.CaseRunner.service
@@ -231,16 +222,17 @@ def test_a_worker_killed_from_outside_fails_only_its_case(tmp_path, plant_fmu):
     def counting(self, answer):
         result = original(self, answer)
         finished.append(result[0]["case_id"])
+        if len(finished) == 3:
+            host = next(child for child in own.children(recursive=False) if child.pid not in before)
+            host.kill()
+            killed.append(host.pid)
         return result
 
-    killer = threading.Thread(target=kill_a_host)
     sweep_exec.CaseRunner.service = counting
     try:
-        killer.start()
         result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
     finally:
         sweep_exec.CaseRunner.service = original
-        killer.join()
     assert killed, "no plant host to kill"
     table = read_results(sweep.output)
     assert len(table) == 12 and result.ran == 12
