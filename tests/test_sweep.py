@@ -523,6 +523,7 @@ def test_a_scheduler_that_is_not_dask_is_one_line_within_the_timeout(tmp_path, p
     import socket
 
     dask = pytest.importorskip("dask")
+    pytest.importorskip("distributed")  # imported here, not timed below (seconds on a loaded machine)
     path = write_sweep(tmp_path, {"plant.F_E": {"values": [0]}})
     server, http_port = _http_server()
     silent = socket.socket()
