@@ -163,10 +163,17 @@ def test_shipped_sweep_is_valid():
     assert sweep.heatmap == ("plant.F_E", "plant.m_B")
 
 
-def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
+def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, shim_fmu):
     """Rows are written in batches (here of 8 rows): a SIGKILL loses only the batch in flight, and
-    the re-run runs only the cases not in a written batch."""
-    base = {**BASE, "t_end": 1.5}  # ~0.03 s a case, one worker: the kill lands midway
+    the re-run runs only the cases not in a written batch. The kill comes once the first batch
+    is written; the last four cases (F_E = 150 N, run last by the one worker) hold in fmi2DoStep
+    behind the fault shim, so the sweep cannot have finished by then on any machine."""
+    from fault_plants import fault_environment
+    from process_events import wait_until
+
+    from toggle_cosim.plant.contract import check_plant
+
+    base = {**BASE, "t_end": 1.5}
     axes = {
         "plant.F_E": {"linspace": [0, 150, 32]},
         "plant.m_B": {"values": [4.43, 8.86]},
@@ -174,22 +181,23 @@ def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
     }
     path = write_sweep(tmp_path, axes, base)
     parts = tmp_path / "out" / "parts"
-    command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(plant_fmu)]
-    environment = {**os.environ, "TOGGLE_COSIM_SWEEP_BATCH_ROWS": "8"}
+    command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(shim_fmu)]
+    hold = fault_environment("", 0.0, check_plant(shim_fmu).references, 149.0, hold=tmp_path / "never")
+    environment = {**hold, "TOGGLE_COSIM_SWEEP_BATCH_ROWS": "8"}
     process = subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, env=environment
     )
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not list(parts.glob("batch-*.parquet")):
-        time.sleep(0.005)
-    os.killpg(process.pid, signal.SIGKILL)  # the sweep and its plant hosts, no clean-up
-    process.communicate()
+    try:
+        wait_until(lambda: list(parts.glob("batch-*.parquet")) or process.poll() is not None, "the first batch")
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)  # the sweep and its plant hosts, no clean-up
+        process.communicate()
     existing = {row["case_id"]: row for p in parts.glob("batch-*.parquet") for row in pq.read_table(p).to_pylist()}
-    assert 1 <= len(existing) < 128, f"{len(existing)} rows when killed"
+    assert 1 <= len(existing) <= 124, f"{len(existing)} rows when killed"
     assert not (tmp_path / "out" / "results.parquet").exists()
 
-    sweep = load_sweep(path)
-    result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
+    sweep = load_sweep(path)  # this process has no hold: every case runs the plant's own way
+    result = execute_sweep(sweep, fmu=shim_fmu, workers=2, progress=False)
     assert result.skipped == len(existing)
     assert result.ran == 128 - len(existing)
     table = read_results(sweep.output)
