@@ -26,6 +26,14 @@ and, whatever the time and F_E (the helper processes live TOGGLE_FAULT_SLEEP s, 
     orphan    fmi2Instantiate starts a daemon (double fork, setsid: it leaves the plant's group
               and tree), then fmi2DoStep segfaults at the fault time
 
+and, with any kind (or none), from the fault time in a run whose F_E is at least TOGGLE_FAULT_MIN_FE:
+
+    TOGGLE_FAULT_HOLD=<path>  fmi2DoStep waits until the file <path> exists, then steps on
+                              (a file never made: the run cannot finish, it is killed)
+    TOGGLE_FAULT_MARK=<path>  the first fmi2DoStep of a run that meets the fault (or the hold)
+                              appends "<pid>" and a newline to <path> before it misbehaves: the
+                              event a test waits on before it interrupts, kills or releases
+
 The settings come from the environment, so a command started with them passes them to every
 process that loads the plant (pool workers, supervised children).
 """
@@ -102,6 +110,7 @@ _FUNCTIONS = [
 _PROLOGUE = r"""
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <fcntl.h>
 #include <math.h>
 #include <signal.h>
 #include <stdlib.h>
@@ -119,6 +128,8 @@ static double fault_end = 1e300, full_step; /* chatter: substeps pass until faul
 static unsigned int F_E_vr = 0xffffffffu;
 static int fault_status;
 static fmi2CallbackFunctions callbacks;
+static const char *hold_path, *mark_path; /* TOGGLE_FAULT_HOLD, TOGGLE_FAULT_MARK */
+static int marked;                        /* this run has appended its line to mark_path */
 
 static double sleep_seconds(void) {
     const char *text = getenv("TOGGLE_FAULT_SLEEP");
@@ -162,11 +173,32 @@ static void *real(const char *name) {
         if (getenv("TOGGLE_FAULT_TIME")) fault_time = atof(getenv("TOGGLE_FAULT_TIME"));
         if (getenv("TOGGLE_FAULT_MIN_FE")) fault_min_FE = atof(getenv("TOGGLE_FAULT_MIN_FE"));
         if (getenv("TOGGLE_FAULT_FE_VR")) F_E_vr = (unsigned int)atol(getenv("TOGGLE_FAULT_FE_VR"));
+        hold_path = getenv("TOGGLE_FAULT_HOLD");
+        mark_path = getenv("TOGGLE_FAULT_MARK");
     }
     return dlsym(real_library, name);
 }
 
-static int faulting(void) { return kind && last_time >= fault_time - 1e-12 && F_E >= fault_min_FE; }
+static int at_fault(void) { return last_time >= fault_time - 1e-12 && F_E >= fault_min_FE; }
+
+static int faulting(void) { return kind && at_fault(); }
+
+/* Once a run: "<pid>\n" appended to TOGGLE_FAULT_MARK (one write, O_APPEND: lines never mix). */
+static void mark(void) {
+    if (marked || !mark_path) return;
+    marked = 1;
+    int fd = open(mark_path, O_WRONLY | O_CREAT | O_APPEND, 0644);
+    if (fd < 0) return;
+    char line[32];
+    int n = snprintf(line, sizeof line, "%ld\n", (long)getpid());
+    if (write(fd, line, (size_t)n) != n) abort();
+    close(fd);
+}
+
+/* TOGGLE_FAULT_HOLD: wait (1 ms naps) until the file exists; a signal ends the wait as it ends the process. */
+static void hold(void) {
+    while (access(hold_path, F_OK) != 0) usleep(1000);
+}
 
 /* Every run sets up its experiment (a new instance, or one reset after the last run): the
    shim's time and force start again, as the instance's own state does. */
@@ -174,6 +206,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDef, fmi2Real tol
                                fmi2Boolean stopDef, fmi2Real stop) {
     last_time = start;
     F_E = 0;
+    marked = 0;
     return ((fmi2SetupExperimentTYPE *)real("fmi2SetupExperiment"))(c, tolDef, tol, start, stopDef, stop);
 }
 
@@ -210,6 +243,8 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
     last_time = t;
     if (h > full_step) full_step = h;
+    if (at_fault() && (kind || hold_path)) mark();
+    if (hold_path && at_fault()) hold();
     if (faulting()) {
         switch (kind) {
         case 1:
@@ -318,16 +353,26 @@ def make_faulty_fmu(plant: Path, out: Path, needs_library: bool = False) -> Path
 
 
 def fault_environment(
-    kind: str, time: float, plant_references: dict[str, int], min_F_E: float = -1e300
+    kind: str,
+    time: float,
+    plant_references: dict[str, int],
+    min_F_E: float = -1e300,
+    *,
+    hold: Path | None = None,
+    mark: Path | None = None,
 ) -> dict[str, str]:
-    """The environment that makes the shim misbehave (merged into os.environ)."""
+    """The environment that makes the shim misbehave (merged into os.environ); `hold` and
+    `mark`: TOGGLE_FAULT_HOLD and TOGGLE_FAULT_MARK (module doc), unset if None. `kind` "" is
+    no kind: the plant steps as it should, held where `hold` says."""
+    files = {"TOGGLE_FAULT_HOLD": hold, "TOGGLE_FAULT_MARK": mark}
     return {
-        **os.environ,
+        **{key: value for key, value in os.environ.items() if key not in files},
+        **{key: str(path) for key, path in files.items() if path is not None},
         "TOGGLE_FAULT_KIND": kind,
         "TOGGLE_FAULT_TIME": repr(time),
         "TOGGLE_FAULT_MIN_FE": repr(min_F_E),
         "TOGGLE_FAULT_FE_VR": str(plant_references["F_E"]),
-        # small enough that the alloc fault reaches it well inside the tests' 2 s time limit:
-        # touching fresh pages costs about 1-2 s per GiB on these machines (0.5-1.3 s for 576 MiB)
+        # small enough that the alloc fault reaches it soon (touching fresh pages costs about
+        # 1-2 s per GiB); its run ends by itself there (abort), under no time limit
         "TOGGLE_COSIM_PLANT_MEMORY": "128M",
     }

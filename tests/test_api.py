@@ -16,7 +16,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -208,8 +207,9 @@ def faulty_fmu(plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory) -> Pat
     return make_faulty_fmu(plant_fmu, tmp_path_factory.mktemp("faulty") / "Faulty.fmu")
 
 
-def _arm(kind: str, fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    for key, value in fault_environment(kind, T_FAULT, check_plant(fmu).references, min_F_E=50.0).items():
+def _arm(kind: str, fmu: Path, monkeypatch: pytest.MonkeyPatch, mark: Path | None = None) -> None:
+    environment = fault_environment(kind, T_FAULT, check_plant(fmu).references, min_F_E=50.0, mark=mark)
+    for key, value in environment.items():
         monkeypatch.setenv(key, value)
 
 
@@ -236,19 +236,24 @@ def test_a_plant_error_in_process_is_a_failed_result(faulty_fmu: Path, monkeypat
 
 
 def test_an_interrupt_stops_the_run_and_keeps_its_partial_result(
-    faulty_fmu: Path, monkeypatch: pytest.MonkeyPatch
+    faulty_fmu: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     """The notebook's stop button sends SIGINT: the plant (here stuck in an endless loop in C)
-    is killed, and the partial result travels with the exception."""
-    _arm("loop", faulty_fmu, monkeypatch)
-    timer = threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGINT))
-    timer.start()
-    try:
-        with pytest.raises(tc.RunInterrupted) as stopped:
-            tc.simulate(tc.scenario(SHORT)["hit"], faulty_fmu, time_limit=30)
-    finally:
-        timer.cancel()
-    assert isinstance(stopped.value, KeyboardInterrupt)
+    is killed, and the partial result travels with the exception. The signal is sent once the
+    plant is in its loop (it marks the file first), from the progress callback, which the run
+    calls at least every 0.1 s while it waits for the child."""
+    marked = tmp_path / "in-the-loop"
+    _arm("loop", faulty_fmu, monkeypatch, mark=marked)
+    sent = []
+
+    def stop_once_looping(fraction: float) -> None:
+        if marked.exists() and not sent:
+            sent.append(fraction)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(tc.RunInterrupted) as stopped:
+        tc.simulate(tc.scenario(SHORT)["hit"], faulty_fmu, time_limit=30, progress=stop_once_looping)
+    assert sent and isinstance(stopped.value, KeyboardInterrupt)
     result = stopped.value.result
     assert result.status == "interrupted" and result.trace.data.shape[0] == ROWS_TO_FAULT
 

@@ -5,18 +5,18 @@ state where the FMU can save it. Result files are never left truncated."""
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from fault_plants import fault_environment
 from fmpy.fmi1 import FMICallException
+from process_events import wait_until
 
 from toggle_cosim.cosim import master, session
 from toggle_cosim.experiments.scenario import runs_from_document
@@ -139,56 +139,41 @@ def test_non_finite_outputs_end_the_run(plant_fmu: Path, monkeypatch: pytest.Mon
     assert len(outcome.trace.time) == 300 and np.all(np.isfinite(outcome.trace.data))
 
 
-def test_sigterm_writes_a_complete_file_marked_interrupted(plant_fmu: Path, tmp_path: Path) -> None:
-    """Killing a long run with SIGTERM: exit 130, the trace up to the signal is a whole CSV, and
-    run.json says interrupted and why; no temporary file is left behind."""
+def test_sigterm_writes_a_complete_file_marked_interrupted(shim_fmu: Path, tmp_path: Path) -> None:
+    """Killing a run with SIGTERM while it is under way (here held in fmi2DoStep at 0.05 s by the
+    fault shim, which marks a file then): exit 130, the trace up to the signal is a whole CSV,
+    and run.json says interrupted and why; no temporary file is left behind."""
     document = yaml.safe_load((ROOT / "scenarios" / "fig4_nominal.yaml").read_text())
     document.pop("variants")
-    document["t_end"] = 90.0
-    document["plant"]["parameters"] = {"solver.maxStep": 1e-5}  # slow the FMU down: about 2 simulated s per second
     scenario = tmp_path / "long.yaml"
     scenario.write_text(yaml.safe_dump(document))
     out = tmp_path / "out"
-    scratch = tmp_path / "tmp"
-    scratch.mkdir()
-    env = {**os.environ, "TOGGLE_COSIM_KERNEL": "0", "TMPDIR": str(scratch)}  # the Python loop
+    marks = tmp_path / "held"
+    hold = fault_environment("", 0.05, check_plant(shim_fmu).references, hold=tmp_path / "never", mark=marks)
+    env = {**hold, "TOGGLE_COSIM_KERNEL": "0"}  # the Python loop
+    command = [sys.executable, "-m", "toggle_cosim.cli", "run", str(scenario), "--fmu", str(shim_fmu)]
     process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "toggle_cosim.cli",
-            "run",
-            str(scenario),
-            "--fmu",
-            str(plant_fmu),
-            "--out",
-            str(out),
-            "-q",
-        ],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+        [*command, "--out", str(out), "-q"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
-    deadline = time.monotonic() + 60
-    while not list(scratch.glob("toggle-cosim-run-*")):  # the supervised run has started
-        assert time.monotonic() < deadline and process.poll() is None, "the run never started"
-        time.sleep(0.02)
-    time.sleep(1.0)
-    process.send_signal(signal.SIGTERM)
-    stdout, stderr = process.communicate(timeout=60)
+    try:
+        wait_until(lambda: marks.exists() or process.poll() is not None, "the run held at 0.05 s")
+        process.send_signal(signal.SIGTERM)
+        stdout, stderr = process.communicate(timeout=60)
+    finally:
+        process.kill()
     assert process.returncode == 130, (stdout, stderr)
     record = json.loads((out / "fig4_nominal" / "run" / "run.json").read_text())
     assert record["status"] == "interrupted" and record["reason"].startswith("interrupted")
     trace = read_csv(out / "fig4_nominal" / "run" / "trace.csv")
-    assert 0 < trace.data.shape[0] < 180001 and trace.data.shape[0] == record["samples"]
+    assert trace.data.shape[0] == record["samples"] == 101  # t = 0 .. 0.05 s at T_s = 0.5 ms
     assert np.all(np.isfinite(trace.data))
     assert not list(out.rglob("*.partial"))
 
 
 def test_sigkill_leaves_no_truncated_csv(plant_fmu: Path, tmp_path: Path) -> None:
     """SIGKILL cannot be caught: what is left is either nothing or whole files, never a
-    truncated CSV under the final name (files are written under a temporary name first)."""
+    truncated CSV under the final name (files are written under a temporary name first). The
+    kill comes once the first trace is written, while the other runs are under way."""
     out = tmp_path / "out"
     runs = [
         str(ROOT / "scenarios" / f"{name}.yaml")
@@ -199,10 +184,14 @@ def test_sigkill_leaves_no_truncated_csv(plant_fmu: Path, tmp_path: Path) -> Non
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    time.sleep(1.2)
-    process.kill()
-    process.wait(timeout=30)
-    for csv in out.rglob("trace.csv"):
+    try:
+        wait_until(lambda: any(out.rglob("trace.csv")) or process.poll() is not None, "the first trace")
+    finally:
+        process.kill()
+        process.wait(timeout=30)
+    traces = list(out.rglob("trace.csv"))
+    assert traces
+    for csv in traces:
         trace = read_csv(csv)
         assert trace.data.shape[0] == 3001
 

@@ -20,7 +20,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -110,10 +110,21 @@ class Page:
         )
 
     def choose(self, figure: str, label: str) -> None:
-        """Open the figure's dropdown and click `label`, as a reader does."""
+        """Open the figure's dropdown and click `label`, as a reader does; return once it is drawn."""
         self.page.locator(f"#{figure} .updatemenu-header").click()
-        self.page.locator(f"#{figure} .updatemenu-dropdown-button", has_text=label).first.click()
-        self.page.wait_for_timeout(200)
+        button = self.page.locator(f"#{figure} .updatemenu-dropdown-button", has_text=label).first
+        self.redrawn(figure, button.click)
+
+    def redrawn(self, figure: str, action: Callable[[], object]) -> None:
+        """Do `action` and wait until Plotly has drawn the figure element `figure` again (its
+        plotly_afterplot event), not a fixed time."""
+        self.page.evaluate(
+            """id => { window.redrawn = false;
+                       document.getElementById(id).once('plotly_afterplot', () => { window.redrawn = true; }); }""",
+            figure,
+        )
+        action()
+        self.page.wait_for_function("window.redrawn === true")
 
     def shot(self, path: Path, full_page: bool = False) -> Path:
         self.page.screenshot(path=str(path), full_page=full_page)
@@ -252,8 +263,7 @@ def test_a_sweep_cell_click_shows_that_cases_trace(browser, tmp_path: Path) -> N
                    const xa = g._fullLayout.xaxis, ya = g._fullLayout.yaxis;
                    return [box.left + xa._offset + xa.l2p(1), box.top + ya._offset + ya.l2p(1)]; }"""
     )
-    page.page.mouse.click(*where)
-    page.page.wait_for_timeout(300)
+    page.redrawn("sweep-trace-0", lambda: page.page.mouse.click(*where))
     shown = [(c["meta"], c["name"]) for c in page.curves("sweep-trace-0") if c["visible"]]
     assert shown == [(cases[4], "x_B"), (cases[4], "iq_ref")]
     level = page.values("sweep-trace-0", "iq_ref")[0]

@@ -11,9 +11,11 @@ from pathlib import Path
 import pytest
 import yaml
 from click.testing import CliRunner
+from fault_plants import fault_environment
 
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import read_csv
+from toggle_cosim.plant.contract import check_plant
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE = {
@@ -106,21 +108,25 @@ def test_written_files_follow_the_umask(tmp_path: Path, plant_fmu: Path) -> None
         assert mode == 0o666 & ~mask, (name, oct(mode))
 
 
-def test_the_time_limit_key_ends_a_slow_run_as_failed_with_a_partial_summary(tmp_path: Path, plant_fmu: Path) -> None:
-    """solver.maxStep = 1e-7 s makes the plant far slower than real time; time_limit: 1 stops it.
-    The samples it recorded have their figures of merit, marked as a partial run's."""
+def test_the_time_limit_key_ends_a_run_that_cannot_finish_as_failed_with_a_partial_summary(
+    tmp_path: Path, shim_fmu: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The plant holds in fmi2DoStep from t = 0.05 s for good (the fault shim's hold, never
+    released): time_limit: 1 stops the run, whatever the machine's speed, with the samples up
+    to where it held (101 at most). The samples it recorded have their figures of merit, marked
+    as a partial run's."""
+    hold = fault_environment("", 0.05, check_plant(shim_fmu).references, hold=tmp_path / "never")
+    for key, value in hold.items():
+        monkeypatch.setenv(key, value)
     out = tmp_path / "out"
-    plant = {**BASE["plant"], "parameters": {"solver.maxStep": 1e-7}}
     result = CliRunner().invoke(
-        main,
-        ["run", str(_scenario(tmp_path, plant=plant, time_limit=1)), "--fmu", str(plant_fmu), "--out", str(out), "-q"],
+        main, ["run", str(_scenario(tmp_path, time_limit=1)), "--fmu", str(shim_fmu), "--out", str(out), "-q"]
     )
     assert result.exit_code == 1, result.output
     record = json.loads((out / "small" / "run" / "run.json").read_text())
     assert record["status"] == "failed" and record["reason"].startswith("time limit 1 s exceeded at t = ")
     trace = read_csv(out / "small" / "run" / "trace.csv")
-    assert trace.data.shape[0] == record["samples"] < 401
-    assert record["samples"] >= 2, "the run recorded too few samples for a summary: raise time_limit"
+    assert 2 <= trace.data.shape[0] == record["samples"] <= 101
     assert record["summary"]["final_error_m"] == pytest.approx(0.3199 - trace.column("x_B")[-1])
     assert record["summary"]["peak_iq_ref_A"] == pytest.approx(abs(trace.column("iq_ref")).max())
     assert record["summary_partial"] is True

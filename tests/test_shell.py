@@ -923,10 +923,8 @@ def test_non_finite_derivative_is_an_error_not_a_crash(build):
 def test_chattering_is_stopped_with_a_message(build):
     """A sliding mode at x = 0.5: the Zeno guard stops it, naming indicator and time."""
     slave = Slave(build("Zeno"), logging=True).start()
-    started = time.perf_counter()
     with pytest.raises(FMICallException):
-        slave.fmu.doStep(0.0, 1.0)
-    assert time.perf_counter() - started < 2.0
+        slave.fmu.doStep(0.0, 1.0)  # without the guard: an endless sequence of events, never returns
     events = slave.events()
     assert len(events) == 10001 and {k for _, k in events} == {0}
     assert abs(events[0][0] - 0.5) < 1e-12  # x = t reaches 0.5

@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import os
 import tempfile
-import time
+import uuid
 from pathlib import Path
 
 import numpy as np
 import pytest
+from process_events import wait_gone, wait_until
 
 from toggle_cosim.cosim.master import simulate
 from toggle_cosim.cosim.supervised_batch import default_jobs, run_supervised
@@ -51,8 +52,7 @@ def test_closing_the_batch_early_kills_and_cleans_up(
     assert first.complete
     children = [p for p in _children() if p not in before]
     assert children  # the next runs were started before the first was handed back (alive or not yet reaped)
-    batch.close()
-    time.sleep(0.1)
+    batch.close()  # kills and reaps them before it returns
     assert [p for p in children if Path(f"/proc/{p}").exists() and _parent(p) == os.getpid()] == []
     assert list(tmp_path.glob("toggle-cosim-run-*")) == []
 
@@ -86,17 +86,16 @@ def test_a_killed_commands_folders_are_removed_by_the_next(plant_fmu: Path, tmp_
 
     scratch = tmp_path / "tmp"
     scratch.mkdir()
-    env = {**os.environ, "TMPDIR": str(scratch), "TOGGLE_COSIM_KERNEL": "0"}  # the Python loop: slower
+    mark = f"TOGGLE_TEST_MARK_{uuid.uuid4().hex}"  # in the environment of the command and its children
+    env = {**os.environ, "TMPDIR": str(scratch), "TOGGLE_COSIM_KERNEL": "0", mark: "1"}  # the Python loop: slower
     files = [str(ROOT / "scenarios" / f"{name}.yaml") for name in PAPER]
     command = [sys.executable, "-m", "toggle_cosim.cli", "run", *files, "--fmu", str(plant_fmu), "-q"]
     process = subprocess.Popen([*command, "--out", str(tmp_path / "a")], env=env, stdout=subprocess.DEVNULL)
-    deadline = time.monotonic() + 60
-    while not list(scratch.glob("toggle-cosim-run-*")):
-        assert time.monotonic() < deadline and process.poll() is None, "no run started"
-        time.sleep(0.01)
+    wait_until(lambda: list(scratch.glob("toggle-cosim-run-*")) or process.poll() is not None, "a run started")
+    assert process.poll() is None, "the command ended before its runs"
     process.send_signal(signal.SIGKILL)
     process.wait()
-    time.sleep(0.2)  # the children die with their parent
+    wait_gone(mark)  # the children die with their parent (and write nothing more)
     left = list(scratch.glob("toggle-cosim-run-*"))
     assert left and all(folder.name.startswith(f"toggle-cosim-run-{process.pid}-") for folder in left)
     # the folder holds at most the FMU's unzipped copy (a directory): the trace buffer never had a name

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -26,6 +25,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from fault_plants import SCENARIO, fault_environment, make_faulty_fmu
+from process_events import program_running, wait_until
 
 from toggle_cosim.cli import main
 from toggle_cosim.experiments.sweep import run_sweep
@@ -68,9 +68,16 @@ def fault(faulty_fmu: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path):
     return arm
 
 
-def _scenario(folder: Path) -> Path:
+LOOP_LIMIT_S = 2  # the time limit that ends a plant's endless loop; every other run keeps the default (30 s)
+
+
+def _scenario(folder: Path, kind: str = "") -> Path:
+    """SCENARIO; for the loop fault, its hit run limited to LOOP_LIMIT_S (nothing else ends it)."""
+    document = yaml.safe_load(yaml.safe_dump(SCENARIO))
+    if kind == "loop":
+        document["variants"]["hit"]["time_limit"] = LOOP_LIMIT_S
     path = folder / "faulty.yaml"
-    path.write_text(yaml.safe_dump(SCENARIO, sort_keys=False))
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
     return path
 
 
@@ -79,7 +86,7 @@ def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tm
     scratch = fault(kind)
     out = tmp_path / "out"
     result = CliRunner().invoke(
-        main, ["run", str(_scenario(tmp_path)), "--fmu", str(faulty_fmu), "--out", str(out), "-q", "--time-limit", "2"]
+        main, ["run", str(_scenario(tmp_path, kind)), "--fmu", str(faulty_fmu), "--out", str(out), "-q"]
     )
     assert result.exit_code == 1, result.output
     assert "Traceback" not in result.output
@@ -122,7 +129,8 @@ def _sweep_file(folder: Path) -> Path:
 def test_sweep_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
     scratch = fault(kind)
     path = _sweep_file(tmp_path)
-    code = run_sweep(path, fmu=faulty_fmu, workers=1, progress=False, case_timeout=2.0)
+    timeout = LOOP_LIMIT_S if kind == "loop" else None  # nothing else ends the loop; the cases keep 30 s
+    code = run_sweep(path, fmu=faulty_fmu, workers=1, progress=False, case_timeout=timeout)
     assert code == 1
     rows = {row["plant.F_E"]: row for row in pq.read_table(tmp_path / "out" / "results.parquet").to_pylist()}
     assert rows[60.0]["status"] == "failed" and REASONS[kind] in rows[60.0]["reason"]
@@ -153,110 +161,130 @@ def _whole_files_only(out: Path) -> None:
             assert record["samples"] == 3001
 
 
-def _interrupt(command: list[str], delay: float, number: int, out: Path) -> tuple[int, float, str]:
-    """Signal the command after `delay`; if it finished first (a faster moment of the machine),
-    start it again and signal earlier, up to three times."""
-    for _ in range(3):
-        code, took, stderr = _interrupt_once(command, delay, number)
-        if code not in (0, 1):
-            break
-        shutil.rmtree(out, ignore_errors=True)
-        delay = max(EARLIEST, delay * 0.6)
-    return code, took, stderr
+HOLD_F_E = 150.0  # N: above every paper run's F_E (at most 100 N): only the held runs meet the hold
+SIGNAL_POINTS = 12
 
 
-def _interrupt_once(command: list[str], delay: float, number: int) -> tuple[int, float, str]:
-    """SIGINT as a terminal's Ctrl-C sends it, to the command's whole process group (its pool
-    workers, figure and plant processes too, some of them still starting); SIGTERM as `kill`
-    sends it, to the command alone."""
+@pytest.fixture()
+def held(shim_fmu: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """The commands below run on the fault shim with no fault: runs with F_E >= 120 N hold in
+    their first fmi2DoStep for good (the release file is never made), every other run is the
+    plant's. A command with a held run cannot end before an interrupt ends it, whatever the
+    machine's speed. The shim marks the file returned once a run holds."""
+    marks = tmp_path / "held"
+    hold = fault_environment("", 0.0, check_plant(shim_fmu).references, 120.0, hold=tmp_path / "never", mark=marks)
+    for key, value in hold.items():
+        monkeypatch.setenv(key, value)
+    return marks
+
+
+def _started(command: list[str]) -> subprocess.Popen[str]:
+    """The command, once its own code runs (before that the interpreter alone would meet a signal)."""
     process = subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
     )
-    time.sleep(delay)
-    sent = time.monotonic()
-    if number == signal.SIGINT:
-        os.killpg(process.pid, number)
-    else:
+    wait_until(lambda: program_running(process.pid) or process.poll() is not None, "the command's own code")
+    return process
+
+
+def _until_held(command: list[str], marks: Path) -> float:
+    """Seconds from the command's start to its held run holding (the span the signals are spread
+    over); the command is then ended as `kill` would (it cleans up as for any SIGTERM)."""
+    process = _started(command)
+    started = time.monotonic()
+    try:
+        wait_until(lambda: marks.exists() or process.poll() is not None, "the held run")
+        assert process.poll() is None, process.communicate()
+        return time.monotonic() - started
+    finally:
+        _end(process, signal.SIGTERM)
+        marks.unlink(missing_ok=True)
+
+
+def _end(process: subprocess.Popen[str], number: int | None) -> tuple[int, str]:
+    """Send `number` to the process (None: it was sent) and wait for it (hang guard: the held
+    run ends only by the signal); its exit status and stderr."""
+    if number is not None:
         process.send_signal(number)
     try:
-        _, stderr = process.communicate(timeout=30)
+        _, stderr = process.communicate(timeout=60)
     except subprocess.TimeoutExpired:
-        process.kill()
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
         raise
-    return process.returncode, time.monotonic() - sent, stderr
+    return process.returncode, stderr
 
 
-EARLIEST = 0.15  # s: before this the interpreter itself is starting (no program code runs yet to catch a signal)
+def _interrupt(command: list[str], delay: float, number: int) -> tuple[int, str]:
+    """Signal the command `delay` s after its own code started running: SIGINT as a terminal's
+    Ctrl-C sends it, to the command's whole process group (its pool workers, figure and plant
+    processes too, some of them still starting); SIGTERM as `kill` sends it, to the command
+    alone. The command holds a run that never finishes: every moment is one before its end."""
+    process = _started(command)
+    time.sleep(delay)  # the moment to hit, not a wait for anything: each outcome must be the same
+    if number == signal.SIGINT:
+        os.killpg(process.pid, number)
+        return _end(process, None)
+    return _end(process, number)
 
 
-def _signal_points(duration: float) -> list[tuple[float, signal.Signals]]:
-    """12 moments spread from start-up (EARLIEST) to 90 % of the command's uninterrupted
-    duration, SIGINT and SIGTERM in turn."""
-    last = max(0.9 * duration, EARLIEST + 0.11)
-    return [(EARLIEST + (last - EARLIEST) * k / 11, signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(12)]
+def _signal_points(span: float) -> list[tuple[float, signal.Signals]]:
+    """SIGNAL_POINTS moments spread from the command's start to its held run (`span`), SIGINT
+    and SIGTERM in turn."""
+    last = SIGNAL_POINTS - 1
+    return [(span * k / last, signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(SIGNAL_POINTS)]
 
 
-def _duration(command: list[str]) -> float:
-    started = time.monotonic()
-    subprocess.run(command, capture_output=True, check=False, timeout=120)
-    return time.monotonic() - started
-
-
-def test_interrupts_at_any_moment_of_a_multi_variant_run(plant_fmu: Path, tmp_path: Path) -> None:
-    """SIGINT/SIGTERM at 12 moments from start-up to the last of six runs: exit 130 within 2 s,
-    no traceback, whole files only, the interrupted run recorded as interrupted."""
+def test_interrupts_at_any_moment_of_a_multi_variant_run(shim_fmu: Path, tmp_path: Path, held: Path) -> None:
+    """SIGINT/SIGTERM at 12 moments from start-up to the last of seven runs (that one holds until
+    the command ends it): exit 130 every time, no traceback, whole files only, the interrupted
+    run recorded as interrupted."""
     files = [
         str(ROOT / "scenarios" / f"{name}.yaml")
         for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
     ]
-    interrupted = 0
-    whole = _duration(_command("run", *files, "--fmu", str(plant_fmu), "--out", str(tmp_path / "whole"), "-q"))
-    for number, (delay, which) in enumerate(_signal_points(whole)):
+    last = {k: v for k, v in SCENARIO.items() if k != "variants"}
+    last.update(name="held", plant={**SCENARIO["plant"], "F_E": HOLD_F_E}, time_limit=600)
+    (tmp_path / "held.yaml").write_text(yaml.safe_dump(last, sort_keys=False))
+    files.append(str(tmp_path / "held.yaml"))
+
+    def command(out: str) -> list[str]:
+        return _command("run", *files, "--fmu", str(shim_fmu), "--out", str(tmp_path / out), "-q")
+
+    span = _until_held(command("calibration"), held)
+    for number, (delay, which) in enumerate(_signal_points(span)):
         out = tmp_path / f"out{number}"
-        code, took, stderr = _interrupt(
-            _command("run", *files, "--fmu", str(plant_fmu), "--out", str(out), "-q"), delay, which, out
-        )
+        code, stderr = _interrupt(command(out.name), delay, which)
         assert "Traceback" not in stderr, stderr
-        if code == 0:  # finished before the signal
-            continue
         assert code == 130, (delay, which, stderr)
-        assert took < 2.0, (delay, which, took)
-        interrupted += 1
         if out.exists():
             _whole_files_only(out)
-    assert interrupted >= 10
 
 
-def test_interrupts_at_any_moment_of_a_sweep(plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The same over a sweep (start-up, workers starting, cases running and finishing): exit 130
-    within 2 s, readable tables only, no traceback, no worker folder left in TMPDIR."""
+def test_interrupts_at_any_moment_of_a_sweep(
+    shim_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, held: Path
+) -> None:
+    """The same over a sweep (start-up, workers starting, cases running and finishing; its last
+    case holds until the command ends it): exit 130 every time, readable tables only, no
+    traceback, no worker folder left in TMPDIR."""
     scratch = tmp_path / "scratch"
     scratch.mkdir()
     monkeypatch.setenv("TMPDIR", str(scratch))
     base = {k: v for k, v in SCENARIO.items() if k != "variants"}
-    base["t_end"] = 1.0
+    base.update(t_end=1.0, time_limit=600)
     (tmp_path / "base.yaml").write_text(yaml.safe_dump(base, sort_keys=False))
-    (tmp_path / "whole.yaml").write_text(
-        yaml.safe_dump({"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": "whole"})
-    )
-    whole = _duration(_command("sweep", str(tmp_path / "whole.yaml"), "--fmu", str(plant_fmu), "--workers", "2"))
-    interrupted = 0
-    for number, (delay, which) in enumerate(_signal_points(whole)):
-        sweep = {"base": "base.yaml", "axes": {"plant.F_E": {"linspace": [0, 40, 12]}}, "output": f"out{number}"}
-        path = tmp_path / f"sweep{number}.yaml"
-        path.write_text(yaml.safe_dump(sweep, sort_keys=False))
-        code, took, stderr = _interrupt(
-            _command("sweep", str(path), "--fmu", str(plant_fmu), "--workers", "2"),
-            delay,
-            which,
-            tmp_path / f"out{number}",
-        )
+    axes = {"plant.F_E": {"values": [*np.linspace(0, 40, 11).tolist(), HOLD_F_E]}}
+
+    def command(output: str) -> list[str]:
+        path = tmp_path / f"{output}.yaml"
+        path.write_text(yaml.safe_dump({"base": "base.yaml", "axes": axes, "output": output}, sort_keys=False))
+        return _command("sweep", str(path), "--fmu", str(shim_fmu), "--workers", "2")
+
+    span = _until_held(command("calibration"), held)
+    for number, (delay, which) in enumerate(_signal_points(span)):
+        code, stderr = _interrupt(command(f"out{number}"), delay, which)
         assert "Traceback" not in stderr, stderr
-        if code in (0, 1):
-            continue
         assert code == 130, (delay, which, stderr)
-        assert took < 2.0, (delay, which, took)
-        interrupted += 1
         out = tmp_path / f"out{number}"
         assert not list(scratch.glob("toggle-cosim-run-*")), (delay, which)
         if out.exists():
@@ -265,4 +293,3 @@ def test_interrupts_at_any_moment_of_a_sweep(plant_fmu: Path, tmp_path: Path, mo
                 pq.read_table(table)
             if (out / "sweep.json").exists():
                 assert json.loads((out / "sweep.json").read_text())["last_run"]["interrupted"]
-    assert interrupted >= 10

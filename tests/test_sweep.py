@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -178,10 +179,17 @@ def test_shipped_sweep_is_valid():
     assert sweep.heatmap == ("plant.F_E", "plant.m_B")
 
 
-def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
+def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, shim_fmu):
     """Rows are written in batches (here of 8 rows): a SIGKILL loses only the batch in flight, and
-    the re-run runs only the cases not in a written batch."""
-    base = {**BASE, "t_end": 1.5}  # ~0.03 s a case, one worker: the kill lands midway
+    the re-run runs only the cases not in a written batch. The kill comes once the first batch
+    is written; the last four cases (F_E = 150 N, run last by the one worker) hold in fmi2DoStep
+    behind the fault shim, so the sweep cannot have finished by then on any machine."""
+    from fault_plants import fault_environment
+    from process_events import wait_until
+
+    from toggle_cosim.plant.contract import check_plant
+
+    base = {**BASE, "t_end": 1.5}
     axes = {
         "plant.F_E": {"linspace": [0, 150, 32]},
         "plant.m_B": {"values": [4.43, 8.86]},
@@ -189,22 +197,23 @@ def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
     }
     path = write_sweep(tmp_path, axes, base)
     parts = tmp_path / "out" / "parts"
-    command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(plant_fmu)]
-    environment = {**os.environ, "TOGGLE_COSIM_SWEEP_BATCH_ROWS": "8"}
+    command = [sys.executable, "-m", "toggle_cosim.cli", "sweep", str(path), "--workers", "1", "--fmu", str(shim_fmu)]
+    hold = fault_environment("", 0.0, check_plant(shim_fmu).references, 149.0, hold=tmp_path / "never")
+    environment = {**hold, "TOGGLE_COSIM_SWEEP_BATCH_ROWS": "8"}
     process = subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, env=environment
     )
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not list(parts.glob("batch-*.parquet")):
-        time.sleep(0.005)
-    os.killpg(process.pid, signal.SIGKILL)  # the sweep and its plant hosts, no clean-up
-    process.communicate()
+    try:
+        wait_until(lambda: list(parts.glob("batch-*.parquet")) or process.poll() is not None, "the first batch")
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)  # the sweep and its plant hosts, no clean-up
+        process.communicate()
     existing = {row["case_id"]: row for p in parts.glob("batch-*.parquet") for row in pq.read_table(p).to_pylist()}
-    assert 1 <= len(existing) < 128, f"{len(existing)} rows when killed"
+    assert 1 <= len(existing) <= 124, f"{len(existing)} rows when killed"
     assert not (tmp_path / "out" / "results.parquet").exists()
 
-    sweep = load_sweep(path)
-    result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
+    sweep = load_sweep(path)  # this process has no hold: every case runs the plant's own way
+    result = execute_sweep(sweep, fmu=shim_fmu, workers=2, progress=False)
     assert result.skipped == len(existing)
     assert result.ran == 128 - len(existing)
     table = read_results(sweep.output)
@@ -219,7 +228,8 @@ def test_killed_sweep_resumes_with_only_the_missing_cases(tmp_path, plant_fmu):
 
 def test_a_worker_killed_from_outside_fails_only_its_case(tmp_path, plant_fmu):
     """SIGKILL to a plant host's pid: the case it was running is failed with the reason, a new
-    host takes the next case, every other case is ok."""
+    host takes the next case, every other case is ok. The kill comes when the third case is
+    handed back (nine are still to run), from the loop that collects them."""
     psutil = pytest.importorskip("psutil")
     base = {**BASE, "t_end": 1.5}
     path = write_sweep(tmp_path, {"plant.F_E": {"linspace": [0, 150, 12]}}, base)
@@ -229,16 +239,6 @@ def test_a_worker_killed_from_outside_fails_only_its_case(tmp_path, plant_fmu):
     before = {child.pid for child in own.children(recursive=True)}
     finished = []
 
-    def kill_a_host() -> None:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and len(finished) < 3:
-            time.sleep(0.002)
-        for child in own.children(recursive=False):
-            if child.pid not in before:
-                child.kill()
-                killed.append(child.pid)
-                return
-
     from toggle_cosim.experiments import sweep_exec
 
     original = sweep_exec.CaseRunner.service
@@ -246,16 +246,17 @@ def test_a_worker_killed_from_outside_fails_only_its_case(tmp_path, plant_fmu):
     def counting(self, answer):
         result = original(self, answer)
         finished.append(result[0]["case_id"])
+        if len(finished) == 3:
+            host = next(child for child in own.children(recursive=False) if child.pid not in before)
+            host.kill()
+            killed.append(host.pid)
         return result
 
-    killer = threading.Thread(target=kill_a_host)
     sweep_exec.CaseRunner.service = counting
     try:
-        killer.start()
         result = execute_sweep(sweep, fmu=plant_fmu, workers=2, progress=False)
     finally:
         sweep_exec.CaseRunner.service = original
-        killer.join()
     assert killed, "no plant host to kill"
     table = read_results(sweep.output)
     assert len(table) == 12 and result.ran == 12
@@ -546,6 +547,7 @@ def test_a_scheduler_that_is_not_dask_is_one_line_within_the_timeout(tmp_path, p
     import socket
 
     dask = pytest.importorskip("dask")
+    pytest.importorskip("distributed")  # imported here, not timed below (seconds on a loaded machine)
     path = write_sweep(tmp_path, {"plant.F_E": {"values": [0]}})
     server, http_port = _http_server()
     silent = socket.socket()
@@ -566,12 +568,32 @@ def test_a_scheduler_that_is_not_dask_is_one_line_within_the_timeout(tmp_path, p
     assert not (tmp_path / "out").exists()
 
 
-def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them(tmp_path, plant_fmu, capsys):
+def _held_under(pid: int, marks: Path) -> bool:
+    """True once a process below `pid` (its plant host) holds a case: it has written its pid
+    to `marks` (the fault shim's TOGGLE_FAULT_MARK) and is still there."""
+    from toggle_cosim import process_tree
+
+    held = {int(line) for line in marks.read_text().split()} if marks.exists() else set()
+    return bool(held & process_tree.descendants(pid))
+
+
+def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them(
+    tmp_path, shim_fmu, capsys, monkeypatch
+):
     """A worker killed mid-sweep with no retries allowed: its cases are not run (not failed),
-    one line says so, exit 1; the same command again runs exactly those."""
+    one line says so, exit 1; the same command again runs exactly those. Every case holds in
+    fmi2DoStep from 0.1 s (the fault shim) until the test releases it: the victim is killed
+    while it holds one of its cases, then the rest are released and finish on the other worker."""
     distributed = pytest.importorskip("distributed")
     import dask
+    from fault_plants import fault_environment
 
+    from toggle_cosim.plant.contract import check_plant
+
+    marks, release = tmp_path / "held", tmp_path / "release"
+    references = check_plant(shim_fmu).references
+    for key, value in fault_environment("", 0.1, references, hold=release, mark=marks).items():
+        monkeypatch.setenv(key, value)  # before the cluster starts: its workers and their hosts inherit it
     base = {**BASE, "t_end": 1.5}
     path = write_sweep(tmp_path, {"plant.F_E": {"linspace": [0, 150, 16]}}, base)
     config = {"distributed.scheduler.allowed-failures": 0, "distributed.comm.timeouts.connect": "10s"}
@@ -582,26 +604,37 @@ def test_cases_a_dead_dask_worker_took_with_it_are_not_run_and_a_rerun_does_them
     ):
         victim = sorted(client.scheduler_info()["workers"])[0]
         pid = client.run(os.getpid, workers=[victim])[victim]
+        seen = []
 
-        def kill_when_busy() -> None:
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline and not client.processing(workers=[victim]).get(victim):
+        def kill_when_holding() -> None:
+            deadline = time.monotonic() + 60  # hang guard: the victim takes a case at once
+            while time.monotonic() < deadline and not _held_under(pid, marks):
                 time.sleep(0.01)
-            time.sleep(0.3)
-            os.kill(pid, signal.SIGKILL)
+            seen.append(_held_under(pid, marks))
+            gone = os.pidfd_open(pid)
+            try:
+                os.kill(pid, signal.SIGKILL)
+                select.select([gone], [], [], 60)  # the victim has exited: its case can no longer finish
+            finally:
+                os.close(gone)
+                release.touch()
 
-        killer = threading.Thread(target=kill_when_busy)
+        killer = threading.Thread(target=kill_when_holding)
         killer.start()
-        code = run_sweep(path, cluster.scheduler_address, None, plant_fmu, progress=False)
-        killer.join()
+        try:
+            code = run_sweep(path, cluster.scheduler_address, None, shim_fmu, progress=False)
+        finally:
+            release.touch()  # whatever happened: no case stays held
+            killer.join()
         captured = capsys.readouterr()
+        assert seen == [True], "the victim never held a case"
         table = read_results(tmp_path / "out")
         assert code == 1 and 0 < len(table) < 16, (code, len(table), captured.err)
         assert (table["status"] == "ok").all()  # lost cases are not failed rows
         lost = 16 - len(table)
         assert f"warning: the Dask cluster lost {lost} cases" in captured.err
         assert f"{lost} not run, of 16 cases" in captured.out and "Traceback" not in captured.err
-        assert run_sweep(path, cluster.scheduler_address, None, plant_fmu, progress=False) == 0
+        assert run_sweep(path, cluster.scheduler_address, None, shim_fmu, progress=False) == 0
         assert f"ran {lost} cases" in capsys.readouterr().out
 
 

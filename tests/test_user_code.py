@@ -286,12 +286,13 @@ def test_user_code_that_ends_hangs_or_interrupts_fails_its_own_run_only(
         r"killed by SIGSEGV while it computed the sample at t = 0\.005 s",
     }
     variants = {how: {"controller": {"parameters": {"how": how}}} for how in [*reasons, "exit_close"]}
+    variants["sleep"]["time_limit"] = 2.5  # it sleeps 600 s; the other runs keep the default limit (30 s)
     variants["after"] = {}
     path = _scenario(tmp_path / "work", "hostile", {"python": "hostile:make"}, variants=variants)
     monkeypatch.chdir(tmp_path / "work")
     monkeypatch.setenv("HOSTILE_CHDIR", "1")
     before = set(sys.modules)
-    code, output = _run(path.name, "--fmu", str(plant_fmu), "--out", "out", "--time-limit", "2.5", "-q")
+    code, output = _run(path.name, "--fmu", str(plant_fmu), "--out", "out", "-q")
     assert not any(name.startswith(("hostile", "toggle_cosim_scenario_")) for name in set(sys.modules) - before)
     assert code == 1, output
     for how, reason in reasons.items():
@@ -484,7 +485,8 @@ def test_a_sweep_builds_its_controllers_in_a_child_before_any_case(
     sweep = {"base": base.name, "axes": {"plant.F_E": {"values": [0.0, 10.0]}}, "output": "swept"}
     (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep), encoding="utf-8")
     command = [sys.executable, "-m", "toggle_cosim", "sweep", "sweep.yaml", "--fmu", str(plant_fmu), "--quiet"]
-    done = subprocess.run([*command, "--case-timeout", "1.5"], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    limit = ["--case-timeout", "1.5"] if how == "sleep" else []  # it sleeps 600 s; the others end by themselves
+    done = subprocess.run([*command, *limit], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1, (done.returncode, done.stderr)
     assert lines[0].startswith("error: sweep.yaml: case 0: ") and said in lines[0], lines
