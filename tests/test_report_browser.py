@@ -311,8 +311,10 @@ def test_a_page_of_hostile_names_runs_none_of_them_and_shows_them_as_written(bro
     hover.wait_for()
     lines = hover.locator("tspan").all_text_contents()
     assert lines[:2] == [f"{SCRIPT} = {IMAGE}", f"{IMAGE} = 2"] and f"status: failed: {REASON}" in lines
+    # the panel shows the first kept case until a cell is clicked: wait for the clicked case's title
     page.page.mouse.click(*page.page.evaluate(cell, [0, 0]))  # IMAGE and 1.0, case 1
-    page.page.wait_for_function("document.querySelector('#sweep-trace-0 .gtitle').textContent.includes('(case ')")
-    title = page.page.evaluate("document.querySelector('#sweep-trace-0 .gtitle').textContent")
-    assert title == f"{SCRIPT} = {IMAGE}, {IMAGE} = 1 (case {ENTITY}1{IMAGE})"
+    clicked = f"{SCRIPT} = {IMAGE}, {IMAGE} = 1 (case {ENTITY}1{IMAGE})"
+    shown = "document.querySelector('#sweep-trace-0 .gtitle').textContent"
+    page.page.wait_for_function(f"title => {shown} === title", arg=clicked)
+    assert page.page.evaluate(shown) == clicked
     assert page.page.evaluate("document.images.length") == 0 and page.dialogs == [] and page.errors == []
