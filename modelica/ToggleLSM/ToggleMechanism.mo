@@ -24,9 +24,19 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
                       that direction; at that instant the stuck and the slipping equations are
                       the same (with mu = mu_s), so the slip starts with alpha1 >= 0 in its
                       direction and cannot stick again at the same instant.
+     Friction at rest (Filippov), in every model: the linkage has one degree of freedom, so all
+     joints rest together, and one mode variable for the mechanism (dir = +1 forward, stuck,
+     dir = -1 backward) holds it at rest while the holding torque T_st is inside the cone
+     |T_st| <= T_s, T_s = mu0 sum_i |k_i| |R_i| (mu0 = mu under models 1 and 2, muStatic under
+     model 3). Entering rest: omega1 crosses zero against dir (indicator -dir omega1); leaving:
+     dStick T_st - T_s crosses zero. A reversal with T_st outside the cone is a stick and a
+     breakaway in one event iteration. Models 1 and 2 start slipping with sgn = 0 (their first
+     motion sets dir) and keep the velocities' residuals at the stick (wHold), so a reversal that
+     passes through rest leaves the state untouched; model 3 starts stuck and zeroes them.
      |R_i| is mu sgn(R_i) R_i with sgn(R_i) a relation latch, so the block stays linear in
-     (alpha, lambda). The events of models 2 and 3 have indicators that are identically zero
-     under model 1, so the paper's model integrates exactly as before. */
+     (alpha, lambda); under model 1 the latches are watched only at rest, where the cone needs
+     |R_i|. Indicators that only matter in a mode are zero outside it, so a run of model 1 or 2
+     that never comes to rest integrates exactly as the plain sign latches integrate it. */
   constant Real pi = 3.141592653589793;
   // Geometry (assumed, see docs/model.md)
   parameter Real r1(unit = "m") = 0.10 "Lever arm O-A (assumed)";
@@ -182,9 +192,11 @@ equation
     sgn5 = -1.0;
   end when;
 
-  // Sticking (model 3): break away when the holding torque exceeds the static capacity in the
+  // Rest (every model): break away when the holding torque exceeds the static capacity in the
   // direction dStick (the factor time keeps the condition false at the start, so a load above
-  // it breaks away at t = 0+); stick when omega1 crosses zero against the direction of slip
+  // it breaks away at t = 0+), turning a residual velocity that points the other way; stick when
+  // omega1 crosses zero against the direction of slip; models 1 and 2 start slipping with dir = 0,
+  // and their first motion sets it
   when time * stuck * (dStick * T_st - T_s) > 0 then
     stuck = 0.0;
     dir = dStick;
