@@ -29,6 +29,17 @@ m3 r3²/12 and m5 r5²/12 unless the dict provides them):
     reference_friction_rows(q, lam, params) -> R (the rows of Q_fᵀλ/μ with sgn = 1)
     reference_breakaway_thrust(q, direction, F_E, params, bracket) -> F_C where a slip from rest
         in `direction` under friction μ sgn(q̇)|R| has θ̈1 = 0 (the stick-slip breakaway)
+    reference_slip_accelerations(q, omega1, direction, F_C, F_E, params) -> (qdd, lam) of a
+        slip in `direction` under friction μ sgn(q̇)|R| (model 2)
+    reference_rest_holds(q, F_C, F_E, params) -> True where no slip from rest is consistent
+    reference_rest_trajectory(theta1_0, segments, F_E, params, dt) -> samples of x_B and of the
+        rest flag of the one-degree-of-freedom motion under model 2 with the Filippov rest rule
+
+Friction at rest (Filippov): the linkage has one degree of freedom, q̇ = k(q) ω1 with k the null
+vector of Φ_q scaled to k_1 = 1, so every joint rests when the lever does. At ω1 = 0 the
+friction is set-valued; a slip in direction d (sgn ω1 = d) is consistent when its own
+acceleration keeps that direction, d θ̈1(slip d) > 0. The mechanism leaves rest in the
+consistent direction and stays at rest when neither direction is consistent.
 
 Conventions: q = (θ1, θ2, θ5), qd = (ω1, ω2, ω5); F_C ≥ 0 is the thrust on slider C along −x,
 F_E the external force on slider B along −x; sgn defaults to np.sign(qd) (sgn(0) = 0).
@@ -263,6 +274,115 @@ def reference_friction_rows(q: Sequence[float], lam: Sequence[float], params: Ma
     return np.column_stack([d["J"]["B"][0], -d["J"]["C"][0]]) @ np.asarray(lam, dtype=float)
 
 
+def _admissible_direction(q: np.ndarray, params: Mapping[str, float]) -> np.ndarray:
+    """k with Φ_q k = 0 and k_1 = 1: q̇ = k ω1 for every motion of the closed loops."""
+    d = _model(q, np.zeros(3), 0.0, 0.0, params, np.zeros(3))
+    Phi_q = d["Phi_q"]
+    # solve Phi_q[:, 1:] (k2, k5) = -Phi_q[:, 0]
+    tail = np.linalg.solve(Phi_q[:, 1:], -Phi_q[:, 0])
+    return np.r_[1.0, tail]
+
+
+def reference_slip_accelerations(
+    q: Sequence[float], omega1: float, direction: float, F_C: float, F_E: float, params: Mapping[str, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """(q̈, λ) of the mechanism at q with q̇ = k ω1, slipping in `direction` (the sign of ω1, given
+    separately so that ω1 may be 0) under friction μ sgn(q̇_i) |R_i| (model 2). sgn(R_i) depends on
+    λ, which depends on it: iterated to a fixed point."""
+    q = np.asarray(q, dtype=float)
+    k = _admissible_direction(q, params)
+    qd = k * omega1
+    base = direction * np.sign(k)  # sgn(q̇_i) for q̇ along k in `direction`
+    sgn = base
+    for _ in range(10):
+        qdd, lam = reference_accelerations(q, qd, F_C, F_E, params, sgn)
+        new = base * np.sign(reference_friction_rows(q, lam, params))
+        if np.array_equal(new, sgn):
+            break
+        sgn = new
+    return qdd, lam
+
+
+def reference_rest_holds(q: Sequence[float], F_C: float, F_E: float, params: Mapping[str, float]) -> bool:
+    """At rest at q: True when neither slip is consistent (d θ̈1(slip d) <= 0 for d = +1 and -1),
+    so that the set-valued friction holds the mechanism."""
+    return all(d * reference_slip_accelerations(q, 0.0, d, F_C, F_E, params)[0][0] <= 0.0 for d in (1.0, -1.0))
+
+
+def _leaving_direction(q: np.ndarray, F_C: float, F_E: float, params: Mapping[str, float]) -> float:
+    """The direction a slip from rest at q is consistent in, 0 where none is."""
+    ways = [d for d in (1.0, -1.0) if d * reference_slip_accelerations(q, 0.0, d, F_C, F_E, params)[0][0] > 0.0]
+    if len(ways) == 2:
+        raise ValueError(f"both slips from rest are consistent at theta1 = {q[0]} (a Painlevé-type case)")
+    return ways[0] if ways else 0.0
+
+
+def _closed_angles(theta1: float, params: Mapping[str, float]) -> np.ndarray:
+    """(θ1, θ2, θ5) on the loop closures Φ1 = Φ2 = 0, the branch of the assembled toggle."""
+    r1, r3, r4, r5, f, h, phi = (params[k] for k in ("r1", "r3", "r4", "r5", "f", "h", "phi"))
+    return np.array(
+        [theta1, np.arcsin((f - r1 * np.sin(theta1)) / r3), np.arcsin((h - r4 * np.sin(theta1 + phi)) / r5)]
+    )
+
+
+def reference_rest_trajectory(
+    theta1_0: float,
+    segments: Sequence[tuple[float, float]],
+    F_E: float,
+    params: Mapping[str, float],
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The motion from rest at θ1 = theta1_0 under a piecewise constant thrust, segments =
+    [(t_end, F_C), ...], friction model 2 with the Filippov rest rule: integrated in (θ1, ω1)
+    on the loop closures (DOP853, rtol 1e-12), stopping at each zero of ω1 to decide between a
+    slip through it and rest. Returns the sample times (every dt from dt on), x_B there and a
+    flag that is 1 where the mechanism is at rest."""
+    from scipy.integrate import solve_ivp
+
+    pts = _points(params)
+    times = np.arange(1, int(round(segments[-1][0] / dt)) + 1) * dt
+    x_B = np.full(times.shape, np.nan)
+    rest = np.zeros(times.shape)
+
+    def record(t0: float, t1: float, theta1_of_t, at_rest: bool) -> None:
+        sel = (times > t0 - 1e-12) & (times <= t1 + 1e-12)
+        for i in np.flatnonzero(sel):
+            x_B[i] = _pos(pts["B"], _closed_angles(float(theta1_of_t(times[i])), params))[0]
+            rest[i] = 1.0 if at_rest else 0.0
+
+    t, theta1, omega1, direction = 0.0, float(theta1_0), 0.0, 0.0
+    for t_end, F_C in segments:
+        while t < t_end - 1e-15:
+            if direction == 0.0:  # at rest: leave only in the consistent direction
+                direction = _leaving_direction(_closed_angles(theta1, params), F_C, F_E, params)
+                if direction == 0.0:
+                    held = theta1
+                    record(t, t_end, lambda _t, held=held: held, True)
+                    t = t_end
+                    break
+
+            def rhs(_t, y, direction=direction, F_C=F_C):
+                q = _closed_angles(y[0], params)
+                qdd, _ = reference_slip_accelerations(q, y[1], direction, F_C, F_E, params)
+                return [y[1], qdd[0]]
+
+            def reversal(_t, y, direction=direction):
+                return direction * y[1]
+
+            reversal.terminal, reversal.direction = True, -1
+            sol = solve_ivp(
+                rhs, (t, t_end), [theta1, omega1], method="DOP853", rtol=1e-12, atol=1e-15,
+                dense_output=True, events=reversal,
+            )  # fmt: skip
+            record(t, sol.t[-1], lambda tt, sol=sol: sol.sol(tt)[0], False)
+            t, theta1 = float(sol.t[-1]), float(sol.y[0, -1])
+            if sol.status == 1:  # ω1 reached zero: slip through or rest, decided above
+                omega1, direction = 0.0, 0.0
+            else:
+                omega1 = float(sol.y[1, -1])
+    return times, x_B, rest
+
+
 def reference_breakaway_thrust(
     q: Sequence[float], direction: float, F_E: float, params: Mapping[str, float], bracket: tuple[float, float]
 ) -> float:
@@ -270,20 +390,9 @@ def reference_breakaway_thrust(
     friction μ sgn(q̇_i) |R_i| (model 2, q̇ along the one admissible direction), has θ̈1 = 0: below
     it (direction +1) or above it (−1) the slip would decelerate at once, so a consistent
     stick-slip model holds the mechanism; found by bisection on `bracket`."""
-    q = np.asarray(q, dtype=float)
-    r1, r3, r4, r5, phi = (params[k] for k in ("r1", "r3", "r4", "r5", "phi"))
-    k = np.array([1.0, -r1 * np.cos(q[0]) / (r3 * np.cos(q[1])), -r4 * np.cos(q[0] + phi) / (r5 * np.cos(q[2]))])
 
     def alpha1(F_C: float) -> float:
-        base = direction * np.sign(k)  # sgn(q̇_i) for q̇ along k in `direction`
-        sgn = base
-        for _ in range(10):  # sgn(R_i) depends on λ, which depends on it: iterate to a fixed point
-            qdd, lam = reference_accelerations(q, np.zeros(3), F_C, F_E, params, sgn)
-            new = base * np.sign(reference_friction_rows(q, lam, params))
-            if np.array_equal(new, sgn):
-                break
-            sgn = new
-        return float(qdd[0])
+        return float(reference_slip_accelerations(q, 0.0, direction, F_C, F_E, params)[0][0])
 
     lo, hi = bracket
     f_lo = alpha1(lo)

@@ -24,9 +24,19 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
                       that direction; at that instant the stuck and the slipping equations are
                       the same (with mu = mu_s), so the slip starts with alpha1 >= 0 in its
                       direction and cannot stick again at the same instant.
+     Friction at rest (Filippov), in every model: the linkage has one degree of freedom, so all
+     joints rest together, and one mode variable for the mechanism (dir = +1 forward, stuck,
+     dir = -1 backward) holds it at rest while the holding torque T_st is inside the cone
+     |T_st| <= T_s, T_s = mu0 sum_i |k_i| |R_i| (mu0 = mu under models 1 and 2, muStatic under
+     model 3). Entering rest: omega1 crosses zero against dir (indicator -dir omega1); leaving:
+     dStick T_st - T_s crosses zero. A reversal with T_st outside the cone is a stick and a
+     breakaway in one event iteration. Models 1 and 2 start slipping with sgn = 0 (their first
+     motion sets dir) and keep the velocities' residuals at the stick (wHold), so a reversal that
+     passes through rest leaves the state untouched; model 3 starts stuck and zeroes them.
      |R_i| is mu sgn(R_i) R_i with sgn(R_i) a relation latch, so the block stays linear in
-     (alpha, lambda). The events of models 2 and 3 have indicators that are identically zero
-     under model 1, so the paper's model integrates exactly as before. */
+     (alpha, lambda); under model 1 the latches are watched only at rest, where the cone needs
+     |R_i|. Indicators that only matter in a mode are zero outside it, so a run of model 1 or 2
+     that never comes to rest integrates exactly as the plain sign latches integrate it. */
   constant Real pi = 3.141592653589793;
   // Geometry (assumed, see docs/model.md)
   parameter Real r1(unit = "m") = 0.10 "Lever arm O-A (assumed)";
@@ -51,9 +61,11 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   parameter Real mu_s = 0.2 "Static coefficient of friction (frictionModel = 3)";
   parameter Real stickDecay(unit = "1/s") = 1000 "Rate at which a stuck mechanism's residual velocity decays (frictionModel = 3)";
   parameter Real stickCompliance = 1e-12 "Residual acceleration of a stuck mechanism per N.m of holding torque, rad/s2 (model 3; numerical regularisation)";
-  parameter Real muStatic = if mu_s > mu then mu_s else mu "Static coefficient in force (model 3): mu_s, or mu where mu_s is below it (breakaway is then continuous)";
+  parameter Real muStatic = if frictionModel == 3 and mu_s > mu then mu_s else mu "Static coefficient in force: mu_s under model 3 where it exceeds mu (breakaway is otherwise continuous), mu under models 1 and 2";
   parameter Real wDiss = if frictionModel == 1 then 0.0 else 1.0 "1 where the sign of R_i is watched (models 2, 3)";
-  parameter Real wStick = if frictionModel == 3 then 1.0 else 0.0 "1 where sticking is modelled (model 3)";
+  parameter Real wStick = if frictionModel == 3 then 1.0 else 0.0 "1 where the mechanism starts stuck (model 3; models 1 and 2 start slipping, sgn = 0)";
+  parameter Real wHold = 1.0 - wStick "1 where the velocities keep their residual at rest and their signs are not watched there (models 1 and 2)";
+  parameter Real wRest = if frictionModel == 3 or mu > 0 then 1.0 else 0.0 "1 where the mechanism can come to rest against friction (every model with friction)";
   parameter Real baumgarte(unit = "1/s") = 20 "Rate of the constraint stabilisation; 0 integrates Phi_q qdd = gamma unmodified";
   // Initial configuration: at rest, theta1 from eq. (26), theta2 and theta5 from the constraints
   parameter Real x_B0(unit = "m") = 0.2329 "Initial position of slider B";
@@ -78,8 +90,8 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   discrete Real sgn1(start = 0.0) "sgn(omega1), latched at its zero crossings";
   discrete Real sgn2(start = 0.0) "sgn(omega2), latched at its zero crossings";
   discrete Real sgn5(start = 0.0) "sgn(omega5), latched at its zero crossings";
-  discrete Real stuck(start = wStick) "1 while the mechanism sticks (model 3; it starts at rest, stuck)";
-  discrete Real dir(start = 0.0) "Direction of omega1 since the last breakaway (model 3), 0 while stuck";
+  discrete Real stuck(start = wStick) "1 while the mechanism is at rest against friction (model 3 starts stuck, models 1 and 2 slipping)";
+  discrete Real dir(start = 0.0) "Direction of omega1 since the last breakaway or first motion, 0 while stuck";
   discrete Real dStick(start = 1.0) "Direction a stuck mechanism would break away in (model 3): the sign of T_st, switched when -dStick T_st exceeds half the static capacity";
   Real R1(unit = "N.m") "Row theta1 of Q_f' lambda / (mu sgn1)";
   Real R2(unit = "N.m") "Row theta2 of Q_f' lambda / (mu sgn2)";
@@ -162,35 +174,47 @@ equation
   der(omega2) = alpha2;
   der(omega5) = alpha5;
 
-  // Friction signs of eq. (17), sgn(0) = 0 until the first crossing
-  when omega1 > 0 then
+  // Friction signs of eq. (17), sgn(0) = 0 until the first crossing; under models 1 and 2 they
+  // are not watched at rest (wHold), where the residual velocities are noise around zero
+  when (1.0 - wHold * stuck) * omega1 > 0 then
     sgn1 = 1.0;
-  elsewhen omega1 < 0 then
+  elsewhen (1.0 - wHold * stuck) * omega1 < 0 then
     sgn1 = -1.0;
   end when;
-  when omega2 > 0 then
+  when (1.0 - wHold * stuck) * omega2 > 0 then
     sgn2 = 1.0;
-  elsewhen omega2 < 0 then
+  elsewhen (1.0 - wHold * stuck) * omega2 < 0 then
     sgn2 = -1.0;
   end when;
-  when omega5 > 0 then
+  when (1.0 - wHold * stuck) * omega5 > 0 then
     sgn5 = 1.0;
-  elsewhen omega5 < 0 then
+  elsewhen (1.0 - wHold * stuck) * omega5 < 0 then
     sgn5 = -1.0;
   end when;
 
-  // Sticking (model 3): break away when the holding torque exceeds the static capacity in the
+  // Rest (every model): break away when the holding torque exceeds the static capacity in the
   // direction dStick (the factor time keeps the condition false at the start, so a load above
-  // it breaks away at t = 0+); stick when omega1 crosses zero against the direction of slip
+  // it breaks away at t = 0+), turning a residual velocity that points the other way; stick when
+  // omega1 crosses zero against the direction of slip; models 1 and 2 start slipping with dir = 0,
+  // and their first motion sets it
   when time * stuck * (dStick * T_st - T_s) > 0 then
     stuck = 0.0;
     dir = dStick;
+    reinit(omega1, (if dStick * omega1 < 0 then -1.0 else 1.0) * omega1);
+    reinit(omega2, (if dStick * omega1 < 0 then -1.0 else 1.0) * omega2);
+    reinit(omega5, (if dStick * omega1 < 0 then -1.0 else 1.0) * omega5);
   elsewhen (1.0 - stuck) * (-dir * omega1) > 0 then
     stuck = 1.0;
     dir = 0.0;
-    reinit(omega1, 0.0);
-    reinit(omega2, 0.0);
-    reinit(omega5, 0.0);
+    reinit(omega1, (1.0 - wStick) * omega1);
+    reinit(omega2, (1.0 - wStick) * omega2);
+    reinit(omega5, (1.0 - wStick) * omega5);
+  elsewhen wRest * (1.0 - stuck) * (1.0 - abs(dir)) * omega1 > 0 then
+    stuck = 0.0;
+    dir = 1.0;
+  elsewhen wRest * (1.0 - stuck) * (1.0 - abs(dir)) * omega1 < 0 then
+    stuck = 0.0;
+    dir = -1.0;
   end when;
 
   // The direction a stuck mechanism would break away in: switched with a margin of half the
@@ -203,19 +227,19 @@ equation
 
   // Signs of the rows R_i (models 2, 3); the factor time sets them at t = 0+ whatever the
   // start value, and wDiss = 0 keeps the indicators at zero under the paper's model
-  when time * wDiss * R1 > 0 then
+  when time * (wDiss + (1.0 - wDiss) * stuck) * R1 > 0 then
     sR1 = 1.0;
-  elsewhen time * wDiss * R1 < 0 then
+  elsewhen time * (wDiss + (1.0 - wDiss) * stuck) * R1 < 0 then
     sR1 = -1.0;
   end when;
-  when time * wDiss * R2 > 0 then
+  when time * (wDiss + (1.0 - wDiss) * stuck) * R2 > 0 then
     sR2 = 1.0;
-  elsewhen time * wDiss * R2 < 0 then
+  elsewhen time * (wDiss + (1.0 - wDiss) * stuck) * R2 < 0 then
     sR2 = -1.0;
   end when;
-  when time * wDiss * R5 > 0 then
+  when time * (wDiss + (1.0 - wDiss) * stuck) * R5 > 0 then
     sR5 = 1.0;
-  elsewhen time * wDiss * R5 < 0 then
+  elsewhen time * (wDiss + (1.0 - wDiss) * stuck) * R5 < 0 then
     sR5 = -1.0;
   end when;
 
@@ -253,9 +277,9 @@ equation
   R1 = -r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2;
   R2 = -r3 * sin(theta2) * lambda1;
   R5 = r5 * sin(theta5) * lambda2;
-  c1 = if frictionModel == 1 then sgn1 else (1.0 - stuck) * sgn1 * sR1;
-  c2 = if frictionModel == 1 then sgn2 else (1.0 - stuck) * sgn2 * sR2;
-  c5 = if frictionModel == 1 then sgn5 else (1.0 - stuck) * sgn5 * sR5;
+  c1 = if frictionModel == 1 then (1.0 - stuck) * sgn1 else (1.0 - stuck) * sgn1 * sR1;
+  c2 = if frictionModel == 1 then (1.0 - stuck) * sgn2 else (1.0 - stuck) * sgn2 * sR2;
+  c5 = if frictionModel == 1 then (1.0 - stuck) * sgn5 else (1.0 - stuck) * sgn5 * sR5;
   tau1_f = mu * c1 * (-r1 * sin(theta1) * lambda1 + r4 * sin(theta1 + phi) * lambda2) + T_st - k2 * T_j2 - k5 * T_j5;
   tau2_f = -mu * c2 * r3 * sin(theta2) * lambda1 + T_j2;
   tau5_f = mu * c5 * r5 * sin(theta5) * lambda2 + T_j5;
