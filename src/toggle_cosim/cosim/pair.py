@@ -50,6 +50,7 @@ import numpy as np
 from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
+from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.controllers import controller_for, controller_record
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
@@ -215,7 +216,7 @@ def simulate_pair(
         session = open_session(plant, run.label, others)
     timing, state = Timing(n, run.T_s, input_samples(run, n)), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
-    policy = CheckpointPolicy(saving=session.can_save_state)
+    policy = CheckpointPolicy(saving=session.can_save_state, budget=WorkBudget.of(run.resolved.get("budget")))
     loop = {"kind": "python", "reason": "the run ended before the second sample"}
     interrupted = False
     loop_started = loop_finished = clock.perf_counter()
@@ -256,6 +257,9 @@ def simulate_pair(
     except ControllerFailed as error:
         loop_finished = clock.perf_counter()
         state.reason = f"controller failed: {error}"
+    except BudgetExceeded as error:  # the plant's work past the run's budget: the same sample on any machine
+        loop_finished = clock.perf_counter()
+        state.reason = str(error)
     except Exception as error:  # noqa: BLE001 - any plant failure ends the run cleanly
         loop_finished = clock.perf_counter()
         said = failure_text(error, session.logged_error())  # the FMU's own words on what went wrong

@@ -19,6 +19,7 @@ from typing import Any, Protocol
 
 from fmpy.fmi1 import FMICallException
 
+from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.stepper import StepFailed, Stepper
 
 CHECKPOINT_SAMPLES = 200  # the FMU state is saved every this many samples (where it can be)
@@ -54,6 +55,7 @@ class Restorable(Protocol):
     def write_inputs(self, values: tuple[float, ...]) -> None: ...
     def do_step(self, t: float, h: float) -> None: ...
     def logged_error(self) -> str | None: ...
+    def solver_statistics(self) -> dict[str, int] | str: ...
 
 
 class RecordedInputs(Protocol):
@@ -63,12 +65,14 @@ class RecordedInputs(Protocol):
 @dataclass
 class CheckpointPolicy:
     """Checkpoints every `every` samples when `saving`; the retries made, for run.json: each
-    {"t": the failed step's start, "error": what failed, "outcome": "passed" or "failed"}."""
+    {"t": the failed step's start, "error": what failed, "outcome": "passed" or "failed"}. With a
+    `budget`, the plant's work is counted after every stretch of `every` samples (`budget`)."""
 
     saving: bool
     every: int = CHECKPOINT_SAMPLES
     substeps: int = RETRY_SUBSTEPS
     retries: list[dict[str, Any]] = field(default_factory=list)
+    budget: WorkBudget | None = None
 
     @property
     def no_set_state_prior_to_current_point(self) -> bool:
@@ -82,7 +86,8 @@ class CheckpointPolicy:
 
     def drive(self, stepper: Stepper, session: Restorable, recorder: RecordedInputs, k: int, n: int, T_s: float) -> int:
         """Samples k .. n through `stepper`, in stretches that start at a checkpoint; the next
-        sample (n + 1 when done), or -1 when the stepper ended the run."""
+        sample (n + 1 when done), or -1 when the stepper ended the run. Raises BudgetExceeded
+        when the plant's work after a stretch is past the budget."""
         while 0 < k <= n:
             stop = min(k + self.every, n + 1)
             if self.saving:
@@ -99,6 +104,10 @@ class CheckpointPolicy:
                 self.retry(session, recorder, checkpoint, failure.k, text, T_s)
                 entry["outcome"] = "passed"
                 k = failure.k + 1
+            if self.budget is not None and k > 0:
+                exceeded = self.budget.exceeded(session.solver_statistics(), (k - 1) * T_s)
+                if exceeded is not None:
+                    raise BudgetExceeded(exceeded)
         return k
 
     def passed(self) -> list[dict[str, Any]]:
