@@ -59,7 +59,7 @@ class MockSession:
             if not self.fail_again:
                 self.fail_at = None
             self.x = float("nan")  # the failed step leaves the FMU in a state the policy must undo
-            self.last_logged = self.logged
+            self.last_logged = self.logged.format(t + h) if self.logged else None  # "{}": the step's end
             raise FMICallException(function="fmi2DoStep", status=self.status)
         self.v = self.u * 1e-3
         self.x += self.v * h
@@ -191,6 +191,12 @@ def test_a_failed_step_says_what_the_fmu_logged_and_a_retry_notes_its_outcome() 
     zeno = "more than 10000 events in one communication step: the model is chattering (Zeno behaviour)"
     policy = CheckpointPolicy(saving=True)
     _run(MockSession(fail_at=12 * T_S, status=3, logged=zeno), policy)
+    at = f"{zeno} at t={{}} s"  # the retry's substep fails at another time: the same failure, said once
+    with pytest.raises(RetryFailed) as failed:
+        _run(MockSession(fail_at=12 * T_S, status=3, fail_again=True, logged=at), CheckpointPolicy(saving=True))
+    assert str(failed.value).count("Zeno") == 1 and str(failed.value).startswith(
+        f"fmi2DoStep failed with status 3 (error): {at.format(13 * T_S)}. Retried"
+    )
     assert policy.retries == [
         {"t": pytest.approx(12 * T_S), "error": f"fmi2DoStep failed with status 3 (error): {zeno}", "outcome": "passed"}
     ]

@@ -14,6 +14,7 @@ checkpoints); `configure` sets the flag on the session and on the compiled loop 
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -34,6 +35,11 @@ class RetryFailed(Exception):
 class PlantStepFailed(Exception):
     """A doStep failed and was not retried; the message tells the call, its status and what the
     FMU logged (`failure_text`)."""
+
+
+def _shape(text: str) -> str:
+    """`text` with its numbers left out: the same failure at another time has the same shape."""
+    return re.sub(r"[-+]?\d[\d.eE+-]*", "#", text)
 
 
 def failure_text(error: BaseException, logged: str | None) -> str:
@@ -137,7 +143,7 @@ class CheckpointPolicy:
                 session.do_step(failed * T_s + m * h, h)
         except FMICallException as again:
             logged = session.logged_error()
-            said = failure_text(again, None if logged is not None and logged in error else logged)
+            said = failure_text(again, None if logged is not None and _shape(logged) in _shape(error) else logged)
             raise RetryFailed(
                 f"{error.rstrip('.')}. Retried from the checkpoint at t = {checkpoint * T_s:.6g} s in "
                 f"{self.substeps} substeps: {said}"
