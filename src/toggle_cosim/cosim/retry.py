@@ -14,7 +14,6 @@ checkpoints); `configure` sets the flag on the session and on the compiled loop 
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -22,6 +21,7 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.stepper import StepFailed, Stepper
+from toggle_cosim.messages import said_in
 
 CHECKPOINT_SAMPLES = 200  # the FMU state is saved every this many samples (where it can be)
 RETRY_SUBSTEPS = 10  # a failed step is retried from the checkpoint in this many smaller steps
@@ -35,11 +35,6 @@ class RetryFailed(Exception):
 class PlantStepFailed(Exception):
     """A doStep failed and was not retried; the message tells the call, its status and what the
     FMU logged (`failure_text`)."""
-
-
-def _shape(text: str) -> str:
-    """`text` with its numbers left out: the same failure at another time has the same shape."""
-    return re.sub(r"[-+]?\d[\d.eE+-]*", "#", text)
 
 
 def failure_text(error: BaseException, logged: str | None) -> str:
@@ -143,7 +138,7 @@ class CheckpointPolicy:
                 session.do_step(failed * T_s + m * h, h)
         except FMICallException as again:
             logged = session.logged_error()
-            said = failure_text(again, None if logged is not None and _shape(logged) in _shape(error) else logged)
+            said = failure_text(again, None if logged is not None and said_in(logged, error) else logged)
             raise RetryFailed(
                 f"{error.rstrip('.')}. Retried from the checkpoint at t = {checkpoint * T_s:.6g} s in "
                 f"{self.substeps} substeps: {said}"
