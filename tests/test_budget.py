@@ -70,19 +70,33 @@ def test_a_budget_on_a_system_is_refused() -> None:
 
 
 def test_tune_gives_every_case_a_budget_unless_its_file_says_otherwise(tmp_path: Path) -> None:
+    """By default every case gets budget.events_per_sample 4, as a fixed key (so the sweep files a
+    tuning writes run the same cases); case_budget sets other keys, none sets none."""
     from test_tune import write_tuning
 
-    cases = load_tuning(write_tuning(tmp_path / "default")).cases
-    samples = round(cases[0].parameters["t_end"] / cases[0].parameters["T_s"])
-    assert [c.document["budget"] for c in cases] == [{"events": DEFAULT_EVENTS_PER_SAMPLE * samples}] * len(cases)
-    assert all(c.document["time_limit"] == 90 for c in cases)  # 3 x the default 30 s: a safety net
+    tuning = load_tuning(write_tuning(tmp_path / "default"))
+    assert [c.document["budget"] for c in tuning.cases] == [{"events_per_sample": DEFAULT_EVENTS_PER_SAMPLE}] * 4
+    assert tuning.fixed["budget.events_per_sample"] == DEFAULT_EVENTS_PER_SAMPLE
     given = load_tuning(write_tuning(tmp_path / "given", case_budget={"steps": 5000})).cases
-    assert [c.document["budget"] for c in given] == [{"steps": 5000}] * len(cases)
-    assert len({c.case_id for c in given} | {c.case_id for c in cases}) == 2 * len(cases)
+    assert [c.document["budget"] for c in given] == [{"steps": 5000}] * 4
+    assert len({c.case_id for c in given} | {c.case_id for c in tuning.cases}) == 8
     none = load_tuning(write_tuning(tmp_path / "none", case_budget="none")).cases
-    assert all("budget" not in c.document and "time_limit" not in c.document for c in none)
+    assert all("budget" not in c.document for c in none)
     with pytest.raises(TuneError, match="case_budget"):
         load_tuning(write_tuning(tmp_path / "bad", case_budget={"wall": 3}))
+
+
+def test_events_per_sample_is_a_budget_of_the_runs_samples(plant_fmu: Path) -> None:
+    """events_per_sample 0.002 over 1000 samples: 2 events, said so in the reason; with a lower
+    events key beside it, that one holds."""
+    (rate,) = runs_from_document(_document(budget={"events_per_sample": 0.002}))
+    limited = master.simulate(rate, check_plant(plant_fmu))
+    assert re.fullmatch(
+        r"budget exceeded \(\d+ events > 2, budget\.events_per_sample 0\.002 x 1000 samples\) by t = [\d.]+ s",
+        limited.reason,
+    )
+    (both,) = runs_from_document(_document(budget={"events_per_sample": 0.002, "events": 1}))
+    assert ", budget.events) by" in master.simulate(both, check_plant(plant_fmu)).reason
 
 
 def test_the_same_tuning_gives_the_same_trials_on_a_busy_machine(tmp_path: Path, plant_fmu: Path) -> None:

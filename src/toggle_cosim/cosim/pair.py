@@ -216,7 +216,7 @@ def simulate_pair(
         session = open_session(plant, run.label, others)
     timing, state = Timing(n, run.T_s, input_samples(run, n)), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
-    policy = CheckpointPolicy(saving=session.can_save_state, budget=WorkBudget.of(run.resolved.get("budget")))
+    policy = CheckpointPolicy(saving=session.can_save_state, budget=WorkBudget.of(run.resolved.get("budget"), n))
     loop = {"kind": "python", "reason": "the run ended before the second sample"}
     interrupted = False
     loop_started = loop_finished = clock.perf_counter()

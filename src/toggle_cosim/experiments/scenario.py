@@ -212,6 +212,11 @@ _OVERRIDE = {
             "minProperties": 1,
             "properties": {
                 "events": {"type": "integer", "minimum": 1, "description": "the plant's solver events over the run"},
+                "events_per_sample": {
+                    "type": "number",
+                    "exclusiveMinimum": 0,
+                    "description": "the plant's solver events over the run, per sample",
+                },
                 "steps": {"type": "integer", "minimum": 1, "description": "the plant's accepted solver steps"},
             },
             "description": "the simulated work the run may do, counted by the plant FMU (docs/sweeps.md)",

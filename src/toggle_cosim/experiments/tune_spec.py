@@ -15,8 +15,8 @@
       rated_current: true                  # peak |i_q*| <= plant.rated_current
       working_range: true                  # x_B stays in plant.working_range
     optimiser: {sampler: tpe, trials: 60, batch: 4, seed: 1}
-    case_budget: {events: 12000}           # optional: each case's work budget (scenario key budget);
-                                           # default 4 events per sample; none: wall-clock limit only
+    case_budget: {events: 12000}           # optional: the keys of budget set in every case (default
+                                           # {events_per_sample: 4}); none: the scenario's own, if any
     output: ../out/tune/tune_integral      # relative to this file; default out/tune/<name>
 
 Tuned keys are scenario keys, set in every case as a sweep's axes are (`sweep_spec.set_key`):
@@ -26,9 +26,9 @@ plant's parameters. Both bounds are checked as values of the key before anything
 
 Every case runs under a work budget (`cosim.budget`): a case that chatters ends at the same
 sample, failed, on a quiet and on a busy machine, so the same file gives the same trials.
-A case's own `budget` key stands; `case_budget` sets it for the others, by default
-`budget.default_budget` (4 plant events per sample); its wall-clock limit is then only a safety
-net, by default `TUNE_TIME_LIMIT_FACTOR` times a run's (`supervision.default_time_limit`).
+`case_budget`'s keys (by default `budget.DEFAULT_BUDGET`, 4 plant events per sample) are fixed
+keys like `fix`'s (budget.events_per_sample: 4), set in every case and in the sweep files and
+scenario a tuning writes; the wall-clock limit stays, a safety net the budget keeps cases far from.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.cosim.budget import default_budget
+from toggle_cosim.cosim.budget import DEFAULT_BUDGET
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 from toggle_cosim.experiments.sweep_spec import (
@@ -140,7 +140,6 @@ SCHEMA: dict[str, Any] = {
         "output": {"type": "string", "minLength": 1, "pattern": r"^[^\x00]*\Z"},
     },
 }
-TUNE_TIME_LIMIT_FACTOR = 3  # a tuned case's wall-clock limit: this many times a run's default
 
 
 @dataclass(frozen=True)
@@ -247,8 +246,8 @@ def _load_tuning(path: Path, output: Path | None) -> Tuning:
         sweep = load_sweep(sweep_path)
     except SweepError as error:
         raise TuneError(f"key sweep: {error}") from None
-    fixed = dict(document.get("fix") or {})
-    cases = _budgeted(_fixed_cases(sweep, fixed), document.get("case_budget"))
+    fixed = {**_budget_keys(document.get("case_budget", DEFAULT_BUDGET)), **(document.get("fix") or {})}
+    cases = _fixed_cases(sweep, fixed)
     parameters = [_parameter(key, spec, fixed, sweep, cases) for key, spec in document["parameters"].items()]
     objectives = _objectives(document["objective"])
     constraints = Constraints(**(document.get("constraints") or {}))
@@ -286,32 +285,9 @@ def _load_tuning(path: Path, output: Path | None) -> Tuning:
     )
 
 
-def _budgeted(cases: list[Case], given: dict[str, int] | str | None) -> list[Case]:
-    """The cases with their work budget (`budget` key: the case's own, else `given`, else the
-    default from its t_end and T_s; "none": no budget) and, where they name none, a wall-clock
-    limit TUNE_TIME_LIMIT_FACTOR times the default, a safety net behind the budget."""
-    from toggle_cosim.cosim.supervision import default_time_limit
-
-    if given == "none":
-        return cases
-    changed = []
-    for case in cases:
-        document = copy.deepcopy(case.document)
-        t_end, T_s = case.parameters["t_end"], case.parameters["T_s"]
-        document.setdefault("budget", dict(given) if given else default_budget(t_end, T_s))
-        document.setdefault("time_limit", TUNE_TIME_LIMIT_FACTOR * default_time_limit(t_end))
-        changed.append(
-            Case(
-                case.index,
-                case_id(document, case.variant),
-                case.variant,
-                case.values,
-                document,
-                case.parameters,
-                case.source,
-            )
-        )
-    return changed
+def _budget_keys(given: dict[str, float] | str) -> dict[str, float]:
+    """The fixed keys of a tuning's `case_budget` (the scenario key budget's): none for "none"."""
+    return {} if given == "none" else {f"budget.{key}": value for key, value in given.items()}
 
 
 def _fixed_cases(sweep: Sweep, fixed: dict[str, Any]) -> list[Case]:
