@@ -17,6 +17,8 @@ run whose input F_E is at least TOGGLE_FAULT_MIN_FE (N), misbehaves as TOGGLE_FA
     resetfatal  fmi2Reset returns fmi2Fatal; any later call to the binary aborts (FMI allows none)
     chatter   fmi2DoStep returns fmi2Discard for a full step, while smaller steps (a retry's
               substeps) pass until TOGGLE_FAULT_END (s); from then on every step is discarded
+    zeno      fmi2DoStep fails once (fmi2Error, logging ZENO_ONCE as an error): a retry passes;
+              from TOGGLE_FAULT_END (s) on every step fails, logging ZENO_LATER as an error
 
 and, whatever the time and F_E (the helper processes live TOGGLE_FAULT_SLEEP s, default 40):
 
@@ -50,6 +52,9 @@ from pathlib import Path
 import fmpy
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"
+# What the zeno kind logs (as the plant's solver words its failures), with the time in "%g"
+ZENO_ONCE = "event iteration did not converge at t={} s: indicator 10 (zero crossing) still changes"
+ZENO_LATER = "more than 10000 events in one communication step: the model is chattering (Zeno behaviour) at t={} s"
 # A scenario for the shim: the "hit" run (F_E = 60 N) meets the fault, the "clean" one (0 N) not.
 SCENARIO = {
     "name": "faulty",
@@ -121,7 +126,7 @@ _PROLOGUE = r"""
 
 static void *real_library;
 /* 0 none, 1 segfault, 2 abort, 3 loop, 4 alloc, 5 nan, 6 discard, 7 error, 8 status, 9 log,
-   10 fork, 11 daemon, 12 chdir, 13 orphan, 14 chatter */
+   10 fork, 11 daemon, 12 chdir, 13 orphan, 14 chatter, 15 resetfatal, 16 zeno */
 static int kind;
 static double fault_time = 1e300, fault_min_FE = -1e300, last_time, F_E;
 static double fault_end = 1e300, full_step; /* chatter: substeps pass until fault_end */
@@ -130,6 +135,8 @@ static int fault_status;
 static fmi2CallbackFunctions callbacks;
 static const char *hold_path, *mark_path; /* TOGGLE_FAULT_HOLD, TOGGLE_FAULT_MARK */
 static int marked;                        /* this run has appended its line to mark_path */
+static char instance_name[256]; /* the name the instance logs under */
+static int failed_once;         /* zeno: its one failure before fault_end is behind it */
 
 static double sleep_seconds(void) {
     const char *text = getenv("TOGGLE_FAULT_SLEEP");
@@ -166,8 +173,8 @@ static void *real(const char *name) {
         if (!real_library) abort();
         const char *k = getenv("TOGGLE_FAULT_KIND");
         const char *names[] = {"", "segfault", "abort", "loop", "alloc", "nan", "discard", "error",
-                               "status", "log", "fork", "daemon", "chdir", "orphan", "chatter", "resetfatal"};
-        for (int i = 1; k && i < 16; i++) if (strcmp(k, names[i]) == 0) kind = i;
+                               "status", "log", "fork", "daemon", "chdir", "orphan", "chatter", "resetfatal", "zeno"};
+        for (int i = 1; k && i < 17; i++) if (strcmp(k, names[i]) == 0) kind = i;
         if (getenv("TOGGLE_FAULT_STATUS")) fault_status = atoi(getenv("TOGGLE_FAULT_STATUS"));
         if (getenv("TOGGLE_FAULT_END")) fault_end = atof(getenv("TOGGLE_FAULT_END"));
         if (getenv("TOGGLE_FAULT_TIME")) fault_time = atof(getenv("TOGGLE_FAULT_TIME"));
@@ -207,6 +214,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDef, fmi2Real tol
     last_time = start;
     F_E = 0;
     marked = 0;
+    failed_once = 0;
     return ((fmi2SetupExperimentTYPE *)real("fmi2SetupExperiment"))(c, tolDef, tol, start, stopDef, stop);
 }
 
@@ -225,6 +233,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
                               const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
     fmi2InstantiateTYPE *instantiate = (fmi2InstantiateTYPE *)real("fmi2Instantiate");
     if (functions) callbacks = *functions;
+    snprintf(instance_name, sizeof instance_name, "%s", name ? name : "");
     if (kind == 10 && fork() == 0) {
         usleep((useconds_t)(sleep_seconds() * 1e6));
         _exit(0);
@@ -273,6 +282,19 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
         case 14:
             if (h < 0.5 * full_step && t < fault_end) break;
             return fmi2Discard;
+        case 16:
+            if (t >= fault_end - 1e-12) {
+                if (callbacks.logger)
+                    callbacks.logger(callbacks.componentEnvironment, instance_name, fmi2Error, "logStatusError",
+                                     ZENO_LATER, t);
+                return fmi2Error;
+            }
+            if (failed_once) break;
+            failed_once = 1;
+            if (callbacks.logger)
+                callbacks.logger(callbacks.componentEnvironment, instance_name, fmi2Error, "logStatusError",
+                                 ZENO_ONCE, t);
+            return fmi2Error;
         }
     }
     return ((fmi2DoStepTYPE *)real("fmi2DoStep"))(c, t, h, noSetPrior);
@@ -290,7 +312,8 @@ def _argument_names(parameters: str) -> str:
 
 
 def shim_source() -> str:
-    lines = [_PROLOGUE]
+    said = {"ZENO_ONCE": ZENO_ONCE, "ZENO_LATER": ZENO_LATER}
+    lines = [f'#define {name} "{text.format("%g")}"' for name, text in said.items()] + [_PROLOGUE]
     for name, result, parameters in _FUNCTIONS:
         call = f'(({name}TYPE *)real("{name}"))({_argument_names(parameters)})'
         body = f"{call};" if result == "void" else f"return {call};"

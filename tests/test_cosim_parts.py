@@ -5,6 +5,8 @@ false while checkpoints are in use, true only without them)."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
@@ -12,7 +14,7 @@ from fmpy.fmi1 import FMICallException
 from toggle_cosim.control.controller import ControllerGains, VSCController
 from toggle_cosim.cosim import compiled_loop
 from toggle_cosim.cosim.recorder import ProgressHook, Recorder
-from toggle_cosim.cosim.retry import RETRY_SUBSTEPS, CheckpointPolicy, RetryFailed
+from toggle_cosim.cosim.retry import RETRY_SUBSTEPS, CheckpointPolicy, PlantStepFailed, RetryFailed
 from toggle_cosim.cosim.session import FunctionNames
 from toggle_cosim.cosim.stepper import CompiledStepper, HandOver, LoopState, PythonStepper, StepFailed, Timing
 from toggle_cosim.physics.parameters import MechanismParameters
@@ -24,12 +26,16 @@ NAMES = ("time", "x_B", "v_B", "iq_ref", "F_E", *VSCController.diagnostics)
 class MockSession:
     """A plant whose slider moves at v = iq_ref * 1e-3 m/s per A: x_B(t + h) = x_B + v h.
     The state is (x, v); save/restore copy it. `fail_at` makes the doStep from that time fail
-    once with the given status; every doStep notes the flag it was called with."""
+    once with the given status (and log `logged`, as an FMU's logger keeps it); every doStep
+    notes the flag it was called with."""
 
     function_names = FunctionNames("fmi2GetReal", "fmi2SetReal", "fmi2DoStep")
 
-    def __init__(self, fail_at: float | None = None, status: int = 2, fail_again: bool = False) -> None:
+    def __init__(
+        self, fail_at: float | None = None, status: int = 2, fail_again: bool = False, logged: str | None = None
+    ) -> None:
         self.x, self.v, self.u = 0.2, 0.0, 0.0
+        self.logged, self.last_logged = logged, None
         self.fail_at, self.status, self.fail_again = fail_at, status, fail_again
         self.no_set_state_prior_to_current_point = False
         self.flags: list[bool] = []
@@ -53,9 +59,14 @@ class MockSession:
             if not self.fail_again:
                 self.fail_at = None
             self.x = float("nan")  # the failed step leaves the FMU in a state the policy must undo
+            self.last_logged = self.logged.format(t + h) if self.logged else None  # "{}": the step's end
             raise FMICallException(function="fmi2DoStep", status=self.status)
         self.v = self.u * 1e-3
         self.x += self.v * h
+
+    def logged_error(self) -> str | None:
+        said, self.last_logged = self.last_logged, None
+        return said
 
     def save_state(self) -> None:
         self.saves += 1
@@ -140,7 +151,9 @@ def test_a_discard_is_retried_from_the_checkpoint_and_the_run_recovers() -> None
     k, recorder = _run(session, policy)
     assert k == clean == N + 1 and recorder.rows == N + 1
     assert session.restores == 1 and session.saves == 2  # at sample 1, and at 13 after the retry
-    assert policy.retries == [{"t": pytest.approx(12 * T_S), "error": "fmi2DoStep failed with status 2 (discard)."}]
+    assert policy.retries == [
+        {"t": pytest.approx(12 * T_S), "error": "fmi2DoStep failed with status 2 (discard).", "outcome": "passed"}
+    ]
     failed = session.steps.index((pytest.approx(12 * T_S), T_S))
     replay = session.steps[failed + 1 : failed + 1 + 11 + RETRY_SUBSTEPS]
     assert [t for t, _ in replay[:11]] == pytest.approx([j * T_S for j in range(1, 12)])
@@ -172,20 +185,47 @@ def test_a_retry_that_fails_again_ends_the_run_with_both_failures() -> None:
         _run(session, CheckpointPolicy(saving=True))
 
 
+def test_a_failed_step_says_what_the_fmu_logged_and_a_retry_notes_its_outcome() -> None:
+    """The FMU's last failing-status message ends the failure's text, in the retry's entry and
+    in a retry that fails again, where it is not said twice; an entry says whether it passed."""
+    zeno = "more than 10000 events in one communication step: the model is chattering (Zeno behaviour)"
+    policy = CheckpointPolicy(saving=True)
+    _run(MockSession(fail_at=12 * T_S, status=3, logged=zeno), policy)
+    at = f"{zeno} at t={{}} s"  # the retry's substep fails at another time: the same failure, said once
+    with pytest.raises(RetryFailed) as failed:
+        _run(MockSession(fail_at=12 * T_S, status=3, fail_again=True, logged=at), CheckpointPolicy(saving=True))
+    assert str(failed.value).count("Zeno") == 1 and str(failed.value).startswith(
+        f"fmi2DoStep failed with status 3 (error): {at.format(13 * T_S)}. Retried"
+    )
+    assert policy.retries == [
+        {"t": pytest.approx(12 * T_S), "error": f"fmi2DoStep failed with status 3 (error): {zeno}", "outcome": "passed"}
+    ]
+    policy = CheckpointPolicy(saving=True)
+    with pytest.raises(RetryFailed) as failed:
+        _run(MockSession(fail_at=12 * T_S, status=3, fail_again=True, logged=zeno), policy)
+    assert str(failed.value) == (
+        f"fmi2DoStep failed with status 3 (error): {zeno}. Retried from the checkpoint at t = 0.001 s in "
+        f"{RETRY_SUBSTEPS} substeps: fmi2DoStep failed with status 3 (error)."
+    )
+    assert [entry["outcome"] for entry in policy.retries] == ["failed"]
+    with pytest.raises(PlantStepFailed, match=re.escape(f"status 4 (fatal): {zeno}")):
+        _run(MockSession(fail_at=3 * T_S, status=4, logged=zeno), CheckpointPolicy(saving=True))
+
+
 def test_without_checkpoints_nothing_is_restored_and_the_flag_is_true() -> None:
     """No saved state: doStep may be told the FMU need keep no history; a Discard ends the run."""
     policy = CheckpointPolicy(saving=False)
     session = MockSession()
     assert _run(session, policy)[0] == N + 1 and all(session.flags) and session.saves == 0
     session = MockSession(fail_at=12 * T_S, status=2)
-    with pytest.raises(FMICallException, match="status 2"):
+    with pytest.raises(PlantStepFailed, match="status 2"):
         _run(session, policy)
     assert session.restores == 0 and policy.retries == []
 
 
 def test_fatal_is_never_retried() -> None:
     session = MockSession(fail_at=3 * T_S, status=4)
-    with pytest.raises(FMICallException, match="fatal"):
+    with pytest.raises(PlantStepFailed, match="fatal"):
         _run(session, CheckpointPolicy(saving=True))
     assert session.restores == 0
 

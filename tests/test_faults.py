@@ -111,6 +111,7 @@ def test_each_error_status_of_a_step(
                 "t": pytest.approx(0.1),
                 "error": f"fmi2DoStep failed with status {status} "
                 f"({['ok', 'warning', 'discard', 'error', 'fatal'][status]}).",
+                "outcome": "passed",
             }
         ]
         assert np.max(np.abs(outcome.trace.column("x_B") - clean.trace.column("x_B"))) < 1e-9
@@ -196,30 +197,73 @@ def test_sigkill_leaves_no_truncated_csv(plant_fmu: Path, tmp_path: Path) -> Non
         assert trace.data.shape[0] == 3001
 
 
-def test_a_run_failing_after_retries_is_reported_at_its_first_failed_step(
+def _faulty(plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kind: str, time: float, end: float):
+    """The shim plant (`fault_plants`) misbehaving as `kind` from `time` (s) to `end` (s)."""
+    from fault_plants import fault_environment, make_faulty_fmu
+
+    faulty = check_plant(make_faulty_fmu(plant_fmu, tmp_path / f"{kind}.fmu"))
+    environment = fault_environment(kind, time, faulty.references)
+    for name in ("TOGGLE_FAULT_KIND", "TOGGLE_FAULT_TIME", "TOGGLE_FAULT_MIN_FE", "TOGGLE_FAULT_FE_VR"):
+        monkeypatch.setenv(name, environment[name])
+    monkeypatch.setenv("TOGGLE_FAULT_END", repr(end))
+    return faulty
+
+
+def test_a_run_failing_after_retries_is_reported_at_the_step_that_failed_for_good(
     plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A plant that chatters from t = 0.2 s (every full step discarded, a retry's substeps pass)
-    and fails for good at t = 0.25 s: the steps from 0.2 s are retried one by one until the retry
-    fails. The run is reported failed at 0.2 s, its first failed step, and the trace ends at the
-    sample before that step: nothing from a step that failed, retried or not."""
-    from fault_plants import fault_environment, make_faulty_fmu
-
-    faulty = check_plant(make_faulty_fmu(plant_fmu, tmp_path / "Chatter.fmu"))
-    environment = fault_environment("chatter", 0.2, faulty.references)
-    for name in ("TOGGLE_FAULT_KIND", "TOGGLE_FAULT_TIME", "TOGGLE_FAULT_MIN_FE", "TOGGLE_FAULT_FE_VR"):
-        monkeypatch.setenv(name, environment[name])
-    monkeypatch.setenv("TOGGLE_FAULT_END", "0.25")
+    and fails for good at t = 0.25 s: the steps from 0.2 s pass when retried, one by one, until
+    the retry at 0.25 s fails. The run is reported failed at 0.25 s, where it failed, with the
+    earlier retries noted, and keeps its trace up to that step's sample; the samples before the
+    first retried step are the undisturbed run's."""
+    faulty = _faulty(plant_fmu, tmp_path, monkeypatch, "chatter", 0.2, 0.25)
     outcome = master.simulate(_nominal(), faulty)
-    retried = [entry["t"] for entry in outcome.record["retries"]]
-    assert len(retried) == 100 and retried[0] == pytest.approx(0.2) and retried[-1] == pytest.approx(0.2495)
-    assert not outcome.complete and outcome.reason.startswith("plant FMU failed at t = 0.2 s, its first failed step")
-    assert "until the run ended at t = 0.25 s" in outcome.reason and "Retried from the checkpoint" in outcome.reason
-    assert outcome.trace.time[-1] == pytest.approx(0.2, abs=1e-12) and len(outcome.trace.time) == 401
-    assert outcome.record["samples"] == 401 and np.all(np.isfinite(outcome.trace.data))
-    clean = master.simulate(_nominal(), check_plant(plant_fmu))  # the samples kept are the undisturbed run's
-    assert np.array_equal(outcome.trace.data, clean.trace.data[:401])
+    retries = outcome.record["retries"]
+    assert [entry["outcome"] for entry in retries] == ["passed"] * 100 + ["failed"]
+    assert retries[0]["t"] == pytest.approx(0.2) and retries[-1]["t"] == pytest.approx(0.25)
+    assert not outcome.complete and outcome.reason.startswith("plant FMU failed at t = 0.25 s: fmi2DoStep failed")
+    assert "Retried from the checkpoint" in outcome.reason and "went on failing" not in outcome.reason
+    assert outcome.reason.endswith(
+        "(earlier, 100 of the plant's steps from t = 0.2 s to 0.2495 s failed and passed when retried from a checkpoint)"
+    )
+    assert outcome.trace.time[-1] == pytest.approx(0.25, abs=1e-12) and len(outcome.trace.time) == 501
+    assert outcome.record["samples"] == 501 and np.all(np.isfinite(outcome.trace.data))
+    assert any(w.startswith("100 of the plant's steps from t = 0.2 s") for w in outcome.record["warnings"])
+    clean = master.simulate(_nominal(), check_plant(plant_fmu))  # before the first retry: the undisturbed run
+    assert np.array_equal(outcome.trace.data[:401], clean.trace.data[:401])
     from toggle_cosim.cosim.supervision import simulate_supervised
 
     supervised = simulate_supervised(_nominal(), faulty)  # the parent counts the rows the child left set
     assert supervised.reason == outcome.reason and np.array_equal(supervised.trace.data, outcome.trace.data)
+
+
+def test_a_plant_failure_says_what_the_fmu_logged_and_a_retry_that_passed_is_reported(
+    plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The step at t = 0.1 s fails once (the FMU logs an event iteration that did not converge)
+    and passes when retried: run.json's retries and a warning say so, with the FMU's words. From
+    t = 0.2 s every step fails with a logged Zeno message: the reason names t = 0.2 s, the status
+    and the FMU's message, and the trace runs to 0.2 s."""
+    from fault_plants import ZENO_LATER, ZENO_ONCE
+
+    faulty = _faulty(plant_fmu, tmp_path, monkeypatch, "zeno", 0.1, 0.2)
+    outcome = master.simulate(_nominal(), faulty)
+    first = f"fmi2DoStep failed with status 3 (error): {ZENO_ONCE.format(0.1)}"
+    assert outcome.record["retries"][0] == {"t": pytest.approx(0.1), "error": first, "outcome": "passed"}
+    assert [entry["outcome"] for entry in outcome.record["retries"]] == ["passed", "failed"]
+    assert outcome.reason.startswith(
+        f"plant FMU failed at t = 0.2 s: fmi2DoStep failed with status 3 (error): {ZENO_LATER.format(0.2)}. Retried"
+    )
+    assert outcome.reason.count("Zeno") == 1  # the retry failed the same way: said once
+    assert outcome.reason.endswith(
+        "(earlier, the plant's step at t = 0.1 s failed and passed when retried from a checkpoint)"
+    )
+    assert outcome.record["warnings"][-1] == (
+        f"The plant's step at t = 0.1 s failed and passed when retried from a checkpoint: {first}"
+    )
+    assert outcome.trace.time[-1] == pytest.approx(0.2, abs=1e-12) and outcome.record["samples"] == 401
+    monkeypatch.setenv("TOGGLE_FAULT_END", "1e300")  # the one failure only: the run completes, its retry noted
+    passed = master.simulate(_nominal(), faulty)
+    assert passed.complete and passed.record["retries"] == [outcome.record["retries"][0]]
+    assert passed.record["warnings"][-1] == outcome.record["warnings"][-1]

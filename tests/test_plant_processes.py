@@ -205,3 +205,31 @@ def test_a_plant_that_changes_directory_does_not_move_the_output(shim_fmu: Path,
     assert result.returncode == 0, result.stderr
     assert sorted(p.parent.name for p in (tmp_path / "out").glob("faulty/*/run.json")) == ["clean", "hit"]
     assert list(elsewhere.iterdir()) == []
+
+
+def test_a_plant_failure_says_the_fmus_error_in_run_json_the_console_and_a_sweeps_table(
+    shim_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every step from t = 0.1 s fails, the FMU logging a Zeno message as an error: run.json's
+    reason, the console's line and a sweep's reason column name the status and the FMU's
+    message, said once (the retry that failed the same way, and the sweep's captured log, do
+    not repeat it)."""
+    import pandas as pd
+    from fault_plants import ZENO_LATER
+
+    _arm(monkeypatch, shim_fmu, "zeno", TOGGLE_FAULT_END=repr(T_FAULT))
+    said = f"fmi2DoStep failed with status 3 (error): {ZENO_LATER.format(T_FAULT)}"
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["run", str(_scenario(tmp_path)), "--fmu", str(shim_fmu), "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    reason = json.loads((out / "faulty" / "hit" / "run.json").read_text())["reason"]
+    assert reason.startswith(f"plant FMU failed at t = 0.1 s: {said}. Retried") and reason.count("Zeno") == 1
+    assert f"FAILED ({reason}" in result.output
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(
+        yaml.safe_dump({"base": "faulty.yaml", "variant": "clean", "axes": {"plant.F_E": {"values": [0, 60]}}})
+    )
+    result = CliRunner().invoke(main, ["sweep", str(sweep), "--fmu", str(shim_fmu), "--out", str(tmp_path / "sweep")])
+    assert result.exit_code == 1, result.output
+    table = pd.read_parquet(tmp_path / "sweep" / "results.parquet").set_index("plant.F_E")
+    assert table.loc[60.0, "reason"] == reason and table.loc[0.0, "status"] == "ok"

@@ -9,6 +9,7 @@ error, is shown by `value_text`: at most VALUE_CHARS characters, its first eleme
 
 from __future__ import annotations
 
+import re
 import reprlib
 
 MESSAGE_CHARS = 400  # a reason's length in a console line, run.json or a sweep row
@@ -74,4 +75,23 @@ def schema_text(message: str, value: object) -> str:
     return bounded_text(message)
 
 
-__all__ = ["MESSAGE_CHARS", "VALUE_CHARS", "bounded_text", "error_text", "schema_text", "short_repr", "value_text"]
+__all__ = [
+    "MESSAGE_CHARS",
+    "VALUE_CHARS",
+    "bounded_text",
+    "error_text",
+    "said_in",
+    "schema_text",
+    "short_repr",
+    "value_text",
+]
+
+
+def said_in(message: str, text: str) -> bool:
+    """True when `text` says `message`, numbers aside: an FMU's message of the same failure at
+    another time (a retried step's, say) is said already."""
+    return _numberless(message) in _numberless(text)
+
+
+def _numberless(text: str) -> str:
+    return re.sub(r"[-+]?\d[\d.eE+-]*", "#", text)

@@ -31,10 +31,12 @@ plant over [t_k, t_k+1] with the command the controller computed from the plant'
 every FMU and only then exchanges values does, and row k of the trace holds the plant's outputs
 at t_k with the controller's outputs (command and diagnostics) of sample k - 1: the values every
 variable has at t_k in such a master. The compiled loop runs gauss-seidel only; jacobi runs the
-Python loop, and run.json says so. A run that fails after retried steps is reported failed at its first failed step, and
-its trace ends at the sample that step started from: no sample of a failed (even if retried)
-step is kept. A finished run is checked for plausibility (`plausibility`): its warnings go
-into run.json.
+Python loop, and run.json says so. A failed step retried from a checkpoint that passes is kept
+in run.json's `retries` and said in a warning; the run goes on, and if it fails later it is
+reported failed at that later step (its reason ends with the earlier retries), its trace kept
+up to the sample that step started from. A plant failure's reason ends with what the FMU
+logged about it (its last message with a failing status). A finished run is checked for
+plausibility (`plausibility`): its warnings go into run.json.
 """
 
 from __future__ import annotations
@@ -48,12 +50,13 @@ import numpy as np
 from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
+from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.controllers import controller_for, controller_record
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
 from toggle_cosim.cosim.plausibility import plausibility_warnings
 from toggle_cosim.cosim.recorder import ProgressHook, Recorder
-from toggle_cosim.cosim.retry import CheckpointPolicy
+from toggle_cosim.cosim.retry import CheckpointPolicy, failure_text
 from toggle_cosim.cosim.session import PlantSession
 from toggle_cosim.cosim.stepper import (
     CompiledStepper,
@@ -152,17 +155,16 @@ def _initialise(session: PlantSession, run: Run, plant: PlantInterface, sent: tu
     session.exit_initialization()
 
 
-def _cut_at_first_failure(reason: str, recorder: Recorder, first: int | None, T_s: float) -> str:
-    """For a run that failed after an earlier step failed and was retried: cut the trace after the
-    sample of that first failed step and say the run failed there; otherwise `reason` as it is."""
-    if first is None or first + 1 >= recorder.rows:
-        return reason
-    ended = (recorder.rows - 1) * T_s
-    recorder.truncate(first + 1)
+def retried_words(passed: list[dict], T_s: float) -> str | None:
+    """The plant steps that failed and passed when retried from a checkpoint, in words (a run's
+    warning; a failure reason's note, short so the reason's own words stay in its bound), or None."""
+    if not passed:
+        return None
+    if len(passed) == 1:
+        return f"the plant's step at t = {passed[0]['t']:.6g} s failed and passed when retried from a checkpoint"
     return (
-        f"plant FMU failed at t = {first * T_s:.6g} s, its first failed step (retried from a checkpoint; the steps "
-        f"went on failing until the run ended at t = {ended:.6g} s; no sample after t = {first * T_s:.6g} s is "
-        f"kept): {reason}"
+        f"{len(passed)} of the plant's steps from t = {passed[0]['t']:.6g} s to {passed[-1]['t']:.6g} s failed "
+        "and passed when retried from a checkpoint"
     )
 
 
@@ -214,7 +216,7 @@ def simulate_pair(
         session = open_session(plant, run.label, others)
     timing, state = Timing(n, run.T_s, input_samples(run, n)), LoopState()
     hooks = [ProgressHook(progress, n, run.T_s, run.t_end)] if progress is not None else []
-    policy = CheckpointPolicy(saving=session.can_save_state)
+    policy = CheckpointPolicy(saving=session.can_save_state, budget=WorkBudget.of(run.resolved.get("budget"), n))
     loop = {"kind": "python", "reason": "the run ended before the second sample"}
     interrupted = False
     loop_started = loop_finished = clock.perf_counter()
@@ -255,9 +257,13 @@ def simulate_pair(
     except ControllerFailed as error:
         loop_finished = clock.perf_counter()
         state.reason = f"controller failed: {error}"
+    except BudgetExceeded as error:  # the plant's work past the run's budget: the same sample on any machine
+        loop_finished = clock.perf_counter()
+        state.reason = str(error)
     except Exception as error:  # noqa: BLE001 - any plant failure ends the run cleanly
         loop_finished = clock.perf_counter()
-        state.reason = f"plant FMU failed at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s: {error}"
+        said = failure_text(error, session.logged_error())  # the FMU's own words on what went wrong
+        state.reason = f"plant FMU failed at t = {max(recorder.rows - 1, 0) * run.T_s:.6g} s: {said}"
     finally:
         close_controller(controller)
         solver_statistics = session.solver_statistics()
@@ -265,12 +271,15 @@ def simulate_pair(
             session.close()
         else:  # a kept plant: reset after a complete run for the next, else freed
             session.release(reuse=state.reason is None and recorder.rows == n + 1 and not interrupted)
-    if state.reason is not None and not interrupted:
-        state.reason = _cut_at_first_failure(state.reason, recorder, policy.first_failure, run.T_s)
+    retried = retried_words(policy.passed(), run.T_s)
+    if state.reason is not None and retried is not None:
+        state.reason = f"{state.reason} (earlier, {retried})"
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
     reason = bounded_text(reason) if reason is not None else None  # one line, whatever the plant or controller said
     complete = reason is None and rows == n + 1
     summary, warnings = pair_summary(run, trace, state.controller)
+    if retried is not None:  # what the first one failed with, in run.json's retries too
+        warnings = [*warnings, bounded_text(f"{retried[0].upper()}{retried[1:]}: {policy.passed()[0]['error']}")]
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     loop_seconds = loop_finished - loop_started

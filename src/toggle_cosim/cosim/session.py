@@ -35,7 +35,15 @@ from fmpy import extract
 from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.plant.contract import PlantInterface
-from toggle_cosim.plant.fmi_calls import FATAL, FMU2SlaveChecked, FMU3SlaveChecked, failed
+from toggle_cosim.plant.fmi_calls import (
+    FATAL,
+    FMU2SlaveChecked,
+    FMU3SlaveChecked,
+    failed,
+    last_error_message,
+    last_log_line,
+    logger3,
+)
 
 _VR, _DOUBLES = ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_double)
 _BOOL_OUT = ctypes.POINTER(ctypes.c_bool)
@@ -127,6 +135,7 @@ class PlantSession:
 
     def __init__(self, plant: PlantInterface, instance_name: str, outputs: list[str], inputs: list[str]) -> None:
         self.plant = plant
+        self.instance_name = instance_name
         self._unzipped = Path(extract(str(plant.path)))
         md = plant.model_description
         self.is_fmi3 = plant.fmi_version.startswith("3")
@@ -188,14 +197,15 @@ class PlantSession:
         return self._instantiated
 
     def instantiate(self, start: float, stop: float) -> None:
+        last_log_line(self.instance_name, forget=True)  # a failure's reason tells only this run's messages
         if self._was_reset:  # the instance kept by release(reuse=True)
             self._was_reset = False
             if not self.is_fmi3:
                 self.fmu.setupExperiment(startTime=start, stopTime=stop)
             self._start, self._stop = start, stop
             return
-        if self.is_fmi3:
-            self.fmu.instantiate(visible=False, loggingOn=False)
+        if self.is_fmi3:  # errors are logged with logging off too; kept under the instance's name
+            self.fmu.instantiate(visible=False, loggingOn=False, logMessage=logger3(self.instance_name))
         else:
             self.fmu.instantiate(visible=False, loggingOn=False)
             self.fmu.setupExperiment(startTime=start, stopTime=stop)
@@ -332,6 +342,11 @@ class PlantSession:
             raise FMICallException(function=self.function_names.step, status=status)
 
     # -- for the compiled loop and the run record ---------------------------------------------
+    def logged_error(self) -> str | None:
+        """What the FMU last logged with a failing status since this was last asked (or since
+        instantiation), on one line, or None: the cause of a failed call, for its reason."""
+        return last_error_message(self.instance_name, forget=True)
+
     def c_functions(self) -> CFunctions | None:
         """The addresses the compiled loop calls, or None (not instantiated, or a function not exported)."""
         functions = (self._get, self._set, self._step)

@@ -206,6 +206,21 @@ _OVERRIDE = {
             "maximum": MAX_SECONDS,
             "description": "wall-clock limit of the run in s (default max(30 s, 20 x t_end))",
         },
+        "budget": {
+            "type": "object",
+            "additionalProperties": False,
+            "minProperties": 1,
+            "properties": {
+                "events": {"type": "integer", "minimum": 1, "description": "the plant's solver events over the run"},
+                "events_per_sample": {
+                    "type": "number",
+                    "exclusiveMinimum": 0,
+                    "description": "the plant's solver events over the run, per sample",
+                },
+                "steps": {"type": "integer", "minimum": 1, "description": "the plant's accepted solver steps"},
+            },
+            "description": "the simulated work the run may do, counted by the plant FMU (docs/sweeps.md)",
+        },
         "record_every": {
             "type": "integer",
             "minimum": 1,
@@ -235,6 +250,7 @@ SCHEMA: dict[str, Any] = {
         "plant": _PLANT,
         "controller": _CONTROLLER,
         "time_limit": _OVERRIDE["properties"]["time_limit"],
+        "budget": _OVERRIDE["properties"]["budget"],
         "record_every": _OVERRIDE["properties"]["record_every"],
         "coupling": _OVERRIDE["properties"]["coupling"],
         "components": {**_COMPONENTS, "additionalProperties": {**_PART, "required": ["fmu"]}},
@@ -661,6 +677,12 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         **_user_controller(controller_doc, suffix, source),
     )
     trajectory = _trajectory(stroke, controller, t_end, suffix)
+    system = _wiring(document, source, suffix)
+    if document.get("budget") and not system.is_pair:
+        raise ScenarioError(
+            f"key budget{suffix}: a work budget holds for a plain plant + controller run only; remove it, "
+            "or the keys components, connections and record"
+        )
     fmu = document.get("fmu")
     fmu_path = None
     if fmu is not None:
@@ -680,7 +702,7 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
         controller=controller,
         resolved={k: v for k, v in document.items() if k != "variants"},
         coupling=document.get("coupling", "gauss-seidel"),
-        system=_wiring(document, source, suffix),
+        system=system,
     )
 
 

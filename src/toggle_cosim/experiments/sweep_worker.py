@@ -32,7 +32,7 @@ import numpy as np
 
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
-from toggle_cosim.messages import bounded_text, error_text
+from toggle_cosim.messages import bounded_text, error_text, said_in
 
 PEAK_RSS_KEY = "_peak_rss_mb"  # in a row from a worker: its peak RSS (not stored in the table)
 RETIRED_KEY = "_host_retired"  # in a row from a plant host: its plant answered Fatal, the host has ended
@@ -274,6 +274,8 @@ class CaseServer:
                     from toggle_cosim.cosim.supervision import rows_recorded
 
                     row["samples"] = rows_recorded(count, view)
+            if row["status"] == "failed" and row["reason"]:  # what the reason says already is not said twice
+                messages = [m for m in messages if not said_in(m.split("] ", 1)[-1], row["reason"])]
             if row["status"] == "failed" and messages:
                 row["reason"] = bounded_text(f"{row['reason']} [FMU log: {' | '.join(messages[:3])}]")
         except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row

@@ -15,12 +15,20 @@
       rated_current: true                  # peak |i_q*| <= plant.rated_current
       working_range: true                  # x_B stays in plant.working_range
     optimiser: {sampler: tpe, trials: 60, batch: 4, seed: 1}
+    case_budget: {events: 12000}           # optional: the keys of budget set in every case (default
+                                           # {events_per_sample: 4}); none: the scenario's own, if any
     output: ../out/tune/tune_integral      # relative to this file; default out/tune/<name>
 
 Tuned keys are scenario keys, set in every case as a sweep's axes are (`sweep_spec.set_key`):
 built-in gains (controller.gains.C, controller.C_I), a Python factory's parameters
 (controller.parameters.NAME), a controller FMU's parameters (controller.parameters.NAME), the
 plant's parameters. Both bounds are checked as values of the key before anything runs.
+
+Every case runs under a work budget (`cosim.budget`): a case that chatters ends at the same
+sample, failed, on a quiet and on a busy machine, so the same file gives the same trials.
+`case_budget`'s keys (by default `budget.DEFAULT_BUDGET`, 4 plant events per sample) are fixed
+keys like `fix`'s (budget.events_per_sample: 4), set in every case and in the sweep files and
+scenario a tuning writes; the wall-clock limit stays, a safety net the budget keeps cases far from.
 """
 
 from __future__ import annotations
@@ -32,6 +40,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from toggle_cosim.cosim.budget import DEFAULT_BUDGET
+from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 from toggle_cosim.experiments.sweep_spec import (
     Case,
@@ -126,6 +136,7 @@ SCHEMA: dict[str, Any] = {
                 "seed": {"type": "integer", "minimum": 0},
             },
         },
+        "case_budget": {"anyOf": [SCENARIO_SCHEMA["properties"]["budget"], {"const": "none"}]},
         "output": {"type": "string", "minLength": 1, "pattern": r"^[^\x00]*\Z"},
     },
 }
@@ -235,7 +246,7 @@ def _load_tuning(path: Path, output: Path | None) -> Tuning:
         sweep = load_sweep(sweep_path)
     except SweepError as error:
         raise TuneError(f"key sweep: {error}") from None
-    fixed = dict(document.get("fix") or {})
+    fixed = {**_budget_keys(document.get("case_budget", DEFAULT_BUDGET)), **(document.get("fix") or {})}
     cases = _fixed_cases(sweep, fixed)
     parameters = [_parameter(key, spec, fixed, sweep, cases) for key, spec in document["parameters"].items()]
     objectives = _objectives(document["objective"])
@@ -272,6 +283,11 @@ def _load_tuning(path: Path, output: Path | None) -> Tuning:
         seed=int(optimiser.get("seed", 0)),
         output=Path(os.path.normpath(output)),
     )
+
+
+def _budget_keys(given: dict[str, float] | str) -> dict[str, float]:
+    """The fixed keys of a tuning's `case_budget` (the scenario key budget's): none for "none"."""
+    return {} if given == "none" else {f"budget.{key}": value for key, value in given.items()}
 
 
 def _fixed_cases(sweep: Sweep, fixed: dict[str, Any]) -> list[Case]:

@@ -8,7 +8,8 @@
 * An FMU's log message is printed `[LABEL] message` as fmpy prints it, but decoded with
   replacement (a message that is not UTF-8 is still shown) and with a label for any status
   (`[STATUS 7]`): fmpy's own logger raises inside the callback for both, and the message is lost.
-  The last line each instance logged is kept (`last_log_line`), for a failure's reason.
+  The last line each instance logged is kept (`last_log_line`), and the text of the last one it
+  logged with a failing status (Discard, Error, Fatal: `last_error_message`), for a failure's reason.
 """
 
 from __future__ import annotations
@@ -73,6 +74,7 @@ def log_line(status: int, message: bytes | str | None) -> str:
 
 _LAST: dict[str, str] = {}  # instance name -> the last line it logged
 _QUIET: set[str] = set()  # instance names whose OK-status messages are dropped
+_LAST_ERROR: dict[str, str] = {}  # instance name -> the text of the last failing-status line it logged
 
 
 def quiet(instance: str, on: bool = True) -> None:
@@ -95,7 +97,10 @@ def _print(status: int, message: bytes | str | None, instance: Any = None) -> No
         if name is not None:
             if len(_LAST) > 64 and name not in _LAST:
                 _LAST.clear()  # names of instances long gone
+                _LAST_ERROR.clear()
             _LAST[name] = line
+            if failed(status) and status != 5:  # not Pending (an asynchronous call still running)
+                _LAST_ERROR[name] = " ".join(line.split("] ", 1)[-1].split())
         sys.stdout.write(line + "\n")
     except Exception:  # noqa: BLE001, S110 - a log line never fails the FMU's call
         pass
@@ -103,8 +108,18 @@ def _print(status: int, message: bytes | str | None, instance: Any = None) -> No
 
 def last_log_line(instance: str, forget: bool = False) -> str | None:
     """The last line the FMU instance named `instance` logged (FMI 2.0, or FMI 3.0 instantiated
-    with `logger3(instance)`), or None; `forget` drops it."""
-    return _LAST.pop(instance, None) if forget else _LAST.get(instance)
+    with `logger3(instance)`), or None; `forget` drops it (and its `last_error_message`)."""
+    if forget:
+        _LAST_ERROR.pop(instance, None)
+        return _LAST.pop(instance, None)
+    return _LAST.get(instance)
+
+
+def last_error_message(instance: str, forget: bool = False) -> str | None:
+    """The text (no label, on one line) of the last message the instance named `instance` logged
+    with a failing status (Discard, Error, Fatal), or None; `forget` drops it. A plant's failure
+    reason ends with it: what the FMU said went wrong, not only its status."""
+    return _LAST_ERROR.pop(instance, None) if forget else _LAST_ERROR.get(instance)
 
 
 def _log2(_environment: Any, instance: Any, status: int, _category: Any, message: Any) -> None:
@@ -187,4 +202,13 @@ FMU2SlaveChecked = type("FMU2SlaveChecked", (FMU2Slave,), {**_checked(FMU2Slave)
 FMU3SlaveChecked = type("FMU3SlaveChecked", (FMU3Slave,), {**_checked(FMU3Slave), "instantiate": _instantiate3})
 
 
-__all__ = ["FMU2SlaveChecked", "FMU3SlaveChecked", "failed", "last_log_line", "log_line", "logger3", "quiet"]
+__all__ = [
+    "FMU2SlaveChecked",
+    "FMU3SlaveChecked",
+    "failed",
+    "last_error_message",
+    "last_log_line",
+    "log_line",
+    "logger3",
+    "quiet",
+]
