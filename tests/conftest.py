@@ -3,11 +3,22 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A test runner started in the background by a shell without job control inherits SIGINT
+    ignored, and Python then leaves it ignored, in this process and in every command it starts.
+    The tests that interrupt a run as Ctrl-C or a notebook's stop button does need SIGINT to
+    arrive: give this process Python's own handler, so its commands start with the default."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # reference_dynamics.py beside the tests
