@@ -311,8 +311,15 @@ def test_a_page_of_hostile_names_runs_none_of_them_and_shows_them_as_written(bro
     hover.wait_for()
     lines = hover.locator("tspan").all_text_contents()
     assert lines[:2] == [f"{SCRIPT} = {IMAGE}", f"{IMAGE} = 2"] and f"status: failed: {REASON}" in lines
-    # the panel shows the first kept case until a cell is clicked: wait for the clicked case's title
-    page.page.mouse.click(*page.page.evaluate(cell, [0, 0]))  # IMAGE and 1.0, case 1
+    # a click takes the point Plotly hovers: move onto the cell and wait for its hover label first
+    # (as a reader's pointer does), then click; the panel shows the first kept case until then
+    page.page.mouse.move(*page.page.evaluate(cell, [0, 0]))  # IMAGE and 1.0, case 1
+    page.page.wait_for_function(
+        "text => [...document.querySelectorAll('#sweep-map-0 .hoverlayer .hovertext tspan')]"
+        ".some(t => t.textContent === text)",
+        arg=f"{IMAGE} = 1",
+    )
+    page.page.mouse.click(*page.page.evaluate(cell, [0, 0]))
     clicked = f"{SCRIPT} = {IMAGE}, {IMAGE} = 1 (case {ENTITY}1{IMAGE})"
     shown = "document.querySelector('#sweep-trace-0 .gtitle').textContent"
     page.page.wait_for_function(f"title => {shown} === title", arg=clicked)
