@@ -366,12 +366,18 @@ def _plant_process(
     os._exit(code)  # the keeper (`_child`) then ends the helper processes the plant started
 
 
+def shared_word(dtype: type = np.int64) -> np.ndarray:
+    """One 8-byte number (0) in an anonymous shared map: what a child forked after it writes
+    there, the parent reads (a row count, the component being called, the run's progress)."""
+    return np.frombuffer(mmap.mmap(-1, 8), dtype=dtype)
+
+
 def shared_count() -> np.ndarray:
-    """A row count shared with the children forked after it (one int64 in an anonymous shared
-    map, 0): the child's recorder counts each sample in it as it records it (`recorder.row_count`,
-    the C loops too), so the parent knows how many rows a run recorded whatever ended it, without
-    reading the values (a NaN a run recorded is a value, not the end of the data)."""
-    return np.frombuffer(mmap.mmap(-1, 8), dtype=np.int64)
+    """A row count shared with the children forked after it (`shared_word`): the child's recorder
+    counts each sample in it as it records it (`recorder.row_count`, the C loops too), so the
+    parent knows how many rows a run recorded whatever ended it, without reading the values (a
+    NaN a run recorded is a value, not the end of the data)."""
+    return shared_word()
 
 
 def rows_recorded(count: np.ndarray, buffer: np.ndarray) -> int:
@@ -502,10 +508,10 @@ class SupervisedRun:
             )
             raise
         if self._with_progress:
-            self.progress_slot = np.frombuffer(mmap.mmap(-1, 8), dtype=np.float64)
+            self.progress_slot = shared_word(np.float64)
         self.count = shared_count()
         if not self.run.system.is_pair:
-            self.calling = np.frombuffer(mmap.mmap(-1, 8), dtype=np.int64)
+            self.calling = shared_word()  # the component being called
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
         self.relay = OutputRelay()

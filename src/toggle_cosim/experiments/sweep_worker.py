@@ -17,7 +17,6 @@ import contextlib
 import copy
 import dataclasses
 import hashlib
-import mmap
 import os
 import socket
 import sys
@@ -345,9 +344,10 @@ class CaseRunner:
     def _new_host(self, rows: int) -> Any:
         from toggle_cosim import interrupts
         from toggle_cosim.cosim.plant_host import PlantHost
+        from toggle_cosim.cosim.supervision import shared_word
 
         self.close()
-        self.calling = np.frombuffer(mmap.mmap(-1, 8), dtype=np.int64)  # shared with the host's child
+        self.calling = shared_word()  # shared with the host's child
         with interrupts.deferred():  # the host and its folder are known here before an interrupt acts
             server = CaseServer(self.plant, self.sha256, self.calling)
             self.host = PlantHost(server, max(rows, self.rows), self.columns, self.scratch)
