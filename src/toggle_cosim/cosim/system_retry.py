@@ -167,9 +167,12 @@ def retried_words(passed: Sequence[dict[str, Any]]) -> str | None:
         return None
     if len(passed) == 1:
         first = passed[0]
-        return f"component {first['component']!r}'s step at t = {first['t']:.6g} s failed and passed when retried"
+        return (
+            f"component {first['component']!r}'s step at t = {first['t']:.6g} s failed and passed when retried"
+            " from a checkpoint"
+        )
     names = ", ".join(dict.fromkeys(repr(entry["component"]) for entry in passed))
     return (
         f"{len(passed)} steps of component {names} from t = {passed[0]['t']:.6g} s to {passed[-1]['t']:.6g} s "
-        "failed and passed when retried"
+        "failed and passed when retried from a checkpoint"
     )
