@@ -77,36 +77,41 @@ def _run(part: Path, **values: float):
     return dataclasses.replace(run, system=wiring)
 
 
-def _simulate(run, plant, engine: str, monkeypatch: pytest.MonkeyPatch, **options: object):
+def _simulate(run, plant, engine: str, monkeypatch: pytest.MonkeyPatch, coupling: str | None = None, **options: object):
     """The run by the compiled system loop or the Python execution, with its checkpoint options."""
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1" if engine == "compiled" else "0")
     if options:
         from toggle_cosim.cosim.system_retry import CheckpointOptions
 
-        outcome = systems.simulate_system(run, plant, checkpoints=CheckpointOptions(**options))
+        outcome = systems.simulate_system(run, plant, coupling=coupling, checkpoints=CheckpointOptions(**options))
     else:
-        outcome = systems.simulate_system(run, plant)
+        outcome = systems.simulate_system(run, plant, coupling=coupling)
     assert outcome.record["loop"]["kind"] == f"system, {engine}"
     return outcome
 
 
-@pytest.mark.parametrize("interval", [200, 25], ids=["every-200", "every-25"])
+@pytest.mark.parametrize(
+    ("interval", "coupling"),
+    [(200, "gauss-seidel"), (25, "gauss-seidel"), (25, "jacobi")],
+    ids=["every-200", "every-25", "every-25-jacobi"],
+)
 def test_a_part_that_refuses_three_steps_is_retried_and_its_run_completes(
-    plant, refusing: Path, interval: int, monkeypatch: pytest.MonkeyPatch
+    plant, refusing: Path, interval: int, coupling: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The part discards its steps from t = 0.03, 0.0305 and 0.031 s (samples 60 .. 62) unless
     shorter than T_s / 2: each is retried from the checkpoint (sample 0, or 50 with a checkpoint
     every 25 samples) in 10 substeps, which pass, and the run completes, with the three retries
     in run.json, in the compiled loop and in the Python execution alike (the same retries, the
-    same trace bit for bit). Against the undisturbed run, every column the retries do not touch
+    same trace bit for bit), under either coupling. Against the undisturbed run, every column the retries do not touch
     is equal bit for bit (the part's output feeds nothing), and the part's integral y within
     1e-15 relative: a retried step adds x T_s as ten additions of x T_s / 10, which round
     differently in the last bits (a few ulps of y ~ 0.01, three times)."""
-    clean = _simulate(_run(refusing), plant, "compiled", monkeypatch)
+    clean = _simulate(_run(refusing), plant, "compiled", monkeypatch, coupling)
     assert clean.complete and clean.record["retries"] == []
     refused = _run(refusing, refuse_from=START, refuse_until=START + 2.5 * T_S, pass_below=T_S / 2)
     outcomes = {
-        engine: _simulate(refused, plant, engine, monkeypatch, interval=interval) for engine in ("compiled", "python")
+        engine: _simulate(refused, plant, engine, monkeypatch, coupling, interval=interval)
+        for engine in ("compiled", "python")
     }
     for outcome in outcomes.values():
         assert outcome.complete, outcome.reason
@@ -227,3 +232,37 @@ def test_a_value_a_native_controller_measures_that_is_not_finite_ends_the_run_na
         "which takes finite values only"
     )
     assert outcome.record["samples"] == 20  # t = 0 .. 0.0095 s
+
+
+class _Integrating:
+    """A PI law on x_B with damping on v_B; its state is the integral of the error."""
+
+    diagnostics = ("integral",)
+    measured = ("x_B", "v_B")
+
+    def start(self, t0, measurement):  # noqa: ANN001, ANN201
+        return 0.0
+
+    def step(self, state, t, measurement):  # noqa: ANN001, ANN201
+        from toggle_cosim.control.protocol import ControlStep
+
+        e = 0.3199 - measurement["x_B"]
+        return ControlStep(12.0 * e + 40.0 * state - 2.5 * measurement["v_B"], (state,), state + e * T_S)
+
+
+def test_a_python_controllers_state_is_put_back_with_the_parts(
+    plant, refusing: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With a Python controller whose state is an integral (a component run in Python, so the
+    Python execution runs), a refused step is retried with every component put back to the
+    checkpoint, the controller's state too: the plant's and the controller's columns equal the
+    undisturbed run's bit for bit (an integral counted twice over the replayed samples would not)."""
+    refused = _run(refusing, refuse_from=START, refuse_until=START + 2.5 * T_S, pass_below=T_S / 2)
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1")
+    clean = systems.simulate_system(_run(refusing), plant, controller=_Integrating())
+    outcome = systems.simulate_system(refused, plant, controller=_Integrating())
+    assert outcome.record["loop"]["kind"] == "system, python"
+    assert outcome.complete, outcome.reason
+    assert [r["outcome"] for r in outcome.record["retries"]] == ["passed"] * 3
+    for name in ("plant.x_B", "plant.v_B", "controller.iq_ref"):
+        assert np.array_equal(outcome.trace.column(name), clean.trace.column(name)), name

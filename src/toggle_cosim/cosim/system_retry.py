@@ -68,16 +68,35 @@ class SystemCheckpoints:
     T_s: float
     off: str | None = None
     retries: list[dict[str, Any]] = field(default_factory=list)
+    calling: Any = None  # an int64 array: element 0 gets the id of the component being saved or restored
+    ids: Sequence[int] = ()
 
     @classmethod
-    def of(cls, options: CheckpointOptions, slaves: Sequence[Slave], T_s: float) -> SystemCheckpoints:
-        """The checkpoints of a run, off when the options say so or a component cannot save its state."""
+    def of(
+        cls,
+        options: CheckpointOptions,
+        slaves: Sequence[Slave],
+        T_s: float,
+        calling: Any = None,
+        ids: Sequence[int] | None = None,
+    ) -> SystemCheckpoints:
+        """The checkpoints of a run, off when the options say so or a component cannot save its
+        state. `calling`, `ids`: as the execution's, so a supervising process knows whose save or
+        restore ended the process."""
         off = None if options.enabled else "checkpoints are off in this run's options"
         for slave in slaves:
             if off is not None:
                 break
             off = getattr(slave, "can_save_state", f"component {slave.name!r} cannot save its state")
-        return cls(options, tuple(slaves), float(T_s), off)
+        ids = tuple(ids) if ids is not None else tuple(range(1, len(slaves) + 1))
+        return cls(options, tuple(slaves), float(T_s), off, calling=calling, ids=ids)
+
+    def _each(self) -> Any:
+        """The components in order, each noted in `calling` before it is called."""
+        for slave, id_ in zip(self.slaves, self.ids, strict=True):
+            if self.calling is not None:
+                self.calling[0] = id_
+            yield slave
 
     @property
     def no_set_state_prior_to_current_point(self) -> bool:
@@ -108,7 +127,7 @@ class SystemCheckpoints:
         if self.off is not None:
             return False
         try:
-            for slave in self.slaves:
+            for slave in self._each():
                 slave.save_state()  # type: ignore[attr-defined]
         except SlaveError as error:
             self.off = f"{error} at t = {k * self.T_s:.6g} s; no checkpoint is kept from then on"
@@ -141,7 +160,7 @@ class SystemCheckpoints:
         k, substeps = int(failure.k or 0), self.options.substeps
         c = next(i for i, slave in enumerate(self.slaves) if slave.name == failure.component)
         try:
-            for slave in self.slaves:
+            for slave in self._each():
                 slave.restore_state()  # type: ignore[attr-defined]
             if forward(checkpoint, k) != k:
                 raise SlaveError(f"the samples from t = {checkpoint * self.T_s:.6g} s did not run again")

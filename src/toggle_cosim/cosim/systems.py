@@ -430,7 +430,7 @@ def simulate_system(
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
     compiled: SystemLoop | str = "the run ended before its first sample"
-    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s)
+    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s, calling, ids)
     policy.configure(*assembly.slaves)
 
     def retake(k: int, c: int, substeps: int) -> None:
