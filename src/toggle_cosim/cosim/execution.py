@@ -17,8 +17,9 @@ execution, algorithm and observers).
 
 A failed call raises `SlaveError` (the component, the call, the time; its `k` the sample); the
 samples before it are in the trace. A native controller is told which outputs feed what it
-measures (`ControllerSlave.fed_from`), to name one that is not finite. Before each call of a slave its id goes into
-`calling[0]` (the compiled loop does the same), so a supervising process that shares that word knows whose call ended the process.
+measures (`ControllerSlave.fed_from`), to name one that is not finite. Before each call of a
+slave its id goes into `calling[0]` (the compiled loop does the same), so a supervising process
+that shares that word knows whose call ended the process.
 """
 
 from __future__ import annotations

@@ -5,6 +5,7 @@ user's Python controller, a python-control system).
 
     instantiate(t_end) -> enter_initialization() -> [set, get]* -> exit_initialization()
     per sample t_k:  set(positions, values) -> get(values) -> set(...) -> do_step(t_k, T_s)
+    at a checkpoint: save_state(); on a retry: restore_state()   (`cannot_save_state`: why not)
     close()
 
 `set` takes positions in the slave's fed inputs (`Interface.inputs`, the plan's order) and their
@@ -70,6 +71,10 @@ class Slave(Protocol):
     def get(self, values: Any, t: float) -> None: ...
     def do_step(self, t: float, h: float) -> None: ...
     def close(self) -> None: ...
+    @property
+    def cannot_save_state(self) -> str | None: ...
+    def save_state(self) -> None: ...
+    def restore_state(self) -> None: ...
 
 
 class FmuSlave:
@@ -264,7 +269,7 @@ class FmuSlave:
 
     # -- checkpoints (FMI "get/set FMU state") --------------------------------------------------
     @property
-    def can_save_state(self) -> str | None:
+    def cannot_save_state(self) -> str | None:
         """None when the FMU can save and restore its state, else why not (run.json)."""
         if self.description.coSimulation.canGetAndSetFMUstate:
             return None
@@ -420,7 +425,8 @@ class ControllerSlave:
         self._dirty = True
 
     @property
-    def can_save_state(self) -> str | None:
+    def cannot_save_state(self) -> str | None:
+        """None: its state can be kept (`save_state` may still find it cannot be copied)."""
         return None
 
     def save_state(self) -> None:

@@ -87,7 +87,7 @@ class SystemCheckpoints:
         for slave in slaves:
             if off is not None:
                 break
-            off = getattr(slave, "can_save_state", f"component {slave.name!r} cannot save its state")
+            off = getattr(slave, "cannot_save_state", f"component {slave.name!r} cannot save its state")
         ids = tuple(ids) if ids is not None else tuple(range(1, len(slaves) + 1))
         return cls(options, tuple(slaves), float(T_s), off, calling=calling, ids=ids)
 
@@ -128,7 +128,7 @@ class SystemCheckpoints:
             return False
         try:
             for slave in self._each():
-                slave.save_state()  # type: ignore[attr-defined]
+                slave.save_state()
         except SlaveError as error:
             self.off = f"{error} at t = {k * self.T_s:.6g} s; no checkpoint is kept from then on"
             return False
@@ -161,7 +161,7 @@ class SystemCheckpoints:
         c = next(i for i, slave in enumerate(self.slaves) if slave.name == failure.component)
         try:
             for slave in self._each():
-                slave.restore_state()  # type: ignore[attr-defined]
+                slave.restore_state()
             if forward(checkpoint, k) != k:
                 raise SlaveError(f"the samples from t = {checkpoint * self.T_s:.6g} s did not run again")
             retake(k, c, substeps)

@@ -21,6 +21,10 @@ direct dependencies (`system.graph`): an algebraic loop is refused naming its cy
 
 The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
 order) or the run's `record:` list, which may name any variable of an FMU component.
+
+Either loop runs in stretches between checkpoints (`system_retry.SystemCheckpoints`): a
+component's refused step is retried from the last one, and run.json lists each retry
+(`retries`) and says whether retries are on (`system.checkpoints`).
 """
 
 from __future__ import annotations
