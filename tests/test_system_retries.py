@@ -37,13 +37,14 @@ def _c(text: str) -> Connection:
     return Connection(start, end)
 
 
-def _refusing_part(folder: Path, saves: bool = True) -> Path:
+def _refusing_part(folder: Path, saves: bool = True, *defines: str) -> Path:
     """tests/models/refusing_part built into folder/Refusing.fmu; `saves` False: its description
-    does not declare canGetAndSetFMUstate."""
+    does not declare canGetAndSetFMUstate; `defines`: -D options for the C compiler."""
     source = ROOT / "tests" / "models" / "refusing_part"
     library = folder / "Refusing.so"
     compiler = shutil.which("cc") or shutil.which("gcc")
-    subprocess.run([compiler, "-shared", "-fPIC", "-O1", "-o", str(library), str(source / "Refusing.c")], check=True)
+    command = [compiler, "-shared", "-fPIC", "-O1", *defines, "-o", str(library), str(source / "Refusing.c")]
+    subprocess.run(command, check=True)
     description = (source / "modelDescription.xml").read_text(encoding="utf-8")
     if not saves:
         description = description.replace(' canGetAndSetFMUstate="true"', "")
@@ -186,6 +187,25 @@ def test_a_part_that_cannot_save_its_state_is_not_retried(
         "canGetAndSetFMUstate)",
     }
     assert np.all(outcome.trace.column("refuser.no_prior")[1:] == 1.0)
+
+
+@pytest.mark.parametrize("engine", ["compiled", "python"])
+def test_a_part_that_declares_it_can_save_its_state_but_refuses_leaves_the_run_without_checkpoints(
+    plant, tmp_path: Path, engine: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The part declares canGetAndSetFMUstate, yet its fmi2GetFMUstate returns fmi2Error: the
+    first checkpoint (t = 0) fails, the run goes on without any (run.json says why, naming the
+    part and the call) and, nothing refused, completes with the undisturbed values."""
+    part = _refusing_part(tmp_path, True, "-DREFUSE_STATE")
+    outcome = _simulate(_run(part), plant, engine, monkeypatch)
+    assert outcome.complete, outcome.reason
+    assert outcome.record["samples"] == SAMPLES and outcome.record["retries"] == []
+    checkpoints = outcome.record["system"]["checkpoints"]
+    assert checkpoints["retries"] == "off"
+    assert checkpoints["reason"] == (
+        "component 'refuser' (Refusing.fmu): fmi2GetFMUstate returned status 3 at t = 0 s; no checkpoint is kept "
+        "from then on"
+    )
 
 
 class _Measures:

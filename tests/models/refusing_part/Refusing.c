@@ -3,7 +3,8 @@
    a doStep from t in [refuse_from, refuse_until) returns fmi2Discard, logging why, unless its
    step is shorter than pass_below (a retry's substeps pass; 0: none does). Real no_prior (vr 5,
    output) is the last doStep's noSetFMUStatePriorToCurrentPoint (1 or 0). It saves and restores
-   its state (fmi2GetFMUstate / fmi2SetFMUstate: a copy of its struct). */
+   its state (fmi2GetFMUstate / fmi2SetFMUstate: a copy of its struct); built with -DREFUSE_STATE,
+   its fmi2GetFMUstate returns fmi2Error. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -67,6 +68,9 @@ API int fmi2DoStep(void *c, double t, double h, int no_prior) {
     return 0;
 }
 API int fmi2GetFMUstate(void *c, void **state) {
+#ifdef REFUSE_STATE
+    (void)c; (void)state; return 3; /* fmi2Error: it declares the capability, yet refuses */
+#endif
     if (!*state) { *state = malloc(sizeof(values_t)); if (!*state) return 3; }
     memcpy(*state, &((part_t *)c)->v, sizeof(values_t));
     return 0;
