@@ -13,6 +13,11 @@ failures, with what the FMU logged, and the trace holds the samples up to k. Fat
 retried, nor is anything when a component cannot save its state: then `off` says why, in
 run.json, and no checkpoint is kept.
 
+The caller gives the two ways to run samples (`drive`): `forward`, the run's loop (the compiled
+system loop returns to Python at every checkpoint, and at a failed call), and `retake`, the
+retried sample, always in the Python execution (`Execution.advance` with `split`), whose calls
+and values are the compiled loop's; the compiled loop then goes on from the next sample.
+
 Each retry goes into run.json's `retries`: {"component", "t" (the failed step's start),
 "error" (its failure), "outcome" ("passed" or "failed")}.
 
