@@ -266,6 +266,15 @@ class SystemLoop:
         self._pointer = ctypes.pointer(s)
         self.buffer = buffer  # the sample's values, slot by slot (plan.slot)
 
+    @property
+    def no_set_state_prior_to_current_point(self) -> bool:
+        """doStep's noSetFMUStatePriorToCurrentPoint, for every component (default False)."""
+        return bool(self._state.no_prior)
+
+    @no_set_state_prior_to_current_point.setter
+    def no_set_state_prior_to_current_point(self, value: bool) -> None:
+        self._state.no_prior = 1 if value else 0
+
     def run(self, k0: int, k_end: int) -> tuple[int, int]:
         """Samples k0 .. k_end - 1 (k_end <= n + 1): (DONE, k_end), or (FMI_FAILED, k) with k the
         sample whose call failed (`failure()` names it)."""

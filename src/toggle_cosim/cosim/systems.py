@@ -21,6 +21,10 @@ direct dependencies (`system.graph`): an algebraic loop is refused naming its cy
 
 The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
 order) or the run's `record:` list, which may name any variable of an FMU component.
+
+Either loop runs in stretches between checkpoints (`system_retry.SystemCheckpoints`): a
+component's refused step is retried from the last one, and run.json lists each retry
+(`retries`) and says whether retries are on (`system.checkpoints`).
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.cosim.system_loop import FMI_FAILED, SystemLoop, compiled_system
+from toggle_cosim.cosim.system_retry import CheckpointOptions, SystemCheckpoints, retried_words
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
@@ -350,28 +355,34 @@ def system_columns(run: Run, plant: PlantInterface, controller: Controller | Non
     return assembly.plan.names
 
 
-def _run_compiled(
+def _compiled_forward(
     loop: SystemLoop,
     slaves: Sequence[Slave],
     n: int,
     progress: Callable[[float], None] | None,
     run: Run,
-) -> None:
-    """Samples 0 .. n in C, in stretches of 1 % for the progress hook; a failed call raises the
-    SlaveError the Python execution raises for it (with the FMU's last log line). The loop counts
-    the rows it records in the observer's count."""
+) -> Callable[[int, int], int]:
+    """Samples k .. stop - 1 in C, in stretches of 1 % for the progress hook; a failed call raises
+    the SlaveError the Python execution raises for it (with the FMU's last log line, its `k` the
+    sample). The loop counts the rows it records in the observer's count."""
     every = max(n // 100, 1) if progress is not None else n + 1
-    k = 0
-    while k <= n:
-        code, k_next = loop.run(k, min(k + every, n + 1))
-        if code == FMI_FAILED:
-            error = loop.failure()
-            slave = slaves[loop.plan.order.index(error.component)]
-            failure = getattr(slave, "failure", None)
-            raise failure(error.function, error.t, error.status) if callable(failure) else SlaveError(str(error))
-        k = k_next
-        if progress is not None:
-            progress(min(k, n) * run.T_s / run.t_end)
+
+    def forward(k: int, stop: int) -> int:
+        while k < stop:
+            code, k_next = loop.run(k, min(k + every - k % every, stop))
+            if code == FMI_FAILED:
+                error = loop.failure()
+                slave = slaves[loop.plan.order.index(error.component)]
+                failure = getattr(slave, "failure", None)
+                raised = failure(error.function, error.t, error.status) if callable(failure) else SlaveError(str(error))
+                raised.k = k_next
+                raise raised
+            k = k_next
+            if progress is not None and (k % every == 0 or k > n):
+                progress(min(k, n) * run.T_s / run.t_end)
+        return k
+
+    return forward
 
 
 def _column(trace: Trace, name: str) -> np.ndarray | None:
@@ -387,12 +398,14 @@ def simulate_system(
     coupling: str | None = None,
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
+    checkpoints: CheckpointOptions | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
     ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
     word shared with a supervising process): element 0 holds, while a component is called, its
-    id (`component_names`), and 0 outside the run's loop."""
+    id (`component_names`), and 0 outside the run's loop. `checkpoints`: how a refused step is
+    retried (`system_retry`; default every 200 samples, in 10 substeps)."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
         run = dataclasses.replace(run, coupling=coupling)
@@ -421,6 +434,12 @@ def simulate_system(
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
     compiled: SystemLoop | str = "the run ended before its first sample"
+    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s, calling, ids)
+    policy.configure(*assembly.slaves)
+
+    def retake(k: int, c: int, substeps: int) -> None:
+        execution.advance(k, k + 1, split=(c, substeps))
+
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
@@ -428,9 +447,10 @@ def simulate_system(
             plan, assembly.slaves, assembly.signals, data, n, run.T_s, observer.count, calling, ids
         )
         if isinstance(compiled, SystemLoop):
-            _run_compiled(compiled, assembly.slaves, n, progress, run)
+            policy.configure(compiled)
+            policy.drive(_compiled_forward(compiled, assembly.slaves, n, progress, run), retake, 0, n)
         else:
-            execution.advance(0, n + 1)
+            policy.drive(execution.advance, retake, 0, n)
         loop_finished = clock.perf_counter()
     except KeyboardInterrupt:
         loop_finished, interrupted = clock.perf_counter(), True
@@ -443,6 +463,9 @@ def simulate_system(
         assembly.close()
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])
+    retried = retried_words(policy.passed())
+    if reason is not None and retried is not None:
+        reason = f"{reason} (earlier, {retried})"
     reason = bounded_text(reason) if reason is not None else None
     complete = reason is None and rows == n + 1
     summary = None
@@ -480,10 +503,10 @@ def simulate_system(
         wall,
         loop_finished - loop_started,
         summary,
-        [],
+        policy.retries,
         loop,
         None,
-        warnings=[],
+        warnings=[bounded_text(f"{retried[0].upper()}{retried[1:]}: {policy.passed()[0]['error']}")] if retried else [],
         controller=next((c for c in assembly.components if c["name"] == run.system.controller), None),
     )
     record["system"] = {
@@ -499,6 +522,7 @@ def simulate_system(
         ],
         "signals": [str(port) for port in plan.signals],
         "recorded": list(plan.names[1:]),
+        "checkpoints": policy.record(),
     }
     record["units"] = assembly.units
     return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)
