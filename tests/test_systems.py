@@ -686,13 +686,15 @@ def test_a_unit_defined_with_factor_zero_or_not_finite_is_refused_naming_it(fact
         ("{nope: 1}", "the FMU has no variable 'nope'"),
         ("{x_m: 1}", "'x_m' is an output of the FMU, not a parameter or input"),
         ("{x_f: 0.3}", "'x_f' is a local variable (a state or an internal one) of the FMU, not a parameter or input"),
+        ("{T_f: true}", "variable 'T_f' is a Real, but its value is True (give a finite number)"),
     ],
 )
 def test_a_parts_value_it_cannot_take_is_one_refusal_before_any_run(
     plant_fmu: Path, press_parts: dict[str, Path], tmp_path: Path, parameters: str, message: str
 ) -> None:
     """A part's parameters are checked as an SSP's bindings are (`system.interfaces.check_settable`):
-    an unknown name, an output or a state is one line, exit 2, before any run, nothing written."""
+    an unknown name, an output or a state, a Real given a Boolean (YAML's `true` would have been
+    set as 1.0) is one line, exit 2, before any run, nothing written."""
     from click.testing import CliRunner
 
     from toggle_cosim.cli import main
