@@ -327,3 +327,44 @@ def test_ssp_version_is_checked_in_one_line(plant_fmu: Path, toggle_vsc: Path, t
         "error: SSP version '2.1' (--ssp-version): toggle-cosim writes SSP 1.0 or 2.0 (give one of them)"
     )
     assert not out.exists()
+
+
+def test_a_2_0_ssd_carries_the_studys_srmd_in_its_metadata(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+    """Each 2.0 root SSD holds one MetaData (kind general, type application/x-srmd) whose inline
+    content is a valid SRMD record naming, by archive path and SHA3-256, the FMUs and the
+    variant's .ssv files it uses, with the scenario and the variant as settings; the reader keeps
+    it. A 1.0 SSD has no MetaData (SSP 1.0 has no place for it)."""
+    import hashlib
+
+    from toggle_cosim.provenance import srmd
+
+    scenario = ROOT / "scenarios" / "fig5_external_force.yaml"
+    path = write_ssp(scenario, tmp_path / "fig5.ssp", plant_fmu, toggle_vsc, version="2.0")
+    members = _members(path)
+    for member, variant in ((layout.SSD_MEMBER, "friction"), ("no_friction.ssd", "no_friction")):
+        ssd = etree.fromstring(members[member])
+        (metadata,) = ssd.findall("ssc:MetaData", NS)
+        assert (metadata.get("kind"), metadata.get("type"), metadata.get("source")) == (
+            "general",
+            "application/x-srmd",
+            None,
+        )
+        (document,) = metadata.find("ssc:Content", NS)
+        record = srmd.from_xml(etree.tostring(document), member)
+        used = {r.uri: r for r in record.resources}
+        expected = {
+            "resources/ToggleLSM.fmu": ("model", "plant"),
+            "resources/ToggleVSC.fmu": ("model", "controller"),
+            layout.ssv_member(variant, "plant"): ("parameter", "plant parameters"),
+            layout.ssv_member(variant, "controller"): ("parameter", "controller parameters"),
+        }
+        assert {uri: (r.kind, r.role) for uri, r in used.items()} == expected
+        assert all(r.checksum == hashlib.sha3_256(members[uri]).hexdigest() for uri, r in used.items())
+        assert record.setting("variant") == variant and record.setting("scenario") == scenario.name
+        assert record.setting("scenario-sha3-256") == hashlib.sha3_256(scenario.read_bytes()).hexdigest()
+        assert dict(record.tools)["toggle-cosim"] and record.generation_tool.startswith("toggle-cosim")
+    with open_ssp(path) as study:
+        assert [m.type for m in study.metadata] == ["application/x-srmd"]
+        assert "SimulationResourceMetaData" in study.metadata[0].content
+    old = _members(write_ssp(scenario, tmp_path / "fig5-1.0.ssp", plant_fmu, toggle_vsc))
+    assert etree.fromstring(old[layout.SSD_MEMBER]).find("ssc:MetaData", NS) is None

@@ -1,6 +1,7 @@
 """A scenario file -> an SSP archive (`toggle-cosim ssp`), SSP 1.0 (the default: what libcosim
 and Ecos read) or SSP 2.0 (`--ssp-version 2.0`: Float64 connectors and values, Int32 integers, as
-OMSimulator writes them; `versions.written_type`): one root SSD per variant
+OMSimulator writes them, `versions.written_type`; the study's SRMD in each SSD's MetaData,
+`study_record`): one root SSD per variant
 (`SystemStructure.ssd` the first, `<variant>.ssd` the others: `layout`), each with the plant and
 the controller FMU as components, the connections, one parameter binding per component (that
 variant's .ssv), DefaultExperiment (0, t_end, with T_s as libcosim's fixed step) and our
@@ -27,6 +28,7 @@ from lxml import etree
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings
+from toggle_cosim.cosim.outcome import installed_versions
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 from toggle_cosim.experiments.shipped import DEFAULT_CONTROLLER
 from toggle_cosim.files.outputs import SSP, replacing
@@ -35,6 +37,7 @@ from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import DEFAULT_VERSION, VERSIONS, Element, SspError, schema_problem
 from toggle_cosim.ssp.fmus import FmuVariables, describe
+from toggle_cosim.ssp.study_record import metadata_element, study_record
 from toggle_cosim.ssp.versions import written_type
 from toggle_cosim.system.model import Connection, Port, Wiring
 
@@ -415,7 +418,8 @@ def write_ssp(
     scenario's runs as already loaded (None: loaded from `scenario`). A run's system (`Run.system`:
     parts, connections) is written as it is; its `record` list is no part of an SSD. `version`: the
     SSP version of every SSD and .ssv ("1.0", the default, which libcosim and Ecos read; or "2.0":
-    Float64 connectors and values, Int32 integers). Raises ScenarioError for a scenario
+    Float64 connectors and values, Int32 integers, and the study's SRMD in each SSD's MetaData,
+    `study_record`). Raises ScenarioError for a scenario
     that `run` refuses, SspError (one line) for anything else an SSP cannot be made from."""
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.settings import SettingError, check_settings
@@ -463,6 +467,7 @@ def write_ssp(
         members[layout.CONTROLLER] = layout.fmu_member(f"{layout.CONTROLLER}_{fmus[layout.CONTROLLER].name}")
     part_members = _part_members(runs, members, fmus)
     texts = {}
+    tools = installed_versions()
     for member, parameter_set in zip(variant_members(scenario, sets), sets, strict=True):
         wiring = parameter_set.run.system
         named = {
@@ -470,6 +475,23 @@ def write_ssp(
             wiring.controller: members[layout.CONTROLLER],
             **{part.name: part_members[part.fmu] for part in wiring.parts},
         }
+        ssvs = {}
+        for component, values, variables in (
+            (wiring.plant, parameter_set.plant, plant_variables),
+            (wiring.controller, parameter_set.controller, controller_variables),
+            *((part.name, part.values, parts[part.fmu]) for part in wiring.parts),
+        ):
+            ssv = layout.ssv_member(parameter_set.name, component)
+            ssvs[component] = (ssv, _checked(_ssv(parameter_set.name, values, variables, version), "ssv", ssv))
+        metadata = []
+        if version != "1.0":  # SSP 2.0: the study's SRMD in the SSD's MetaData
+            paths = {
+                wiring.plant: fmus[layout.PLANT],
+                wiring.controller: fmus[layout.CONTROLLER],
+                **{part.name: Path(part.fmu) for part in wiring.parts},
+            }
+            used = {component: (named[component], paths[component]) for component in named}
+            metadata.append(metadata_element(study_record(scenario, parameter_set.name, used, ssvs, tools)))
         try:
             ssd = system_structure(
                 runs[0].scenario,
@@ -479,17 +501,12 @@ def write_ssp(
                 named,
                 {part.name: parts[part.fmu] for part in wiring.parts},
                 version,
+                metadata,
             )
         except SspError as error:
             raise SspError(f"{scenario}: variant {parameter_set.name}: {error}") from None
         texts[member] = _checked(ssd, "ssd", member)
-        for component, values, variables in (
-            (wiring.plant, parameter_set.plant, plant_variables),
-            (wiring.controller, parameter_set.controller, controller_variables),
-            *((part.name, part.values, parts[part.fmu]) for part in wiring.parts),
-        ):
-            member = layout.ssv_member(parameter_set.name, component)
-            texts[member] = _checked(_ssv(parameter_set.name, values, variables, version), "ssv", member)
+        texts.update(dict(ssvs.values()))
     stored = {members[component]: path for component, path in fmus.items()}
     stored.update({member: path for path, member in part_members.items()})
     with replacing(output, "SSP (--out)", kind=SSP) as temporary:
