@@ -1,5 +1,6 @@
 """An SSD's connections as the system's `Connection`s (`read_connections`), each checked as the
-SSP 1.0 standard reads it, and whether they are the plain plant + controller loop (`is_pair_loop`).
+SSP standard reads it (1.0, and 2.0's Float64/Float32 connectors), and whether they are the plain
+plant + controller loop (`is_pair_loop`).
 
 Each connection is checked, one SspError line naming the SSD and the connection:
 
