@@ -173,6 +173,23 @@ def _replace(old: str, new: str):  # noqa: ANN202
     return edit
 
 
+def _inline_vsc(parameters: str):  # noqa: ANN202
+    """An inline SSP 2.0 parameter set of `parameters` bound to the component vsc (the SSD's last)."""
+
+    def edit(text: str) -> str:
+        if "<ssd:SystemStructureDescription" not in text:
+            return text
+        head, tail = text.rsplit("</ssd:Component>", 1)
+        binding = (
+            '<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="2.0" '
+            f'name="inline"><ssv:Parameters>{parameters}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>'
+            "</ssd:ParameterBinding></ssd:ParameterBindings>"
+        )
+        return f"{head}{binding}</ssd:Component>{tail}"
+
+    return edit
+
+
 MECHANISM_IQ = '<ssd:Connector\n            name="iq_ref"\n            kind="input">\n            <ssc:Float64 />'
 MU = '<ssv:Float64\n        value="0.2" />'
 # each construct of SSP 2.0 our master cannot run: the edit of the hand-written SSP, and what
@@ -221,6 +238,10 @@ REFUSED = {
     "a version we do not read": (
         _replace('version="2.0">\n  <ssd:System', 'version="3.0">\n  <ssd:System'),
         "SystemStructure.ssd: version '3.0' is not an SSP version toggle-cosim reads (1.0 or 2.0",
+    ),
+    "inline values their schema refuses": (
+        _inline_vsc('<ssv:Parameter name="C"><ssv:Float64 value="zero" /></ssv:Parameter>'),
+        "SystemStructure.ssd: the inline ParameterValues of Component 'vsc' are not valid (line",
     ),
     "a 2.0 document its schema refuses": (
         _replace(MU, MU.replace('"0.2"', '"zero"')),

@@ -173,7 +173,8 @@ def bindings_of(
             raise SspError(f"{where}: a parameter binding with neither a source nor inline ParameterValues")
         problem = schema_problem(inline, "ssv")  # an SSP 2.0 SSD's schema leaves inline sets unchecked
         if problem is not None:
-            raise SspError(f"{where}: inline ParameterValues not valid SSP ({problem}); fix them")
+            owner_name = f"{etree.QName(owner).localname} {owner.get('name')!r}"
+            raise SspError(f"{where}: the inline ParameterValues of {owner_name} are not valid ({problem}); fix them")
         values = _values(inline, prefix, f"{where} (inline values)")
         budget.spend(len(values))
         found.append(Binding(inline.get("name"), "inline", values))
