@@ -219,6 +219,10 @@ REFUSED = {
         _replace(MU, MU.replace('"0.2"', '"0.2 0.3"')),
         "resources/toggle.ssv: parameter 'mechanism.mu' has 2 values ('0.2 0.3': an array",
     ),
+    "a Float32 past single precision": (
+        _replace(MU, '<ssv:Float32 value="1e39" />'),
+        "resources/toggle.ssv: mechanism.mu = inf is not a finite number",
+    ),
     "a String value": (
         _replace(MU, '<ssv:String value="0.2" />'),
         "resources/toggle.ssv: parameter 'mechanism.mu' is given as String",
@@ -389,3 +393,28 @@ def test_a_2_0_ssd_carries_the_studys_srmd_in_its_metadata(plant_fmu: Path, togg
         assert "SimulationResourceMetaData" in study.metadata[0].content
     old = _members(write_ssp(scenario, tmp_path / "fig5-1.0.ssp", plant_fmu, toggle_vsc))
     assert etree.fromstring(old[layout.SSD_MEMBER]).find("ssc:MetaData", NS) is None
+
+
+def test_fmi3_number_types_are_read_as_real_and_integer(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+    """A Float32 value is the single-precision number it writes (mu = float32(0.2)); an Int8 value
+    is an Integer, set on the Real variable frictionModel as any Integer value is (2 -> 2.0)."""
+    edit = _both(
+        _replace(MU, '<ssv:Float32 value="0.2" />'),
+        _replace(
+            "</ssv:Parameters>",
+            '<ssv:Parameter name="mechanism.frictionModel"><ssv:Int8 value="2" /></ssv:Parameter></ssv:Parameters>',
+        ),
+    )
+    with open_ssp(_zip(tmp_path / "types.ssp", _handmade(plant_fmu, toggle_vsc, edit))) as study:
+        values = dict(study.plant_values)
+    assert values["mu"] == float(np.float32(0.2)) != 0.2
+    assert values["frictionModel"] == 2.0 and isinstance(values["frictionModel"], float)
+
+
+def _both(*edits):  # noqa: ANN002, ANN202
+    def edit(text: str) -> str:
+        for one in edits:
+            text = one(text)
+        return text
+
+    return edit

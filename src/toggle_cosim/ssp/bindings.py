@@ -76,6 +76,14 @@ class Binding:
     values: tuple[tuple[str, Value, str, str | None], ...]
 
 
+def _single(value: float) -> float:
+    """`value` rounded to single precision (past its range: infinite, which is then refused)."""
+    try:
+        return struct.unpack("f", struct.pack("f", value))[0]
+    except OverflowError:  # Python versions that refuse to pack it
+        return math.copysign(math.inf, value)
+
+
 def _value(element: Element, kind: str, name: str, where: str) -> Value:
     """The scalar value of a type element of `kind` (Real, Integer, Boolean); SSP 2.0's value
     attribute is a list, and more or fewer than one value is an array, refused."""
@@ -91,8 +99,8 @@ def _value(element: Element, kind: str, name: str, where: str) -> Value:
     if kind == "Integer":
         return int(items[0])
     value = float(items[0])
-    if etree.QName(element).localname == "Float32":  # xs:float: the single-precision number written
-        value = struct.unpack("f", struct.pack("f", value))[0] if math.isfinite(value) else value
+    if etree.QName(element).localname == "Float32" and math.isfinite(value):  # xs:float: the single-precision number
+        value = _single(value)
     if not math.isfinite(value):
         raise SspError(f"{where}: {name} = {value!r} is not a finite number (give a finite value)")
     return value
