@@ -7,7 +7,7 @@ relative to the SSD, at the archive's top level) with its SHA3-256: the FMUs (ki
 the component's name) and the variant's .ssv files (kind "parameter", role "<component>
 parameters"); the tools' versions (`cosim.outcome.installed_versions`); and as settings the
 scenario file's name and SHA3-256 and the variant. It has no creation time, so the same scenario
-and FMUs give the same archive. SSP 1.0 has no MetaData element: its SSDs carry none.
+and FMUs, written with the same installation, give the same SSD. SSP 1.0 has no MetaData element: its SSDs carry none.
 """
 
 from __future__ import annotations
