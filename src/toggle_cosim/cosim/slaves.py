@@ -22,6 +22,7 @@ import copy
 import ctypes
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -44,7 +45,7 @@ from toggle_cosim.plant.fmi_calls import (
 from toggle_cosim.system.interfaces import FLOAT64_TYPES, fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
-__all__ = ["ControllerSlave", "FmuSlave", "Slave", "SlaveError"]
+__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError"]
 
 
 class SlaveError(Exception):
@@ -351,6 +352,22 @@ class FmuSlave:
         return fmu_functions(self._slave, self._out_refs, self._in_refs, self._reads)
 
 
+@dataclass(frozen=True)
+class SampleState:
+    """What a `ControllerSlave` holds between two calls: the controller's state and the state its
+    last computation gave (`next`, committed by the next doStep), its outputs held (the command,
+    then the diagnostics), its fed inputs as set (`row`, in the plan's order), whether they were
+    set since that computation (`dirty`) and whether its start has run. The compiled system loop
+    (`cosim.system_natives`) takes it over to run the controller natively in C and gives it back."""
+
+    state: Any
+    next: Any
+    held: tuple[float, ...]
+    row: tuple[float, ...]
+    dirty: bool
+    started: bool
+
+
 class ControllerSlave:
     """A controller of the protocol (`control.protocol`) as a component: its inputs are the
     variables it measures (`controller.measured`), its outputs the command and its diagnostics,
@@ -474,6 +491,16 @@ class ControllerSlave:
             raise SlaveError(f"component {self.name!r}: {error}") from None
         self._held = (u, *diagnostics)
         self._dirty = False
+
+    def sample_state(self) -> SampleState:
+        """What it holds now (`SampleState`)."""
+        return SampleState(self._state, self._next, self._held, tuple(self._row), self._dirty, self._started)
+
+    def resume(self, held: SampleState) -> None:
+        """Hold `held` from now on (the compiled loop's controller given back, `SampleState`)."""
+        self._state, self._next, self._held = held.state, held.next, tuple(held.held)
+        self._row[:] = held.row
+        self._dirty, self._started = held.dirty, held.started
 
     def get(self, values: Any, t: float) -> None:
         if self._dirty:

@@ -39,24 +39,21 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for, fmu_settings
+from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
-from toggle_cosim.cosim.law_fmu import law_fmu
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.summary import summarize
-from toggle_cosim.cosim.system_loop import FMI_FAILED, SystemLoop, compiled_system
+from toggle_cosim.cosim.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
 from toggle_cosim.cosim.system_retry import CheckpointOptions, SystemCheckpoints, retried_words
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterface, read_fmu
-from toggle_cosim.plant.controller_contract import check_controller_fmu
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
 from toggle_cosim.system.interfaces import SettableError, check_settable
@@ -175,21 +172,13 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
 def _controller_slave(
     run: Run, name: str, controller: Controller | None, outputs: Sequence[str], units: Mapping[str, str | None]
 ) -> Slave:
-    """The run's controller as a component: a controller FMU as an FMU; the built-in law (tracking
-    its constant target) as its generated C, the controller FMU built from it (`law_fmu`, bit for
-    bit the Python law), where that FMU can be built; any other natively, its connectors in the
-    units of the plant variables of their names (`units`)."""
+    """The run's controller as a component: a controller FMU as an FMU; any other natively (the
+    built-in law and a python-control system then run in C in the compiled system loop:
+    `system_natives`), its connectors in the units of the plant variables of their names (`units`)."""
     if controller is None:
         controller = controller_for(run, outputs)
     if isinstance(controller, FmuController):
         return FmuSlave(name, controller.fmu, controller.settings)
-    if type(controller) is VSCController and controller.reference is None:  # the built-in law as generated C
-        fmu = law_fmu()
-        if isinstance(fmu, Path):
-            checked = check_controller_fmu(fmu, outputs, run.T_s)
-            slave = FmuSlave(name, checked, fmu_settings(run, checked))
-            slave.origin = "the built-in law as generated C (its controller FMU, built into the private cache)"
-            return slave
     diagnostics = check_controller(controller, outputs)
     return ControllerSlave(name, controller, diagnostics, COMMAND, units, outputs)
 
@@ -361,13 +350,24 @@ def _compiled_forward(
     n: int,
     progress: Callable[[float], None] | None,
     run: Run,
-) -> Callable[[int, int], int]:
-    """Samples k .. stop - 1 in C, in stretches of 1 % for the progress hook; a failed call raises
-    the SlaveError the Python execution raises for it (with the FMU's last log line, its `k` the
-    sample). The loop counts the rows it records in the observer's count."""
+    execution: Execution,
+) -> tuple[Callable[[int, int], int], Callable[[], int | None]]:
+    """Samples k .. stop - 1 in C (`forward`), in stretches of 1 % for the progress hook; a failed
+    call raises the SlaveError the Python execution raises for it (with the FMU's last log line,
+    its `k` the sample). The loop counts the rows it records in the observer's count.
+
+    The native controllers' slaves and the C's memory hold the same thing whenever `forward` is
+    not running: it gives the C what the slaves hold as it starts (a checkpoint put back, a sample
+    the Python execution retook) and the slaves what the C holds as it returns (a checkpoint
+    saved next). A sample a native controller hands back goes, with every later one, to the
+    Python `execution`; `handed()` is that sample (None: none was)."""
     every = max(n // 100, 1) if progress is not None else n + 1
+    handed: list[int] = []
 
     def forward(k: int, stop: int) -> int:
+        if handed:
+            return execution.advance(k, stop)
+        loop.hand_over()
         while k < stop:
             code, k_next = loop.run(k, min(k + every - k % every, stop))
             if code == FMI_FAILED:
@@ -377,12 +377,17 @@ def _compiled_forward(
                 raised = failure(error.function, error.t, error.status) if callable(failure) else SlaveError(str(error))
                 raised.k = k_next
                 raise raised
+            if code == HAND_BACK:
+                loop.give_back()
+                handed.append(k_next)
+                return execution.advance(k_next, stop)
             k = k_next
             if progress is not None and (k % every == 0 or k > n):
                 progress(min(k, n) * run.T_s / run.t_end)
+        loop.take_back()
         return k
 
-    return forward
+    return forward, lambda: handed[0] if handed else None
 
 
 def _column(trace: Trace, name: str) -> np.ndarray | None:
@@ -440,6 +445,7 @@ def simulate_system(
     def retake(k: int, c: int, substeps: int) -> None:
         execution.advance(k, k + 1, split=(c, substeps))
 
+    handed: int | None = None
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
@@ -448,7 +454,11 @@ def simulate_system(
         )
         if isinstance(compiled, SystemLoop):
             policy.configure(compiled)
-            policy.drive(_compiled_forward(compiled, assembly.slaves, n, progress, run), retake, 0, n)
+            forward, handed_at = _compiled_forward(compiled, assembly.slaves, n, progress, run, execution)
+            try:
+                policy.drive(forward, retake, 0, n)
+            finally:
+                handed = handed_at()
         else:
             policy.drive(execution.advance, retake, 0, n)
         loop_finished = clock.perf_counter()
@@ -489,7 +499,12 @@ def simulate_system(
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     coupled = "jacobi" if plan.jacobi else "gauss-seidel"
-    where = "in the compiled system loop" if isinstance(compiled, SystemLoop) else f"in Python ({compiled})"
+    where = f"in Python ({compiled})"
+    if isinstance(compiled, SystemLoop):
+        natives = compiled.native_names
+        where = "in the compiled system loop" + (f" ({', '.join(natives)} natively in C)" if natives else "")
+        if handed is not None:
+            where += f", from t = {handed * run.T_s:.6g} s in Python (a sample the native controller handed back)"
     loop = {
         "kind": "system, compiled" if isinstance(compiled, SystemLoop) else "system, python",
         "reason": f"{len(assembly.slaves)} components, {coupled}, in the order {', '.join(plan.order)}, {where}",
