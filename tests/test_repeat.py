@@ -130,3 +130,61 @@ def test_a_repeat_into_the_recorded_runs_folder_is_refused(recorded: Path) -> No
     assert result.exit_code == 2
     assert "the recorded run's folder" in result.output
     assert (recorded / "trace.csv").read_bytes() == before
+
+
+def test_the_files_of_a_run_are_its_scenario_plant_tables_and_controller_module(tmp_path: Path) -> None:
+    """files_used names an input table's CSV and a controller module beside the scenario, each once."""
+    from toggle_cosim.cosim.run_provenance import files_used
+    from toggle_cosim.experiments.scenario import load_scenario
+
+    plant = tmp_path / "plant.fmu"
+    (table,) = load_scenario(ROOT / "scenarios" / "measured_load.yaml")[:1]
+    assert [(u.path.name, u.role) for u in files_used(table, plant)] == [
+        ("measured_load.yaml", "scenario"),
+        ("plant.fmu", "plant"),
+        ("measured_load.csv", "input-table"),
+    ]
+    module = load_scenario(ROOT / "examples" / "controllers" / "user_controllers.yaml")[0]
+    assert [(u.path.name, u.role) for u in files_used(module, plant)][-1] == ("my_controllers.py", "controller-module")
+
+
+def test_an_edited_controller_module_is_refused(tmp_path: Path, plant_fmu: Path) -> None:
+    """The user's controller module is in the record: edited after the run, the repeat names it."""
+    examples = ROOT / "examples" / "controllers"
+    document = yaml.safe_load((examples / "user_controllers.yaml").read_text(encoding="utf-8"))
+    document.update(t_end=0.01, fmu=str(plant_fmu), variants={"pd": document["variants"]["pd"]})
+    (tmp_path / "user_controllers.yaml").write_text(yaml.safe_dump(document), encoding="utf-8")
+    module = tmp_path / "my_controllers.py"
+    module.write_bytes((examples / "my_controllers.py").read_bytes())
+    out = tmp_path / "out"
+    ran = CliRunner().invoke(main, ["run", str(tmp_path / "user_controllers.yaml"), "--out", str(out), "-q"])
+    assert ran.exit_code == 0, ran.output
+    module.write_text(module.read_text(encoding="utf-8") + "\n# edited\n", encoding="utf-8")
+    result = CliRunner().invoke(main, ["repeat", str(out / "user_controllers" / "pd"), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 2
+    assert result.output.strip().splitlines() == [result.output.strip()]
+    assert f"{module}: changed since the record" in result.output and "controller-module" in result.output
+
+
+def test_a_run_from_an_ssp_is_recorded_by_its_archive_and_repeats_bit_identically(
+    tmp_path: Path, plant_fmu: Path, vsc_fmu: Path
+) -> None:
+    """An SSP's run names the .ssp (its FMUs and parameter files are inside); repeated, its trace is
+    the same bytes."""
+    document = yaml.safe_load(FIG4.read_text(encoding="utf-8"))
+    document.update(t_end=0.02, fmu=str(plant_fmu))
+    scenario = tmp_path / "fig4.yaml"
+    scenario.write_text(yaml.safe_dump(document), encoding="utf-8")
+    archive = tmp_path / "fig4.ssp"
+    made = CliRunner().invoke(main, ["ssp", str(scenario), "--out", str(archive), "--controller", str(vsc_fmu)])
+    assert made.exit_code == 0, made.output
+    out = tmp_path / "out"
+    ran = CliRunner().invoke(main, ["run", str(archive), "--out", str(out), "-q", "-j", "1"])
+    assert ran.exit_code == 0, ran.output
+    (folder,) = {path.parent for path in out.rglob("provenance.srmd")}
+    record = srmd.read_record(folder / "provenance.srmd")
+    assert [item.role for item in record.resources] == ["ssp"]
+    result = CliRunner().invoke(main, ["repeat", str(folder), "--out", str(tmp_path / "again"), "-q"])
+    assert result.exit_code == 0, result.output
+    repeated = tmp_path / "again" / folder.relative_to(out) / "trace.csv"
+    assert repeated.read_bytes() == (folder / "trace.csv").read_bytes()

@@ -109,24 +109,17 @@ def _write_outcome(outcome, out: Path, plant=None) -> tuple[Path, bool]:  # noqa
 def _write_provenance(outcome, folder: Path, plant) -> None:  # noqa: ANN001
     """The run's provenance record in `folder`; a file that cannot be hashed (removed or changed
     into a FIFO meanwhile) gives a warning line and no record, never a failed run."""
-    from toggle_cosim.cosim.outcome import installed_versions
-    from toggle_cosim.cosim.run_provenance import RECORD_NAME, record_of
+    from toggle_cosim.cosim.run_provenance import RECORD_NAME, record_of, tools
     from toggle_cosim.files.naming import naming
-    from toggle_cosim.native import c_compiler
     from toggle_cosim.provenance.srmd import write_record
 
-    tools = installed_versions()
-    try:
-        tools = (*tools, ("c-compiler", c_compiler()))
-    except RuntimeError:  # no compiler: none is recorded
-        pass
     description = getattr(plant, "model_description", None)
     try:
         record = record_of(
             outcome.run,
             Path(outcome.record["fmu"]["path"]),
             folder,
-            tools,
+            tools(),
             getattr(description, "generationTool", None),
         )
     except OSError as error:

@@ -69,13 +69,19 @@ def files_used(run: Run, plant: Path) -> tuple[UsedFile, ...]:
         found.append(UsedFile(Path(run.controller.fmu), "model", "controller-fmu"))
     found += [UsedFile(Path(part.fmu), "model", f"component {part.name}") for part in run.system.parts]
     found += _tables(run) + _module_files(run)
-    seen: set[Path] = set()
-    unique = []
-    for used in found:
-        if used.path.absolute() not in seen:
-            seen.add(used.path.absolute())
-            unique.append(used)
-    return tuple(unique)
+    return _deduplicated(found)
+
+
+def tools() -> tuple[tuple[str, str], ...]:
+    """The versions a record names: Python's, the platform's, the recorded packages'
+    (`outcome.installed_versions`) and the C compiler's path when there is one."""
+    from toggle_cosim.cosim.outcome import installed_versions
+    from toggle_cosim.native import c_compiler
+
+    try:
+        return (*installed_versions(), ("c-compiler", c_compiler()))
+    except RuntimeError:  # no compiler: none is named
+        return installed_versions()
 
 
 def run_settings(run: Run) -> tuple[tuple[str, str], ...]:
@@ -87,6 +93,20 @@ def run_settings(run: Run) -> tuple[tuple[str, str], ...]:
         (VARIANT, run.variant or ""),
         (COUPLING, run.coupling),
     )
+
+
+def _deduplicated(found: list[UsedFile]) -> tuple[UsedFile, ...]:
+    seen: set[Path] = set()
+    unique = []
+    for used in found:
+        if used.path.absolute() not in seen:
+            seen.add(used.path.absolute())
+            unique.append(used)
+    return tuple(unique)
+
+
+def _generator(tools: tuple[tuple[str, str], ...]) -> str:
+    return f"toggle-cosim {dict(tools).get('toggle-cosim', '')}".strip()
 
 
 def record_of(
@@ -102,7 +122,6 @@ def record_of(
         srmd.resource(used.path, folder, used.kind, used.role, plant_tool if used.role == "plant" else None)
         for used in files_used(run, plant)
     )
-    version = dict(tools).get("toggle-cosim", "")
     return srmd.Record(
         name=run.label,
         resources=resources,
@@ -110,8 +129,32 @@ def record_of(
         settings=run_settings(run),
         data=srmd.resource(folder / "trace.csv", folder, "result", "result"),
         created=srmd.now(),
-        generation_tool=f"toggle-cosim {version}".strip(),
+        generation_tool=_generator(tools),
     )
 
 
-__all__ = ["RECORD_NAME", "UsedFile", "files_used", "from_ssp", "record_of", "run_settings"]
+def study_record_of(
+    name: str,
+    specs: tuple[UsedFile, ...],
+    runs: list[Run],
+    plant: Path,
+    folder: Path,
+    tools: tuple[tuple[str, str], ...],
+    data: Path | None = None,
+) -> srmd.Record:
+    """The record of a study (a sweep or a tuning) in its output `folder`: its own files
+    (`specs`: the sweep or tuning file), then every file its cases' `runs` use with `plant`
+    (`files_used`, each once), the tools' versions, and the study's table `data` when written."""
+    used = _deduplicated([*specs, *(item for run in runs for item in files_used(run, plant))])
+    return srmd.Record(
+        name=name,
+        resources=tuple(srmd.resource(item.path, folder, item.kind, item.role) for item in used),
+        tools=tools,
+        settings=((SOURCE, "study"),),
+        data=srmd.resource(data, folder, "result", "result") if data is not None and data.is_file() else None,
+        created=srmd.now(),
+        generation_tool=_generator(tools),
+    )
+
+
+__all__ = ["RECORD_NAME", "UsedFile", "files_used", "from_ssp", "record_of", "run_settings", "study_record_of", "tools"]
