@@ -188,3 +188,20 @@ def test_a_run_from_an_ssp_is_recorded_by_its_archive_and_repeats_bit_identicall
     assert result.exit_code == 0, result.output
     repeated = tmp_path / "again" / folder.relative_to(out) / "trace.csv"
     assert repeated.read_bytes() == (folder / "trace.csv").read_bytes()
+
+
+def test_a_file_of_another_kind_where_the_record_goes_is_refused_before_any_run(
+    tmp_path: Path, plant_fmu: Path
+) -> None:
+    """A run's record replaces an earlier record only: notes at its path stop the command first."""
+    document = yaml.safe_load(FIG4.read_text(encoding="utf-8"))
+    document.update(t_end=0.02, fmu=str(plant_fmu))
+    scenario = tmp_path / "fig4.yaml"
+    scenario.write_text(yaml.safe_dump(document), encoding="utf-8")
+    notes = tmp_path / "out" / "fig4_nominal" / "friction" / "provenance.srmd"
+    notes.parent.mkdir(parents=True)
+    notes.write_text("my notes\n")
+    result = CliRunner().invoke(main, ["run", str(scenario), "--out", str(tmp_path / "out"), "-q"])
+    assert result.exit_code == 2
+    assert f"{notes}: exists and is not a provenance record" in result.output
+    assert notes.read_text() == "my notes\n" and not (notes.parent / "trace.csv").exists()
