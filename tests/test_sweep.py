@@ -80,6 +80,20 @@ def test_table_has_one_row_per_case_with_its_parameters(pool_run):
     assert not list((sweep.output / "parts").glob("*.parquet"))  # consolidated
 
 
+def test_a_sweep_has_a_provenance_record_of_its_files_and_table(pool_run, plant_fmu):
+    """provenance.srmd in the output folder names the sweep file, the base scenario and the plant
+    by SHA3-256, with results.parquet as its data; every checksum matches."""
+    from toggle_cosim.provenance import srmd
+
+    sweep, _, _ = pool_run
+    record = srmd.read_record(sweep.output / "provenance.srmd")
+    assert [item.role for item in record.resources] == ["sweep", "scenario", "plant"]
+    plant = record.resources[2]
+    assert srmd.located(sweep.output / "provenance.srmd", plant.uri).resolve() == plant_fmu.resolve()
+    assert record.data is not None and record.data.uri == "results.parquet"
+    assert srmd.verify_record(sweep.output / "provenance.srmd") == []
+
+
 def test_heat_maps_exist_one_per_other_axis_value(pool_run):
     sweep, result, _ = pool_run
     names = sorted(p.name for p in result.figures)

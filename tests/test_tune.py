@@ -217,6 +217,13 @@ def test_the_tiny_tuning_reports_its_start_best_and_history(tiny) -> None:
     for name in ("trials.csv", "tiny_best.yaml", "tuned_sweep.yaml", "start_sweep.yaml", "maps.png", "tune.json"):
         assert (result.output / name).is_file(), name
     assert (result.output / "maps.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from toggle_cosim.provenance import srmd
+
+    record = srmd.read_record(result.output / "provenance.srmd")  # the tuning's, and each map's
+    assert [item.role for item in record.resources][:2] == ["tuning", "sweep"] and record.data.uri == "trials.csv"
+    assert "plant" in {item.role for item in record.resources}
+    for folder in (result.output, result.output / "map_start", result.output / "map_tuned"):
+        assert srmd.verify_record(folder / "provenance.srmd") == [], folder
 
 
 def test_the_best_scenario_rerun_by_sweep_gives_the_tuners_figures_exactly(tiny, plant_fmu, tmp_path) -> None:

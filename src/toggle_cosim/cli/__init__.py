@@ -1,4 +1,5 @@
-"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep | tune | ssp | report`.
+"""Command line: `toggle-cosim build | init | run | repeat | plot | paper | compare | references | sweep | tune | ssp |
+report`.
 
 The only package that knows about files, exit codes and progress display. Exit status:
 0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
@@ -8,6 +9,7 @@ The only package that knows about files, exit codes and progress display. Exit s
     init_command.py    init: the shipped scenarios copied into a working folder
     execution.py       what the run commands share: checks, supervised runs, files, options
     run_commands.py    run, plot, paper
+    repeat_command.py  repeat: a run again from its provenance record, its trace compared
     check_commands.py  compare, references
     sweep_command.py   sweep
     tune_command.py    tune
@@ -36,6 +38,7 @@ from toggle_cosim.cli import (  # noqa: E402, F401 - they add the commands
     check_commands,
     init_command,
     linearize_command,
+    repeat_command,
     report_command,
     run_commands,
     ssp_command,

@@ -89,20 +89,44 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
     return pairs
 
 
-def _write_outcome(outcome, out: Path) -> tuple[Path, bool]:  # noqa: ANN001
-    """Write the run's trace.csv and run.json into OUT/`Run.folder`; the folder, and whether an
-    earlier run's files there were replaced."""
+def _write_outcome(outcome, out: Path, plant=None) -> tuple[Path, bool]:  # noqa: ANN001
+    """Write the run's trace.csv, run.json and provenance record (`cosim.run_provenance`) into
+    OUT/`Run.folder`; the folder, and whether an earlier run's files there were replaced."""
     from toggle_cosim.files.naming import naming
     from toggle_cosim.files.traces import write_csv, write_json
 
     folder = out / outcome.run.folder
     replaced = (folder / "run.json").is_file() or (folder / "trace.csv").is_file()
-    with interrupts.deferred():  # both files whole, or an interrupt waits for them
+    with interrupts.deferred():  # the files whole, or an interrupt waits for them
         with naming(folder / "trace.csv"):  # a full disk names the file it could not write
             write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
         with naming(folder / "run.json"):
             write_json(folder / "run.json", outcome.record)
+        _write_provenance(outcome, folder, plant)
     return folder, replaced
+
+
+def _write_provenance(outcome, folder: Path, plant) -> None:  # noqa: ANN001
+    """The run's provenance record in `folder`; a file that cannot be hashed (removed or changed
+    into a FIFO meanwhile) gives a warning line and no record, never a failed run."""
+    from toggle_cosim.cosim.run_provenance import RECORD_NAME, record_of, tools
+    from toggle_cosim.files.naming import naming
+    from toggle_cosim.provenance.srmd import write_record
+
+    description = getattr(plant, "model_description", None)
+    try:
+        record = record_of(
+            outcome.run,
+            Path(outcome.record["fmu"]["path"]),
+            folder,
+            tools(),
+            getattr(description, "generationTool", None),
+        )
+    except OSError as error:
+        click.echo(f"{folder / RECORD_NAME}: warning: not written: {error.filename}: {error.strerror}", err=True)
+        return
+    with naming(folder / RECORD_NAME):
+        write_record(folder / RECORD_NAME, record)
 
 
 def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
@@ -110,7 +134,9 @@ def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
     per source and setting), and their trace.csv and run.json may be written there (the output
     rule of `files.outputs`: only a CSV table and a JSON object of an earlier run are replaced)."""
     from toggle_cosim.cli.app import check_output
+    from toggle_cosim.cosim.run_provenance import RECORD_NAME
     from toggle_cosim.files.outputs import CSV, JSON
+    from toggle_cosim.provenance.srmd import SRMD
 
     seen: dict = {}
     for run, _ in pairs:
@@ -129,6 +155,7 @@ def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
         if exists:  # a folder that is not one (an output folder that is a file) is check_runs' to report
             check_output(folder / "trace.csv", "trace", CSV)
             check_output(folder / "run.json", "run record", JSON)
+            check_output(folder / RECORD_NAME, "provenance record", SRMD)
 
 
 def _status_text(outcome) -> str:  # noqa: ANN001
@@ -223,11 +250,12 @@ def execute_runs(  # noqa: ANN201
     scratch space once written."""
     target = Path(out).absolute()  # before any plant runs: one that changes directory must not move it
     check_folders(pairs, out)
+    plants = {run.folder: plant for run, plant in pairs}
     outcomes = []
     with contextlib.closing(outcomes_of(pairs, out, quiet, time_limit, jobs)) as results:
         for number, outcome in enumerate(results, start=1):
             label = f"[{number}/{len(pairs)}] {outcome.run.label}"
-            written, replaced = _write_outcome(outcome, target)
+            written, replaced = _write_outcome(outcome, target, plants.get(outcome.run.folder))
             folder = Path(out) / written.relative_to(target)  # as the user named it
             s = outcome.summary
             detail = (

@@ -23,7 +23,9 @@ from typing import Any
 
 from toggle_cosim import interrupts
 from toggle_cosim.analysis.sweep_heatmaps import write_heatmaps
+from toggle_cosim.cosim.run_provenance import UsedFile
 from toggle_cosim.experiments.scenario import runs_from_document
+from toggle_cosim.experiments.study_provenance import write_study_record
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore, batch_rows
@@ -355,6 +357,17 @@ def _execute_sweep(
             result.interrupted = True
             interrupts.ignore()
             _write_manifest(sweep, result, fmu_path, sha, scheduler, workers)
+        with interrupts.deferred():
+            write_study_record(
+                sweep.output,
+                sweep.name,
+                (UsedFile(sweep.path, "testcase", "sweep"),),
+                sweep.cases,
+                sweep.base,
+                fmu_path,
+                result.results if result.results is not None and Path(result.results).is_file() else None,
+                say,
+            )
     return result
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from toggle_cosim import interrupts
+from toggle_cosim.cosim.run_provenance import RECORD_NAME
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_run import execute_sweep
 from toggle_cosim.experiments.sweep_spec import SweepError, load_sweep
@@ -43,6 +44,7 @@ from toggle_cosim.experiments.tune_score import Score, score, violations
 from toggle_cosim.experiments.tune_spec import TuneError, Tuning
 from toggle_cosim.experiments.tune_study import MANIFEST_FILE, fingerprint, open_study
 from toggle_cosim.files.outputs import CSV, JSON, PNG, OutputError, check_destination, folder_lock
+from toggle_cosim.provenance.srmd import SRMD
 
 HISTORY_FILE = "trials.csv"
 START_SWEEP, TUNED_SWEEP = "start_sweep.yaml", "tuned_sweep.yaml"
@@ -96,6 +98,7 @@ def _check_outputs(tuning: Tuning, output: Path) -> None:
     not be written there (a link, a folder, a file of another kind: `files.outputs`)."""
     files = [
         (MANIFEST_FILE, JSON),
+        (RECORD_NAME, SRMD),
         (HISTORY_FILE, CSV),
         (START_SWEEP, TUNE_YAML),
         (TUNED_SWEEP, TUNE_YAML),
@@ -354,7 +357,7 @@ def _execute(
             **{k: best.user_attrs[k] for k in ("objectives", "feasible", "violations", "figures")},
         }
     if result.interrupted or best is None:
-        _write_manifest(tuning, result, plant.sha256)
+        _write_manifest(tuning, result, plant, say)
         return result
     # 3. the best trial as a scenario, its map re-run by the sweep engine, the figures
     scenario_path = output / f"{tuning.name}_best.yaml"
@@ -373,7 +376,7 @@ def _execute(
         if not interrupts.is_interrupt(error):
             raise
         result.interrupted = True
-        _write_manifest(tuning, result, plant.sha256)
+        _write_manifest(tuning, result, plant, say)
         return result
     result.files.extend([output / TUNED_SWEEP, output / TUNED_MAP])
     result.rerun = {**_attrs(rerun), "equal": _attrs(rerun)["objectives"] == result.best["objectives"]}
@@ -405,7 +408,7 @@ def _execute(
                 result.files.append(draw())
             except Exception as error:  # a figure never loses the tuning's results: tune.json is written
                 say(f"warning: {path}: figure not written ({' '.join(str(error).split())})")
-    _write_manifest(tuning, result, plant.sha256)
+    _write_manifest(tuning, result, plant, say)
     return result
 
 
@@ -477,10 +480,25 @@ def _write_history(study: Any, tuning: Tuning, output: Path) -> Path:
     )
 
 
-def _write_manifest(tuning: Tuning, result: TuneResult, sha: str) -> None:
+def _write_manifest(tuning: Tuning, result: TuneResult, plant: Any, say: Callable[[str], None]) -> None:
+    """tune.json, and the tuning's provenance record (`study_provenance`): the tuning file, its
+    sweep file, every file of its cases, the plant; its trial history as the data."""
+    from toggle_cosim.cosim.run_provenance import UsedFile
+    from toggle_cosim.experiments.study_provenance import write_study_record
     from toggle_cosim.files.traces import write_json
 
+    sha = plant.sha256
     with interrupts.deferred():
+        write_study_record(
+            result.output,
+            tuning.name,
+            (UsedFile(tuning.path, "testcase", "tuning"), UsedFile(tuning.sweep.path, "testcase", "sweep")),
+            tuning.cases,
+            tuning.sweep.base,
+            plant.path,
+            result.output / HISTORY_FILE,
+            say,
+        )
         write_json(
             result.output / MANIFEST_FILE,
             {

@@ -140,6 +140,8 @@ INVARIANTS = OutputKind(
 SETTINGS = OutputKind(
     "a reference's settings file (StartTime, ... lines)", _starts(b"StartTime,", b"StopTime,", b"StepSize,")
 )
+SRMD_NAMESPACE = "http://ssp-standard.org/SSPTraceability1/SimulationResourceMetaData"  # SSP Traceability's SRMD
+SRMD = OutputKind("a provenance record (an SRMD file)", lambda path: SRMD_NAMESPACE.encode() in _head(path))
 SQLITE_HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite 3 database
 SQLITE = OutputKind("an SQLite database", lambda path: _head(path).startswith(SQLITE_HEADER))
 
@@ -351,6 +353,8 @@ __all__ = [
     "PNG",
     "SETTINGS",
     "SQLITE",
+    "SRMD",
+    "SRMD_NAMESPACE",
     "SQLITE_HEADER",
     "SSP",
     "STREAMS",

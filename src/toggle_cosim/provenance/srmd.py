@@ -36,9 +36,9 @@ from lxml import etree
 
 from toggle_cosim.files.bounded import InputFileError, MiB, file_problem, read_bounded
 from toggle_cosim.files.checksums import file_sha3_256
-from toggle_cosim.files.outputs import OutputKind, write_file
+from toggle_cosim.files.outputs import SRMD, SRMD_NAMESPACE, write_file
 
-SRMD_NS = "http://ssp-standard.org/SSPTraceability1/SimulationResourceMetaData"
+SRMD_NS = SRMD_NAMESPACE
 STC_NS = "http://ssp-standard.org/SSPTraceability1/SSPTraceabilityCommon"
 XLINK_NS = "http://www.w3.org/1999/xlink"
 NAMESPACES = {"srmd": SRMD_NS, "stc": STC_NS, "xlink": XLINK_NS}
@@ -71,20 +71,6 @@ KINDS = (
 )
 
 _SHA3_HEX = re.compile(r"^[0-9a-f]{64}$")
-
-SRMD = OutputKind(
-    "a provenance record (an SRMD file)",
-    lambda path: SRMD_NS.encode() in read_head(path),
-)
-
-
-def read_head(path: Path) -> bytes:
-    """The first 4 kB of `path` (empty if it cannot be read): enough to tell a record by its namespace."""
-    try:
-        with open(path, "rb") as stream:
-            return stream.read(4096)
-    except OSError:
-        return b""
 
 
 class RecordError(Exception):
