@@ -1,4 +1,5 @@
-"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | sweep | tune | ssp | report`.
+"""Command line: `toggle-cosim build | init | run | plot | paper | compare | references | pack | verify | sweep |
+tune | ssp | report`.
 
 The only package that knows about files, exit codes and progress display. Exit status:
 0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
@@ -9,6 +10,7 @@ The only package that knows about files, exit codes and progress display. Exit s
     execution.py       what the run commands share: checks, supervised runs, files, options
     run_commands.py    run, plot, paper
     check_commands.py  compare, references
+    lsref_commands.py  pack, verify: files an FMU carries (FMI-LS-REF), the FMU checked against them
     sweep_command.py   sweep
     tune_command.py    tune
     ssp_command.py     ssp, and the SSPs that run reads
@@ -36,6 +38,7 @@ from toggle_cosim.cli import (  # noqa: E402, F401 - they add the commands
     check_commands,
     init_command,
     linearize_command,
+    lsref_commands,
     report_command,
     run_commands,
     ssp_command,

@@ -1,6 +1,7 @@
 """What a plant FMU carries as its evidence (FMI-LS-REF): the Modelica source it was built from
 (role `model`), and per scenario the scenario file (`configuration`), an SSV per variant
-(`parameter`, the plant's values as `toggle-cosim ssp` writes them), the stored reference of each
+(`parameter`, the plant's constant values as `toggle-cosim ssp` writes them; an input that
+varies in time is the scenario's), the stored reference of each
 variant (`result`), the funnel tolerances (`configuration`) and one experiment document
 (`experiment/validation`) naming them all, so that `toggle-cosim verify` reruns each variant
 through the master and holds it against its reference.
@@ -118,7 +119,8 @@ def scenario_attachments(scenario: Path, references: Path, plant_fmu: Path) -> l
             raise LsRefError(
                 f"{reference}: no stored reference for {run.label} (store it with toggle-cosim references --update)"
             )
-        ssv = _checked(_ssv(parameter_set.name, parameter_set.plant, variables), "ssv", variant)
+        constants = [(key, value) for key, value in parameter_set.plant if isinstance(value, int | float)]
+        ssv = _checked(_ssv(parameter_set.name, constants, variables), "ssv", variant)
         labels = (f"variant:{variant}",)
         attachments += [
             Attachment(
@@ -155,3 +157,22 @@ def shipped_evidence(source: Path, scenarios: Sequence[Path], references: Path, 
     for scenario in scenarios:
         attachments += scenario_attachments(scenario, references, plant_fmu)
     return attachments
+
+
+def shipped_scenarios_for(plant_file: str) -> list[Path]:
+    """The shipped scenarios whose `fmu:` key names the plant file `plant_file` (e.g.
+    ToggleLSM.fmu) and that stand alone (need no file beside them), in the shipped order."""
+    from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
+    from toggle_cosim.experiments.shipped import SHIPPED_SCENARIO_FOLDER, SHIPPED_SCENARIOS
+
+    chosen = []
+    for name in SHIPPED_SCENARIOS:
+        path = Path(SHIPPED_SCENARIO_FOLDER) / f"{name}.yaml"
+        try:
+            runs = load_scenario(path)
+            _standalone(path)
+        except (ScenarioError, LsRefError):
+            continue
+        if runs and runs[0].fmu is not None and runs[0].fmu.name == plant_file:
+            chosen.append(path)
+    return chosen

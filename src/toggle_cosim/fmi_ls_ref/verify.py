@@ -201,7 +201,9 @@ def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list
     named = {experiment.reference for experiment in experiments}
     for entry in related:
         if entry.main_role == "result" and entry.source not in named and entry.source.lower().endswith(".csv"):
-            experiments.append(replace(_default_experiment(fmu, entry), name=f"default experiment: {entry.source}"))
+            experiments.append(
+                replace(_default_experiment(fmu, entry), name=f"default_experiment/{Path(entry.source).stem}")
+            )
     if not experiments and not skipped:
         raise LsRefError(f"{fmu}: its FMI-LS-REF manifest lists no experiment or result to verify")
     return experiments, skipped
