@@ -84,7 +84,7 @@ def scenario_attachments(scenario: Path, references: Path, plant_fmu: Path) -> l
     from toggle_cosim.ssp import layout
     from toggle_cosim.ssp.checks import SspError
     from toggle_cosim.ssp.fmus import FmuVariables
-    from toggle_cosim.ssp.writer import _checked, _ssv, parameter_sets
+    from toggle_cosim.ssp.writer import parameter_sets, ssv_text
 
     scenario = Path(scenario)
     try:
@@ -120,7 +120,7 @@ def scenario_attachments(scenario: Path, references: Path, plant_fmu: Path) -> l
                 f"{reference}: no stored reference for {run.label} (store it with toggle-cosim references --update)"
             )
         constants = [(key, value) for key, value in parameter_set.plant if isinstance(value, int | float)]
-        ssv = _checked(_ssv(parameter_set.name, constants, variables), "ssv", variant)
+        ssv = ssv_text(parameter_set.name, constants, variables)
         labels = (f"variant:{variant}",)
         attachments += [
             Attachment(

@@ -19,7 +19,7 @@ from importlib import resources
 from lxml import etree
 
 from toggle_cosim.fmi_ls_ref.manifest import LsRefError
-from toggle_cosim.ssp.checks import SspError, parse_xml
+from toggle_cosim.ssp.checks import Element, SspError, parse_xml
 
 NS = "https://github.com/toggle-cosim/toggle-cosim/experiments"
 MIME = "application/x-toggle-cosim-experiments+xml"
@@ -51,7 +51,7 @@ def schema() -> etree.XMLSchema:
         return etree.XMLSchema(etree.parse(str(path)))
 
 
-def _problem(root: etree._Element) -> str | None:
+def _problem(root: Element) -> str | None:
     checker = schema()
     if checker.validate(root):
         return None

@@ -24,7 +24,7 @@ from urllib.parse import unquote, urlsplit
 from lxml import etree
 
 from toggle_cosim.files.bounded import MiB
-from toggle_cosim.ssp.checks import SspError, parse_xml
+from toggle_cosim.ssp.checks import Element, SspError, parse_xml
 
 FOLDER = "extra/org.fmi-standard.fmi-ls-ref"
 MANIFEST = f"{FOLDER}/fmi-ls-manifest.xml"
@@ -90,7 +90,7 @@ def schema() -> etree.XMLSchema:
         return etree.XMLSchema(etree.parse(str(path)))
 
 
-def schema_problem(root: etree._Element) -> str | None:
+def schema_problem(root: Element) -> str | None:
     """None if `root` is a valid FMI-LS-REF manifest, else its first problem in one line."""
     checker = schema()
     if checker.validate(root):
@@ -143,7 +143,7 @@ def read_member(archive: zipfile.ZipFile, member: str, where: str, limit: int = 
     return archive.read(info)
 
 
-def _checksum(element: etree._Element) -> str | None:
+def _checksum(element: Element) -> str | None:
     for annotation in element.iterfind("Annotations/Annotation"):
         if annotation.get("type") != CHECKSUM_ANNOTATION:
             continue
