@@ -22,5 +22,24 @@ __all__ = ["ExperimentCheck", "LsRefError", "Verification", "verify_fmu"]
 
 
 def verify_fmu(fmu: str | Path) -> Verification:
-    """The FMU `fmu`'s carried experiments, run and compared with their carried references."""
+    """Run the experiments an FMU carries (FMI-LS-REF) and compare each with its carried reference.
+
+    Args:
+        fmu: the FMU file: a plant of ours (its carried scenarios run through the master) or any
+            FMU (its carried experiments, or its default experiment for a carried result, run
+            with FMPy).
+
+    Returns:
+        The `Verification`: `passed`, `failures` (one line per variable outside its funnel) and
+        `checks` (per experiment: label, trace, reference, comparison, runner).
+
+    Raises:
+        LsRefError: the FMU carries no manifest, or its manifest names a file the FMU lacks, or
+            a file does not match its SHA3-256 checksum (one line naming the file).
+
+    Example:
+        >>> check = tc.verify_fmu("fmus/ToggleLSM.fmu")  # doctest: +SKIP
+        >>> check.passed, check.failures  # doctest: +SKIP
+        (True, [])
+    """
     return _verify(Path(fmu))

@@ -58,6 +58,20 @@ class ExperimentCheck:
 
 @dataclass(frozen=True)
 class Verification:
+    """An FMU verified against what it carries.
+
+    Attributes:
+        fmu: the FMU file.
+        checks: one `ExperimentCheck` per carried experiment, in the manifest's order.
+        skipped: the sources of carried experiment files of a format we do not run.
+        passed: every experiment's variables inside their funnels.
+        failures: one line per variable outside its funnel, naming the experiment and variable.
+
+    Example:
+        >>> check = tc.verify_fmu("fmus/ToggleLSM.fmu")  # doctest: +SKIP
+        >>> [(c.label, c.passed) for c in check.checks]  # doctest: +SKIP
+    """
+
     fmu: Path
     checks: tuple[ExperimentCheck, ...]
     skipped: tuple[str, ...] = ()  # carried experiments of a format we do not run, by source
