@@ -43,11 +43,10 @@ def build_plant(
     interfaces: str = "both",
     attach: tuple[Path, ...] = (),
     references: Path = DEFAULT_REFERENCES,
-    shipped: str | None = None,
 ) -> None:
     """Build the FMU, then carry in it (FMI-LS-REF) its Modelica source, the scenarios `attach`
-    with their references from `references` and, for a shipped plant (`shipped`), the shipped
-    scenarios that run on it with their shipped references."""
+    with their references from `references` and, for a shipped plant built from the shipped
+    source, the shipped scenarios that run on it with their shipped references."""
     from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
 
     require("modelica")
@@ -61,7 +60,7 @@ def build_plant(
         report = build_fmu(source, model, output, fmi_version=fmi_version, interfaces=interfaces)
     except (ModelCompileError, FMUBuildError) as error:
         raise InputError(str(error).splitlines()[0]) from error
-    carried = _carry_evidence(source, output, attach, references, shipped)
+    carried = _carry_evidence(source, output, attach, references, _shipped_plant(source, model))
     click.echo(
         f"built {report.fmu.path} (FMI {report.fmu.fmi_version} {' + '.join(sorted(report.fmu.interfaces))}, "
         f"{report.fmu.size_bytes / 1024:.0f} KiB, GUID {report.fmu.guid}): "
@@ -69,6 +68,14 @@ def build_plant(
         f"compile {report.compile_seconds:.1f} s, C build and zip {report.package_seconds:.1f} s; "
         f"carries {carried}"
     )
+
+
+def _shipped_plant(source: Path, model: str) -> str | None:
+    """The shipped file name (e.g. ToggleLSM.fmu) of a shipped plant built from the shipped source,
+    whose scenarios name it in their fmu: key; None for any other build."""
+    if model in dict(DEFAULT_BUILDS) and Path(source).resolve() == Path(DEFAULT_SOURCE).resolve():
+        return dict(DEFAULT_BUILDS)[model].name
+    return None
 
 
 def _carry_evidence(source: Path, output: Path, attach: tuple[Path, ...], references: Path, shipped: str | None) -> str:
@@ -175,10 +182,9 @@ def build(
     if model is None and output is not None:
         model = DEFAULT_MODEL
     if model is None:
-        own = Path(source).resolve() == Path(DEFAULT_SOURCE).resolve()
         for name, path in DEFAULT_BUILDS:
             target = path.with_name(f"{path.stem}{suffix}.fmu")
-            build_plant(source, name, target, fmi_version, interfaces, attach, references, path.name if own else None)
+            build_plant(source, name, target, fmi_version, interfaces, attach, references)
         build_controller(DEFAULT_CONTROLLER, "2.0")
         build_controller(DEFAULT_CONTROLLER.with_name(f"{CONTROLLER}3.fmu"), "3.0")
         return
@@ -191,7 +197,5 @@ def build(
         build_controller(output or DEFAULT_CONTROLLER.with_name(f"{CONTROLLER}{tag}.fmu"), fmi_version)
         return
     default = dict(DEFAULT_BUILDS).get(model, Path("fmus") / f"{model.split('.')[-1]}.fmu")
-    own = model in dict(DEFAULT_BUILDS) and Path(source).resolve() == Path(DEFAULT_SOURCE).resolve()
-    shipped = dict(DEFAULT_BUILDS)[model].name if own else None
     target = output or default.with_name(f"{default.stem}{suffix}.fmu")
-    build_plant(source, model, target, fmi_version, interfaces, attach, references, shipped)
+    build_plant(source, model, target, fmi_version, interfaces, attach, references)
