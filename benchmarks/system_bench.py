@@ -21,6 +21,11 @@ here (dlopen, instantiate, initialise, per sample get/set/doStep, a row recorded
 tables; its last x_B, last command and sum of x_B compared with the loop's trace); for the press
 `system_replay.c`, each FMU alone on a fresh instance making the loop's calls with the inputs
 the run recorded, summed over the FMUs (its outputs compared with the recorded ones).
+
+And the built-in law through the one execution: fig4_nominal/friction with `record:` (a two-part
+system, the law natively in the compiled system loop) against the pair's fixed loop, both by
+`master.simulate` (`law_in_a_system`): the loop's seconds per sample, the ratio, and whether
+every recorded column has the pair's bits.
 """
 
 from __future__ import annotations
@@ -40,7 +45,8 @@ import numpy as np
 
 from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
-from toggle_cosim.cosim.system_loop import DONE, SystemLoop, system_library, system_library_reason
+from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.system_loop import DONE, SystemLoop, compiled_system, system_library, system_library_reason
 from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.system.model import Connection, Part, Port, Wiring
@@ -86,9 +92,9 @@ def compiled_run(run, plant) -> tuple[float, np.ndarray, tuple[str, ...]]:  # no
     assembly, _, trace = _assembled(run, plant)
     try:
         n = run.steps
-        loop = SystemLoop(
-            assembly.plan, [slave.c_functions() for slave in assembly.slaves], assembly.signals, trace, n, run.T_s
-        )
+        loop = compiled_system(assembly.plan, assembly.slaves, assembly.signals, trace, n, run.T_s)
+        if not isinstance(loop, SystemLoop):
+            raise RuntimeError(f"no compiled system loop: {loop}")
         t0 = time.perf_counter()
         code, k = loop.run(0, n + 1)
         seconds = time.perf_counter() - t0
@@ -108,6 +114,29 @@ def python_run(run, plant) -> tuple[float, np.ndarray]:  # noqa: ANN001
         return (time.perf_counter() - t0) / run.steps, trace
     finally:
         assembly.close()
+
+
+def law_in_a_system(plant, repetitions: int) -> dict:  # noqa: ANN001
+    """fig4_nominal/friction with the built-in law, as the pair (its fixed loop) and as a two-part
+    system (`record:` the plant's outputs and the controller's: the law natively in the compiled
+    system loop), each by `master.simulate`, interleaved: the best loop seconds per sample of
+    each, and whether every recorded column has the pair's bits."""
+    run = next(r for r in load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml") if r.label.endswith("/friction"))
+    record = (
+        *(Port("plant", name) for name in plant.recorded_outputs),
+        *(Port("controller", name) for name in ("iq_ref", "S", "phase", "e")),
+    )
+    system_run = dataclasses.replace(run, system=Wiring(record=record))
+    pair_s, system_s, same = [], [], True
+    for _ in range(repetitions):
+        pair, system = simulate(run, plant), simulate(system_run, plant)
+        if not (pair.complete and system.complete) or not system.record["loop"]["reason"].endswith("natively in C)"):
+            raise RuntimeError(f"fig4 as a system: {system.reason or system.record['loop']}")
+        pair_s.append(pair.loop_seconds / run.steps)
+        system_s.append(system.loop_seconds / run.steps)
+        for port in record:
+            same = same and np.array_equal(system.trace.column(str(port)), pair.trace.column(port.variable))
+    return {"pair": min(pair_s), "system": min(system_s), "bit_for_bit": same}
 
 
 PRESS = ROOT / "examples" / "press_system"
@@ -353,8 +382,20 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
     parts = build_press_parts(folder)
     build_s = time.perf_counter() - t0
     got = measure(plant, controller, folder, repetitions, parts)
-    figures["systems"] = {**got, "builtin_loop_s": builtin_s}
+    law = law_in_a_system(plant, repetitions)
+    figures["systems"] = {**got, "builtin_loop_s": builtin_s, "law_system": law}
     table.add("built-in law, compiled loop (full_loop, not touched by the system loop)", us(builtin_s), "as above")
+    bits = "same bits" if law["bit_for_bit"] else "NOT the same bits"
+    table.add("built-in law: the pair's loop (master.simulate)", us(law["pair"]), "fig4_nominal/friction")
+    table.add(
+        "built-in law natively in a two-part system (record:)", us(law["system"]), f"compiled system loop; {bits}"
+    )
+    ratio = law["system"] / law["pair"]
+    table.check(
+        "built-in law in a two-part system <= 1.05 x the pair's loop",
+        ratio <= 1.05 and law["bit_for_bit"],
+        f"{us(law['system'])} / {us(law['pair'])} = {ratio:.2f}" + ("" if law["bit_for_bit"] else "; NOT bit for bit"),
+    )
     for key, what in (("pair", "plant + controller FMU"), ("three", "pair + monitor FMU")):
         r = got[key]
         table.add(

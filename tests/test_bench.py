@@ -78,6 +78,9 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
         press = figures["systems"]["press"]
         assert press["components"] == 4 and 0 < press["compiled"] < press["python"] and press["bit_for_bit"]
         assert "4-FMU press system in the compiled loop <= 1.2 x the sum of its FMUs' own calls from C" in result.stdout
+        law = figures["systems"]["law_system"]  # the built-in law natively in a two-part system, beside the pair's loop
+        assert law["bit_for_bit"] and 0 < law["system"] and 0 < law["pair"], law
+        assert "built-in law in a two-part system <= 1.05 x the pair's loop" in result.stdout
     if "python_loop_overhead" in figures:  # measured wherever the C driver compiles
         overhead = figures["python_loop_overhead"]
         assert overhead["own_s"] == overhead["loop_s"] - overhead["plant_s"]  # against the C driver's plant share

@@ -153,6 +153,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("native", "interrupts", "limits", "process_tree"),
     ("messages", "relay"),
     ("files",),
+    ("provenance",),  # SRMD records: below every builder and runner that writes one
     ("physics", "fmu_export", "signals"),
     ("system",),
     ("control",),

@@ -57,6 +57,39 @@ def test_closing_the_batch_early_kills_and_cleans_up(
     assert list(tmp_path.glob("toggle-cosim-run-*")) == []
 
 
+@pytest.mark.parametrize("after", [1, 3])
+def test_an_interrupt_after_a_run_ended_hands_it_back_and_still_stops_the_batch(
+    plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, after: int
+) -> None:
+    """An interrupt that lands while the batch waits, once the run it waits for has already ended
+    (its child done, not yet handed back), must not end the batch as if the runs had run out: the
+    ended runs come back whole, in order, and then the batch raises KeyboardInterrupt (or hands
+    back the first unfinished run as interrupted). Before, the ended run came back complete and
+    the batch stopped quietly: `run` with several scenarios exited 0 with later runs never run."""
+    from toggle_cosim.cosim import supervised_batch
+
+    real = supervised_batch.wait_for
+    calls = {"n": 0}
+
+    def interrupted_wait(children: list) -> None:  # the interrupt lands once every child waited on has ended
+        calls["n"] += 1
+        while not all(child.done for child in children):
+            real([child for child in children if not child.done])
+        if calls["n"] == after:
+            raise KeyboardInterrupt("SIGINT")
+
+    monkeypatch.setattr(supervised_batch, "wait_for", interrupted_wait)
+    pairs = _pairs(plant_fmu)
+    handed = []
+    with pytest.raises(KeyboardInterrupt):
+        for outcome in run_supervised(pairs, jobs=2):
+            handed.append(outcome)
+            if outcome.interrupted:
+                raise KeyboardInterrupt  # as the command does on an interrupted run
+    assert handed and all(o.complete for o in handed[:-1])  # the runs that had ended, whole
+    assert handed[-1].complete or handed[-1].interrupted
+
+
 def _parent(pid: str) -> int:
     try:
         return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])

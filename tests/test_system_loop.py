@@ -11,8 +11,8 @@ and an offset delivers factor · value + offset with Python's bits (read back fr
 call that fails stops the loop at its sample and names the component and the FMI function.
 A three-FMU system assembled and initialised by the master (`cosim.systems.assemble`, the pair
 and a second controller instance reading the plant) runs its first samples in the Python
-execution and the rest in C with the all-Python run's bits; a system whose controller runs in
-Python (the built-in law) gets no compiled loop, and a line naming that component.
+execution and the rest in C with the all-Python run's bits; a system of the built-in law (run
+natively in C) or of a controller FMU gets a loop, and none with TOGGLE_COSIM_KERNEL=0.
 """
 
 from __future__ import annotations
@@ -332,18 +332,17 @@ def test_three_fmus_hand_over_from_the_python_execution_to_c_with_its_bits(
     assert np.array_equal(python[:, names.index("monitor.iq_ref")], python[:, names.index("controller.iq_ref")])
 
 
-def test_a_system_with_a_component_in_python_gets_a_reason_not_a_loop(
+def test_a_system_of_the_built_in_law_or_a_controller_fmu_gets_a_loop(
     plant_fmu: Path, toggle_vsc: dict[str, Path], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """fig4 as a system: with the built-in law (a native controller) `compiled_system` names the
-    controller and runs nothing; with the controller FMU it gives a loop that runs the system to
-    its end; with TOGGLE_COSIM_KERNEL=0 it says the loop is switched off."""
+    """fig4 as a system: with the built-in law (a native controller, run in C) and with the
+    controller FMU, `compiled_system` gives a loop that runs the system to its end; with
+    TOGGLE_COSIM_KERNEL=0 it says the loop is switched off. (A controller run in Python:
+    tests/test_system_natives.py.)"""
     plant = check_plant(plant_fmu)
     base = load_scenario(SCENARIO)[0]
     with_fmu = dataclasses.replace(base, controller=dataclasses.replace(base.controller, fmu=toggle_vsc["2.0"]))
-    # the built-in law as a native component (its generated-C FMU not used: `systems.law_fmu`)
-    monkeypatch.setattr("toggle_cosim.cosim.systems.law_fmu", lambda: "not used here")
-    for run, expected in ((base, "component controller runs in Python"), (with_fmu, None)):
+    for run in (base, with_fmu):
         wiring = Wiring(connections=pair_connections(Wiring(), ("x_B", "v_B")))  # the law's measured inputs
         run = dataclasses.replace(run, system=wiring)
         assembly = assemble(run, plant)
@@ -353,15 +352,13 @@ def test_a_system_with_a_component_in_python_gets_a_reason_not_a_loop(
             execution = Execution(plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end)
             execution.initialize()
             made = compiled_system(plan, assembly.slaves, assembly.signals, trace, n, run.T_s)
-            if expected is not None:
-                assert isinstance(made, str) and made.startswith(expected), made
-                assert np.isnan(trace).all()
-            else:
-                assert isinstance(made, SystemLoop), made
-                assert made.run(0, n + 1) == (DONE, n + 1)
-                assert np.ptp(trace[:, plan.names.index("plant.x_B")]) > 0.05
-                monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-                off = compiled_system(plan, assembly.slaves, assembly.signals, trace, n, run.T_s)
-                assert off == "no compiled system loop: disabled by TOGGLE_COSIM_KERNEL=0"
+            assert isinstance(made, SystemLoop), made
+            assert made.native_names == (() if run.controller.fmu else ("controller",))
+            assert made.run(0, n + 1) == (DONE, n + 1)
+            assert np.ptp(trace[:, plan.names.index("plant.x_B")]) > 0.05
+            monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+            off = compiled_system(plan, assembly.slaves, assembly.signals, trace, n, run.T_s)
+            assert off == "no compiled system loop: disabled by TOGGLE_COSIM_KERNEL=0"
+            monkeypatch.delenv("TOGGLE_COSIM_KERNEL")
         finally:
             assembly.close()

@@ -129,8 +129,8 @@ def _short(run, **changes):
 def test_the_pair_as_a_system_gives_the_fixed_loops_bits(
     plant, vsc_fmu: Path, coupling: str, law: str, engine: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The built-in law runs as its generated C (the law FMU) in the compiled system loop, and as
-    a native Python component without it; a controller FMU in either loop."""
+    """The built-in law runs natively in the compiled system loop (its generated C), and as a
+    native Python component without it; a controller FMU in either loop."""
     run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], coupling=coupling)
     if law == "fmu":
         run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
@@ -142,8 +142,9 @@ def test_the_pair_as_a_system_gives_the_fixed_loops_bits(
     assert fixed.complete and system.complete, system.reason
     assert system.record["loop"]["kind"] == f"system, {engine}"
     kinds = [component.get("kind", "") for component in system.record["system"]["components"]]
-    assert ("generated C" in kinds[1]) == (law == "built-in" and engine == "compiled")
-    assert (kinds[1] == "native controller") == (law == "built-in" and engine == "python")
+    assert (kinds[1] == "native controller") == (law == "built-in")
+    natively = system.record["loop"]["reason"].endswith("(controller natively in C)")
+    assert natively == (law == "built-in" and engine == "compiled"), system.record["loop"]
     for name, column in (
         ("x_B", "plant.x_B"),
         ("v_B", "plant.v_B"),
@@ -159,8 +160,8 @@ def test_the_pair_as_a_system_gives_the_fixed_loops_bits(
 def test_a_system_at_another_sample_time_gives_the_pairs_bits(plant, vsc_fmu: Path, law: str) -> None:
     """At T_s = 1 ms (the law's FMU has 0.5 ms as its default step, and steps at its parameter
     T_s, which the master sets to the run's): the pair wired as a system, and `record:` alone,
-    run the built-in law's FMU (or a controller FMU of the built-in law) in the compiled system
-    loop and give the pair's fixed loop at 1 ms bit for bit."""
+    run the built-in law (natively) or a controller FMU of the built-in law in the compiled
+    system loop and give the pair's fixed loop at 1 ms bit for bit."""
     run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], T_s=0.001)
     if law == "fmu":
         run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
@@ -686,13 +687,15 @@ def test_a_unit_defined_with_factor_zero_or_not_finite_is_refused_naming_it(fact
         ("{nope: 1}", "the FMU has no variable 'nope'"),
         ("{x_m: 1}", "'x_m' is an output of the FMU, not a parameter or input"),
         ("{x_f: 0.3}", "'x_f' is a local variable (a state or an internal one) of the FMU, not a parameter or input"),
+        ("{T_f: true}", "variable 'T_f' is a Real, but its value is True (give a finite number)"),
     ],
 )
 def test_a_parts_value_it_cannot_take_is_one_refusal_before_any_run(
     plant_fmu: Path, press_parts: dict[str, Path], tmp_path: Path, parameters: str, message: str
 ) -> None:
     """A part's parameters are checked as an SSP's bindings are (`system.interfaces.check_settable`):
-    an unknown name, an output or a state is one line, exit 2, before any run, nothing written."""
+    an unknown name, an output or a state, a Real given a Boolean (YAML's `true` would have been
+    set as 1.0) is one line, exit 2, before any run, nothing written."""
     from click.testing import CliRunner
 
     from toggle_cosim.cli import main

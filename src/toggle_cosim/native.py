@@ -293,35 +293,6 @@ def cached_library_from(
     return library
 
 
-def cached_file(inputs: Sequence[Path], stem: str, suffix: str, build: Callable[[Path], None]) -> CachedLibrary:
-    """A file generated from `inputs` (e.g. an FMU built from our sources) in the private cache:
-    the one there when it has the bytes recorded when it was built, else `build(path)` writes it
-    (into a private temporary folder, then moved into place) and its SHA-256 is recorded. Its name
-    holds the hash of the inputs' bytes, the compiler, the platform and the Python version; the
-    caller checks `sha256` again before it uses the file (`verified_bytes`). CacheError when no
-    cache folder can be used."""
-    digest = hashlib.sha256()
-    for path in inputs:
-        digest.update(str(Path(path).name).encode() + b"\0" + Path(path).read_bytes() + b"\0")
-    digest.update("\0".join((c_compiler(), platform.machine(), sys.platform, sys.version)).encode())
-    name = f"{stem}-{digest.hexdigest()[:16]}{suffix}"
-    folder = cache_folder()
-    found = _verified(folder, name)
-    return found if found is not None else _store(folder, name, build, 0o600)
-
-
-def verified_bytes(cached: CachedLibrary) -> bool:
-    """Whether the cached file is still private and has the bytes recorded when it was built."""
-    try:
-        fd = _open_private(cached.path, "file")
-    except (OSError, CacheError):
-        return False
-    try:
-        return _fd_sha256(fd) == cached.sha256
-    finally:
-        os.close(fd)
-
-
 def load_library(library: CachedLibrary) -> ctypes.CDLL:
     """ctypes.CDLL of `library`, loaded only if the file is private and its bytes have the
     recorded SHA-256: hashed from an open descriptor, and on Linux that same descriptor is

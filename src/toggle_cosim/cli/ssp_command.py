@@ -1,4 +1,4 @@
-"""`toggle-cosim ssp`: a scenario file as an SSP 1.0 archive (`toggle_cosim.ssp.writer`), and the
+"""`toggle-cosim ssp`: a scenario file as an SSP 1.0 or 2.0 archive (`toggle_cosim.ssp.writer`), and the
 loading of SSPs for `toggle-cosim run` (`ssp_runs`)."""
 
 from __future__ import annotations
@@ -32,16 +32,32 @@ from toggle_cosim.files.outputs import SSP
     metavar="NAME",
     help="Write only this variant (repeat for several; default: every variant, the first as SystemStructure.ssd).",
 )
-def ssp(scenario: Path, output: Path, plant: Path | None, controller: Path | None, variants: tuple[str, ...]) -> None:
-    """Write SCENARIO as an SSP 1.0 archive: one root SSD per variant (SystemStructure.ssd the first), with the
-    plant and controller FMUs and one parameter set per component."""
+@click.option(
+    "--ssp-version",
+    "version",
+    metavar="VERSION",
+    default=None,
+    help="The SSP version to write: 1.0 (the default: what libcosim and Ecos read) or 2.0 (Float64 connectors, as "
+    "OMSimulator writes them).",
+)
+def ssp(
+    scenario: Path,
+    output: Path,
+    plant: Path | None,
+    controller: Path | None,
+    variants: tuple[str, ...],
+    version: str | None,
+) -> None:
+    """Write SCENARIO as an SSP archive (1.0 unless --ssp-version 2.0): one root SSD per variant
+    (SystemStructure.ssd the first), with the plant and controller FMUs and one parameter set per component."""
     from toggle_cosim.experiments.scenario import ScenarioError
     from toggle_cosim.ssp.checks import SspError
     from toggle_cosim.ssp.writer import write_ssp
 
     check_output(output, "SSP (--out)", SSP)
     try:
-        written = write_ssp(scenario, output, plant, controller, variants)
+        chosen = {} if version is None else {"version": version}  # none given: the writer's default
+        written = write_ssp(scenario, output, plant, controller, variants, **chosen)
     except (ScenarioError, SspError) as error:
         raise InputError(str(error)) from error
     click.echo(f"wrote {written}")

@@ -10,7 +10,7 @@
    LTI system (CTRL_LTI), u = C x + D v, x <- A x + B v on its inputs v: the error e = r - y of one
    plant output y (one input) or (r - y0, y - y0) (two; y0 the output at the first sample), r the
    reference row's q* or the constant target,
-   summed in the order of control/lti.py's lti_step. plant_exchange is the plant's part of one sample
+   summed in the order of control/lti.py's lti_step (lti_sums, control/lti_sums.c). plant_exchange is the plant's part of one sample
    for the Python loop (cosim/stepper.py's PythonStepper). */
 #include <stdbool.h>
 #include <stddef.h>
@@ -129,27 +129,17 @@ static int fmu_control(kernel_t *s, double t, const double *row, long k) {
    u or the next state is not finite: the Python adapter then evaluates the sample itself, from
    the same state. */
 static int lti_control(kernel_t *s, const double *row, long k, double out[2]) {
-    long i, j, n = s->lti_n, m = s->lti_m;
-    double r, y, e, u, acc, v[2];
+    double r, y, e, v[2];
     if (!(isfinite(row[s->i_q]) && isfinite(row[s->i_qd]))) { return HAND_BACK; }
     r = s->ref ? s->ref[3 * k] : s->lti_target;
     y = row[s->lti_col];
     e = r - y;
     if (!isfinite(e)) { return HAND_BACK; }
-    v[0] = m == 1 ? e : r - s->lti_origin;
+    v[0] = s->lti_m == 1 ? e : r - s->lti_origin;
     v[1] = y - s->lti_origin;
-    u = 0.0;
-    for (j = 0; j < n; j++) { u = u + s->lti_c[j] * s->lti_x[j]; }
-    for (j = 0; j < m; j++) { u = u + s->lti_d[j] * v[j]; }
-    if (!isfinite(u)) { return HAND_BACK; }
-    for (i = 0; i < n; i++) {
-        acc = 0.0;
-        for (j = 0; j < n; j++) { acc = acc + s->lti_a[i * n + j] * s->lti_x[j]; }
-        for (j = 0; j < m; j++) { acc = acc + s->lti_b[i * m + j] * v[j]; }
-        if (!isfinite(acc)) { return HAND_BACK; }
-        s->lti_xn[i] = acc;
+    if (lti_sums(s->lti_n, s->lti_m, s->lti_a, s->lti_b, s->lti_c, s->lti_d, s->lti_x, v, &out[0], s->lti_xn)) {
+        return HAND_BACK;
     }
-    out[0] = u;
     out[1] = e;
     return DONE;
 }

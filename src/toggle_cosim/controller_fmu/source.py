@@ -1,8 +1,9 @@
 """The controller FMU's generated C: the law and the tables of its variables.
 
 * `law_source()` (vsc_law.c): the functions of `control.nominal` and `control.laws` translated by
-  `control.translate` (the same functions the compiled loop runs, so the same operations in the
-  same order) and the two entry points the shell calls, `vsc_law_start` and `vsc_law_step`.
+  `control.translate` (`control.law_c.LAW_FUNCTIONS`, the same functions the compiled loops run,
+  so the same operations in the same order) and the two entry points the shell calls,
+  `vsc_law_start` and `vsc_law_step`.
 * `model_header(token)` (vsc_model.h): the struct `law_t` generated from `LawParameters`, the
   counts and value references, the names, units, start values and bounds of the variables
   (`variables`), and the few facts about the law the generic shell needs: its sample time, the
@@ -16,7 +17,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from toggle_cosim.control import laws, nominal, translate
+from toggle_cosim.control import translate
+from toggle_cosim.control.law_c import LAW_FUNCTIONS
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.controller_fmu.variables import (
     REFERENCE_INPUTS,
@@ -31,15 +33,6 @@ from toggle_cosim.controller_fmu.variables import (
 __all__ = ["MODEL_IDENTIFIER", "law_source", "model_header"]
 
 MODEL_IDENTIFIER = "ToggleVSC"
-LAW_FUNCTIONS = (
-    nominal.mass_terms,
-    nominal.theta1_omega1,
-    nominal.nominal_reduced,
-    laws.error_terms,
-    laws.hitting_time,
-    laws.law_start,
-    laws.law_step,
-)
 
 
 def _c_string(text: str) -> str:

@@ -6,6 +6,7 @@
     stepper                  the Stepper protocol: PythonStepper, CompiledStepper, HandOver
     compiled_loop            the generated C loop (built and cached), driven by CompiledStepper
     retry.CheckpointPolicy   checkpoints every N samples; restore, replay, substeps on a failure
+    system_retry             the same for a system's run, every component's state saved
     master.simulate          assembles these parts for one run
     outcome                  RunOutcome and the run record (run.json)
     summary                  RunSummary: a run's figures of merit, computed from its trace

@@ -7,16 +7,19 @@ execution, algorithm and observers).
   every slave, sets its values, enters initialisation, runs one Gauss-Seidel pass at t = 0
   whatever the coupling (so every connected input starts from its source's initial output, the
   fixed point libcosim's initialisation iterates to) and exits initialisation;
-  `advance(k, stop)` runs samples k .. stop - 1.
+  `advance(k, stop)` runs samples k .. stop - 1; `advance(k, k + 1, split=(c, m))` runs sample
+  k with component c stepping in m substeps of T_s / m (a checkpoint retry, `system_retry`).
 * The algorithm is the plan's: Gauss-Seidel (its order, early and late inputs) or Jacobi (every
   input late). Both are the sample procedure of `system.plan`, which the C loop
   (`cosim.system_loop`) runs too.
 * Observers see every sample after it is complete: `TraceObserver` writes row k of the trace
   (the plan's recorded slots), a progress hook reports.
 
-A failed call raises `SlaveError` (the component, the call, the time); the samples before it are
-in the trace. Before each call of a slave its id goes into `calling[0]` (the compiled loop does
-the same), so a supervising process that shares that word knows whose call ended the process.
+A failed call raises `SlaveError` (the component, the call, the time; its `k` the sample); the
+samples before it are in the trace. A native controller is told which outputs feed what it
+measures (`ControllerSlave.fed_from`), to name one that is not finite. Before each call of a
+slave its id goes into `calling[0]` (the compiled loop does the same), so a supervising process
+that shares that word knows whose call ended the process.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from typing import Protocol
 import numpy as np
 
 from toggle_cosim.cosim.recorder import row_count
-from toggle_cosim.cosim.slaves import Slave
+from toggle_cosim.cosim.slaves import Slave, SlaveError
 from toggle_cosim.system.plan import SIGNAL, Plan
 
 __all__ = ["Execution", "Observer", "TraceObserver"]
@@ -88,6 +91,9 @@ class Execution:
         self.values = np.zeros(plan.size, dtype=np.float64)
         for c, slave in enumerate(self.slaves):
             slave.bind(plan.input_names[c], plan.output_names[c])
+            fed_from = getattr(slave, "fed_from", None)
+            if callable(fed_from):
+                fed_from([_source(plan, slot) for slot in plan.inputs[c]])
         self._out = [(ctypes.c_double * max(len(slots), 1))() for slots in plan.outputs]
         source = plan.feed_source
         self._feeds = [
@@ -151,23 +157,46 @@ class Execution:
             self.calling[0] = self.ids[c]
             slave.exit_initialization()
 
-    def advance(self, k: int, stop: int) -> int:
-        """Samples k .. stop - 1 (the last, n, is read and recorded, not stepped); the next sample."""
+    def advance(self, k: int, stop: int, split: tuple[int, int] | None = None) -> int:
+        """Samples k .. stop - 1 (the last, n, is read and recorded, not stepped); the next sample.
+        `split` (c, m): component c steps in m substeps of T_s / m, its inputs held. A failed call's
+        SlaveError gets the sample in `k`."""
         T_s, n, slaves, observers, hooks = self.T_s, self.n, self.slaves, self.observers, self.hooks
         calling, ids = self.calling, self.ids
         early, late = self._early, self._late
-        while k < stop:
-            t = k * T_s
-            values = self._pass(k, t, early, late)
-            for observer in observers:
-                observer.observe(k, t, self.values)
-            if k == n:
-                return k + 1
-            self._set_late(t, late, values)
-            for c, slave in enumerate(slaves):
-                calling[0] = ids[c]
-                slave.do_step(t, T_s)
-            for hook in hooks:
-                hook(k)
-            k += 1
+        split_c, parts = split if split is not None else (-1, 1)
+        try:
+            while k < stop:
+                t = k * T_s
+                values = self._pass(k, t, early, late)
+                for observer in observers:
+                    observer.observe(k, t, self.values)
+                if k == n:
+                    return k + 1
+                self._set_late(t, late, values)
+                for c, slave in enumerate(slaves):
+                    calling[0] = ids[c]
+                    if c == split_c:
+                        h = T_s / parts
+                        for m in range(parts):
+                            slave.do_step(t + m * h, h)
+                    else:
+                        slave.do_step(t, T_s)
+                for hook in hooks:
+                    hook(k)
+                k += 1
+        except SlaveError as error:
+            error.k = k
+            raise
         return k
+
+
+def _source(plan: Plan, slot: int) -> str:
+    """What feeds the input slot, in words: "component 'plant': its output x_B", or a signal."""
+    source = int(plan.feed_source[slot])
+    if source <= SIGNAL:
+        return f"the signal fed to {plan.signals[SIGNAL - source]}"
+    for c, outputs in enumerate(plan.outputs):
+        if source in outputs:
+            return f"component {plan.order[c]!r}: its output {plan.output_names[c][outputs.index(source)]}"
+    return f"buffer slot {source}"

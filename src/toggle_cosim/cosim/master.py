@@ -7,7 +7,8 @@ A run's system (`Run.system`) decides how it is stepped:
   (`pair.simulate_pair`, with the compiled law, hand-back to Python, checkpoint retries and a
   plant session kept across runs);
 * any other system: an execution of its components in the order of its connections
-  (`systems.simulate_system`), in the compiled system loop where every component is an FMU.
+  (`systems.simulate_system`), in the compiled system loop where every component is an FMU,
+  with checkpoint retries of every component (`system_retry`).
 
 The pair run as a system gives the fixed loop's values bit for bit (tests/test_systems.py).
 """

@@ -6,7 +6,8 @@
 A run with parts around the pair, connections of its own or a `record:` list is a system, which
 `systems.simulate_system` runs; the plain pair runs here, in a loop fixed to its two parts, which
 gives the system execution's values bit for bit and keeps what only it has (the compiled law with
-hand-back, python-control systems in C, checkpoint retries, a kept plant session).
+hand-back, python-control systems in C, a work budget, a kept plant session; a system's run has
+checkpoint retries of its own, `system_retry`).
 
 `simulate_pair` assembles the parts (after FMPy's simulateCS, with its Recorder and step hook):
 a `PlantSession` (session.py), a `Recorder` and step hooks (recorder.py), the controller

@@ -5,6 +5,7 @@ user's Python controller, a python-control system).
 
     instantiate(t_end) -> enter_initialization() -> [set, get]* -> exit_initialization()
     per sample t_k:  set(positions, values) -> get(values) -> set(...) -> do_step(t_k, T_s)
+    at a checkpoint: save_state(); on a retry: restore_state()   (`cannot_save_state`: why not)
     close()
 
 `set` takes positions in the slave's fed inputs (`Interface.inputs`, the plan's order) and their
@@ -17,8 +18,11 @@ given as numbers (`fmi_pointers.typed_reads`).
 
 from __future__ import annotations
 
+import copy
 import ctypes
+import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -41,11 +45,20 @@ from toggle_cosim.plant.fmi_calls import (
 from toggle_cosim.system.interfaces import FLOAT64_TYPES, fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
-__all__ = ["ControllerSlave", "FmuSlave", "Slave", "SlaveError"]
+__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError"]
 
 
 class SlaveError(Exception):
-    """A component's call failed; str() names the component, the call and why."""
+    """A component's call failed; str() names the component, the call and why. Where known:
+    `component` (its name), `function` (the FMI call), `status` (what it returned) and `k` (the
+    sample, set by the execution), which the checkpoint retries read (`system_retry`)."""
+
+    def __init__(
+        self, message: str, component: str | None = None, function: str | None = None, status: object = None
+    ) -> None:
+        super().__init__(message)
+        self.component, self.function, self.status = component, function, status
+        self.k: int | None = None
 
 
 class Slave(Protocol):
@@ -59,6 +72,10 @@ class Slave(Protocol):
     def get(self, values: Any, t: float) -> None: ...
     def do_step(self, t: float, h: float) -> None: ...
     def close(self) -> None: ...
+    @property
+    def cannot_save_state(self) -> str | None: ...
+    def save_state(self) -> None: ...
+    def restore_state(self) -> None: ...
 
 
 class FmuSlave:
@@ -81,6 +98,8 @@ class FmuSlave:
         self._stepping = False
         self._reads: tuple = ()
         self._instance = f"{name}"
+        self._saved: Any = None  # the checkpoint: an fmi2FMUstate / fmi3FMUState (`save_state`)
+        self.no_set_state_prior_to_current_point = False  # doStep's flag (`system_retry`)
         self.origin = ""  # what the FMU stands for, when not a file the user named (run.json)
         self.bind(self.interface.inputs, self.interface.outputs)
 
@@ -116,7 +135,12 @@ class FmuSlave:
         line = last_log_line(self._instance)
         said = f"; it logged {' '.join(line.split())}" if line else ""
         at = f" at t = {t:.6g} s" if t is not None else ""
-        return SlaveError(f"component {self.name!r} ({self.path.name}): {function}{at} returned status {status}{said}")
+        return SlaveError(
+            f"component {self.name!r} ({self.path.name}): {function}{at} returned status {status}{said}",
+            self.name,
+            function,
+            status,
+        )
 
     def _call(self, function: str, call: Any) -> None:
         try:
@@ -229,6 +253,7 @@ class FmuSlave:
         folder, self._unzipped = self._unzipped, None
         try:
             if slave is not None and not self._fatal:
+                self._free_state(slave)
                 if self._stepping:  # terminate is not allowed before initialisation has ended
                     try:
                         slave.terminate()
@@ -242,6 +267,39 @@ class FmuSlave:
                 release(folder)
             last_log_line(self._instance, forget=True)
             quiet(self._instance, on=False)
+
+    # -- checkpoints (FMI "get/set FMU state") --------------------------------------------------
+    @property
+    def cannot_save_state(self) -> str | None:
+        """None when the FMU can save and restore its state, else why not (run.json)."""
+        if self.description.coSimulation.canGetAndSetFMUstate:
+            return None
+        flag = "canGetAndSetFMUState" if self.fmi3 else "canGetAndSetFMUstate"
+        return f"component {self.name!r} ({self.path.name}) cannot save its state (its FMU does not declare {flag})"
+
+    def save_state(self) -> None:
+        """Keep the FMU's whole state as the checkpoint (one state, updated in place)."""
+        slave, saved = self._slave, self._saved
+        if saved is None:
+            saved = self._saved = ctypes.c_void_p()
+        name = "fmi3GetFMUState" if self.fmi3 else "fmi2GetFMUstate"
+        self._call(name, lambda: getattr(slave, name)(slave.component, ctypes.byref(saved)))
+
+    def restore_state(self) -> None:
+        """Put the FMU back to the checkpoint (also out of a Discard or Error state)."""
+        slave, saved = self._slave, self._saved
+        if saved is None:
+            raise SlaveError(f"component {self.name!r}: no checkpoint to restore", self.name)
+        name = "fmi3SetFMUState" if self.fmi3 else "fmi2SetFMUstate"
+        self._call(name, lambda: getattr(slave, name)(slave.component, saved))
+
+    def _free_state(self, slave: Any) -> None:
+        saved, self._saved = self._saved, None
+        if saved is not None and saved.value is not None:
+            try:
+                (slave.fmi3FreeFMUState if self.fmi3 else slave.fmi2FreeFMUstate)(slave.component, ctypes.byref(saved))
+            except Exception:  # noqa: BLE001, S110 - freeInstance releases it in any case
+                pass
 
     # -- the hot calls --------------------------------------------------------------------------
     def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
@@ -281,7 +339,9 @@ class FmuSlave:
     def do_step(self, t: float, h: float) -> None:
         component = self._slave.component
         status = (
-            self._step(component, t, h, False, *self._step_outputs) if self.fmi3 else self._step(component, t, h, 0)
+            self._step(component, t, h, self.no_set_state_prior_to_current_point, *self._step_outputs)
+            if self.fmi3
+            else self._step(component, t, h, 1 if self.no_set_state_prior_to_current_point else 0)
         )
         if failed(status):
             raise self._fail(self.names.step, t, status)
@@ -292,13 +352,34 @@ class FmuSlave:
         return fmu_functions(self._slave, self._out_refs, self._in_refs, self._reads)
 
 
+@dataclass(frozen=True)
+class SampleState:
+    """What a `ControllerSlave` holds between two calls: the controller's state and the state its
+    last computation gave (`next`, committed by the next doStep), its outputs held (the command,
+    then the diagnostics), its fed inputs as set (`row`, in the plan's order), whether they were
+    set since that computation (`dirty`) and whether its start has run. The compiled system loop
+    (`cosim.system_natives`) takes it over to run the controller natively in C and gives it back."""
+
+    state: Any
+    next: Any
+    held: tuple[float, ...]
+    row: tuple[float, ...]
+    dirty: bool
+    started: bool
+
+
 class ControllerSlave:
     """A controller of the protocol (`control.protocol`) as a component: its inputs are the
     variables it measures (`controller.measured`), its outputs the command and its diagnostics,
     each depending directly on every input. It samples as a sampled-data controller FMU does: the
     step is computed from the inputs as set, at the time they were last used (`get` after a
     `set`, else `do_step` at its start), and `get` without a new `set` returns the held outputs;
-    `do_step` keeps the state that step returned. Its start runs at the first computation."""
+    `do_step` keeps the state that step returned. Its start runs at the first computation.
+
+    What it measures must be finite: a value that is not (NaN, an infinity) ends the run naming
+    the output it came from (`fed_from`) and the time, as the pair ends a run whose x_B or v_B is
+    not finite. Its checkpoint is the protocol's state and what it holds (a deep copy), so it can
+    be put back like an FMU; a state that cannot be copied stops the checkpoints."""
 
     def __init__(
         self,
@@ -325,11 +406,19 @@ class ControllerSlave:
         self._started = False
         self._dirty = True
         self._n_diagnostics = len(diagnostics)
+        self._sources = tuple(f"input {name}" for name in measured)
+        self._saved: tuple | None = None
 
     def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
         """Its measurement holds the fed inputs only, in the plan's order: reading another raises KeyError."""
         self._index = {name: i for i, name in enumerate(fed)}
         self._row = [0.0] * len(fed)
+        self._sources = tuple(f"input {name}" for name in fed)
+
+    def fed_from(self, sources: Sequence[str]) -> None:
+        """What feeds each fed input, in words (e.g. "component 'plant': its output x_B"), for
+        the error of a value that is not finite."""
+        self._sources = tuple(sources)
 
     def instantiate(self, t_end: float) -> None:
         pass
@@ -341,10 +430,40 @@ class ControllerSlave:
         pass
 
     def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
-        row = self._row
+        row, isfinite = self._row, math.isfinite
         for i, value in zip(positions, values, strict=True):
+            if not isfinite(value):
+                raise SlaveError(
+                    f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
+                    f" {self.name!r}, which takes finite values only",
+                    self.name,
+                )
             row[i] = value
         self._dirty = True
+
+    @property
+    def cannot_save_state(self) -> str | None:
+        """None: its state can be kept (`save_state` may still find it cannot be copied)."""
+        return None
+
+    def save_state(self) -> None:
+        """Keep a deep copy of the controller's state, its held outputs and its inputs as set."""
+        kept = (self._state, self._next, self._held, self._started, self._dirty, self._row)
+        try:
+            self._saved = copy.deepcopy(kept)
+        except Exception as error:  # noqa: BLE001 - a state that cannot be copied: no checkpoint
+            raise SlaveError(
+                f"component {self.name!r} cannot save its state (its controller's state cannot be copied:"
+                f" {error_text(error, 200)})",
+                self.name,
+            ) from None
+
+    def restore_state(self) -> None:
+        if self._saved is None:
+            raise SlaveError(f"component {self.name!r}: no checkpoint to restore", self.name)
+        state, following, held, started, dirty, row = copy.deepcopy(self._saved)
+        self._state, self._next, self._held, self._started, self._dirty = state, following, held, started, dirty
+        self._row[:] = row
 
     def _fail(self, what: str, t: float, error: BaseException) -> SlaveError:
         if not interrupts.raised_by_code(error):
@@ -372,6 +491,16 @@ class ControllerSlave:
             raise SlaveError(f"component {self.name!r}: {error}") from None
         self._held = (u, *diagnostics)
         self._dirty = False
+
+    def sample_state(self) -> SampleState:
+        """What it holds now (`SampleState`)."""
+        return SampleState(self._state, self._next, self._held, tuple(self._row), self._dirty, self._started)
+
+    def resume(self, held: SampleState) -> None:
+        """Hold `held` from now on (the compiled loop's controller given back, `SampleState`)."""
+        self._state, self._next, self._held = held.state, held.next, tuple(held.held)
+        self._row[:] = held.row
+        self._dirty, self._started = held.dirty, held.started
 
     def get(self, values: Any, t: float) -> None:
         if self._dirty:

@@ -3,9 +3,11 @@ under its own time limit, their outcomes handed back in the order of the runs.
 
 The runs of a command are independent (each plant in its own process, with its own FMU copy
 and trace buffer), so on a machine with several cores they overlap; their traces are the same
-bytes as one after the other. An interrupt kills every child still running: the first run
-not yet handed back comes out as interrupted and nothing after it, so the caller writes what
-finished in order, then that run, and stops.
+bytes as one after the other. An interrupt kills every child still running: the runs that had
+ended before it are handed back whole, in order, then the first one that had not comes out as
+interrupted and nothing after it, so the caller writes what finished, then that run, and stops.
+An interrupt never ends the batch as if it had run out of runs: when every run had ended, it is
+raised after the last one.
 """
 
 from __future__ import annotations
@@ -71,14 +73,21 @@ def run_supervised(
                 if children[handed] is None:  # not started yet: nothing of it to write
                     raise
                 children[handed].stop()
-                yield take_head()
-                return
+                outcome = take_head()
+                if outcome.interrupted:
+                    yield outcome
+                    return
+                interrupted = True  # it had ended before the interrupt: hand it back whole, then stop at the next
+                yield outcome
+                continue
             outcome = take_head()
             try:
                 fill()  # the next run starts before the caller writes this one's files
             except KeyboardInterrupt:
                 interrupted = True  # this run is whole: hand it back, then stop at the next
             yield outcome
+        if interrupted:  # every run had ended: the interrupt still ends the command
+            raise KeyboardInterrupt
     finally:
         for child in children:
             if child is not None:

@@ -1,5 +1,6 @@
 """A system's stepping plan (`system.plan.Plan`) run in C: one loop over a component table and a
-connection table, for any number of FMUs (FMI 2.0 and 3.0 Co-Simulation).
+connection table, for any number of FMUs (FMI 2.0 and 3.0 Co-Simulation) and native controllers
+(the built-in law, tracking included, and python-control systems: `system_natives`).
 
 `SystemLoop` makes the tables from the plan and each component's C calls (`CFunctions`, e.g.
 `fmi_pointers.fmu_functions` of an fmpy slave: its outputs' value references in the plan's
@@ -13,9 +14,16 @@ the value of the slot plan.record[i]. An input fed through a unit conversion get
 Instantiation, parameters and initialisation are the caller's (`cosim.execution`): the loop only
 steps instances that are ready.
 
+A native controller's entry holds the law's parameters or the system's matrices and what its
+`ControllerSlave` held; the C samples it as that slave does, with the law generated from
+`control.laws` and the LTI sums of `control.lti` (`control.law_c`: the source the pair's loop
+compiles), so the trace has the Python execution's bits. Where the Python might raise or a value
+is not finite, the loop hands the sample back (HAND_BACK, before any doStep of it) and
+`give_back()` returns the slaves what they held at that sample's start.
+
 `compiled_system` makes the loop for a plan's slaves (`cosim.slaves`) when every one of them can
-be called from C (an FMU's `c_functions()`), or says in a line why not (a component run in
-Python, such as a native controller; no compiled library).
+run in C (an FMU's `c_functions()`, a native controller), or says in a line why not (a component
+run in Python, such as a user's Python controller; no compiled library).
 
 A status other than OK or Warning stops the loop at that call; `failure()` names the component,
 the function, its status and the sample (`ComponentCallError`, one line).
@@ -36,8 +44,11 @@ from pathlib import Path
 
 import numpy as np
 
+from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.cosim.compiled_loop import KERNEL_FLAGS
 from toggle_cosim.cosim.session import CFunctions
+from toggle_cosim.cosim.slaves import ControllerSlave
+from toggle_cosim.cosim.system_natives import NativeController, native_controller
 from toggle_cosim.native import load_library_from
 from toggle_cosim.system.plan import Plan
 
@@ -45,13 +56,14 @@ __all__ = [
     "ComponentCallError",
     "DONE",
     "FMI_FAILED",
+    "HAND_BACK",
     "SystemLoop",
     "compiled_system",
     "system_library",
     "system_library_reason",
 ]
 
-DONE, FMI_FAILED = 0, 2  # system_run's return codes (system_skeleton.c)
+DONE, HAND_BACK, FMI_FAILED = 0, 1, 2  # system_run's return codes (system_skeleton.c)
 _CALLS = {1: "get", 2: "set", 3: "step"}
 _TYPED = 4  # fault 4 + i: the component's typed read i (`fmi_pointers.TypedRead`)
 
@@ -73,6 +85,10 @@ _COMPONENT_POINTERS = (
     "typed_slot",
 )
 _COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id", "n_typed")
+_COMPONENT_AFTER = ("native",)  # pointers after the longs
+_NATIVE_LONGS = ("kind", "n_in", "n_held", "n_state", "i_q", "i_qd", "m")
+_NATIVE_POINTERS = ("early_pos", "late_pos", "mem", "saved", "state", "ref", "a", "b", "c", "d")
+_NATIVE_DOUBLES = ("target", "origin")
 _SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record", "rows")
 _SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
 _SYSTEM_DOUBLES = ("T_s",)
@@ -92,7 +108,18 @@ class ComponentCallError(RuntimeError):
 def _component_struct() -> type[ctypes.Structure]:
     fields = [*((name, ctypes.c_void_p) for name in _COMPONENT_POINTERS)]
     fields += [(name, ctypes.c_long) for name in _COMPONENT_LONGS]
+    fields += [(name, ctypes.c_void_p) for name in _COMPONENT_AFTER]
     return type("_Component", (ctypes.Structure,), {"_fields_": fields})
+
+
+@functools.cache
+def _native_struct() -> type[ctypes.Structure]:
+    fields = [(name, ctypes.c_long) for name in _NATIVE_LONGS]
+    fields += [(name, ctypes.c_void_p) for name in _NATIVE_POINTERS]
+    fields += [(name, ctypes.c_double) for name in _NATIVE_DOUBLES]
+    law = [(name, ctypes.c_double) for name in LawParameters.__dataclass_fields__]
+    fields.append(("law", type("_Law", (ctypes.Structure,), {"_fields_": law})))
+    return type("_Native", (ctypes.Structure,), {"_fields_": fields})
 
 
 @functools.cache
@@ -108,14 +135,22 @@ def _skeleton() -> Path:
     return Path(str(resources.files("toggle_cosim.cosim").joinpath("system_skeleton.c")))
 
 
+@functools.cache
 def system_source() -> str:
-    """The C source of the system loop (system_skeleton.c as it is)."""
-    return _skeleton().read_text(encoding="utf-8")
+    """The C source of the system loop: the generated law and the LTI sums (`control.law_c`, the
+    one source the pair's loop compiles too), then system_skeleton.c."""
+    from toggle_cosim.control import law_c
+
+    return "\n".join([law_c.law_source(), law_c.lti_source(), _skeleton().read_text(encoding="utf-8")])
 
 
 def system_inputs() -> list[Path]:
-    """The files the library is built from: the skeleton and this module (its struct mirror)."""
-    return [_skeleton(), Path(__file__)]
+    """The files the library is built from: the law's and the LTI sums' (`control.law_c`), the
+    skeleton, this module (its struct mirror) and `system_natives` (the native kinds)."""
+    from toggle_cosim.control.law_c import law_inputs
+
+    natives = Path(__file__).with_name("system_natives.py")
+    return [*law_inputs(), _skeleton(), Path(__file__), natives]
 
 
 _library: ctypes.CDLL | None = None
@@ -129,7 +164,7 @@ def system_library() -> ctypes.CDLL | None:
         return None
     if _library is None and _library_reason is None:
         try:
-            library = load_library_from(system_inputs(), system_source, "system-loop", KERNEL_FLAGS)
+            library = load_library_from(system_inputs(), system_source, "system-loop", KERNEL_FLAGS, ("-lm",))
             library.system_run.argtypes = [ctypes.POINTER(_system_struct()), ctypes.c_long]
             library.system_run.restype = ctypes.c_int
             _library = library
@@ -150,13 +185,56 @@ def _longs(values: Sequence[int]) -> ctypes.Array:
     return (ctypes.c_long * max(len(values), 1))(*values)
 
 
+def _native_entry(
+    native: NativeController, early: Sequence[int], late: Sequence[int], n_out: int, keep: list[object]
+) -> ctypes.Structure:
+    """system_skeleton.c's native_t of a native controller, its memory filled from what its slave
+    held (`NativeController.start`); everything it points into goes into `keep`."""
+    start = native.start
+    n_held, n_in, n_state = len(start.held), len(start.row), native.n_state
+    if n_held != n_out:
+        raise ValueError(f"a native controller of {n_held} outputs in a plan that gives it {n_out}")
+    memory = [1.0 if start.dirty else 0.0, *start.held, *start.row, *native.state_values(start.next)]
+    size = len(memory)
+    entry = _native_struct()()
+    arrays: list[ctypes.Array] = [
+        _longs(early),
+        _longs(late),
+        (ctypes.c_double * size)(*memory),
+        (ctypes.c_double * size)(*memory),
+        (ctypes.c_double * max(n_state, 1))(*native.state_values(start.state)),
+    ]
+    entry.kind, entry.n_in, entry.n_held, entry.n_state = native.kind, n_in, n_held, n_state
+    entry.i_q, entry.i_qd = native.reads[0], native.reads[-1]
+    entry.early_pos, entry.late_pos, entry.mem, entry.saved, entry.state = (ctypes.addressof(a) for a in arrays)
+    if native.reference is not None:
+        entry.ref = native.reference.ctypes.data
+    if native.lti is not None:
+        m = native.lti
+        matrices = (
+            (ctypes.c_double * max(m.n * m.n, 1))(*(value for row in m.A for value in row)),
+            (ctypes.c_double * max(m.n * m.m, 1))(*(value for row in m.B for value in row)),
+            (ctypes.c_double * max(m.n, 1))(*m.C),
+            (ctypes.c_double * m.m)(*m.D),
+        )
+        arrays += matrices
+        entry.a, entry.b, entry.c, entry.d = (ctypes.addressof(a) for a in matrices)
+        entry.m, entry.target, entry.origin = m.m, native.target, native.origin
+    if native.law is not None:
+        for name in LawParameters.__dataclass_fields__:
+            setattr(entry.law, name, float(getattr(native.law, name)))
+    keep += [entry, arrays, native.reference]
+    return entry
+
+
 class SystemLoop:
     """Samples of a plan run in C (module docstring).
 
     Args:
         plan: the system's stepping plan.
         functions: per component in plan.order, its C calls: out_vr the value references of
-            plan.output_names[c], in_vr those of plan.input_names[c], in those orders.
+            plan.output_names[c], in_vr those of plan.input_names[c], in those orders; or a
+            native controller (`system_natives.NativeController`), run in C.
         signals: the run's (n + 1, len(plan.signals)) C-contiguous float64 signal table.
         trace: the (n + 1, 1 + len(plan.record)) C-contiguous float64 trace the rows go into.
         n: the last sample (t_n = n T_s is recorded, and no doStep is made from it).
@@ -172,7 +250,7 @@ class SystemLoop:
     def __init__(
         self,
         plan: Plan,
-        functions: Sequence[CFunctions],
+        functions: Sequence[CFunctions | NativeController],
         signals: np.ndarray,
         trace: np.ndarray,
         n: int,
@@ -202,14 +280,25 @@ class SystemLoop:
         self._library = library
         table = (_component_struct() * count)()
         keep: list[object] = [functions, signals, trace, rows]
+        natives: list[tuple[int, NativeController, ctypes.Structure]] = []
         for c, (entry, calls) in enumerate(zip(table, functions, strict=True)):
             inputs, outputs = plan.inputs[c], plan.outputs[c]
             if outputs and outputs != tuple(range(outputs[0], outputs[0] + len(outputs))):
                 raise ValueError(f"component {plan.order[c]}: its output slots are not contiguous")
-            in_vr = (ctypes.c_uint32 * len(inputs)).from_address(calls.in_vr) if inputs else ()
             early = plan.early[c]
             late = plan.late(c)
-            reads = calls.reads
+            if isinstance(calls, NativeController):
+                native = _native_entry(calls, early, late, len(outputs), keep)
+                natives.append((c, calls, native))
+                entry.native = ctypes.addressof(native)
+                in_vr: Sequence[int] = (0,) * len(inputs)
+                reads: Sequence = ()
+            else:
+                in_vr = (ctypes.c_uint32 * len(inputs)).from_address(calls.in_vr) if inputs else ()
+                reads = calls.reads
+                entry.get, entry.set, entry.step, entry.component = calls.get, calls.set, calls.step, calls.component
+                entry.out_vr = calls.out_vr
+                entry.fmi3 = 1 if calls.fmi3 else 0
             arrays = (
                 (ctypes.c_uint32 * max(len(early), 1))(*(in_vr[i] for i in early)),
                 (ctypes.c_uint32 * max(len(late), 1))(*(in_vr[i] for i in late)),
@@ -222,8 +311,6 @@ class SystemLoop:
                 _longs([outputs[read.position] for read in reads]),
             )
             keep.append(arrays)
-            entry.get, entry.set, entry.step, entry.component = calls.get, calls.set, calls.step, calls.component
-            entry.out_vr = calls.out_vr
             (
                 entry.early_vr,
                 entry.late_vr,
@@ -235,11 +322,11 @@ class SystemLoop:
                 entry.typed_kind,
                 entry.typed_slot,
             ) = (ctypes.addressof(a) for a in arrays)
-            entry.fmi3 = 1 if calls.fmi3 else 0
             entry.n_out, entry.out0 = len(outputs) - len(reads), outputs[0] if outputs else 0
             entry.n_typed = len(reads)
             entry.n_early, entry.n_late = len(early), len(late)
             entry.id = ids[c] if ids is not None else c + 1
+        self._natives = tuple(natives)
         buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
         source = np.ascontiguousarray(plan.feed_source, dtype=np.int64)
         factor = np.ascontiguousarray(plan.feed_factor, dtype=np.float64)
@@ -266,14 +353,64 @@ class SystemLoop:
         self._pointer = ctypes.pointer(s)
         self.buffer = buffer  # the sample's values, slot by slot (plan.slot)
 
+    @property
+    def no_set_state_prior_to_current_point(self) -> bool:
+        """doStep's noSetFMUStatePriorToCurrentPoint, for every component (default False)."""
+        return bool(self._state.no_prior)
+
+    @no_set_state_prior_to_current_point.setter
+    def no_set_state_prior_to_current_point(self, value: bool) -> None:
+        self._state.no_prior = 1 if value else 0
+
     def run(self, k0: int, k_end: int) -> tuple[int, int]:
-        """Samples k0 .. k_end - 1 (k_end <= n + 1): (DONE, k_end), or (FMI_FAILED, k) with k the
-        sample whose call failed (`failure()` names it)."""
+        """Samples k0 .. k_end - 1 (k_end <= n + 1): (DONE, k_end), (FMI_FAILED, k) with k the
+        sample whose call failed (`failure()` names it), or (HAND_BACK, k) with k the sample a
+        native controller hands to the Python execution (`give_back()`; no doStep of it made)."""
         if not 0 <= k0 <= k_end <= self.n + 1:
             raise ValueError(f"samples {k0} .. {k_end - 1} are not within 0 .. {self.n}")
         self._state.k = k0
         code = self._library.system_run(self._pointer, k_end)
         return code, int(self._state.k)
+
+    @property
+    def native_names(self) -> tuple[str, ...]:
+        """The components the loop runs natively (`system_natives`), in plan order."""
+        return tuple(self.plan.order[c] for c, _, _ in self._natives)
+
+    def give_back(self) -> None:
+        """After HAND_BACK at sample k: each native controller's slave holds again what it held at
+        the start of sample k, so the Python execution takes the run from that sample."""
+        for _, native, entry in self._natives:
+            size = 1 + len(native.start.held) + len(native.start.row) + native.n_state
+            saved = (ctypes.c_double * size).from_address(entry.saved)
+            state = (ctypes.c_double * max(native.n_state, 1)).from_address(entry.state)
+            native.slave.resume(native.given_back(state[: native.n_state], saved[:]))
+
+    def _memory(self, native: NativeController, entry: ctypes.Structure) -> tuple[ctypes.Array, ctypes.Array]:
+        """A native controller's memory in C (dirty, held, row, next state) and its committed state."""
+        size = 1 + len(native.start.held) + len(native.start.row) + native.n_state
+        memory = (ctypes.c_double * size).from_address(entry.mem)
+        return memory, (ctypes.c_double * max(native.n_state, 1)).from_address(entry.state)
+
+    def take_back(self) -> None:
+        """Between samples: each native controller's slave holds what the C holds now (so a
+        checkpoint saves it, or the Python execution takes the next sample from it)."""
+        for _, native, entry in self._natives:
+            memory, state = self._memory(native, entry)
+            native.slave.resume(native.given_back(state[: native.n_state], memory[:]))
+
+    def hand_over(self) -> None:
+        """Between samples: the C holds what each native controller's slave holds now (a
+        checkpoint put back, a sample the Python execution took); `take_back`'s inverse, bit for bit."""
+        for _, native, entry in self._natives:
+            held = native.slave.sample_state()
+            memory, state = self._memory(native, entry)
+            values = [1.0 if held.dirty else 0.0, *held.held, *held.row, *native.state_values(held.next)]
+            if len(values) != len(memory):
+                raise ValueError(f"component {native.slave.name!r}: its state does not fit its native memory")
+            memory[:] = values
+            committed = native.state_values(held.state)
+            state[: len(committed)] = committed
 
     def failure(self) -> ComponentCallError:
         """The error of the failed call of the last `run` that returned FMI_FAILED."""
@@ -299,14 +436,21 @@ def compiled_system(
     ids: Sequence[int] | None = None,
 ) -> SystemLoop | str:
     """The compiled loop over `slaves` (in plan.order, instantiated and initialised; each with a
-    `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has), or why there is none: one
-    line naming the first component run in Python, or why the library is missing. `rows`,
-    `calling`, `ids`: as for `SystemLoop`."""
+    `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has, or a `ControllerSlave`
+    whose controller runs natively in C: `system_natives`), or why there is none: one line naming
+    the first component run in Python and why, or why the library is missing. `rows`, `calling`,
+    `ids`: as for `SystemLoop`."""
     library = system_library()
     if library is None:
         return f"no compiled system loop: {system_library_reason()}"
-    functions = []
-    for name, slave in zip(plan.order, slaves, strict=True):
+    functions: list[CFunctions | NativeController] = []
+    for c, (name, slave) in enumerate(zip(plan.order, slaves, strict=True)):
+        if isinstance(slave, ControllerSlave):
+            native = native_controller(slave, plan.input_names[c], n, T_s)
+            if isinstance(native, str):
+                return f"component {name} runs in Python ({type(slave.controller).__name__}: {native})"
+            functions.append(native)
+            continue
         make = getattr(slave, "c_functions", None)
         calls = make() if callable(make) else None
         if not isinstance(calls, CFunctions):

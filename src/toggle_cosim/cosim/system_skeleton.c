@@ -10,7 +10,17 @@
    An input's value is its feed: a copy of an output slot (factor 1, offset 0), factor * slot +
    offset (compiled with -ffp-contract=off: Python's bits), or column j of the signal table's row k.
    A component's outputs of other types (a recorded Integer, Boolean, ...) follow its Real ones:
-   each is read by its own getter after the getReal and stored as a double (get_typed). */
+   each is read by its own getter after the getReal and stored as a double (get_typed).
+
+   A component is an FMU (its function pointers) or a native controller (native_t, NULL for an
+   FMU): the built-in law (NATIVE_LAW: law_step, generated from control/laws.py in front of this
+   skeleton by cosim/system_loop.py) or a discrete LTI system (NATIVE_LTI: lti_sums, the sums of
+   control/lti.py's lti_step). A native controller samples as cosim/slaves.py's ControllerSlave
+   does: a set stores its inputs and marks it dirty; its outputs are computed from the inputs as
+   set, at the time of the first get or doStep after the set, and held; a doStep commits the state
+   that computation gave. Where the Python might raise or a value is not finite, the loop stops
+   with HAND_BACK at that sample before any doStep of it, and the saved copy (`saved`: what the
+   controller held at the sample's start) lets the Python execution take the sample from its start. */
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -21,6 +31,25 @@ typedef int (*step2_t)(void *, double, double, int);
 typedef int (*get3_t)(void *, const unsigned int *, size_t, double *, size_t);
 typedef int (*set3_t)(void *, const unsigned int *, size_t, const double *, size_t);
 typedef int (*step3_t)(void *, double, double, bool, bool *, bool *, bool *, double *);
+
+/* A native controller's kinds, and its memory: mem = dirty, held[n_held] (the command, then the
+   diagnostics), row[n_in] (its fed inputs as set, in plan order), next[n_state] (the state its
+   last computation gave); saved: mem at the start of the sample. */
+enum { NATIVE_LAW = 1, NATIVE_LTI = 2 };
+
+typedef struct {
+    long kind;                  /* NATIVE_LAW or NATIVE_LTI */
+    long n_in, n_held, n_state; /* its fed inputs, its outputs, its state's size (the law: 1, z; LTI: n, x) */
+    long i_q, i_qd;             /* the inputs it reads: the law's q and qd; the LTI system's y (i_q) */
+    long m;                     /* NATIVE_LTI: its inputs (1: e = r - y; 2: r - y0, y - y0) */
+    const long *early_pos, *late_pos; /* the positions among its inputs of its early and late inputs */
+    double *mem, *saved;
+    double *state;              /* n_state: the committed state */
+    const double *ref;          /* (n + 1) x 3: (q*, q̇*, q̈*) per sample; NULL: the constant target */
+    const double *a, *b, *c, *d; /* NATIVE_LTI: A (n x n), B (n x m) row by row, C (n), D (m) */
+    double target, origin;      /* NATIVE_LTI: the constant r; y0, its output at the first sample */
+    law_t law;                  /* NATIVE_LAW: its parameters, with its start's t0 and T_h */
+} native_t;
 
 /* One component of the table. Its ctypes mirror is built in cosim/system_loop.py from the same
    field lists. */
@@ -36,6 +65,7 @@ typedef struct {
     long fmi3, n_out, out0, n_early, n_late;    /* n_out Real outputs; out0: the buffer slot of the first */
     long id;                                    /* what *calling holds while it is called */
     long n_typed;
+    native_t *native;                           /* NULL: an FMU */
 } component_t;
 
 typedef struct {
@@ -57,7 +87,7 @@ typedef struct {
                                    supervising process reads it when a call ends the process */
 } system_t;
 
-enum { DONE = 0, FMI_FAILED = 2 };
+enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2 };
 enum { CALL_GET = 1, CALL_SET = 2, CALL_STEP = 3, CALL_TYPED = 4 };
 
 /* Only OK (0) and Warning (1) let the loop go on: Discard, Error, Fatal, Pending and any value
@@ -138,9 +168,60 @@ static int fail(system_t *s, long k, long component, long call, int status) {
     return FMI_FAILED;
 }
 
-/* Samples s->k .. k_end - 1 (module comment). Returns DONE with s->k = k_end, or FMI_FAILED with
+#define MEM_SIZE(p) (1 + (p)->n_held + (p)->n_in + (p)->n_state)
+
+/* The native controller's outputs and next state at sample k (time t) from its inputs as set:
+   control/controller.py's VSCController.step (law_step) or control/lti.py's
+   DiscreteSystemController.step (lti_sums). Returns DONE (held, next written; no longer dirty) or
+   HAND_BACK (the Python must take the sample: it raises, might raise, or a value is not finite). */
+static int native_compute(native_t *p, long k, double t) {
+    double *held = p->mem + 1, *row = held + p->n_held, *next = row + p->n_in;
+    long i;
+    if (p->kind == NATIVE_LAW) {
+        const double *ref = p->ref ? p->ref + 3 * k : NULL;
+        double q = row[p->i_q], qd = row[p->i_qd];
+        if (!(isfinite(q) && isfinite(qd))) { return HAND_BACK; }
+        if (law_step(t, q, qd, p->state[0], ref ? ref[0] : p->law.target, ref ? ref[1] : 0.0, ref ? ref[2] : 0.0,
+                     &p->law, &held[0], &held[1], &held[2], &held[3], &next[0])) {
+            return HAND_BACK;
+        }
+    } else {
+        double r = p->ref ? p->ref[3 * k] : p->target, y = row[p->i_q], e = r - y, v[2];
+        if (!isfinite(e)) { return HAND_BACK; }
+        v[0] = p->m == 1 ? e : r - p->origin;
+        v[1] = y - p->origin;
+        if (lti_sums(p->n_state, p->m, p->a, p->b, p->c, p->d, p->state, v, &held[0], next)) { return HAND_BACK; }
+        held[1] = e;
+    }
+    for (i = 0; i < p->n_held; i++) {
+        if (!isfinite(held[i])) { return HAND_BACK; }
+    }
+    for (i = 0; i < p->n_state; i++) {
+        if (!isfinite(next[i])) { return HAND_BACK; }
+    }
+    p->mem[0] = 0.0;
+    return DONE;
+}
+
+/* A native controller's set: the values stored at their positions among its inputs; dirty. */
+static void native_set(native_t *p, const long *pos, long count, const double *values) {
+    double *row = p->mem + 1 + p->n_held;
+    long i;
+    for (i = 0; i < count; i++) { row[pos[i]] = values[i]; }
+    p->mem[0] = 1.0;
+}
+
+static int hand_back(system_t *s, long k, long component) {
+    s->k = k;
+    s->failed = component;
+    return HAND_BACK;
+}
+
+/* Samples s->k .. k_end - 1 (module comment). Returns DONE with s->k = k_end, FMI_FAILED with
    s->k the sample of the failed call (its row not recorded when the call came before recording)
-   and s->failed, s->fault, s->status naming it; nothing after a failed call is made. */
+   and s->failed, s->fault, s->status naming it (nothing after a failed call is made), or HAND_BACK
+   with s->k the sample a native controller s->failed hands to the Python (no doStep of it made;
+   each native controller's `saved` is what it held at that sample's start). */
 int system_run(system_t *s, long k_end) {
     long k, i, c;
     int status;
@@ -148,8 +229,23 @@ int system_run(system_t *s, long k_end) {
         const double *row = s->signals + k * s->n_signals;
         double t = (double)k * s->T_s, *out = s->trace + k * (1 + s->n_record);
         for (c = 0; c < s->n_components; c++) {
+            native_t *native = s->components[c].native;
+            if (native) {
+                for (i = 0; i < MEM_SIZE(native); i++) { native->saved[i] = native->mem[i]; }
+            }
+        }
+        for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
             *s->calling = p->id;
+            if (p->native) {
+                if (p->n_early) {
+                    compute(s, p, p->early_slot, p->n_early, row);
+                    native_set(p->native, p->native->early_pos, p->n_early, p->scratch);
+                }
+                if (p->native->mem[0] != 0.0 && native_compute(p->native, k, t) != DONE) { return hand_back(s, k, c); }
+                for (i = 0; i < p->n_out; i++) { s->buffer[p->out0 + i] = p->native->mem[1 + i]; }
+                continue;
+            }
             if (p->n_early) {
                 compute(s, p, p->early_slot, p->n_early, row);
                 status = set_inputs(p, p->early_vr, p->n_early, p->scratch);
@@ -177,12 +273,30 @@ int system_run(system_t *s, long k_end) {
             if (p->n_late) {
                 *s->calling = p->id;
                 for (i = 0; i < p->n_late; i++) { p->scratch[i] = s->buffer[p->late_slot[i]]; }
+                if (p->native) {
+                    native_set(p->native, p->native->late_pos, p->n_late, p->scratch);
+                    continue;
+                }
                 status = set_inputs(p, p->late_vr, p->n_late, p->scratch);
                 if (FAILED(status)) { return fail(s, k, c, CALL_SET, status); }
             }
         }
+        /* a native controller set since its last computation computes now, before any doStep of
+           the sample, so a sample it hands back has stepped nothing */
         for (c = 0; c < s->n_components; c++) {
+            native_t *native = s->components[c].native;
+            if (native && native->mem[0] != 0.0) {
+                *s->calling = s->components[c].id;
+                if (native_compute(native, k, t) != DONE) { return hand_back(s, k, c); }
+            }
+        }
+        for (c = 0; c < s->n_components; c++) {
+            native_t *native = s->components[c].native;
             *s->calling = s->components[c].id;
+            if (native) {
+                for (i = 0; i < native->n_state; i++) { native->state[i] = native->mem[1 + native->n_held + native->n_in + i]; }
+                continue;
+            }
             status = do_step(&s->components[c], t, s->T_s, s->no_prior != 0);
             if (FAILED(status)) { return fail(s, k, c, CALL_STEP, status); }
         }

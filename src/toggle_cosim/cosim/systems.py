@@ -21,6 +21,10 @@ direct dependencies (`system.graph`): an algebraic loop is refused naming its cy
 
 The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
 order) or the run's `record:` list, which may name any variable of an FMU component.
+
+Either loop runs in stretches between checkpoints (`system_retry.SystemCheckpoints`): a
+component's refused step is retried from the last one, and run.json lists each retry
+(`retries`) and says whether retries are on (`system.checkpoints`).
 """
 
 from __future__ import annotations
@@ -35,23 +39,21 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for, fmu_settings
+from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
-from toggle_cosim.cosim.law_fmu import law_fmu
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.summary import summarize
-from toggle_cosim.cosim.system_loop import FMI_FAILED, SystemLoop, compiled_system
+from toggle_cosim.cosim.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
+from toggle_cosim.cosim.system_retry import CheckpointOptions, SystemCheckpoints, retried_words
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterface, read_fmu
-from toggle_cosim.plant.controller_contract import check_controller_fmu
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
 from toggle_cosim.system.interfaces import SettableError, check_settable
@@ -170,21 +172,13 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
 def _controller_slave(
     run: Run, name: str, controller: Controller | None, outputs: Sequence[str], units: Mapping[str, str | None]
 ) -> Slave:
-    """The run's controller as a component: a controller FMU as an FMU; the built-in law (tracking
-    its constant target) as its generated C, the controller FMU built from it (`law_fmu`, bit for
-    bit the Python law), where that FMU can be built; any other natively, its connectors in the
-    units of the plant variables of their names (`units`)."""
+    """The run's controller as a component: a controller FMU as an FMU; any other natively (the
+    built-in law and a python-control system then run in C in the compiled system loop:
+    `system_natives`), its connectors in the units of the plant variables of their names (`units`)."""
     if controller is None:
         controller = controller_for(run, outputs)
     if isinstance(controller, FmuController):
         return FmuSlave(name, controller.fmu, controller.settings)
-    if type(controller) is VSCController and controller.reference is None:  # the built-in law as generated C
-        fmu = law_fmu()
-        if isinstance(fmu, Path):
-            checked = check_controller_fmu(fmu, outputs, run.T_s)
-            slave = FmuSlave(name, checked, fmu_settings(run, checked))
-            slave.origin = "the built-in law as generated C (its controller FMU, built into the private cache)"
-            return slave
     diagnostics = check_controller(controller, outputs)
     return ControllerSlave(name, controller, diagnostics, COMMAND, units, outputs)
 
@@ -350,28 +344,50 @@ def system_columns(run: Run, plant: PlantInterface, controller: Controller | Non
     return assembly.plan.names
 
 
-def _run_compiled(
+def _compiled_forward(
     loop: SystemLoop,
     slaves: Sequence[Slave],
     n: int,
     progress: Callable[[float], None] | None,
     run: Run,
-) -> None:
-    """Samples 0 .. n in C, in stretches of 1 % for the progress hook; a failed call raises the
-    SlaveError the Python execution raises for it (with the FMU's last log line). The loop counts
-    the rows it records in the observer's count."""
+    execution: Execution,
+) -> tuple[Callable[[int, int], int], Callable[[], int | None]]:
+    """Samples k .. stop - 1 in C (`forward`), in stretches of 1 % for the progress hook; a failed
+    call raises the SlaveError the Python execution raises for it (with the FMU's last log line,
+    its `k` the sample). The loop counts the rows it records in the observer's count.
+
+    The native controllers' slaves and the C's memory hold the same thing whenever `forward` is
+    not running: it gives the C what the slaves hold as it starts (a checkpoint put back, a sample
+    the Python execution retook) and the slaves what the C holds as it returns (a checkpoint
+    saved next). A sample a native controller hands back goes, with every later one, to the
+    Python `execution`; `handed()` is that sample (None: none was)."""
     every = max(n // 100, 1) if progress is not None else n + 1
-    k = 0
-    while k <= n:
-        code, k_next = loop.run(k, min(k + every, n + 1))
-        if code == FMI_FAILED:
-            error = loop.failure()
-            slave = slaves[loop.plan.order.index(error.component)]
-            failure = getattr(slave, "failure", None)
-            raise failure(error.function, error.t, error.status) if callable(failure) else SlaveError(str(error))
-        k = k_next
-        if progress is not None:
-            progress(min(k, n) * run.T_s / run.t_end)
+    handed: list[int] = []
+
+    def forward(k: int, stop: int) -> int:
+        if handed:
+            return execution.advance(k, stop)
+        loop.hand_over()
+        while k < stop:
+            code, k_next = loop.run(k, min(k + every - k % every, stop))
+            if code == FMI_FAILED:
+                error = loop.failure()
+                slave = slaves[loop.plan.order.index(error.component)]
+                failure = getattr(slave, "failure", None)
+                raised = failure(error.function, error.t, error.status) if callable(failure) else SlaveError(str(error))
+                raised.k = k_next
+                raise raised
+            if code == HAND_BACK:
+                loop.give_back()
+                handed.append(k_next)
+                return execution.advance(k_next, stop)
+            k = k_next
+            if progress is not None and (k % every == 0 or k > n):
+                progress(min(k, n) * run.T_s / run.t_end)
+        loop.take_back()
+        return k
+
+    return forward, lambda: handed[0] if handed else None
 
 
 def _column(trace: Trace, name: str) -> np.ndarray | None:
@@ -387,12 +403,14 @@ def simulate_system(
     coupling: str | None = None,
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
+    checkpoints: CheckpointOptions | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
     ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
     word shared with a supervising process): element 0 holds, while a component is called, its
-    id (`component_names`), and 0 outside the run's loop."""
+    id (`component_names`), and 0 outside the run's loop. `checkpoints`: how a refused step is
+    retried (`system_retry`; default every 200 samples, in 10 substeps)."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
         run = dataclasses.replace(run, coupling=coupling)
@@ -421,6 +439,13 @@ def simulate_system(
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
     compiled: SystemLoop | str = "the run ended before its first sample"
+    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s, calling, ids)
+    policy.configure(*assembly.slaves)
+
+    def retake(k: int, c: int, substeps: int) -> None:
+        execution.advance(k, k + 1, split=(c, substeps))
+
+    handed: int | None = None
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
@@ -428,9 +453,14 @@ def simulate_system(
             plan, assembly.slaves, assembly.signals, data, n, run.T_s, observer.count, calling, ids
         )
         if isinstance(compiled, SystemLoop):
-            _run_compiled(compiled, assembly.slaves, n, progress, run)
+            policy.configure(compiled)
+            forward, handed_at = _compiled_forward(compiled, assembly.slaves, n, progress, run, execution)
+            try:
+                policy.drive(forward, retake, 0, n)
+            finally:
+                handed = handed_at()
         else:
-            execution.advance(0, n + 1)
+            policy.drive(execution.advance, retake, 0, n)
         loop_finished = clock.perf_counter()
     except KeyboardInterrupt:
         loop_finished, interrupted = clock.perf_counter(), True
@@ -443,6 +473,9 @@ def simulate_system(
         assembly.close()
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])
+    retried = retried_words(policy.passed())
+    if reason is not None and retried is not None:
+        reason = f"{reason} (earlier, {retried})"
     reason = bounded_text(reason) if reason is not None else None
     complete = reason is None and rows == n + 1
     summary = None
@@ -466,7 +499,12 @@ def simulate_system(
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     coupled = "jacobi" if plan.jacobi else "gauss-seidel"
-    where = "in the compiled system loop" if isinstance(compiled, SystemLoop) else f"in Python ({compiled})"
+    where = f"in Python ({compiled})"
+    if isinstance(compiled, SystemLoop):
+        natives = compiled.native_names
+        where = "in the compiled system loop" + (f" ({', '.join(natives)} natively in C)" if natives else "")
+        if handed is not None:
+            where += f", from t = {handed * run.T_s:.6g} s in Python (a sample the native controller handed back)"
     loop = {
         "kind": "system, compiled" if isinstance(compiled, SystemLoop) else "system, python",
         "reason": f"{len(assembly.slaves)} components, {coupled}, in the order {', '.join(plan.order)}, {where}",
@@ -480,10 +518,10 @@ def simulate_system(
         wall,
         loop_finished - loop_started,
         summary,
-        [],
+        policy.retries,
         loop,
         None,
-        warnings=[],
+        warnings=[bounded_text(f"{retried[0].upper()}{retried[1:]}: {policy.passed()[0]['error']}")] if retried else [],
         controller=next((c for c in assembly.components if c["name"] == run.system.controller), None),
     )
     record["system"] = {
@@ -499,6 +537,7 @@ def simulate_system(
         ],
         "signals": [str(port) for port in plan.signals],
         "recorded": list(plan.names[1:]),
+        "checkpoints": policy.record(),
     }
     record["units"] = assembly.units
     return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)

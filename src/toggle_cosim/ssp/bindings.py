@@ -13,13 +13,17 @@ millions of values.
 
 Refused, one SspError line each naming the SSD and the binding: a source outside the archive
 or resolved against the component (`sourceBase="component"`), a type other than a parameter set,
-a ParameterMapping, a value that is not a finite Real, an Integer or a Boolean, and (checked by
-the reader against the FMUs) a name that no component has.
+a ParameterMapping, a value that is not a finite Real, an Integer or a Boolean (SSP 2.0's Float64
+and Float32 are Real, Int8 ... UInt64 Integer; its String, Enumeration and Binary are refused),
+an array (`Dimension`, or a value attribute that lists more than one value), inline values not
+valid against the parameter-values schema of their version, and (checked by the reader against
+the FMUs) a name that no component has.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 import weakref
 import zipfile
 from dataclasses import dataclass
@@ -28,7 +32,8 @@ from pathlib import PurePosixPath
 from lxml import etree
 
 from toggle_cosim.ssp import layout
-from toggle_cosim.ssp.checks import Element, SspError, parse_member
+from toggle_cosim.ssp.checks import Element, SspError, parse_member, schema_problem
+from toggle_cosim.ssp.versions import family, refuse_array, type_element
 
 __all__ = ["MAX_BOUND_VALUES", "MAX_PARAMETERS", "Binding", "BindingBudget", "Value", "bindings_of", "merged"]
 
@@ -63,20 +68,39 @@ class BindingBudget:
 class Binding:
     """One ParameterBinding: the set's name, where it came from (an archive member, or `inline`),
     and its values as (name, value, kind, unit) with the binding's prefix applied; kind is the
-    SSV element (Real, Integer, Boolean)."""
+    kind of value (Real, Integer, Boolean: `versions.family` of the SSV element, so SSP 2.0's
+    Float64 is Real, Int32 Integer)."""
 
     set_name: str | None
     source: str
     values: tuple[tuple[str, Value, str, str | None], ...]
 
 
-def _value(element: Element, name: str, where: str) -> Value:
-    kind, text = etree.QName(element).localname, element.get("value")
+def _single(value: float) -> float:
+    """`value` rounded to single precision (past its range: infinite, which is then refused)."""
+    try:
+        return struct.unpack("f", struct.pack("f", value))[0]
+    except OverflowError:  # Python versions that refuse to pack it
+        return math.copysign(math.inf, value)
+
+
+def _value(element: Element, kind: str, name: str, where: str) -> Value:
+    """The scalar value of a type element of `kind` (Real, Integer, Boolean); SSP 2.0's value
+    attribute is a list, and more or fewer than one value is an array, refused."""
+    text = element.get("value") or ""
+    items = text.split()
+    if len(items) != 1:
+        raise SspError(
+            f"{where}: parameter {name!r} has {len(items)} values ({text!r}: an array; our master sets scalars "
+            "only: give one value)"
+        )
     if kind == "Boolean":
-        return text in ("true", "1")
+        return items[0] in ("true", "1")
     if kind == "Integer":
-        return int(text)
-    value = float(text)
+        return int(items[0])
+    value = float(items[0])
+    if etree.QName(element).localname == "Float32" and math.isfinite(value):  # xs:float: the single-precision number
+        value = _single(value)
     if not math.isfinite(value):
         raise SspError(f"{where}: {name} = {value!r} is not a finite number (give a finite value)")
     return value
@@ -91,13 +115,16 @@ def _values(parameter_set: Element, prefix: str, where: str) -> Values:
                 "holds the parameters of its components)"
             )
         name = prefix + parameter.get("name")
-        typed = next((child for child in parameter if etree.QName(child).namespace == layout.SSV_NS), None)
-        kind = etree.QName(typed).localname if typed is not None else "nothing"
+        typed = type_element(parameter)
+        written = etree.QName(typed).localname if typed is not None else "nothing"
+        kind = family(written)
         if kind not in ("Real", "Integer", "Boolean"):
             raise SspError(
-                f"{where}: parameter {name!r} is given as {kind}; an SSP here sets Real, Integer and Boolean values"
+                f"{where}: parameter {name!r} is given as {written}; an SSP here sets Real (Float64, Float32), "
+                "Integer (Int8 ... UInt64) and Boolean values"
             )
-        found.append((name, _value(typed, name, where), kind, typed.get("unit")))
+        refuse_array(parameter, f"parameter {name!r}", where)
+        found.append((name, _value(typed, kind, name, where), kind, typed.get("unit")))
     return tuple(found)
 
 
@@ -152,6 +179,10 @@ def bindings_of(
         inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
         if inline is None:
             raise SspError(f"{where}: a parameter binding with neither a source nor inline ParameterValues")
+        problem = schema_problem(inline, "ssv")  # an SSP 2.0 SSD's schema leaves inline sets unchecked
+        if problem is not None:
+            owner_name = f"{etree.QName(owner).localname} {owner.get('name')!r}"
+            raise SspError(f"{where}: the inline ParameterValues of {owner_name} are not valid ({problem}); fix them")
         values = _values(inline, prefix, f"{where} (inline values)")
         budget.spend(len(values))
         found.append(Binding(inline.get("name"), "inline", values))

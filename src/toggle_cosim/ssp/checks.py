@@ -1,5 +1,6 @@
-"""What the SSP writer and reader both check: XML against the vendored SSP 1.0 schemas
-(`schemas/`, validated with lxml, which FMPy's own SSP reader uses too), XML read within bounds
+"""What the SSP writer and reader both check: XML against the vendored SSP schemas of its
+version (`schemas/`: SSP 1.0; `schemas/ssp2/`: SSP 2.0, whose namespaces are 1.0's; validated with
+lxml, which FMPy's own SSP reader uses too; `VERSIONS`), XML read within bounds
 (member size XML_LIMIT, MAX_ELEMENTS elements, MAX_DEPTH levels; no DOCTYPE, so no entities, and
 nothing fetched), and the archive's safety (the FMU archive checks of `plant.archive`: member
 names, sizes, members, corrupt data)."""
@@ -26,6 +27,11 @@ SCHEMAS = {
 }
 
 
+# an SSP document's `version` -> the folder of its schemas (every 1.0 document is also valid 2.0,
+# but each is checked against its own version's schemas; SSP 2.0 documents say "2.0")
+VERSIONS = {"1.0": ("schemas",), "2.0": ("schemas", "ssp2")}
+DEFAULT_VERSION = "1.0"  # what `toggle-cosim ssp` writes unless asked: the version libcosim and Ecos read
+
 XML_LIMIT = 4 * MiB  # an SSD or .ssv: ours are a few kB
 MAX_ELEMENTS = 100_000
 MAX_DEPTH = 64
@@ -39,16 +45,28 @@ class SspError(Exception):
 
 
 @functools.cache
-def schema(kind: str) -> etree.XMLSchema:
-    """The SSP 1.0 schema of a file kind ("ssd", "ssv", "ssm", "ssb"), from the vendored copies."""
-    folder = resources.files("toggle_cosim.ssp") / "schemas"
+def schema(kind: str, version: str = DEFAULT_VERSION) -> etree.XMLSchema:
+    """The schema of a file kind ("ssd", "ssv", "ssm", "ssb") in an SSP version ("1.0", "2.0"),
+    from the vendored copies."""
+    folder = resources.files("toggle_cosim.ssp").joinpath(*VERSIONS[version])
     with resources.as_file(folder / SCHEMAS[kind]) as path:
         return etree.XMLSchema(etree.parse(str(path)))
 
 
+def version_problem(root: Element) -> str | None:
+    """None if `root` says an SSP version we read (`VERSIONS`), else why not, in words."""
+    version = root.get("version")
+    if version in VERSIONS:
+        return None
+    return f"version {version!r} is not an SSP version toggle-cosim reads ({' or '.join(VERSIONS)}; write it as one)"
+
+
 def schema_problem(root: Element, kind: str) -> str | None:
-    """None if `root` is valid SSP 1.0 of `kind`, else the first problem in one line."""
-    checker = schema(kind)
+    """None if `root` is valid against the SSP schema of `kind` in its own `version` (1.0 or
+    2.0), else the first problem in one line."""
+    if (problem := version_problem(root)) is not None:
+        return problem
+    checker = schema(kind, root.get("version"))
     if checker.validate(root):
         return None
     entry = checker.error_log[0]
@@ -87,8 +105,9 @@ def parse_xml(data: bytes, where: str) -> Element:
 
 
 def parse_member(archive: zipfile.ZipFile, member: str, kind: str, where: str) -> Element:
-    """The root of an XML member (at most XML_LIMIT bytes, `parse_xml`), checked against its SSP
-    1.0 schema; SspError naming `where` (the SSP file and the member) otherwise."""
+    """The root of an XML member (at most XML_LIMIT bytes, `parse_xml`), checked against the SSP
+    schema of its version (`schema_problem`); SspError naming `where` (the SSP file and the
+    member) otherwise."""
     if archive.getinfo(member).file_size > XML_LIMIT:
         raise SspError(f"{where}: over the {XML_LIMIT // MiB} MiB an SSP's XML file may have here (refused)")
     with archive.open(member) as stream:
@@ -96,9 +115,11 @@ def parse_member(archive: zipfile.ZipFile, member: str, kind: str, where: str) -
     if len(data) > XML_LIMIT:
         raise SspError(f"{where}: over the {XML_LIMIT // MiB} MiB an SSP's XML file may have here (refused)")
     root = parse_xml(data, where)
+    if (problem := version_problem(root)) is not None:
+        raise SspError(f"{where}: {problem}")
     problem = schema_problem(root, kind)
     if problem is not None:
-        raise SspError(f"{where}: not valid SSP 1.0 ({problem}); fix it or write the SSP again")
+        raise SspError(f"{where}: not valid SSP {root.get('version')} ({problem}); fix it or write the SSP again")
     return root
 
 

@@ -6,11 +6,14 @@ runs is read from the chosen SSD and its .ssv files only: the components (the co
 FMU with an output iq_ref, the plant the one with an input iq_ref, whatever their names; every
 other FMU component a part of the run's system, `Run.system`), the values their bindings give
 (`bindings`: every binding, later ones taking priority, then the system's), the stop time of its
-DefaultExperiment and the controller's T_s. Annotations are not read.
+DefaultExperiment and the controller's T_s. Annotations are not read; an SSP 2.0 root SSD's
+MetaData and Signature elements are kept as written (`SspStudy.metadata`, `.signatures`, and
+run.json) and decide nothing (`versions`).
 
 Checked before any run, each failure one SspError line naming the file and the fix: a zip
 archive, safe (`plant.archive`); the variants (`variants`: names, bounds, set names); every .ssv
-within bounds and valid SSP 1.0 (`checks`); two or more FMU components, Co-Simulation, whose FMUs
+within bounds and valid against the SSP schemas of its version, 1.0 or 2.0 (`checks`); two or
+more FMU components, Co-Simulation (not SSP 2.0's Scheduled Execution), whose FMUs
 the archive holds; the connections (`wiring`: kinds, units, transformations, algebraic loops).
 Connections exactly the pair's loop and no other component: `Run.system` is the plain pair
 (`Wiring()` with the SSD's component names), which the master's fixed loop runs bit for bit;
@@ -39,6 +42,7 @@ from toggle_cosim.ssp.bindings import Binding, BindingBudget, Value, bindings_of
 from toggle_cosim.ssp.checks import Element, SspError, open_archive
 from toggle_cosim.ssp.fmus import FmuVariables, describe
 from toggle_cosim.ssp.variants import Variant, check_set_names, choose, root_ssds
+from toggle_cosim.ssp.versions import MetaData, Signature, metadata_of, signatures_of
 from toggle_cosim.ssp.wiring import connectors_of, is_pair_loop, read_connections
 from toggle_cosim.system.interfaces import SettableError, settable_type
 from toggle_cosim.system.model import Connection, Part, Wiring
@@ -72,7 +76,10 @@ class SspStudy:
     input, apart); `controller_values` the controller FMU's parameters; `run` the run with the
     SSP's t_end, T_s, F_E and plant values, its record naming the SSP, the variant and each
     component's source, hash and values, and its `system` (`Run.system`). `plant_fmu`,
-    `controller_fmu` and each part's FMU are extracted copies; `parts` the other components."""
+    `controller_fmu` and each part's FMU are extracted copies; `parts` the other components.
+    `version` is the root SSD's SSP version ("1.0", "2.0"); `metadata` and `signatures` its own
+    SSP 2.0 MetaData and Signature elements, as written (passed through: nothing in them decides
+    what runs)."""
 
     path: Path
     variant: str
@@ -85,6 +92,9 @@ class SspStudy:
     T_s: float
     run: Run
     parts: tuple[Component, ...] = ()
+    version: str = "1.0"
+    metadata: tuple[MetaData, ...] = ()
+    signatures: tuple[Signature, ...] = ()
 
     @property
     def plant_fmu(self) -> Path:
@@ -127,6 +137,12 @@ def _elements(ssd: Element, where: str) -> list[Element]:
             raise SspError(
                 f"{where}: component {child.get('name')!r} is of type {child.get('type')!r} (only FMUs, "
                 f"{layout.FMU_TYPE}, are supported)"
+            )
+        if child.get("implementation") == "ScheduledExecution":
+            raise SspError(
+                f"{where}: component {child.get('name')!r} asks for implementation 'ScheduledExecution' (SSP 2.0 "
+                "Scheduled Execution is not supported: our master runs Co-Simulation; give implementation "
+                "'CoSimulation' or 'any')"
             )
         if child.get("implementation", "any") not in ("any", "CoSimulation"):
             raise SspError(
@@ -413,6 +429,13 @@ def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, p
         "ssd": variant.member,
         "components": {"plant": plant.record(), "controller": controller.record()},
     }
+    metadata, signatures = metadata_of(variant.ssd), signatures_of(variant.ssd)
+    if variant.ssd.get("version") != "1.0":
+        record["version"] = variant.ssd.get("version")
+    if metadata:
+        record["metadata"] = [entry.record() for entry in metadata]
+    if signatures:
+        record["signatures"] = [signature.record() for signature in signatures]
     if not system.wiring.is_pair:
         record["parts"] = [part.record() for part in system.parts]
         record["connections"] = [
@@ -431,7 +454,20 @@ def _study(variant: Variant, names: tuple[str, ...], archive: zipfile.ZipFile, p
         system=system.wiring,
     )
     return SspStudy(
-        path, variant.name, variant.member, names, plant, controller, F_E, t_end, float(T_s), run, system.parts
+        path,
+        variant.name,
+        variant.member,
+        names,
+        plant,
+        controller,
+        F_E,
+        t_end,
+        float(T_s),
+        run,
+        system.parts,
+        variant.ssd.get("version"),
+        metadata,
+        signatures,
     )
 
 

@@ -2,10 +2,11 @@
 default, and every other `*.ssd` at the archive's top level, each named by its `name` attribute.
 
 Checked before any variant is read further, each failure one SspError line: every root SSD
-within bounds and valid SSP 1.0 (`checks`); its name and its System's usable as folder names
-(`SAFE_NAME`: results land in OUT/<system>/<variant>/) and the variants' names unique, ignoring
-case; not an SSP of an earlier toggle-cosim (stacked bindings); no two .ssv files of one component
-with one set name (a master that picks sets by name, Ecos, could not tell them apart).
+within bounds and valid against the schemas of its SSP version, 1.0 or 2.0 (`checks`); its name
+and its System's usable as folder names (`SAFE_NAME`: results land in OUT/<system>/<variant>/)
+and the variants' names unique, ignoring case; not an SSP of an earlier toggle-cosim (stacked
+bindings); no two .ssv files of one component with one set name (a master that picks sets by
+name, Ecos, could not tell them apart).
 """
 
 from __future__ import annotations

@@ -1,11 +1,14 @@
 """An SSD's connections as the system's `Connection`s (`read_connections`), each checked as the
-SSP 1.0 standard reads it, and whether they are the plain plant + controller loop (`is_pair_loop`).
+SSP standard reads it (1.0, and 2.0's Float64/Float32 connectors), and whether they are the plain
+plant + controller loop (`is_pair_loop`).
 
 Each connection is checked, one SspError line naming the SSD and the connection:
 
 * both ends exist (components and connectors of the SSD, variables of the FMUs), no system-level
   connector, and a connector's kind is its FMU variable's causality;
-* it runs from an output to an input (section 5, Connections), both Real;
+* it runs from an output to an input (section 5, Connections), both Real (the FMU variables, and
+  the connectors' types where given: Real, or SSP 2.0's Float64 and Float32, `versions.family`);
+  no connector is an array or a clock (SSP 2.0: `versions.refuse_array`, `versions.refuse_clocks`);
 * no input is driven by two connections;
 * units: the value leaves the start FMU in its unit and reaches the end FMU in its own
   (a connector's unit, an SSD Unit or the FMU's, has to mean the same dimension as its FMU
@@ -35,6 +38,7 @@ from lxml import etree
 from toggle_cosim.ssp import layout
 from toggle_cosim.ssp.checks import Element, SspError
 from toggle_cosim.ssp.fmus import FmuVariables
+from toggle_cosim.ssp.versions import family, refuse_array, refuse_clocks, type_element
 from toggle_cosim.system.graph import algebraic_loop
 from toggle_cosim.system.model import Connection, Port, Wiring
 from toggle_cosim.system.units import BASE, Meaning, UnitDefinitionError, conversion, meaning, unit_meaning
@@ -42,15 +46,16 @@ from toggle_cosim.system.units import BASE, Meaning, UnitDefinitionError, conver
 __all__ = ["Connector", "connectors_of", "conversion", "is_pair_loop", "meaning_of", "read_connections"]
 
 NS = layout.NAMESPACES
-REAL_TYPES = ("Real", "Float64", "Float32")
 
 
 @dataclass(frozen=True)
 class Connector:
-    """A component's connector as the SSD declares it: its kind and unit (None: none given)."""
+    """A component's connector as the SSD declares it: its kind, unit and type element (Real,
+    Float64, ...; None: none given)."""
 
     kind: str
     unit: str | None
+    type: str | None = None
 
 
 def connectors_of(component: Element, fmu: FmuVariables, where: str) -> dict[str, Connector]:
@@ -71,8 +76,14 @@ def connectors_of(component: Element, fmu: FmuVariables, where: str) -> dict[str
                 f"{where}: component {name!r} declares {label!r} as a connector of kind {kind}, but its FMU's variable "
                 f"has causality {variable.causality} (give the connector kind {variable.causality!r})"
             )
-        typed = next((child for child in connector if etree.QName(child).namespace == layout.SSC_NS), None)
-        found[label] = Connector(kind, typed.get("unit") if typed is not None else None)
+        what = f"component {name!r}'s connector {label!r}"
+        refuse_clocks(connector, what, where)
+        refuse_array(connector, what, where)
+        typed = type_element(connector)
+        if typed is None:
+            found[label] = Connector(kind, None)
+        else:
+            found[label] = Connector(kind, typed.get("unit"), etree.QName(typed).localname)
     return found
 
 
@@ -258,11 +269,13 @@ def read_connections(
             )
         for port in (start, end):
             kind = fmus[port.component].variable(port.variable).type
-            if kind not in REAL_TYPES:
-                raise SspError(
-                    f"{where}: the connection {label} joins {port}, a {kind} variable (connections here join "
-                    "Real inputs and outputs; remove it)"
-                )
+            declared = connectors[port.component][port.variable].type
+            for what, name in (("variable", kind), ("connector", declared)):
+                if name is not None and family(name) != "Real":
+                    raise SspError(
+                        f"{where}: the connection {label} joins {port}, a {name} {what} (connections here join "
+                        "Real inputs and outputs: Real, Float64, Float32; remove it)"
+                    )
         ends.append((element, start, end))
     plain = [Connection(start, end) for _, start, end in ends]
     loop = algebraic_loop(plain, {name: fmu.interface() for name, fmu in fmus.items()})

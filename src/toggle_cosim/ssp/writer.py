@@ -1,4 +1,7 @@
-"""A scenario file -> an SSP 1.0 archive (`toggle-cosim ssp`): one root SSD per variant
+"""A scenario file -> an SSP archive (`toggle-cosim ssp`), SSP 1.0 (the default: what libcosim
+and Ecos read) or SSP 2.0 (`--ssp-version 2.0`: Float64 connectors and values, Int32 integers, as
+OMSimulator writes them, `versions.written_type`; the study's SRMD in each SSD's MetaData,
+`study_record`): one root SSD per variant
 (`SystemStructure.ssd` the first, `<variant>.ssd` the others: `layout`), each with the plant and
 the controller FMU as components, the connections, one parameter binding per component (that
 variant's .ssv), DefaultExperiment (0, t_end, with T_s as libcosim's fixed step) and our
@@ -7,7 +10,7 @@ annotation (the variant's scenario document, a description that no reader acts o
 Each set holds, for the plant, exactly what our master sets on it (`cosim.master.plant_settings`)
 and F_E, its input; for the controller, every field of the built-in law's `LawParameters` but t0
 and T_h (the controller FMU starts the law itself). Numbers are written with `repr`, so they read
-back with the same bits. The archive is checked against the SSP 1.0 schemas before it is written,
+back with the same bits. The archive is checked against the SSP schemas of its version before it is written,
 and written whole or not at all (`files.outputs`).
 """
 
@@ -25,14 +28,17 @@ from lxml import etree
 from toggle_cosim.control.parameters import settable_values
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings
+from toggle_cosim.cosim.outcome import installed_versions
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
 from toggle_cosim.experiments.shipped import DEFAULT_CONTROLLER
 from toggle_cosim.files.outputs import SSP, replacing
 from toggle_cosim.fmu_export.units import UnitError, base_exponents
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.ssp import layout
-from toggle_cosim.ssp.checks import Element, SspError, schema_problem
+from toggle_cosim.ssp.checks import DEFAULT_VERSION, VERSIONS, Element, SspError, schema_problem
 from toggle_cosim.ssp.fmus import FmuVariables, describe
+from toggle_cosim.ssp.study_record import metadata_element, study_record
+from toggle_cosim.ssp.versions import written_type
 from toggle_cosim.system.model import Connection, Port, Wiring
 
 __all__ = ["ParameterSet", "controller_values", "default_controller", "parameter_sets", "write_ssp"]
@@ -92,14 +98,17 @@ def _number(value: Value, kind: str) -> str:
     return repr(float(value))
 
 
-def _ssv(parameter_set: str, values: Sequence[tuple[str, Value]], variables: FmuVariables) -> Element:
-    root = etree.Element(_q(layout.SSV_NS, "ParameterSet"), nsmap={"ssv": layout.SSV_NS}, version="1.0")
+def _ssv(
+    parameter_set: str, values: Sequence[tuple[str, Value]], variables: FmuVariables, version: str = DEFAULT_VERSION
+) -> Element:
+    """One component's values as an .ssv of SSP `version` (its types: `versions.written_type`)."""
+    root = etree.Element(_q(layout.SSV_NS, "ParameterSet"), nsmap={"ssv": layout.SSV_NS}, version=version)
     root.set("name", parameter_set)
     parameters = etree.SubElement(root, _q(layout.SSV_NS, "Parameters"))
     for name, value in values:
         kind = variables.value_type(name, value)
         parameter = etree.SubElement(parameters, _q(layout.SSV_NS, "Parameter"), name=name)
-        etree.SubElement(parameter, _q(layout.SSV_NS, kind), value=_number(value, kind))
+        etree.SubElement(parameter, _q(layout.SSV_NS, written_type(kind, version)), value=_number(value, kind))
     return root
 
 
@@ -118,14 +127,16 @@ def _unit_element(units: Element, name: str, variables: Sequence[FmuVariables]) 
     etree.SubElement(unit, _q(layout.SSC_NS, "BaseUnit"), attributes)
 
 
-def _connectors(component: Element, names: Sequence[str], variables: FmuVariables) -> set[str]:
+def _connectors(component: Element, names: Sequence[str], variables: FmuVariables, version: str) -> set[str]:
+    """The component's connectors (each a Real: ssc:Real in SSP 1.0, ssc:Float64 in 2.0, with its
+    FMU variable's unit); the units they use."""
     connectors = etree.SubElement(component, _q(layout.SSD_NS, "Connectors"))
     units = set()
     for name in names:
         variable = variables.variable(name)
         connector = etree.SubElement(connectors, _q(layout.SSD_NS, "Connector"), name=name, kind=variable.causality)
         unit = variables.unit(name)
-        real = etree.SubElement(connector, _q(layout.SSC_NS, "Real"))
+        real = etree.SubElement(connector, _q(layout.SSC_NS, written_type("Real", version)))
         if unit:
             real.set("unit", unit)
             units.add(unit)
@@ -206,17 +217,21 @@ def system_structure(
     controller: FmuVariables,
     fmus: Mapping[str, str],
     parts: Mapping[str, FmuVariables] | None = None,
+    version: str = DEFAULT_VERSION,
+    metadata: Sequence[Element] = (),
 ) -> Element:
-    """The root SSD of one variant: `fmus` maps each component to its FMU's member name, `parts`
-    each part of the run's system to its FMU's variables; each component binds that variant's
-    .ssv, and nothing else. A run whose system has parts or connections of its own gets every
-    component, connectors for each connected variable and its connections (`_transformation`)."""
+    """The root SSD of one variant in SSP `version` ("1.0", "2.0"): `fmus` maps each component to
+    its FMU's member name, `parts` each part of the run's system to its FMU's variables; each
+    component binds that variant's .ssv, and nothing else. A run whose system has parts or
+    connections of its own gets every component, connectors for each connected variable and its
+    connections (`_transformation`). `metadata`: SSP 2.0 ssc:MetaData elements, placed after the
+    DefaultExperiment (SSP 1.0 has no place for them)."""
     run = parameter_set.run
     root = etree.Element(
         _q(layout.SSD_NS, "SystemStructureDescription"),
         # osp declared here: libcosim reads an attribute of osp:Algorithm (xmlns:osp too) as an algorithm
         nsmap={"ssd": layout.SSD_NS, "ssc": layout.SSC_NS, "ssv": layout.SSV_NS, "osp": layout.OSP_NS},
-        version="1.0",
+        version=version,
         name=parameter_set.name,
         generationTool="toggle-cosim",
     )
@@ -245,7 +260,7 @@ def system_structure(
             type=layout.FMU_TYPE,
             source=fmus[component],
         )
-        units |= _connectors(element, connectors, variables)
+        units |= _connectors(element, connectors, variables, version)
         bindings = etree.SubElement(element, _q(layout.SSD_NS, "ParameterBindings"))
         etree.SubElement(
             bindings,
@@ -278,6 +293,9 @@ def system_structure(
     )
     algorithm = etree.SubElement(osp, _q(layout.OSP_NS, "Algorithm"))
     etree.SubElement(algorithm, _q(layout.OSP_NS, "FixedStepAlgorithm"), baseStepSize=repr(run.T_s))
+    if metadata and version == "1.0":
+        raise ValueError("SSP 1.0 has no MetaData element: write SSP 2.0 to carry it")
+    root.extend(metadata)
     annotations = etree.SubElement(root, _q(layout.SSD_NS, "Annotations"))
     annotation = etree.SubElement(annotations, _q(layout.SSC_NS, "Annotation"), type=layout.ANNOTATION_TYPE)
     described = etree.SubElement(annotation, _q(layout.TOGGLE_NS, "Scenario"), nsmap={"tc": layout.TOGGLE_NS})
@@ -390,6 +408,7 @@ def write_ssp(
     controller_fmu: Path | None,
     variants: Sequence[str] = (),
     runs: Sequence[Run] | None = None,
+    version: str = DEFAULT_VERSION,
 ) -> Path:
     """Write the SSP of `scenario` to `output` (whole or not at all) and return `output`.
 
@@ -397,12 +416,19 @@ def write_ssp(
     `controller_fmu`: the controller (None: `default_controller`, beside the plant); `variants`: the variants to write, the
     first as SystemStructure.ssd (none: every variant in the scenario's order); `runs`: the
     scenario's runs as already loaded (None: loaded from `scenario`). A run's system (`Run.system`:
-    parts, connections) is written as it is; its `record` list is no part of an SSD. Raises ScenarioError for a scenario
+    parts, connections) is written as it is; its `record` list is no part of an SSD. `version`: the
+    SSP version of every SSD and .ssv ("1.0", the default, which libcosim and Ecos read; or "2.0":
+    Float64 connectors and values, Int32 integers, and the study's SRMD in each SSD's MetaData,
+    `study_record`). Raises ScenarioError for a scenario
     that `run` refuses, SspError (one line) for anything else an SSP cannot be made from."""
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     scenario = Path(scenario)
+    if version not in VERSIONS:
+        raise SspError(
+            f"SSP version {version!r} (--ssp-version): toggle-cosim writes SSP {' or '.join(VERSIONS)} (give one of them)"
+        )
     if runs is None:
         try:
             runs = load_scenario(scenario)
@@ -441,6 +467,7 @@ def write_ssp(
         members[layout.CONTROLLER] = layout.fmu_member(f"{layout.CONTROLLER}_{fmus[layout.CONTROLLER].name}")
     part_members = _part_members(runs, members, fmus)
     texts = {}
+    tools = installed_versions()
     for member, parameter_set in zip(variant_members(scenario, sets), sets, strict=True):
         wiring = parameter_set.run.system
         named = {
@@ -448,6 +475,23 @@ def write_ssp(
             wiring.controller: members[layout.CONTROLLER],
             **{part.name: part_members[part.fmu] for part in wiring.parts},
         }
+        ssvs = {}
+        for component, values, variables in (
+            (wiring.plant, parameter_set.plant, plant_variables),
+            (wiring.controller, parameter_set.controller, controller_variables),
+            *((part.name, part.values, parts[part.fmu]) for part in wiring.parts),
+        ):
+            ssv = layout.ssv_member(parameter_set.name, component)
+            ssvs[component] = (ssv, _checked(_ssv(parameter_set.name, values, variables, version), "ssv", ssv))
+        metadata = []
+        if version != "1.0":  # SSP 2.0: the study's SRMD in the SSD's MetaData
+            paths = {
+                wiring.plant: fmus[layout.PLANT],
+                wiring.controller: fmus[layout.CONTROLLER],
+                **{part.name: Path(part.fmu) for part in wiring.parts},
+            }
+            used = {component: (named[component], paths[component]) for component in named}
+            metadata.append(metadata_element(study_record(scenario, parameter_set.name, used, ssvs, tools)))
         try:
             ssd = system_structure(
                 runs[0].scenario,
@@ -456,17 +500,13 @@ def write_ssp(
                 controller_variables,
                 named,
                 {part.name: parts[part.fmu] for part in wiring.parts},
+                version,
+                metadata,
             )
         except SspError as error:
             raise SspError(f"{scenario}: variant {parameter_set.name}: {error}") from None
         texts[member] = _checked(ssd, "ssd", member)
-        for component, values, variables in (
-            (wiring.plant, parameter_set.plant, plant_variables),
-            (wiring.controller, parameter_set.controller, controller_variables),
-            *((part.name, part.values, parts[part.fmu]) for part in wiring.parts),
-        ):
-            member = layout.ssv_member(parameter_set.name, component)
-            texts[member] = _checked(_ssv(parameter_set.name, values, variables), "ssv", member)
+        texts.update(dict(ssvs.values()))
     stored = {members[component]: path for component, path in fmus.items()}
     stored.update({member: path for path, member in part_members.items()})
     with replacing(output, "SSP (--out)", kind=SSP) as temporary:

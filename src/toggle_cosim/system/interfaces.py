@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -61,7 +62,12 @@ def settable_type(variable: Any, name: str, value: object) -> str:
         raise SettableError(f"variable {name!r} is of type {variable.type}; values are set on Real, Integer, Boolean")
     if kind == "Boolean" and not isinstance(value, bool):
         raise SettableError(f"variable {name!r} is a Boolean, but its value is {value!r}")
-    if kind == "Integer" and (isinstance(value, bool) or float(value) != int(value)):  # type: ignore[arg-type]
+    if kind == "Boolean":
+        return kind
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        article = "an" if kind == "Integer" else "a"
+        raise SettableError(f"variable {name!r} is {article} {kind}, but its value is {value!r} (give a finite number)")
+    if kind == "Integer" and float(value) != int(value):
         raise SettableError(f"variable {name!r} is an Integer, but its value is {value!r}")
     return kind
 
