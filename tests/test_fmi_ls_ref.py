@@ -58,6 +58,7 @@ def test_packing_copies_every_member_byte_for_byte_and_the_fmu_stays_valid(van_d
     assert any(name.startswith("binaries/") for name in before)
     assert set(after) - set(before) == {
         MANIFEST,
+        "extra/org.fmi-standard.fmi-ls-ref/metadata/fmu.srmd",
         "extra/org.fmi-standard.fmi-ls-ref/experiments/VanDerPol_ref/experiment.xml",
         "extra/org.fmi-standard.fmi-ls-ref/experiments/VanDerPol_ref/reference.csv",
     }
@@ -191,3 +192,45 @@ def test_a_scenario_that_needs_files_beside_it_is_not_packed(plant_fmu: Path, tm
     result = CliRunner().invoke(main, ["pack", str(fmu), "--scenario", str(ROOT / "scenarios" / "measured_load.yaml")])
     assert result.exit_code == 2 and "needs files beside it" in result.output, result.output
     assert Path(fmu).read_bytes() == before
+
+
+def test_the_fmus_srmd_names_every_file_and_validates_with_pyssp_standards_schema(van_der_pol, tmp_path: Path) -> None:
+    """The SRMD (role meta-data) names every file of the FMU by SHA3-256; pyssp-standard's own
+    SRMD schema (xmlschema, XSD 1.1) accepts it."""
+    import hashlib
+
+    import pyssp_standard
+
+    from toggle_cosim.provenance.srmd import from_xml
+
+    fmu, reference = van_der_pol
+    members = _members(_pack(fmu, reference, tmp_path / "packed.fmu"))
+    record_member = "extra/org.fmi-standard.fmi-ls-ref/metadata/fmu.srmd"
+    path = tmp_path / "fmu.srmd"
+    path.write_bytes(members[record_member])
+    schema = Path(pyssp_standard.__file__).parent / "resources" / "SRMD11.xsd"
+    xmlschema.XMLSchema11(str(schema)).validate(str(path))
+    named = {
+        r.uri.removeprefix("../../../").removeprefix("../"): r.checksum
+        for r in from_xml(path.read_bytes(), "x").resources
+    }
+    expected = {n for n in members if n not in (MANIFEST, record_member)}
+    assert {n.removeprefix("extra/org.fmi-standard.fmi-ls-ref/") for n in expected} == set(named)
+    assert named["modelDescription.xml"] == hashlib.sha3_256(members["modelDescription.xml"]).hexdigest()
+    assert 'role="meta-data"' in members[MANIFEST].decode()
+
+
+def test_an_fmu_whose_model_description_changed_after_packing_is_refused(van_der_pol, tmp_path: Path) -> None:
+    """The manifest lists only the carried files; the SRMD covers the FMU's own files too."""
+    fmu, reference = van_der_pol
+    packed = _pack(fmu, reference, tmp_path / "packed.fmu")
+    broken = tmp_path / "broken.fmu"
+    with zipfile.ZipFile(packed) as old, zipfile.ZipFile(broken, "w") as new:
+        for info in old.infolist():
+            data = old.read(info)
+            if info.filename == "modelDescription.xml":
+                data = data.replace(b'description="', b'description="changed ', 1)
+            new.writestr(info, data)
+    result = CliRunner().invoke(main, ["verify", str(broken), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2, result.output
+    assert "modelDescription.xml does not match its SHA3-256 checksum in the FMU's SRMD" in result.output

@@ -1,5 +1,6 @@
 """Files added to an existing FMU under `extra/org.fmi-standard.fmi-ls-ref/`, listed in its
-manifest with their SHA3-256, WITHOUT touching any other member: every other member is copied
+manifest with their SHA3-256, with the FMU's SRMD over all its files (`metadata.py`), WITHOUT
+touching any other member: every other member is copied
 byte for byte (its data, name, date and compression as they were), so the binaries and
 modelDescription.xml stay what they were. The FMU is replaced atomically (a temporary name,
 then rename), or written to another file.
@@ -64,22 +65,31 @@ def _own_member(related: Related) -> str:
 
 
 def pack(fmu: Path, attachments: Sequence[Attachment], output: Path | None = None) -> Path:
-    """Add `attachments` to the FMU `fmu` (an existing entry of the same source is replaced) and
-    write it to `output` (default: `fmu` itself). Returns the path written."""
+    """Add `attachments` to the FMU `fmu` (an existing entry of the same source is replaced),
+    with the FMU's SRMD over all its files (`metadata`), and write it to `output` (default: `fmu`
+    itself). Returns the path written."""
+    from toggle_cosim.fmi_ls_ref.metadata import RECORD_MEMBER, fmu_record, record_entry
+
     fmu, output = Path(fmu), Path(output or fmu)
     members = {_own_member(a.related): a for a in attachments}
-    if len(members) != len(attachments):
-        raise LsRefError("two attached files have the same name in the FMU; give each its own name")
+    if len(members) != len(attachments) or RECORD_MEMBER in members:
+        raise LsRefError("two attached files have the same name in the FMU, or one is named as its SRMD; rename it")
+    replaced = {*members, MANIFEST, RECORD_MEMBER}
     with open_fmu(fmu) as archive:
-        kept = [e for e in (read_manifest(archive, str(fmu)) or ()) if _entry_member(e) not in members]
+        kept = [e for e in (read_manifest(archive, str(fmu)) or ()) if _entry_member(e) not in replaced]
         entries = [*kept, *(replace(a.related, sha3_256=sha3_256(a.data)) for a in attachments)]
+        contents = {info.filename: archive.read(info) for info in archive.infolist() if info.filename not in replaced}
+        contents.update({member: attachment.data for member, attachment in members.items()})
+        roles = {member: e.role for e in entries if (member := _entry_member(e)) is not None}
+        record = fmu_record(fmu.stem, contents, roles)
+        entries.append(replace(record_entry(), sha3_256=sha3_256(record)))
         with replacing(output, "FMU", kind=FMU) as partial, zipfile.ZipFile(partial, "w") as packed:
             for info in archive.infolist():
-                if info.filename in members or info.filename == MANIFEST:
-                    continue
-                packed.writestr(info, archive.read(info), compress_type=info.compress_type)
+                if info.filename not in replaced:
+                    packed.writestr(info, contents[info.filename], compress_type=info.compress_type)
             for member, attachment in members.items():
                 packed.writestr(member, attachment.data, compress_type=zipfile.ZIP_DEFLATED)
+            packed.writestr(RECORD_MEMBER, record, compress_type=zipfile.ZIP_DEFLATED)
             packed.writestr(MANIFEST, manifest_xml(entries), compress_type=zipfile.ZIP_DEFLATED)
     return output
 

@@ -1,6 +1,7 @@
 """Verify an FMU against what it carries (FMI-LS-REF): its manifest's files present and matching
-their checksums, then every carried experiment run and funnel-compared with its reference
-(`analysis.compare`, as `toggle-cosim references` compares).
+their checksums, every file its SRMD (`metadata.py`) names matching too, then every carried
+experiment run and funnel-compared with its reference (`analysis.compare`, as `toggle-cosim
+references` compares).
 
 An experiment with a carried scenario, in an FMU that meets our plant contract, runs through our
 co-simulation master (the scenario's controller closes the loop); any other runs with FMPy's
@@ -32,6 +33,7 @@ from toggle_cosim.files.bounded import MiB
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.fmi_ls_ref.experiments import MIME, Experiment, read_experiments
 from toggle_cosim.fmi_ls_ref.manifest import LsRefError, Related, check_members, read_manifest, read_member
+from toggle_cosim.fmi_ls_ref.metadata import check_record
 from toggle_cosim.fmi_ls_ref.pack import open_fmu
 from toggle_cosim.ssp.checks import SspError, parse_xml, schema_problem
 
@@ -202,6 +204,7 @@ def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list
             f"{fmu}: carries no FMI-LS-REF manifest (pack experiments and references with toggle-cosim pack)"
         )
     check_members(archive, related, where)
+    check_record(archive, where)
     experiments: list[Experiment] = []
     skipped: list[str] = []
     for entry in related:
