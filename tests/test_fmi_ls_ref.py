@@ -175,6 +175,7 @@ def test_our_plant_carries_its_source_and_scenarios_and_verifies_through_the_mas
     after = _members(packed)
     assert {name: after[name] for name in _members(plant_fmu)} == _members(plant_fmu)
     assert "extra/org.fmi-standard.fmi-ls-ref/model/ToggleLSM/Plant.mo" in after
+    assert fmpy.validation.validate_fmu(str(packed)) == []
     for variant in ("friction", "no_friction"):
         ssv = tmp_path / f"{variant}.ssv"
         ssv.write_bytes(after[f"extra/org.fmi-standard.fmi-ls-ref/scenarios/fig4_nominal/{variant}.ssv"])
