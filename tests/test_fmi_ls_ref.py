@@ -235,3 +235,28 @@ def test_an_fmu_whose_model_description_changed_after_packing_is_refused(van_der
     result = CliRunner().invoke(main, ["verify", str(broken), "--out", str(tmp_path / "out")])
     assert result.exit_code == 2, result.output
     assert "modelDescription.xml does not match its SHA3-256 checksum in the FMU's SRMD" in result.output
+
+
+def test_a_carried_scenario_that_names_code_is_refused_not_run(plant_fmu: Path, tmp_path: Path) -> None:
+    """An FMU cannot make verify import a module: a carried scenario with controller.python is
+    refused in one line before any run."""
+    from toggle_cosim.fmi_ls_ref.experiments import MIME, Experiment, experiments_xml
+    from toggle_cosim.fmi_ls_ref.manifest import Related
+    from toggle_cosim.fmi_ls_ref.pack import Attachment, pack
+
+    scenario = (ROOT / "scenarios" / "fig4_nominal.yaml").read_text()
+    scenario += "\n# added\n"
+    scenario = scenario.replace("controller:\n", 'controller:\n  python: "json:loads"\n', 1)
+    reference = (ROOT / "scenarios" / "references" / "fig4_nominal" / "friction_ref.csv").read_bytes()
+    experiment = Experiment("x", 0.0, 1.5, 0.0005, "ref.csv", None, None, None, None, "s.yaml", "friction")
+    packed = pack(
+        Path(shutil.copy(plant_fmu, tmp_path / "P.fmu")),
+        [
+            Attachment(Related("s.yaml", "configuration"), scenario.encode()),
+            Attachment(Related("ref.csv", "result"), reference),
+            Attachment(Related("e.xml", "experiment", MIME), experiments_xml([experiment])),
+        ],
+    )
+    result = CliRunner().invoke(main, ["verify", str(packed), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2, result.output
+    assert "names code or FMUs beside it" in result.output and len(result.output.strip().splitlines()) == 1

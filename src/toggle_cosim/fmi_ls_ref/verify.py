@@ -127,9 +127,9 @@ def run_with_fmpy(
     fmu: Path, experiment: Experiment, parameters: dict, stimuli: Trace | None, outputs: list[str]
 ) -> Trace:
     """The experiment run by FMPy's `simulate_fmu`, the reference's variables recorded."""
-    from fmpy import read_model_description, simulate_fmu
+    from fmpy import simulate_fmu
 
-    description = read_model_description(str(fmu))
+    description = _description(fmu)
     known = {variable.name for variable in description.modelVariables}
     missing = [name for name in outputs if name not in known]
     if missing:
@@ -157,12 +157,18 @@ def run_with_fmpy(
 
 
 def run_with_master(fmu: Path, scenario: Path, variant: str | None, name: str) -> Trace | None:
-    """The experiment's scenario run through our master on `fmu`, if `fmu` meets our plant
-    contract; None if it does not (then FMPy runs the experiment)."""
-    from toggle_cosim.cosim import master
-    from toggle_cosim.cosim.supervision import in_process_folder
+    """The experiment's scenario run through our master on `fmu` (in a supervised child, as
+    `toggle-cosim run` runs it), if `fmu` meets our plant contract; None if it does not (then
+    FMPy runs the experiment). A carried scenario is data only: one that names code or FMUs
+    (controller.python, controller.fmu, components) is refused, so an FMU cannot make verify run
+    a file it does not carry."""
+    from toggle_cosim.control.protocol import ControllerError
+    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
     from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
     from toggle_cosim.plant.contract import ContractError, check_plant
+    from toggle_cosim.plant.probe import ProbeError, probe_binary
+    from toggle_cosim.plant.settings import SettingError, check_settings
 
     try:
         plant = check_plant(fmu)
@@ -176,17 +182,36 @@ def run_with_master(fmu: Path, scenario: Path, variant: str | None, name: str) -
     if not chosen:
         raise LsRefError(f"{fmu}: experiment {name!r}: its scenario has no variant {variant!r}")
     run = replace(chosen[0], fmu=fmu)
-    with in_process_folder():
-        outcome = master.simulate(run, plant)
+    if run.controller.python is not None or run.controller.fmu is not None or run.system.parts:
+        raise LsRefError(
+            f"{fmu}: experiment {name!r}: its scenario names code or FMUs beside it (controller.python, "
+            f"controller.fmu or components), which verify does not run (refused)"
+        )
+    try:
+        probe_binary(plant)
+        check_settings(run, plant)
+        controller_for(run, plant.recorded_outputs)
+    except (ProbeError, SettingError, ControllerError) as error:
+        raise LsRefError(f"{fmu}: experiment {name!r}: {error}") from None
+    remove_stale_folders()
+    outcome = simulate_supervised(run, plant)
     if not outcome.complete:
         raise LsRefError(f"{fmu}: experiment {name!r} failed to run: {outcome.reason}")
     return outcome.trace
 
 
-def _default_experiment(fmu: Path, result: Related) -> Experiment:
+def _description(fmu: Path):  # noqa: ANN202 - FMPy's ModelDescription
+    """The FMU's model description read by FMPy; LsRefError in one line if it cannot be read."""
     from fmpy import read_model_description
 
-    default = read_model_description(str(fmu)).defaultExperiment
+    try:
+        return read_model_description(str(fmu))
+    except Exception as error:  # noqa: BLE001 - any malformed description, in one line
+        raise LsRefError(f"{fmu}: its modelDescription.xml cannot be read ({' '.join(str(error).split())})") from None
+
+
+def _default_experiment(fmu: Path, result: Related) -> Experiment:
+    default = _description(fmu).defaultExperiment
     start = float(default.startTime) if default is not None and default.startTime is not None else 0.0
     stop = float(default.stopTime) if default is not None and default.stopTime is not None else 1.0
     step = default.stepSize if default is not None and default.stepSize is not None else (stop - start) / 500
