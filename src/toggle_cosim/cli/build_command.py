@@ -98,7 +98,10 @@ def _carry_evidence(source: Path, output: Path, attach: tuple[Path, ...], refere
         output.unlink(missing_ok=True)
         raise InputError(str(error)) from None
     count = len(scenarios) + len(attach)
-    return f"its Modelica source and {count} scenario{'s' if count != 1 else ''} with references (FMI-LS-REF)"
+    return (
+        f"its Modelica source and {count} scenario{'s' if count != 1 else ''} with references (FMI-LS-REF; "
+        f"{output.stat().st_size / 1024:.0f} KiB with them)"
+    )
 
 
 def build_controller(output: Path, fmi_version: str = "2.0") -> None:

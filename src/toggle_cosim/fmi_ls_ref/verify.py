@@ -246,7 +246,12 @@ def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list
             experiments.append(
                 replace(_default_experiment(fmu, entry), name=f"default_experiment/{Path(entry.source).stem}")
             )
-    if not experiments and not skipped:
+    if not experiments and skipped:
+        raise LsRefError(
+            f"{fmu}: carries experiments only in formats toggle-cosim does not run ({', '.join(skipped)}); "
+            f"pack a reference with toggle-cosim pack"
+        )
+    if not experiments:
         raise LsRefError(f"{fmu}: its FMI-LS-REF manifest lists no experiment or result to verify")
     return experiments, skipped
 
