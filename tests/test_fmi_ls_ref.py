@@ -260,3 +260,22 @@ def test_a_carried_scenario_that_names_code_is_refused_not_run(plant_fmu: Path, 
     result = CliRunner().invoke(main, ["verify", str(packed), "--out", str(tmp_path / "out")])
     assert result.exit_code == 2, result.output
     assert "names code or FMUs beside it" in result.output and len(result.output.strip().splitlines()) == 1
+
+
+def test_a_carried_parameter_set_is_applied_to_a_third_party_fmu(van_der_pol, tmp_path: Path) -> None:
+    """The experiment's SSV sets mu = 2 before the run: its reference (made with mu = 2) passes,
+    the same reference without the SSV fails."""
+    fmu, _ = van_der_pol
+    result = fmpy.simulate_fmu(str(fmu), output=["x0", "x1"], start_values={"mu": 2.0})
+    reference = tmp_path / "mu2.csv"
+    write_csv(reference, Trace(("time", "x0", "x1"), np.column_stack([result[n] for n in ("time", "x0", "x1")])))
+    ssv = tmp_path / "mu2.ssv"
+    ssv.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
+        'version="1.0" name="mu2"><ssv:Parameters><ssv:Parameter name="mu"><ssv:Real value="2.0"/>'
+        "</ssv:Parameter></ssv:Parameters></ssv:ParameterSet>\n"
+    )
+    applied = verify_fmu(_pack(fmu, reference, tmp_path / "with.fmu", "--parameters", str(ssv)))
+    assert applied.passed, applied.failures
+    assert not verify_fmu(_pack(fmu, reference, tmp_path / "without.fmu")).passed
