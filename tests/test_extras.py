@@ -97,6 +97,7 @@ def test_build_without_options_builds_the_shipped_plants_into_fmus_here(
         )
 
     monkeypatch.setattr("toggle_cosim.fmu_export.build_fmu", recorder)
+    monkeypatch.setattr("toggle_cosim.cli.build_command._carry_evidence", lambda *args: "nothing (stubbed)")
     monkeypatch.chdir(tmp_path)
     assert _invoke(["build"]).exit_code == 0
     assert _invoke(["build", "--interfaces", "cs"]).exit_code == 0

@@ -210,11 +210,13 @@ def test_the_ci_template_runs_as_written(environments: dict[str, Path], project_
     shutil.copytree(shipped / "references" / "fig4_nominal", scenarios / "references" / "fig4_nominal")
     shutil.copytree(Path(where).parent / "shipped" / "ToggleLSM", repository / "modelica" / "ToggleLSM")
     assert not any((folder / "pyproject.toml").exists() for folder in (repository, *repository.parents))
-    for step in steps[1:]:  # build, references, job summary
+    for step in steps[1:]:  # build, references, pack and verify, job summary
         _run(["bash", "-e", "-c", step], repository, {**env, **variables})
     assert (repository / variables["FMU"]).is_file()
     assert "fig4_nominal" in (tmp_path / "step_summary.md").read_text(encoding="utf-8")
     junit = (repository / "reports" / "references.xml").read_text(encoding="utf-8")
     assert 'failures="0"' in junit and "x_B" in junit
+    verified = (repository / "reports" / "verify.xml").read_text(encoding="utf-8")
+    assert 'failures="0"' in verified and "fig4_nominal/friction" in verified
     report = (repository / "reports" / "references" / "report.html").read_text(encoding="utf-8")
     assert "fig4_nominal/friction: PASS" in report and "<script src" not in report  # plotly.js inside

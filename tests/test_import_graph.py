@@ -165,6 +165,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("analysis",),
     ("experiments",),
     ("ssp",),
+    ("fmi_ls_ref",),
     ("cli", "api"),
     ("__main__",),  # `python -m toggle_cosim`: the command line as a program
 )

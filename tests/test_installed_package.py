@@ -24,6 +24,7 @@ def test_the_wheel_carries_the_modelica_source_the_scenarios_and_the_licence(pro
     assert "toggle_cosim/shipped/scenarios/references/tolerances.yaml" in names
     assert "toggle_cosim/shipped/scenarios/references/fig4_nominal/friction_ref.csv" in names
     assert "toggle_cosim/py.typed" in names and "toggle_cosim/__main__.py" in names
+    assert "toggle_cosim/fmi_ls_ref/schemas/fmi3LayeredStandardReferenceManifest.xsd" in names  # FMI-LS-REF
     assert any(name.endswith(".dist-info/licenses/LICENSE") for name in names)
     metadata = zipfile.ZipFile(wheel).read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
     assert "License-Expression: MIT" in metadata
@@ -40,6 +41,7 @@ def test_the_ci_template_installs_builds_and_checks_references_with_folder() -> 
     assert runs[1].startswith("toggle-cosim build --source")
     assert "toggle-cosim references" in runs[2] and "--folder" in runs[2] and "--junit" in runs[2]
     assert "--html" in runs[2]
-    assert "GITHUB_STEP_SUMMARY" in runs[3]
+    assert "toggle-cosim pack" in runs[3] and "toggle-cosim verify" in runs[3] and "--junit" in runs[3]
+    assert "GITHUB_STEP_SUMMARY" in runs[4]
     uploads = [step for step in workflow["jobs"]["references"]["steps"] if "upload-artifact" in step.get("uses", "")]
     assert [step["with"]["path"] for step in uploads] == ["reports/", "reports/references/report.html"]

@@ -9,6 +9,7 @@ imports that module on first use, so `import toggle_cosim` (and the command line
 * `result.py`     `Result`, `RunInterrupted`: a run's trace, status, record and figures of merit
 * `units.py`      the units of a trace's columns, from the plant FMU's modelDescription
 * `comparison.py` `compare`, `Comparison`: the funnel comparison against a reference
+* `verification.py` `verify_fmu`: an FMU run against the references it carries (FMI-LS-REF)
 * `sweeping.py`   `sweep`: a parameter sweep's results table as a DataFrame
 * `design.py`     `trim`, `linearize`: an operating point and the linear model there (python-control)
 * `plotting.py`   `plot`: chosen variables of any runs overlaid, around a reference's funnel

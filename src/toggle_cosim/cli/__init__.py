@@ -1,5 +1,5 @@
-"""Command line: `toggle-cosim build | init | run | repeat | plot | paper | compare | references | sweep | tune | ssp |
-report`.
+"""Command line: `toggle-cosim build | init | run | repeat | plot | paper | compare | references | pack | verify |
+sweep | tune | ssp | report`.
 
 The only package that knows about files, exit codes and progress display. Exit status:
 0 success, 1 a run or comparison failed, 2 bad input (nothing is written then), 130 interrupted.
@@ -11,6 +11,7 @@ The only package that knows about files, exit codes and progress display. Exit s
     run_commands.py    run, plot, paper
     repeat_command.py  repeat: a run again from its provenance record, its trace compared
     check_commands.py  compare, references
+    lsref_commands.py  pack, verify: files an FMU carries (FMI-LS-REF), the FMU checked against them
     sweep_command.py   sweep
     tune_command.py    tune
     ssp_command.py     ssp, and the SSPs that run reads
@@ -38,6 +39,7 @@ from toggle_cosim.cli import (  # noqa: E402, F401 - they add the commands
     check_commands,
     init_command,
     linearize_command,
+    lsref_commands,
     repeat_command,
     report_command,
     run_commands,

@@ -557,3 +557,9 @@ def _part_members(runs: Sequence[Run], members: Mapping[str, str], fmus: Mapping
             taken[member] = part.fmu
             found[part.fmu] = member
     return found
+
+
+def ssv_text(parameter_set: str, values: Sequence[tuple[str, Value]], variables: FmuVariables) -> bytes:
+    """One component's parameter set as the text of a checked SSP 1.0 .ssv file (what `write_ssp`
+    writes per component; an FMU carries its plant's sets this way too, `fmi_ls_ref.evidence`)."""
+    return _checked(_ssv(parameter_set, values, variables), "ssv", parameter_set)
