@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import xmlschema
 from click.testing import CliRunner
+from lxml import etree
 
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import Trace, write_csv
@@ -74,7 +75,15 @@ def test_the_manifest_and_experiment_validate_with_xmlschema(van_der_pol, tmp_pa
     xmlschema.XMLSchema10(str(SCHEMAS / "fmi3LayeredStandardReferenceManifest.xsd")).validate(str(manifest))
     experiment = tmp_path / "experiment.xml"
     experiment.write_bytes(members["extra/org.fmi-standard.fmi-ls-ref/experiments/VanDerPol_ref/experiment.xml"])
-    xmlschema.XMLSchema10(str(SCHEMAS / "toggleExperiments.xsd")).validate(str(experiment))
+    from toggle_cosim.fmi_ls_ref.experiments import schema_text
+
+    standard = tmp_path / "maHarmonizedSpecificationExperiments.xsd"  # as loaded: its import read as an include
+    standard.write_bytes(schema_text())
+    shutil.copy(SCHEMAS / "fmi3Annotation.xsd", tmp_path)
+    xmlschema.XMLSchema10(str(standard)).validate(str(experiment))
+    root = etree.fromstring(members["extra/org.fmi-standard.fmi-ls-ref/experiments/VanDerPol_ref/experiment.xml"])
+    assert root.tag == "Experiments" and root.find("Experiment/TransientSimulation") is not None
+    assert root.find("Experiment/References").get("source") == "reference.csv"
 
 
 def test_a_model_we_do_not_ship_verifies_and_a_perturbed_reference_fails_naming_the_variable(
@@ -254,7 +263,7 @@ def test_a_carried_scenario_that_names_code_is_refused_not_run(plant_fmu: Path, 
         [
             Attachment(Related("s.yaml", "configuration"), scenario.encode()),
             Attachment(Related("ref.csv", "result"), reference),
-            Attachment(Related("e.xml", "experiment", MIME), experiments_xml([experiment])),
+            Attachment(Related("e.xml", "experiment", MIME), experiments_xml([experiment], "x")),
         ],
     )
     result = CliRunner().invoke(main, ["verify", str(packed), "--out", str(tmp_path / "out")])
@@ -279,3 +288,67 @@ def test_a_carried_parameter_set_is_applied_to_a_third_party_fmu(van_der_pol, tm
     applied = verify_fmu(_pack(fmu, reference, tmp_path / "with.fmu", "--parameters", str(ssv)))
     assert applied.passed, applied.failures
     assert not verify_fmu(_pack(fmu, reference, tmp_path / "without.fmu")).passed
+
+
+def test_an_experiments_document_written_by_another_tool_runs_what_it_can_and_names_the_rest(
+    van_der_pol, tmp_path: Path
+) -> None:
+    """An MA-HS-Experiments document as another tool writes it (no annotation of ours, a stop time
+    but no start or step, another analysis type, an experiment without References): the transient
+    one runs from the standard elements alone (its start and step from the FMU's default
+    experiment) and passes; the others are listed as skipped, with why."""
+    from toggle_cosim.fmi_ls_ref.experiments import MIME
+    from toggle_cosim.fmi_ls_ref.manifest import Related
+    from toggle_cosim.fmi_ls_ref.pack import Attachment, pack
+
+    fmu, reference = van_der_pol
+    stop = float(np.loadtxt(reference, delimiter=",", skiprows=1)[-1, 0])
+    document = f"""<?xml version="1.0" encoding="UTF-8"?>
+<Experiments name="Smoke tests" description="from another tool">
+  <Experiment name="transient">
+    <TransientSimulation stopTime="{stop!r}"/>
+    <References source="../results/vdp_ref.csv"/>
+  </Experiment>
+  <Experiment name="operating point"><SteadyState/></Experiment>
+  <Experiment name="no reference"><TransientSimulation stopTime="1"/></Experiment>
+</Experiments>
+""".encode()
+    packed = pack(
+        Path(shutil.copy(fmu, tmp_path / "V.fmu")),
+        [
+            Attachment(Related("results/vdp_ref.csv", "result", "text/csv"), reference.read_bytes()),
+            Attachment(Related("experiments/smoke.exp", "experiment", MIME), document),
+        ],
+    )
+    verification = verify_fmu(packed)
+    assert [check.label for check in verification.checks] == ["transient"], verification.checks
+    assert verification.passed, verification.failures
+    assert verification.skipped == (
+        "experiments/smoke.exp#operating point (SteadyState: not a transient simulation)",
+        "experiments/smoke.exp#no reference (no References)",
+    )
+
+
+def test_an_experiments_document_that_is_not_valid_against_the_standard_is_refused(van_der_pol, tmp_path: Path) -> None:
+    """The old layout (times on the Experiment, no TransientSimulation) is not MA-HS-Experiments:
+    one line naming the member, exit 2."""
+    from toggle_cosim.fmi_ls_ref.experiments import MIME
+    from toggle_cosim.fmi_ls_ref.manifest import Related
+    from toggle_cosim.fmi_ls_ref.pack import Attachment, pack
+
+    fmu, reference = van_der_pol
+    document = (
+        b'<Experiments name="x"><Experiment name="a" startTime="0" stopTime="1">'
+        b'<References source="r.csv"/></Experiment></Experiments>'
+    )
+    packed = pack(
+        Path(shutil.copy(fmu, tmp_path / "V.fmu")),
+        [
+            Attachment(Related("r.csv", "result", "text/csv"), reference.read_bytes()),
+            Attachment(Related("e.exp", "experiment", MIME), document),
+        ],
+    )
+    result = CliRunner().invoke(main, ["verify", str(packed), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and "e.exp: not a valid MA-HS-Experiments document" in lines[0], result.output

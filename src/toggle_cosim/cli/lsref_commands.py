@@ -115,7 +115,7 @@ def _experiment_attachments(
         sources["tolerances"],
     )
     document = Related(f"{folder}/experiment.xml", "experiment/validation", MIME, f"experiment {name}")
-    return [*attachments, Attachment(document, experiments_xml([experiment]))]
+    return [*attachments, Attachment(document, experiments_xml([experiment], name))]
 
 
 @main.command()

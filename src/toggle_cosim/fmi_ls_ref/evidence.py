@@ -147,7 +147,7 @@ def scenario_attachments(scenario: Path, references: Path, plant_fmu: Path) -> l
             )
         )
     document = Related(f"{folder}/experiments.xml", "experiment/validation", MIME, f"the runs of scenario {name}")
-    attachments.append(Attachment(document, experiments_xml(experiments)))
+    attachments.append(Attachment(document, experiments_xml(experiments, name, f"the runs of scenario {name}")))
     return attachments
 
 

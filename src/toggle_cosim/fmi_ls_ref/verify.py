@@ -65,7 +65,8 @@ class Verification:
     Attributes:
         fmu: the FMU file.
         checks: one `ExperimentCheck` per carried experiment, in the manifest's order.
-        skipped: the sources of carried experiment files of a format we do not run.
+        skipped: the sources of carried experiment files of a format we do not run, and the experiments
+            (document#name) that are not transient simulations or name no CSV References, with why.
         passed: every experiment's variables inside their funnels.
         failures: one line per variable outside its funnel, naming the experiment and variable.
 
@@ -76,7 +77,7 @@ class Verification:
 
     fmu: Path
     checks: tuple[ExperimentCheck, ...]
-    skipped: tuple[str, ...] = ()  # carried experiments of a format we do not run, by source
+    skipped: tuple[str, ...] = ()  # carried experiments we do not run: by source, or document#name (why)
 
     @property
     def passed(self) -> bool:
@@ -219,6 +220,21 @@ def _default_experiment(fmu: Path, result: Related) -> Experiment:
     return Experiment("default experiment", start, stop, float(step), result.source, tolerance)
 
 
+def _with_times(experiment: Experiment, fmu: Path) -> Experiment:
+    """The experiment with the times its document leaves out taken from the FMU's default experiment."""
+    if None not in (experiment.start, experiment.stop, experiment.step):
+        return experiment
+    default = _default_experiment(fmu, Related(experiment.reference, "result"))
+    start = default.start if experiment.start is None else experiment.start
+    stop = default.stop if experiment.stop is None else experiment.stop
+    step = experiment.step
+    if step is None:
+        step = default.step if experiment.stop is None and experiment.start is None else (stop - start) / 500
+    if stop <= start:
+        raise LsRefError(f"{fmu}: experiment {experiment.name!r} stops at {stop:g} s, not after its start {start:g} s")
+    return replace(experiment, start=start, stop=stop, step=step)
+
+
 def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list[str]]:
     """The experiments the FMU carries (its manifest's members checked first), and the sources of
     experiment files of other formats (not run)."""
@@ -239,7 +255,9 @@ def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list
             skipped.append(entry.source)
             continue
         data = read_member(archive, entry.member, where)
-        experiments += read_experiments(data, f"{fmu}: {entry.member}", entry.source)
+        found, passed_over = read_experiments(data, f"{fmu}: {entry.member}", entry.source)
+        experiments += [_with_times(experiment, fmu) for experiment in found]
+        skipped += passed_over
     named = {experiment.reference for experiment in experiments}
     for entry in related:
         if entry.main_role == "result" and entry.source not in named and entry.source.lower().endswith(".csv"):
@@ -248,7 +266,7 @@ def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list
             )
     if not experiments and skipped:
         raise LsRefError(
-            f"{fmu}: carries experiments only in formats toggle-cosim does not run ({', '.join(skipped)}); "
+            f"{fmu}: carries no experiment toggle-cosim can verify ({', '.join(skipped)}); "
             f"pack a reference with toggle-cosim pack"
         )
     if not experiments:
