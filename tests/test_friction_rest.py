@@ -5,9 +5,11 @@ A seeded family of short closed-loop runs through the user path (a scenario file
 
 * controllers: a two-degree-of-freedom PID written as a Python controller (P and D on the
   measurement, I on the error, the command clamped at 3 to 10 A with conditional integration),
-  and the two shipped laws with the tuned gains of docs/designing.md;
-* loads F_E: constant, a step, a ramp, a sine;
-* mu 0.1 to 0.3, mu_s >= mu, m_B 4.43 to 8.86 kg, each friction model in turn.
+  the two shipped laws with the tuned gains of docs/designing.md, and an LQR with integral
+  action designed as docs/designing.md does (`linearize` at the target of fig5's friction run,
+  python-control's `dlqr` on the model discretised at T_s), each under all three models;
+* loads F_E: constant, a step, a ramp, a sine, the measured table of scenarios/measured_load.csv;
+* mu 0.1 to 0.3, mu_s >= mu, m_B 4.43 to 8.86 kg.
 
 Every case whose frictionless twin (mu = 0, the same controller and load) completes must complete
 too, and the plant's event counter (its solver statistics) must stay at a few events per
@@ -18,6 +20,8 @@ stuck mode) costs thousands of events in one step.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +67,40 @@ def make_pid(context, Kp, Ki, Kd, i_max):
     return ClampedPID(context.T_s, context.x_target, Kp, Ki, Kd, i_max)
 '''
 
+LQR_MODULE = '''
+import numpy as np
+
+from toggle_cosim.control.protocol import ControlStep
+
+
+class LQR:
+    """i_q* = i_q0 - K [theta1 - theta1_0, omega1, i_q - i_q0, xi] within +-limit; xi integrates
+    x_B - x_target within 5 mm of the target (docs/designing.md, section 4)."""
+
+    diagnostics = ("e", "xi")
+
+    def __init__(self, T_s, x_target, K, theta1_0, iq_0, limit, band=0.005):
+        self.K, self.x0 = np.asarray(K, dtype=float), np.array([theta1_0, 0.0, iq_0])
+        self.T_s, self.target, self.u0, self.limit, self.band = T_s, x_target, iq_0, limit, band
+
+    def start(self, t0, measurement):
+        return 0.0
+
+    def step(self, xi, t, measurement):
+        e = self.target - measurement["x_B"]
+        dx = np.array([measurement["theta1"], measurement["omega1"], measurement["i_q"]]) - self.x0
+        u = self.u0 - self.K[:3] @ dx - self.K[3] * xi
+        held = min(max(u, -self.limit), self.limit)
+        following = xi - e * self.T_s if held == u and abs(e) < self.band else xi
+        return ControlStep(float(held), (e, xi), following)
+
+
+def make_lqr(context, K, theta1_0, iq_0, limit):
+    return LQR(context.T_s, context.x_target, K, theta1_0, iq_0, limit)
+'''
+LQR_DESIGN = "LQR_DESIGN"  # placeholder in a case's controller, replaced by the design's parameters
+TABLE = Path(__file__).resolve().parent.parent / "scenarios" / "measured_load.csv"
+
 TUNED_LAWS = {
     "paper_tuned": "{law: paper, objective: x_B, nominal_m_B: 4.43, "
     "gains: {C: 28.86, Q: 0.723, P: 18.15, delta: 0.0273, beta: 81.16}}",
@@ -93,14 +131,14 @@ class Case:
         )
 
 
-def _family(n: int = 18, seed: int = 33) -> list[Case]:
-    """n cases drawn from a seeded generator: controller, load and plant settings, the friction
-    models in turn."""
+def _family(n: int = 60, seed: int = 33) -> list[Case]:
+    """n cases drawn from a seeded generator: controller, load and plant settings; each
+    controller kind under the three friction models in turn, the loads in turn."""
     rng = np.random.default_rng(seed)
-    controllers = ["pid", "pid", "pid", "paper_tuned", "integral_tuned"]
+    controllers = ["pid", "pid", "pid", "paper_tuned", "integral_tuned", "lqr"]
     cases = []
     for k in range(n):
-        kind = controllers[k % len(controllers)]
+        kind = controllers[(k // len(MODELS)) % len(controllers)]
         if kind == "pid":
             gains = dict(
                 Kp=round(float(rng.uniform(100, 400)), 1),
@@ -109,6 +147,8 @@ def _family(n: int = 18, seed: int = 33) -> list[Case]:
                 i_max=round(float(rng.uniform(3, 10)), 2),
             )
             controller = '{python: "rest_pid:make_pid", parameters: ' + str(gains).replace("'", "") + "}"
+        elif kind == "lqr":
+            controller = '{python: "rest_lqr:make_lqr", parameters: ' + LQR_DESIGN + "}"
         else:
             controller = TUNED_LAWS[kind]
         height = round(float(rng.uniform(20, 100)), 1)
@@ -118,7 +158,8 @@ def _family(n: int = 18, seed: int = 33) -> list[Case]:
             f"{{kind: ramp, start_time: 0.1, duration: {round(float(rng.uniform(0.2, 0.8)), 3)}, height: {height}}}",
             f"{{kind: sine, amplitude: {round(height / 4, 1)}, frequency: {round(float(rng.uniform(0.5, 4)), 2)}, "
             f"offset: {round(height / 2, 1)}}}",
-        ][k % 4]
+            f"{{kind: table, file: {TABLE.name}, interpolation: hold}}",
+        ][k % 5]
         mu = round(float(rng.uniform(0.1, 0.3)), 3)
         cases.append(
             Case(
@@ -128,17 +169,49 @@ def _family(n: int = 18, seed: int = 33) -> list[Case]:
                 mu=mu,
                 mu_s=round(mu + float(rng.uniform(0.0, 0.1)), 3),
                 m_B=round(float(rng.uniform(4.43, 8.86)), 2),
-                model=MODELS[k % 3],
+                model=MODELS[k % len(MODELS)],
             )
         )
     return cases
 
 
+@functools.cache
+def lqr_design(fmu: Path) -> str:
+    """The LQR's parameters as a YAML flow mapping: docs/designing.md's design (fig5's friction
+    run trimmed and linearised at its target, the model augmented with the integral of the
+    position error, the same weights), discretised at the run's T_s and solved by `dlqr`."""
+    import control
+
+    import toggle_cosim as tc
+
+    run = tc.load_scenario(TABLE.parent / "fig5_external_force.yaml")["friction"]
+    point = tc.trim(run, x_B=run.x_target, fmu=fmu)
+    model = tc.linearize(run, at=point, fmu=fmu)
+    A, B, C = model.system.A, model.system.B[:, [0]], model.system.C
+    c_x = C[[model.outputs.index("x_B")], :]
+    A_aug = np.block([[A, np.zeros((3, 1))], [c_x, np.zeros((1, 1))]])
+    B_aug = np.vstack([B, [[0.0]]])
+    discrete = control.c2d(control.ss(A_aug, B_aug, np.eye(4), np.zeros((4, 1))), T_S)
+    weigh_x = np.hstack([c_x, [[0.0]]])
+    Q = weigh_x.T @ weigh_x / 0.005**2 + np.diag([0.0, 1 / 2.0**2, 0.0, 1 / 0.001**2])
+    K, _, _ = control.dlqr(discrete.A, discrete.B, Q, np.array([[1.0]]))
+    gains = ", ".join(repr(float(g)) for g in np.ravel(K))
+    return (
+        f"{{K: [{gains}], theta1_0: {float(point.states['mechanism.theta1'])!r}, "
+        f"iq_0: {float(point.iq_ref)!r}, limit: {float(run.plant.rated_current)!r}}}"
+    )
+
+
 def run_case(fmu: Path, case: Case, folder: Path, mu: float):
     """Run one case (or its twin, with mu = 0) from a scenario file in `folder`."""
     (folder / "rest_pid.py").write_text(PID_MODULE)
+    (folder / "rest_lqr.py").write_text(LQR_MODULE)
+    shutil.copyfile(TABLE, folder / TABLE.name)
+    text = case.scenario(mu)
+    if LQR_DESIGN in text:
+        text = text.replace(LQR_DESIGN, lqr_design(fmu))
     scenario = folder / f"{case.name}_{mu}.yaml"
-    scenario.write_text(case.scenario(mu))
+    scenario.write_text(text)
     (run,) = load_scenario(scenario)
     return simulate(run, check_plant(fmu))
 

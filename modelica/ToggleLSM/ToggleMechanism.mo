@@ -33,6 +33,9 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
      breakaway in one event iteration. Models 1 and 2 start slipping with sgn = 0 (their first
      motion sets dir) and keep the velocities' residuals at the stick (wHold), so a reversal that
      passes through rest leaves the state untouched; model 3 starts stuck and zeroes them.
+     The joints' signs follow the one degree of freedom, sgn(omega_i) = sgn(k_i) sgn(omega1): a
+     zero crossing of omega_i that contradicts it (the constraint residual while omega1 creeps
+     through zero) is held until k_i sgn1 agrees (want2, want5), except near k_i = 0 (jointTurn).
      |R_i| is mu sgn(R_i) R_i with sgn(R_i) a relation latch, so the block stays linear in
      (alpha, lambda); under model 1 the latches are watched only at rest, where the cone needs
      |R_i|. Indicators that only matter in a mode are zero outside it, so a run of model 1 or 2
@@ -66,6 +69,7 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   parameter Real wStick = if frictionModel == 3 then 1.0 else 0.0 "1 where the mechanism starts stuck (model 3; models 1 and 2 start slipping, sgn = 0)";
   parameter Real wHold = 1.0 - wStick "1 where the velocities keep their residual at rest and their signs are not watched there (models 1 and 2)";
   parameter Real wRest = if frictionModel == 3 or mu > 0 then 1.0 else 0.0 "1 where the mechanism can come to rest against friction (every model with friction)";
+  parameter Real jointTurn = 1e-3 "|k_i| below which a zero crossing of omega_i is taken as the joint's own reversal (k_i crossing zero) whatever sgn1 says";
   parameter Real baumgarte(unit = "1/s") = 20 "Rate of the constraint stabilisation; 0 integrates Phi_q qdd = gamma unmodified";
   // Initial configuration: at rest, theta1 from eq. (26), theta2 and theta5 from the constraints
   parameter Real x_B0(unit = "m") = 0.2329 "Initial position of slider B";
@@ -90,6 +94,8 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   discrete Real sgn1(start = 0.0) "sgn(omega1), latched at its zero crossings";
   discrete Real sgn2(start = 0.0) "sgn(omega2), latched at its zero crossings";
   discrete Real sgn5(start = 0.0) "sgn(omega5), latched at its zero crossings";
+  discrete Real want2(start = 0.0) "Sign omega2 took while the mechanism's direction gave joint theta2 the other one (a flip held back), else 0";
+  discrete Real want5(start = 0.0) "Sign omega5 took while the mechanism's direction gave joint theta5 the other one (a flip held back), else 0";
   discrete Real stuck(start = wStick) "1 while the mechanism is at rest against friction (model 3 starts stuck, models 1 and 2 slipping)";
   discrete Real dir(start = 0.0) "Direction of omega1 since the last breakaway or first motion, 0 while stuck";
   discrete Real dStick(start = 1.0) "Direction a stuck mechanism would break away in (model 3): the sign of T_st, switched when -dStick T_st exceeds half the static capacity";
@@ -181,15 +187,32 @@ equation
   elsewhen (1.0 - wHold * stuck) * omega1 < 0 then
     sgn1 = -1.0;
   end when;
+  // A joint's velocity is k_i omega1 on the loop closures, so it reverses only with the lever
+  // (omega1 crosses zero) or by the geometry (k_i crosses zero). A zero crossing of omega_i that
+  // contradicts sgn(k_i) sgn1 where k_i is not near zero is the constraint's residual velocity
+  // while omega1 creeps through zero, not a reversal: the latch is held (want_i records the sign
+  // omega_i took) and follows when k_i sgn1 turns to agree with it. Otherwise a held-back sign
+  // would switch the joint's friction the wrong way, which near rest reverses alpha_i and makes
+  // the latch chatter without end.
   when (1.0 - wHold * stuck) * omega2 > 0 then
-    sgn2 = 1.0;
+    sgn2 = if wRest < 0.5 or sgn1 * k2 >= 0 or abs(k2) < jointTurn then 1.0 else pre(sgn2);
+    want2 = if wRest < 0.5 or sgn1 * k2 >= 0 or abs(k2) < jointTurn then 0.0 else 1.0;
   elsewhen (1.0 - wHold * stuck) * omega2 < 0 then
-    sgn2 = -1.0;
+    sgn2 = if wRest < 0.5 or sgn1 * k2 <= 0 or abs(k2) < jointTurn then -1.0 else pre(sgn2);
+    want2 = if wRest < 0.5 or sgn1 * k2 <= 0 or abs(k2) < jointTurn then 0.0 else -1.0;
+  elsewhen want2 * sgn1 * k2 > 0 then
+    sgn2 = want2;
+    want2 = 0.0;
   end when;
   when (1.0 - wHold * stuck) * omega5 > 0 then
-    sgn5 = 1.0;
+    sgn5 = if wRest < 0.5 or sgn1 * k5 >= 0 or abs(k5) < jointTurn then 1.0 else pre(sgn5);
+    want5 = if wRest < 0.5 or sgn1 * k5 >= 0 or abs(k5) < jointTurn then 0.0 else 1.0;
   elsewhen (1.0 - wHold * stuck) * omega5 < 0 then
-    sgn5 = -1.0;
+    sgn5 = if wRest < 0.5 or sgn1 * k5 <= 0 or abs(k5) < jointTurn then -1.0 else pre(sgn5);
+    want5 = if wRest < 0.5 or sgn1 * k5 <= 0 or abs(k5) < jointTurn then 0.0 else -1.0;
+  elsewhen want5 * sgn1 * k5 > 0 then
+    sgn5 = want5;
+    want5 = 0.0;
   end when;
 
   // Rest (every model): break away when the holding torque exceeds the static capacity in the
