@@ -1,0 +1,60 @@
+"""Painlevé-type inconsistency of the coupled joint frictions (issue 33): where the slip equations
+of eq. (18) with the friction of eq. (17) become singular, no consistent friction mode exists.
+
+The slip equations at a point are linear in (q̈, λ) with the matrix
+S(μ, s) = [[M, Φ_qᵀ + Q_fᵀ(μ, s)], [Φ_q, 0]], Q_fᵀ = μ diag(s) [∂x_B/∂q, −∂x_C/∂q], s_i = ±1 the
+friction sign of joint i (sgn(q̇_i) under `paper`, sgn(q̇_i) sgn(R_i) under `dissipative` and a
+slipping `stick_slip`). ρ = det S(μ, s) / det S(0) is 1 without friction. Raising μ from 0, the
+slip equations keep one solution while ρ > 0; where ρ reaches 0 they become singular, and beyond
+it the mode's acceleration answers its drive with the wrong sign (Painlevé's paradox: a slip
+mode with no consistent solution, or two).
+Evaluated with the independent `reference_dynamics` (numpy only), over the working range of
+slider B (0.18 to 0.36 m, clear of the toggle's two dead points) for the nominal and the doubled
+mass of slider B, and all eight sign patterns.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from reference_dynamics import _closed_angles, _model
+
+from toggle_cosim.physics.parameters import MechanismParameters
+
+SIGNS = list(itertools.product((1.0, -1.0), repeat=3))
+
+
+def _rho(theta1: float, mu: float, signs, params) -> float:
+    """det S(μ, s) / det S(0) at θ1 on the loop closures."""
+    params = dict(params, mu=mu)
+    d = _model(_closed_angles(theta1, params), np.zeros(3), 0.0, 0.0, params, np.asarray(signs))
+    M, Phi_q, QfT = d["M"], d["Phi_q"], d["QfT"]
+    zero = np.zeros((2, 2))
+    with_friction = np.block([[M, Phi_q.T + QfT], [Phi_q, zero]])
+    without = np.block([[M, Phi_q.T], [Phi_q, zero]])
+    return float(np.linalg.det(with_friction) / np.linalg.det(without))
+
+
+def _worst(mu: float, m_B: float, points: int = 91) -> float:
+    """The smallest ρ over the working range of x_B and the eight sign patterns."""
+    params = MechanismParameters(mB=m_B, mu=mu).as_dict()
+    r1, r3 = params["r1"], params["r3"]
+    x_B = np.linspace(0.18, 0.36, points)
+    theta1 = np.arcsin((x_B**2 + r1**2 - r3**2) / (2 * r1 * x_B)) - np.pi / 2  # eq. (26), f = 0
+    return min(_rho(t, mu, s, params) for t in theta1 for s in SIGNS)
+
+
+@pytest.mark.parametrize("m_B", [4.43, 8.86])
+def test_up_to_mu_0_3_every_friction_mode_is_consistent_in_the_working_range(m_B: float) -> None:
+    """μ ≤ 0.3 (the shipped range): ρ stays above 0.7 (0.76 at μ = 0.3, near x_B = 0.197 m), so
+    no coupling of the joint frictions makes a slip mode singular: Painlevé cannot occur."""
+    assert _worst(0.3, m_B) > 0.7
+
+
+@pytest.mark.parametrize("m_B", [4.43, 8.86])
+def test_at_mu_2_a_friction_mode_is_inconsistent(m_B: float) -> None:
+    """The criterion is not vacuous: at μ = 2 (a constructed case, far outside the shipped range)
+    some sign pattern makes ρ negative in the working range."""
+    assert _worst(2.0, m_B, points=46) < 0.0
