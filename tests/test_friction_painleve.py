@@ -15,13 +15,19 @@ mass of slider B, and all eight sign patterns.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 from reference_dynamics import _closed_angles, _model
 
+from toggle_cosim.cosim.master import simulate
+from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.physics.parameters import MechanismParameters
+from toggle_cosim.plant.contract import check_plant
 
 SIGNS = list(itertools.product((1.0, -1.0), repeat=3))
 
@@ -58,3 +64,66 @@ def test_at_mu_2_a_friction_mode_is_inconsistent(m_B: float) -> None:
     """The criterion is not vacuous: at μ = 2 (a constructed case, far outside the shipped range)
     some sign pattern makes ρ negative in the working range."""
     assert _worst(2.0, m_B, points=46) < 0.0
+
+
+HOLD_MODULE = """
+from toggle_cosim.control.protocol import ControlStep
+
+
+class Hold:
+    diagnostics = ()
+
+    def __init__(self, command):
+        self.command = command
+
+    def start(self, t0, measurement):
+        return None
+
+    def step(self, state, t, measurement):
+        return ControlStep(command=self.command, diagnostics=(), state=None)
+
+
+def make_hold(context, command):
+    return Hold(command)
+"""
+
+
+def test_the_fmu_fails_in_one_line_where_no_friction_mode_is_consistent(plant_fmu: Path, tmp_path: Path) -> None:
+    """A constructed Painlevé case: μ = 2 (outside the scenario's range, set on the run), the
+    paper's model, slider B at 0.28 m driven backward (ρ = −0.185 for the signs of that slip).
+    The run fails at its first motion with one line naming the case, the guard and the time,
+    where it used to chatter (a Zeno failure that said nothing of why)."""
+    tmp_path.chmod(0o700)
+    (tmp_path / "hold.py").write_text(HOLD_MODULE)
+    scenario = tmp_path / "painleve.yaml"
+    scenario.write_text(
+        "name: painleve\nt_end: 0.01\nT_s: 0.0005\nstroke: {x_start: 0.28, x_target: 0.3199}\n"
+        "plant: {F_E: 0.0, m_B: 4.43, mu: 0.2, friction_model: paper, current_loop: ideal}\n"
+        'controller: {python: "hold:make_hold", parameters: {command: -5.0}}\n'
+    )
+    (run,) = load_scenario(scenario)
+    run = dataclasses.replace(run, plant=dataclasses.replace(run.plant, mu=2.0))
+    outcome = simulate(run, check_plant(plant_fmu))
+    assert not outcome.complete
+    assert "\n" not in outcome.reason
+    assert "Painleve-type case" in outcome.reason and "joints theta1, theta2, theta5" in outcome.reason
+    assert re.search(r"at t=[0-9.e-]+ s: mechanism\.guardSlip = -0\.18\d+ is not positive", outcome.reason)
+
+
+def test_the_fmus_guard_is_the_determinant_ratio_of_the_independent_reference(plant_fmu: Path) -> None:
+    """mechanism.guardSlip, read from the FMU while it slips backward at μ = 0.3 under the paper's
+    model, equals ρ of `reference_dynamics` for the FMU's angle and friction signs to 1e-9."""
+    from test_plant_fmu import Plant
+
+    plant = Plant(plant_fmu, frictionModel=1, mu=0.3, idealCurrentLoop=True, iq_ref=-5.0, F_E=0.0, x_B0=0.28)
+    try:
+        for _ in range(20):
+            plant.step(1e-3)
+        theta1, s1, s2, s5, guard = plant.get(
+            "theta1", "mechanism.sgn1", "mechanism.sgn2", "mechanism.sgn5", "mechanism.guardSlip"
+        )
+    finally:
+        plant.close()
+    params = MechanismParameters(mB=4.43, mu=0.3).as_dict()
+    assert s1 == -1.0 and guard != 1.0
+    assert abs(guard - _rho(theta1, 0.3, (s1, s2, s5), params)) < 1e-9

@@ -116,6 +116,19 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   Real T_j2(unit = "N.m") "Static friction at joint theta2 while stuck (model 3): muStatic dStick sgn(k2) |R2|, else 0";
   Real T_j5(unit = "N.m") "Static friction at joint theta5 while stuck (model 3): muStatic dStick sgn(k5) |R5|, else 0";
 
+  // Consistency of the present friction mode (Painlevé): eq. (18) on the loop closures is linear
+  // in (alpha1, lambda1, lambda2) with alpha_i = k_i alpha1 + ...; its matrix has the mass column
+  // (mA1, mA2, mA5) and the constraint and friction columns. guardSlip is its determinant with the
+  // mode's friction factors c_i over the one without friction: 1 without friction or while stuck,
+  // and it reaches zero where the coupled joint frictions admit no consistent slip. The FMU fails
+  // at an event after which it is not positive (a variable named guard*, see docs/fmu-export.md).
+  Real mA1 "Coefficient of alpha1 in the generalized equation of theta1 on the loop closures";
+  Real mA2 "... of theta2";
+  Real mA5 "... of theta5";
+  Real slipDet "Determinant of eq. (18) in (alpha1, lambda1, lambda2) with the friction of the present mode";
+  Real slipDet0 "The same determinant without friction";
+  Real guardSlip "no consistent friction mode of the joints (a Painleve-type case: the coupled frictions of joints theta1, theta2, theta5 with signs sgn1, sgn2, sgn5 make eq. (18) singular)" ;
+
   Real x_B(unit = "m") "Position of slider B";
   Real v_B(unit = "m/s") "Velocity of slider B";
   Real a_B(unit = "m/s2") "Acceleration of slider B";
@@ -318,6 +331,20 @@ equation
   alpha1 = ((1.0 - stuck) + stuck * stickCompliance) * u_st - stuck * stickDecay * omega1;
   T_st = stuck * u_st;
   T_s = muStatic * (abs(R1) + abs(k2) * abs(R2) + abs(k5) * abs(R5));
+
+  // Consistency of the friction mode: the matrix of eq. (18) in (alpha1, lambda1, lambda2)
+  mA1 = J2 + m3 * ((r1 * sin(theta1) + 0.5 * r3 * sin(theta2) * k2) * r1 * sin(theta1) + (r1 * cos(theta1) + 0.5 * r3 * cos(theta2) * k2) * r1 * cos(theta1))
+    + m_B * (r1 * sin(theta1) + r3 * sin(theta2) * k2) * r1 * sin(theta1)
+    + m5 * ((r4 * sin(theta1 + phi) + 0.5 * r5 * sin(theta5) * k5) * r4 * sin(theta1 + phi) + (r4 * cos(theta1 + phi) + 0.5 * r5 * cos(theta5) * k5) * r4 * cos(theta1 + phi))
+    + m_C * (r4 * sin(theta1 + phi) + r5 * sin(theta5) * k5) * r4 * sin(theta1 + phi);
+  mA2 = J3 * k2 + m3 * 0.5 * r3 * ((r1 * sin(theta1) + 0.5 * r3 * sin(theta2) * k2) * sin(theta2) + (r1 * cos(theta1) + 0.5 * r3 * cos(theta2) * k2) * cos(theta2))
+    + m_B * (r1 * sin(theta1) + r3 * sin(theta2) * k2) * r3 * sin(theta2);
+  mA5 = J5 * k5 + m5 * 0.5 * r5 * ((r4 * sin(theta1 + phi) + 0.5 * r5 * sin(theta5) * k5) * sin(theta5) + (r4 * cos(theta1 + phi) + 0.5 * r5 * cos(theta5) * k5) * cos(theta5))
+    + m_C * (r4 * sin(theta1 + phi) + r5 * sin(theta5) * k5) * r5 * sin(theta5);
+  slipDet = (mA1 * (r3 * cos(theta2) - mu * c2 * r3 * sin(theta2)) - (r1 * cos(theta1) - mu * c1 * r1 * sin(theta1)) * mA2) * (-r5 * cos(theta5) + mu * c5 * r5 * sin(theta5))
+    - (-r4 * cos(theta1 + phi) + mu * c1 * r4 * sin(theta1 + phi)) * (r3 * cos(theta2) - mu * c2 * r3 * sin(theta2)) * mA5;
+  slipDet0 = (mA1 * r3 * cos(theta2) - r1 * cos(theta1) * mA2) * (-r5 * cos(theta5)) + r4 * cos(theta1 + phi) * r3 * cos(theta2) * mA5;
+  guardSlip = slipDet / slipDet0;
 
   // Eq. (18), generalized equation of theta1
   J2 * alpha1 + m3 * (-aG3x * r1 * sin(theta1) + aG3y * r1 * cos(theta1)) - m_B * a_B * r1 * sin(theta1)
