@@ -352,3 +352,32 @@ def test_a_reversal_through_the_fold_iterates_its_events_to_convergence(plant_fm
     outcome = simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     assert outcome.record["retries"] == []
+
+
+def test_the_theta1_reversal_agrees_with_the_independent_filippov_reference(plant_fmu: Path) -> None:
+    """friction_models.yaml's theta1 variant (stick_slip, mu = mu_s = 0.2: in slip and at rest the
+    rules of `dissipative` with the Filippov cone) to t = 0.55 s: the lever reverses at
+    t = 0.4947 s, where omega2 crosses zero 5e-13 s before omega1 and joint theta2 keeps its
+    friction sign. Its commands replayed through `reference_dynamics.reference_current_trajectory`
+    (written from the equations, with its own current loop) give x_B within 1e-6 mm at every
+    sample."""
+    from reference_dynamics import reference_current_trajectory
+
+    from toggle_cosim.physics.motor import thrust_constant
+    from toggle_cosim.physics.parameters import MechanismParameters, MotorParameters
+
+    run = next(
+        r
+        for r in load_scenario(TABLE.parent / "friction_models.yaml")
+        if r.variant == "theta1_external_force_stick_slip"
+    )
+    run = dataclasses.replace(run, t_end=0.55)
+    outcome = simulate(run, check_plant(plant_fmu))
+    assert outcome.complete, outcome.reason
+    column = {name: outcome.trace.data[:, i] for i, name in enumerate(outcome.trace.names)}
+    params = MechanismParameters(mB=run.plant.m_B, mu=run.plant.mu).as_dict()
+    x_ref, _ = reference_current_trajectory(
+        column["theta1"][0], column["iq_ref"][:-1], run.T_s, 350.0, thrust_constant(MotorParameters()),
+        run.plant.F_E, params,
+    )  # fmt: skip
+    assert np.max(np.abs(column["x_B"] - x_ref)) <= 1e-9
