@@ -127,3 +127,56 @@ def test_the_fmus_guard_is_the_determinant_ratio_of_the_independent_reference(pl
     params = MechanismParameters(mB=4.43, mu=0.3).as_dict()
     assert s1 == -1.0 and guard != 1.0
     assert abs(guard - _rho(theta1, 0.3, (s1, s2, s5), params)) < 1e-9
+
+
+GUARD_DEMO = """model GuardDemo "A guard that a when clause turns negative at x = 0.5"
+  Real x(start = 1.0, fixed = true);
+  discrete Real mode(start = 1.0);
+  Real guardMode "the demo's mode is inconsistent";
+equation
+  der(x) = -1.0;
+  when x < 0.5 then
+    mode = -1.0;
+  end when;
+  guardMode = mode;
+end GuardDemo;
+"""
+
+
+def test_a_guard_of_any_model_fails_the_step_after_the_event_that_makes_it_negative(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shell's guard is generic: a model's variable named guard* (here of a one-state model,
+    no mechanism) is checked after each event; the step in which x crosses 0.5 fails, logging
+    the guard's description, the time of the event and the guard's value (fmpy prints the FMU's
+    log), and the step before it passes."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    from toggle_cosim.fmu_export import build_fmu
+
+    source = tmp_path / "GuardDemo.mo"
+    source.write_text(GUARD_DEMO)
+    fmu = build_fmu(source, "GuardDemo", tmp_path / "GuardDemo.fmu", interfaces="cs").fmu.path
+    description = read_model_description(str(fmu))
+    slave = FMU2Slave(
+        guid=description.guid,
+        unzipDirectory=extract(str(fmu), unzipdir=str(tmp_path / "unzipped")),
+        modelIdentifier=description.coSimulation.modelIdentifier,
+        instanceName="demo",
+    )
+    slave.instantiate(loggingOn=False)
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        slave.doStep(0.0, 0.25)  # no event
+        with pytest.raises(Exception, match="status 3"):
+            slave.doStep(0.25, 0.5)  # x crosses 0.5 at t = 0.5
+    finally:
+        slave.freeInstance()
+    logged = capsys.readouterr().out
+    assert re.search(
+        r"the demo's mode is inconsistent at t=0\.5\d* s: guardMode = -1 is not positive after the events there",
+        logged,
+    ), logged
