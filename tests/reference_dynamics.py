@@ -34,6 +34,8 @@ m3 r3²/12 and m5 r5²/12 unless the dict provides them):
     reference_rest_holds(q, F_C, F_E, params) -> True where no slip from rest is consistent
     reference_rest_trajectory(theta1_0, segments, F_E, params, dt) -> samples of x_B and of the
         rest flag of the one-degree-of-freedom motion under model 2 with the Filippov rest rule
+    reference_current_trajectory(theta1_0, iq_ref, T_s, K, K_f, F_E, params) -> the same motion
+        driven through a first-order current loop by sampled commands (a closed loop replayed)
 
 Friction at rest (Filippov): the linkage has one degree of freedom, q̇ = k(q) ω1 with k the null
 vector of Φ_q scaled to k_1 = 1, so every joint rests when the lever does. At ω1 = 0 the
@@ -403,3 +405,77 @@ def reference_breakaway_thrust(
         else:
             hi = mid
     return 0.5 * (lo + hi)
+
+
+def reference_current_trajectory(
+    theta1_0: float,
+    iq_ref: Sequence[float],
+    T_s: float,
+    K: float,
+    K_f: float,
+    F_E: float,
+    params: Mapping[str, float],
+    rtol: float = 1e-11,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The motion from rest at θ1 = theta1_0 with i_q(0) = 0 under friction model 2 and the
+    Filippov rest rule, driven through the current loop di_q/dt = K (i_q* − i_q), F_C = K_f i_q,
+    by the command iq_ref[k] held over [k T_s, (k + 1) T_s] (i_q solved exactly: an exponential
+    per sample). Slipping in direction d, (θ1, ω1) is integrated (DOP853) to the sample's end or
+    to ω1 = 0, where the consistent direction is chosen again; at rest, the mechanism leaves at
+    the first instant a slip becomes consistent (d θ̈1(slip d) > 0, found by root finding on
+    the exponential thrust). Returns x_B at every sample k = 0 .. len(iq_ref) and the rest flag."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    pts = _points(params)
+
+    def x_B(theta1: float) -> float:
+        return float(_pos(pts["B"], _closed_angles(theta1, params))[0])
+
+    def alpha1(theta1: float, omega1: float, F_C: float, direction: float) -> float:
+        q = _closed_angles(theta1, params)
+        return float(reference_slip_accelerations(q, omega1, direction, F_C, F_E, params)[0][0])
+
+    def leaving(theta1: float, F_C: float) -> float:
+        ways = [d for d in (1.0, -1.0) if d * alpha1(theta1, 0.0, F_C, d) > 0.0]
+        if len(ways) == 2:
+            raise ValueError(f"both slips from rest are consistent at theta1 = {theta1} (a Painlevé-type case)")
+        return ways[0] if ways else 0.0
+
+    theta1, omega1, i_q, direction = float(theta1_0), 0.0, 0.0, 0.0
+    xs, rest = [x_B(theta1)], [1.0]
+    for k, command in enumerate(iq_ref):
+        t_a, t_b = k * T_s, (k + 1) * T_s
+
+        def thrust(t: float, i_a: float = i_q, t_a: float = t_a, u: float = float(command)) -> float:
+            return K_f * (u + (i_a - u) * np.exp(-K * (t - t_a)))
+
+        t = t_a
+        while t < t_b - 1e-15:
+            if direction == 0.0:
+                direction = leaving(theta1, thrust(t))
+                if direction == 0.0:
+
+                    def cone(tt: float, held: float = theta1) -> float:
+                        return max(d * alpha1(held, 0.0, thrust(tt), d) for d in (1.0, -1.0))
+
+                    if cone(t_b) <= 0.0:
+                        break  # held to the end of the sample
+                    t = brentq(cone, t, t_b, xtol=1e-15, rtol=4e-16)
+                    direction = 1.0 if alpha1(theta1, 0.0, thrust(t_b), 1.0) > 0.0 else -1.0
+
+            def rhs(tt, y, d=direction):
+                return [y[1], alpha1(y[0], y[1], thrust(tt), d)]
+
+            def reversal(_t, y, d=direction):
+                return d * y[1]
+
+            reversal.terminal, reversal.direction = True, -1
+            sol = solve_ivp(rhs, (t, t_b), [theta1, omega1], method="DOP853", rtol=rtol, atol=1e-14, events=reversal)
+            t, theta1, omega1 = float(sol.t[-1]), float(sol.y[0, -1]), float(sol.y[1, -1])
+            if sol.status == 1:  # ω1 reached zero: slip on or rest, decided above
+                omega1, direction = 0.0, 0.0
+        i_q = thrust(t_b) / K_f
+        xs.append(x_B(theta1))
+        rest.append(1.0 if direction == 0.0 else 0.0)
+    return np.array(xs), np.array(rest)

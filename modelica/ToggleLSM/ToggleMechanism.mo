@@ -33,6 +33,9 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
      breakaway in one event iteration. Models 1 and 2 start slipping with sgn = 0 (their first
      motion sets dir) and keep the velocities' residuals at the stick (wHold), so a reversal that
      passes through rest leaves the state untouched; model 3 starts stuck and zeroes them.
+     The joints' signs follow the one degree of freedom, sgn(omega_i) = sgn(k_i) sgn(omega1): a
+     zero crossing of omega_i that contradicts it (the constraint residual while omega1 creeps
+     through zero) is held until k_i sgn1 agrees (want2, want5), except near k_i = 0 (jointTurn).
      |R_i| is mu sgn(R_i) R_i with sgn(R_i) a relation latch, so the block stays linear in
      (alpha, lambda); under model 1 the latches are watched only at rest, where the cone needs
      |R_i|. Indicators that only matter in a mode are zero outside it, so a run of model 1 or 2
@@ -66,6 +69,7 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   parameter Real wStick = if frictionModel == 3 then 1.0 else 0.0 "1 where the mechanism starts stuck (model 3; models 1 and 2 start slipping, sgn = 0)";
   parameter Real wHold = 1.0 - wStick "1 where the velocities keep their residual at rest and their signs are not watched there (models 1 and 2)";
   parameter Real wRest = if frictionModel == 3 or mu > 0 then 1.0 else 0.0 "1 where the mechanism can come to rest against friction (every model with friction)";
+  parameter Real jointTurn = 1e-3 "|k_i| below which a zero crossing of omega_i is taken as the joint's own reversal (k_i crossing zero) whatever sgn1 says";
   parameter Real baumgarte(unit = "1/s") = 20 "Rate of the constraint stabilisation; 0 integrates Phi_q qdd = gamma unmodified";
   // Initial configuration: at rest, theta1 from eq. (26), theta2 and theta5 from the constraints
   parameter Real x_B0(unit = "m") = 0.2329 "Initial position of slider B";
@@ -90,6 +94,8 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   discrete Real sgn1(start = 0.0) "sgn(omega1), latched at its zero crossings";
   discrete Real sgn2(start = 0.0) "sgn(omega2), latched at its zero crossings";
   discrete Real sgn5(start = 0.0) "sgn(omega5), latched at its zero crossings";
+  discrete Real want2(start = 0.0) "Sign omega2 took while the mechanism's direction gave joint theta2 the other one (a flip held back), else 0";
+  discrete Real want5(start = 0.0) "Sign omega5 took while the mechanism's direction gave joint theta5 the other one (a flip held back), else 0";
   discrete Real stuck(start = wStick) "1 while the mechanism is at rest against friction (model 3 starts stuck, models 1 and 2 slipping)";
   discrete Real dir(start = 0.0) "Direction of omega1 since the last breakaway or first motion, 0 while stuck";
   discrete Real dStick(start = 1.0) "Direction a stuck mechanism would break away in (model 3): the sign of T_st, switched when -dStick T_st exceeds half the static capacity";
@@ -109,6 +115,19 @@ model ToggleMechanism "Toggle mechanism with joint Coulomb friction: the Lagrang
   Real k5 "Kinematic ratio omega5/omega1 = -r4 cos(theta1 + phi)/(r5 cos(theta5))";
   Real T_j2(unit = "N.m") "Static friction at joint theta2 while stuck (model 3): muStatic dStick sgn(k2) |R2|, else 0";
   Real T_j5(unit = "N.m") "Static friction at joint theta5 while stuck (model 3): muStatic dStick sgn(k5) |R5|, else 0";
+
+  // Consistency of the present friction mode (Painlevé): eq. (18) on the loop closures is linear
+  // in (alpha1, lambda1, lambda2) with alpha_i = k_i alpha1 + ...; its matrix has the mass column
+  // (mA1, mA2, mA5) and the constraint and friction columns. guardSlip is its determinant with the
+  // mode's friction factors c_i over the one without friction: 1 without friction or while stuck,
+  // and it reaches zero where the coupled joint frictions admit no consistent slip. The FMU fails
+  // at an event after which it is not positive (a variable named guard*, see docs/fmu-export.md).
+  Real mA1 "Coefficient of alpha1 in the generalized equation of theta1 on the loop closures";
+  Real mA2 "... of theta2";
+  Real mA5 "... of theta5";
+  Real slipDet "Determinant of eq. (18) in (alpha1, lambda1, lambda2) with the friction of the present mode";
+  Real slipDet0 "The same determinant without friction";
+  Real guardSlip "no consistent friction mode of the joints (a Painleve-type case: the coupled frictions of joints theta1, theta2, theta5 with signs sgn1, sgn2, sgn5 make eq. (18) singular)" ;
 
   Real x_B(unit = "m") "Position of slider B";
   Real v_B(unit = "m/s") "Velocity of slider B";
@@ -181,15 +200,32 @@ equation
   elsewhen (1.0 - wHold * stuck) * omega1 < 0 then
     sgn1 = -1.0;
   end when;
+  // A joint's velocity is k_i omega1 on the loop closures, so it reverses only with the lever
+  // (omega1 crosses zero) or by the geometry (k_i crosses zero). A zero crossing of omega_i that
+  // contradicts sgn(k_i) sgn1 where k_i is not near zero is the constraint's residual velocity
+  // while omega1 creeps through zero, not a reversal: the latch is held (want_i records the sign
+  // omega_i took) and follows when k_i sgn1 turns to agree with it. Otherwise a held-back sign
+  // would switch the joint's friction the wrong way, which near rest reverses alpha_i and makes
+  // the latch chatter without end.
   when (1.0 - wHold * stuck) * omega2 > 0 then
-    sgn2 = 1.0;
+    sgn2 = if wRest < 0.5 or sgn1 * k2 >= 0 or abs(k2) < jointTurn then 1.0 else pre(sgn2);
+    want2 = if wRest < 0.5 or sgn1 * k2 >= 0 or abs(k2) < jointTurn then 0.0 else 1.0;
   elsewhen (1.0 - wHold * stuck) * omega2 < 0 then
-    sgn2 = -1.0;
+    sgn2 = if wRest < 0.5 or sgn1 * k2 <= 0 or abs(k2) < jointTurn then -1.0 else pre(sgn2);
+    want2 = if wRest < 0.5 or sgn1 * k2 <= 0 or abs(k2) < jointTurn then 0.0 else -1.0;
+  elsewhen want2 * sgn1 * k2 > 0 then
+    sgn2 = want2;
+    want2 = 0.0;
   end when;
   when (1.0 - wHold * stuck) * omega5 > 0 then
-    sgn5 = 1.0;
+    sgn5 = if wRest < 0.5 or sgn1 * k5 >= 0 or abs(k5) < jointTurn then 1.0 else pre(sgn5);
+    want5 = if wRest < 0.5 or sgn1 * k5 >= 0 or abs(k5) < jointTurn then 0.0 else 1.0;
   elsewhen (1.0 - wHold * stuck) * omega5 < 0 then
-    sgn5 = -1.0;
+    sgn5 = if wRest < 0.5 or sgn1 * k5 <= 0 or abs(k5) < jointTurn then -1.0 else pre(sgn5);
+    want5 = if wRest < 0.5 or sgn1 * k5 <= 0 or abs(k5) < jointTurn then 0.0 else -1.0;
+  elsewhen want5 * sgn1 * k5 > 0 then
+    sgn5 = want5;
+    want5 = 0.0;
   end when;
 
   // Rest (every model): break away when the holding torque exceeds the static capacity in the
@@ -295,6 +331,20 @@ equation
   alpha1 = ((1.0 - stuck) + stuck * stickCompliance) * u_st - stuck * stickDecay * omega1;
   T_st = stuck * u_st;
   T_s = muStatic * (abs(R1) + abs(k2) * abs(R2) + abs(k5) * abs(R5));
+
+  // Consistency of the friction mode: the matrix of eq. (18) in (alpha1, lambda1, lambda2)
+  mA1 = J2 + m3 * ((r1 * sin(theta1) + 0.5 * r3 * sin(theta2) * k2) * r1 * sin(theta1) + (r1 * cos(theta1) + 0.5 * r3 * cos(theta2) * k2) * r1 * cos(theta1))
+    + m_B * (r1 * sin(theta1) + r3 * sin(theta2) * k2) * r1 * sin(theta1)
+    + m5 * ((r4 * sin(theta1 + phi) + 0.5 * r5 * sin(theta5) * k5) * r4 * sin(theta1 + phi) + (r4 * cos(theta1 + phi) + 0.5 * r5 * cos(theta5) * k5) * r4 * cos(theta1 + phi))
+    + m_C * (r4 * sin(theta1 + phi) + r5 * sin(theta5) * k5) * r4 * sin(theta1 + phi);
+  mA2 = J3 * k2 + m3 * 0.5 * r3 * ((r1 * sin(theta1) + 0.5 * r3 * sin(theta2) * k2) * sin(theta2) + (r1 * cos(theta1) + 0.5 * r3 * cos(theta2) * k2) * cos(theta2))
+    + m_B * (r1 * sin(theta1) + r3 * sin(theta2) * k2) * r3 * sin(theta2);
+  mA5 = J5 * k5 + m5 * 0.5 * r5 * ((r4 * sin(theta1 + phi) + 0.5 * r5 * sin(theta5) * k5) * sin(theta5) + (r4 * cos(theta1 + phi) + 0.5 * r5 * cos(theta5) * k5) * cos(theta5))
+    + m_C * (r4 * sin(theta1 + phi) + r5 * sin(theta5) * k5) * r5 * sin(theta5);
+  slipDet = (mA1 * (r3 * cos(theta2) - mu * c2 * r3 * sin(theta2)) - (r1 * cos(theta1) - mu * c1 * r1 * sin(theta1)) * mA2) * (-r5 * cos(theta5) + mu * c5 * r5 * sin(theta5))
+    - (-r4 * cos(theta1 + phi) + mu * c1 * r4 * sin(theta1 + phi)) * (r3 * cos(theta2) - mu * c2 * r3 * sin(theta2)) * mA5;
+  slipDet0 = (mA1 * r3 * cos(theta2) - r1 * cos(theta1) * mA2) * (-r5 * cos(theta5)) + r4 * cos(theta1 + phi) * r3 * cos(theta2) * mA5;
+  guardSlip = slipDet / slipDet0;
 
   // Eq. (18), generalized equation of theta1
   J2 * alpha1 + m3 * (-aG3x * r1 * sin(theta1) + aG3y * r1 * cos(theta1)) - m_B * a_B * r1 * sin(theta1)

@@ -184,6 +184,13 @@ def _nominal(variable: FlatVariable | None) -> float:
     return 1.0
 
 
+def is_guard(name: str) -> bool:
+    """A guard of the model: a variable whose name's last component starts with `guard`
+    (`mechanism.guardSlip`). The shell fails at an event after which a guard is not positive
+    (shell/md_model.h): the model says so where its modes admit no consistent solution."""
+    return name.rsplit(".", 1)[-1].startswith("guard")
+
+
 def _c_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
@@ -294,6 +301,7 @@ def _compile_model(source: Path, model: str) -> GeneratedModel:
     digest = hashlib.sha256(body.encode()).hexdigest()
     guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"toggle-cosim:{model}:{digest}")) + "}"
     n = len(variables)
+    guards = [v for v in variables if is_guard(v.name) and v.kind == "computed"]
     tables = [
         "",
         "/* ---- Tables and start/parameter code written by toggle_cosim.fmu_export.compile ---- */",
@@ -309,6 +317,12 @@ def _compile_model(source: Path, model: str) -> GeneratedModel:
         f"static const int md_obs_[{n}] = {{" + ", ".join(str(v.obs_slot) for v in variables) + "};",
         f"static const int md_par_[{n}] = {{" + ", ".join(str(v.par_slot) for v in variables) + "};",
         f"static const char *const md_names_[{n}] = {{" + ", ".join(_c_string(v.name) for v in variables) + "};",
+        f"static const int md_guard_[{max(len(guards), 1)}] = {{"
+        + (", ".join(str(v.obs_slot) for v in guards) or "-1")
+        + "};",
+        f"static const char *const md_guard_text_[{max(len(guards), 1)}] = {{"
+        + (", ".join(_c_string(v.description or "inconsistent mode") for v in guards) or "0")
+        + "};",
         f"static const double md_nominal_[{max(len(states), 1)}] = {{"
         + ", ".join(_c_number(_nominal(flat_by_name.get(name))) for name in states)
         + ("1.0" if not states else "")
@@ -322,7 +336,8 @@ def _compile_model(source: Path, model: str) -> GeneratedModel:
         f"    {len(states)}, {len(parameters)}, {nw}, {len(observed)}, {len(events)},",
         "    md_direction_, md_latch_,",
         f"    {n}, md_kind_, md_obs_, md_par_, md_names_,",
-        "    md_nominal_, MD_INTERFACES",
+        "    md_nominal_, MD_INTERFACES,",
+        f"    {len(guards)}, md_guard_, md_guard_text_",
         "};",
         "",
         *_defaults_function(variables),

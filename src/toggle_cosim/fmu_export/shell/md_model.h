@@ -37,6 +37,12 @@ typedef struct {
     /* Added for Model Exchange; a table written before them leaves them 0 / NULL. */
     const double *nominal;   /* [ny] nominal values of the states (NULL: all 1.0) */
     int interfaces;          /* MD_INTERFACE_* bits the modelDescription.xml offers (0: CS) */
+    /* Guards: observed slots of the model's variables named guard* (the last component of the
+       name). Each must be positive after every event; the solver fails naming it otherwise. A
+       table written before them leaves them 0 / NULL. */
+    int nguards;
+    const int *guard_slot;   /* [nguards] */
+    const char *const *guard_text; /* [nguards] the guard's description: what a failure means */
 } md_info;
 
 /* The interface types an FMU offers (md_info.interfaces). */

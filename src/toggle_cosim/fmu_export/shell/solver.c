@@ -441,6 +441,27 @@ static double initial_step(md_solver *s, double hmax) {
  * Events
  * ------------------------------------------------------------------------------------- */
 
+/* After the events at the present instant: every guard of the model (MD_INFO.guard_slot) must
+ * be positive, else the mode the events left is one the model declares inconsistent (for a
+ * mechanism with friction: no consistent friction mode, a Painleve-type case). observe() is
+ * evaluated into obs_tmp with w kept as it was, so the check changes nothing. */
+static md_status check_guards(md_solver *s) {
+    const md_info *info = s->info;
+    if (info->nguards <= 0 || info->guard_slot == NULL) { return MD_OK; }
+    memcpy(s->w_tmp, s->w, sizeof(double) * (size_t)info->nw);
+    observe(s->t, s->y, s->p, s->w, s->obs_tmp);
+    memcpy(s->w, s->w_tmp, sizeof(double) * (size_t)info->nw);
+    for (int g = 0; g < info->nguards; ++g) {
+        double v = s->obs_tmp[info->guard_slot[g]];
+        if (!(v > 0.0)) {
+            return fail(s, "%s at t=%.10g s: %s = %.6g is not positive after the events there",
+                        info->guard_text != NULL ? info->guard_text[g] : "inconsistent mode",
+                        s->t, observed_name(info, info->guard_slot[g]), v);
+        }
+    }
+    return MD_OK;
+}
+
 /* Act on everything that fires at the present instant (s->t, s->y), given the indicators
  * there in s->zr and the conditions just before the instant in s->cond: call transition()
  * for every event whose condition changed (index order), then re-evaluate the indicators
@@ -488,7 +509,7 @@ static md_status settle(md_solver *s, long *events_here) {
         if (evaluate_indicators(s, s->t, s->y, s->zr) != MD_OK) { return MD_FAIL; }
     }
     memcpy(s->z, s->zr, sizeof(double) * (size_t)nz);
-    return MD_OK;
+    return round > 0 ? check_guards(s) : MD_OK;
 }
 
 /* Any event between indicator values zl (left) and z (right)? */
