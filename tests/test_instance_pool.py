@@ -164,3 +164,26 @@ def test_a_pool_in_a_forked_child_does_not_use_its_parents_instances(tmp_path: P
     pool.kept[("sha", "plant")] = Kept(object(), tmp_path, True)
     pool = dataclasses.replace(pool, pid=os.getpid() + 1)  # as a child sees its parent's pool
     assert pool.take("sha", "plant") is None and not pool.kept and tmp_path.is_dir()
+
+
+def test_a_sweep_over_a_components_parameter_finds_its_columns_once(
+    plant_fmu: Path, press_parts: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A system case's trace columns depend on its FMUs, connections and record list, not on its
+    components' values: the cases of a sweep over the die's k_c share one probe of the columns
+    (a supervised child per probe), the case with another sensor FMU gets its own."""
+    from toggle_cosim.cosim import supervision
+    from toggle_cosim.experiments import sweep_worker
+
+    probed = []
+    monkeypatch.setattr(sweep_worker, "_columns", {})
+    monkeypatch.setattr(supervision, "probe_columns", lambda run, plant, limit: probed.append(run) or ("time",))
+    plant = check_plant(plant_fmu)
+    documents = [press_document(plant_fmu, press_parts, (0.28, k_c)) for k_c in (1e3, 2e3, 4e3)]
+    other = copy.deepcopy(documents[0])
+    other["components"]["sensor"]["fmu"] = str(press_parts["DieLoad"])
+    for index, document in enumerate(documents):
+        assert sweep_worker.case_columns(_payload(document, index), plant) == ("time",)
+    assert len(probed) == 1
+    sweep_worker.case_columns(_payload(other, 3), plant)
+    assert len(probed) == 2

@@ -120,13 +120,29 @@ def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | Non
     if "python" not in controller_doc and "fmu" not in controller_doc and not system:
         return trace_names(plant, inputs=inputs)
     source = payload.get("source")  # a system's columns are its recorded ports (`systems.system_columns`)
-    key = (repr(controller_doc), repr(system), source, plant.sha256, inputs)
+    key = (repr(controller_doc), repr(_system_shape(system)), source, plant.sha256, inputs)
     if key not in _columns:
         from toggle_cosim.cosim.supervision import probe_columns
 
         (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
         _columns[key] = probe_columns(run, plant, case_time_limit(payload, time_limit))
     return _columns[key]
+
+
+def _system_shape(system: Mapping[str, Any]) -> dict[str, Any]:
+    """A case's system keys without its components' values: what its trace columns depend on (its
+    FMUs, connections and `record:`), so that a sweep over a component's parameter probes its
+    columns once, not once a case."""
+    components = system.get("components")
+    if not isinstance(components, Mapping):
+        return dict(system)
+    return {
+        **system,
+        "components": {
+            name: {k: v for k, v in part.items() if k != "parameters"} if isinstance(part, Mapping) else part
+            for name, part in components.items()
+        },
+    }
 
 
 def case_view(buffer: np.ndarray, rows: int, columns: int) -> np.ndarray | None:
