@@ -36,7 +36,9 @@ What is measured (benchmarks/README.md says more):
   same number of workers, of a Dask cluster (a scheduler and two workers started here as
   processes) against the local pool, and a many-case sweep as a command (100,000 cases; 1,000
   with --quick): its time, the time from the command's start to its first case starting, and
-  the peak memory of its process and of a worker.
+  the peak memory of its process and of a worker;
+* a sweep of the press system (16 cases over the die's k_c, 1 worker, its host keeping the three FMU
+  components loaded) against simulate() of the same cases in a loop in one process.
 
 Every figure is the best (minimum time) of several repetitions, measured interleaved so the
 ratios compare like with like on a shared, noisy machine. The script checks the targets of
