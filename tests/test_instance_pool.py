@@ -187,3 +187,34 @@ def test_a_sweep_over_a_components_parameter_finds_its_columns_once(
     assert len(probed) == 1
     sweep_worker.case_columns(_payload(other, 3), plant)
     assert len(probed) == 2
+
+
+def test_a_press_case_whose_plant_crashes_its_host_leaves_the_next_case_clean(
+    shim_fmu: Path, press_parts: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """In a sweep's plant hosts (forked children): a press case whose plant segfaults ends its
+    host, a failed row naming the plant; the next case runs in a new host and gives the trace
+    of the same case run before, in the first host, after a complete case."""
+    from toggle_cosim.cosim.plant_host import wait_for_hosts
+    from toggle_cosim.experiments.sweep_worker import CaseRunner
+
+    plant = check_plant(shim_fmu)
+    for key, value in fault_environment("segfault", 0.0, plant.references, FAULT_FORCE).items():
+        if key.startswith("TOGGLE_FAULT_"):
+            monkeypatch.setenv(key, value)
+    clean, hard = (press_document(shim_fmu, press_parts, die) for die in (CLEAN, HARD))
+    runner = CaseRunner(plant, plant.sha256, rows=601, keep_traces=True)
+    found = []
+    try:
+        for index, document in enumerate((clean, clean, hard, clean)):
+            runner.submit(_payload(document, index))
+            while runner.busy:
+                for _, answer in wait_for_hosts([runner.host]):
+                    found.append(runner.service(answer))
+    finally:
+        runner.close()
+    assert [row["status"] for row, _ in found] == ["ok", "ok", "failed", "ok"]
+    assert runner.hosts_started == 2 and "'plant'" in found[2][0]["reason"]
+    (_, first), (_, second), _, (_, last) = found
+    assert first is not None and first.shape[0] == 601
+    assert second.tobytes() == first.tobytes() and last.tobytes() == first.tobytes()
