@@ -54,13 +54,28 @@ def armed_shim(shim_fmu: Path, monkeypatch: pytest.MonkeyPatch):  # noqa: ANN201
     return plant
 
 
+@pytest.fixture(scope="module")
+def press_parts_3(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The press example's sensor and die as FMI 3.0 Co-Simulation FMUs (fmi3Reset between runs)."""
+    from toggle_cosim.fmu_export import build_fmu
+
+    folder = tmp_path_factory.mktemp("press-parts-3")
+    source = PRESS.parent
+    return {
+        name: build_fmu(source / f"{name}.mo", name, folder / f"{name}.fmu", "3.0", "cs").fmu.path
+        for name in ("PositionSensor", "DieLoad")
+    }
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
 def test_a_press_case_gives_the_same_bits_alone_first_after_a_complete_and_after_a_failed_case(
-    armed_shim, shim_fmu: Path, press_parts: dict[str, Path]
+    armed_shim, shim_fmu: Path, version: str, request: pytest.FixtureRequest
 ) -> None:
     """The same press case, every column bit for bit: alone (no pool), first in a pool (its
     components loaded), after a complete case (their instances reset, not loaded again) and after
     a failed case (the plant failing mid-run: every instance freed, made anew from the loaded
-    binaries)."""
+    binaries); with the sensor and the die as FMI 2.0 and as FMI 3.0 FMUs."""
+    press_parts = request.getfixturevalue("press_parts" if version == "2.0" else "press_parts_3")
     (case,) = runs_from_document(press_document(shim_fmu, press_parts, CLEAN), PRESS)
     (hard,) = runs_from_document(press_document(shim_fmu, press_parts, HARD), PRESS)
     alone = master.simulate(case, armed_shim)
