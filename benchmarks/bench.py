@@ -36,7 +36,9 @@ What is measured (benchmarks/README.md says more):
   same number of workers, of a Dask cluster (a scheduler and two workers started here as
   processes) against the local pool, and a many-case sweep as a command (100,000 cases; 1,000
   with --quick): its time, the time from the command's start to its first case starting, and
-  the peak memory of its process and of a worker.
+  the peak memory of its process and of a worker;
+* a sweep of the press system (16 cases over the die's k_c, 1 worker, its host keeping the three FMU
+  components loaded) against simulate() of the same cases in a loop in one process.
 
 Every figure is the best (minimum time) of several repetitions, measured interleaved so the
 ratios compare like with like on a shared, noisy machine. The script checks the targets of
@@ -738,6 +740,54 @@ def sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures:
     table.check("Dask cluster >= 0.8 x the pool", ratio >= 0.8, f"{ratio:.2f}")
 
 
+def press_sweep_file(folder: Path, parts: dict[str, Path], cases: int, t_end: float) -> Path:
+    """A sweep of examples/press_system/press.yaml's paper variant (four components: the plant, the
+    sensor, the die load, the built-in law) over the die's stiffness k_c, `cases` cases of `t_end` s."""
+    base = yaml.safe_load((system_bench.PRESS / "press.yaml").read_text(encoding="utf-8"))
+    document = {k: v for k, v in base.items() if k not in ("variants", "fmu")}
+    document["controller"] = {**document["controller"], **base["variants"]["paper"]["controller"]}
+    document["t_end"] = t_end
+    for name, component in document["components"].items():
+        component["fmu"] = str(parts[name])
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "base.yaml").write_text(yaml.safe_dump(document, sort_keys=False))
+    axes = {"components.die.parameters.k_c": {"linspace": [5e3, 2e4, cases]}}
+    path = folder / "sweep.yaml"
+    path.write_text(yaml.safe_dump({"base": "base.yaml", "axes": axes, "output": "out"}, sort_keys=False))
+    return path
+
+
+def press_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures: dict) -> None:
+    """A sweep of the press system on one worker against simulate() of the same cases in a loop in
+    this process (ratio from one run each): the sweep's host keeps the four components loaded
+    from case to case (`cosim.instance_pool`), simulate() alone loads them for every case."""
+    from toggle_cosim.experiments.sweep_spec import load_sweep
+
+    cases, t_end = 16, 0.5 if quick else 1.0
+    parts = system_bench.build_press_parts(folder / "press_parts")
+    path = press_sweep_file(folder / "press_sweep", parts, cases, t_end)
+    sweep = load_sweep(path)
+    runs = [runs_from_document(case.document, path.parent / "base.yaml")[0] for case in sweep.cases]
+    plant = check_plant(fmu)
+    master.simulate(runs[0], plant)  # the compiled system loop built and loaded, as the sweep's first case
+    started = time.perf_counter()
+    outcomes = [master.simulate(run, plant) for run in runs]
+    simulate_rate_ = cases / (time.perf_counter() - started)
+    result = sweep_rate(path, fmu, folder / "press_sweep" / "out", workers=1)
+    table.section(f"A sweep of the press system: {cases} cases over the die's k_c, t_end = {t_end:g} s, 1 worker")
+    table.add(
+        "simulate() in a loop, one process",
+        f"{simulate_rate_:.1f} cases/s",
+        f"{sum(o.complete for o in outcomes)} complete; each case unzips, loads and instantiates its 3 FMUs",
+    )
+    ratio = result.rate / simulate_rate_
+    table.add(
+        "sweep, 1 worker", f"{result.rate:.1f} cases/s", f"{ratio:.2f} x simulate(): its host keeps the FMUs loaded"
+    )
+    figures["press_sweep"] = {"cases": cases, "t_end": t_end, "simulate": simulate_rate_, "sweep": result.rate}
+    table.check("a sweep of the press system >= 0.8 x simulate() of the same cases", ratio >= 0.8, f"{ratio:.2f}")
+
+
 def big_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures: dict) -> None:
     """The many-case sweep as a command (its own process, as users run it): time and peak memory."""
     cases = 1_000 if quick else 100_000
@@ -1308,6 +1358,7 @@ def main() -> int:
         )
         # ---------------------------------------------------------------- sweeps
         sweep_figures(fmu, folder, quick, table, figures)
+        press_sweep_figures(fmu, folder, quick, table, figures)
         big_sweep_figures(fmu, folder, quick, table, figures)
     finally:
         shutil.rmtree(folder, ignore_errors=True)

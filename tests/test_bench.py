@@ -62,6 +62,9 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
     sweeps = figures["sweeps"]
     assert all(sweeps[key] > 0 for key in ("sweep1", "sweep2", "sim1", "sim2", "dask", "pool2"))
     assert figures["big_sweep"]["exit"] == 0 and figures["big_sweep"]["done_in_table"] == 1000
+    press_sweep = figures["press_sweep"]  # a sweep of the press system against simulate() of its cases
+    assert press_sweep["cases"] == 16 and press_sweep["sweep"] > 0 and press_sweep["simulate"] > 0
+    assert "a sweep of the press system >= 0.8 x simulate() of the same cases" in result.stdout
     assert 0 < figures["big_sweep"]["first_case_s"] < figures["big_sweep"]["wall_s"]
     assert "the first case starts within 5 s of the command" in result.stdout
     pid = figures["python_control_pid"]  # the example's PID in the compiled loop, beside the built-in law

@@ -8,7 +8,8 @@ A run's system (`Run.system`) decides how it is stepped:
   plant session kept across runs);
 * any other system: an execution of its components in the order of its connections
   (`systems.simulate_system`), in the compiled system loop where every component is an FMU,
-  with checkpoint retries of every component (`system_retry`).
+  with checkpoint retries of every component (`system_retry`) and, given a pool, its FMU
+  instances kept loaded from run to run (`instance_pool`).
 
 The pair run as a system gives the fixed loop's values bit for bit (tests/test_systems.py).
 """
@@ -20,6 +21,7 @@ from collections.abc import Callable
 import numpy as np
 
 from toggle_cosim.control.protocol import Controller
+from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.cosim.pair import (
     JACOBI_REASON,
@@ -59,6 +61,7 @@ def simulate(
     coupling: str | None = None,
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
+    pool: InstancePool | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`: the plain pair in its fixed loop, any other
     system as an execution of its components (module docstring). Never raises for a plant, part
@@ -71,7 +74,8 @@ def simulate(
     `session` (the plain pair only, `open_session`): a plant already loaded that the caller keeps.
     `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`). `calling`
     (a system only): where the execution writes which component it calls
-    (`systems.simulate_system`)."""
+    (`systems.simulate_system`). `pool` (a system only, `instance_pool`): its FMU components'
+    instances, kept loaded from run to run by the caller."""
     if run.system.is_pair:
         return simulate_pair(run, plant, progress, buffer, controller, session, coupling, count)
     if coupling is not None and coupling not in COUPLINGS:
@@ -79,4 +83,4 @@ def simulate(
     if session is not None:
         close_controller(controller)
         raise ValueError("a system's run loads its own components: simulate it without session=")
-    return simulate_system(run, plant, progress, buffer, controller, coupling, count, calling)
+    return simulate_system(run, plant, progress, buffer, controller, coupling, count, calling, pool=pool)

@@ -29,6 +29,7 @@ from typing import Any, Protocol
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
 from toggle_cosim.cosim.fmi_pointers import FMI2_NAMES, FMI3_NAMES, fmu_functions, read_typed, typed_reads
+from toggle_cosim.cosim.instance_pool import InstancePool, Kept
 from toggle_cosim.cosim.session import CFunctions, bound_function
 from toggle_cosim.cosim.unzipped import release, unzipped
 from toggle_cosim.messages import error_text
@@ -84,9 +85,18 @@ class FmuSlave:
     (`plant.contract.read_fmu`), each a Co-Simulation FMU with its path, model description and
     SHA-256. `values` are set before initialisation, in order; `fed` are the inputs the plan
     feeds (`Plan.input_names`), `outputs` the variables it reads every sample
-    (`Plan.output_names`), both set by `bind` before `instantiate`."""
+    (`Plan.output_names`), both set by `bind` before `instantiate`. `pool`: where its instance
+    comes from and goes back to (`instance_pool`: kept loaded from run to run); None: loaded
+    for this run and unloaded by `close`."""
 
-    def __init__(self, name: str, fmu: Any, values: Sequence[tuple[str, Value]] = (), observed: Sequence[str] = ()):
+    def __init__(
+        self,
+        name: str,
+        fmu: Any,
+        values: Sequence[tuple[str, Value]] = (),
+        observed: Sequence[str] = (),
+        pool: InstancePool | None = None,
+    ):
         self.name, self.path, self.values = name, Path(fmu.path), tuple(values)
         self.description, self.sha256 = fmu.model_description, fmu.sha256
         self.variables = {v.name: v for v in self.description.modelVariables}
@@ -101,6 +111,7 @@ class FmuSlave:
         self._saved: Any = None  # the checkpoint: an fmi2FMUstate / fmi3FMUState (`save_state`)
         self.no_set_state_prior_to_current_point = False  # doStep's flag (`system_retry`)
         self.origin = ""  # what the FMU stands for, when not a file the user named (run.json)
+        self.pool = pool
         self.bind(self.interface.inputs, self.interface.outputs)
 
     def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
@@ -152,31 +163,22 @@ class FmuSlave:
 
     def instantiate(self, t_end: float) -> None:
         """Unzip (once for every instance of the FMU in this process: `unzipped`), load,
-        instantiate, (FMI 2.0: setupExperiment) and set `values`."""
-        description = self.description
-        self._unzipped = unzipped(self.path, self.sha256, description)
-        kwargs = dict(
-            unzipDirectory=str(self._unzipped),
-            modelIdentifier=description.coSimulation.modelIdentifier,
-            instanceName=self._instance,
-            guid=description.guid if not self.fmi3 else description.instantiationToken,
-        )
-        try:  # fmpy loads the binary and binds every FMI function here
-            slave = (FMU3SlaveChecked if self.fmi3 else FMU2SlaveChecked)(**kwargs)
-        except Exception as error:  # noqa: BLE001 - a binary that does not load, or lacks a function
-            raise SlaveError(
-                f"component {self.name!r} ({self.path.name}): its binary could not be loaded ({error_text(error, 200)})"
-            ) from None
+        instantiate, (FMI 2.0: setupExperiment) and set `values`. From a pool: its kept instance
+        (reset after the last run: only the experiment and the values are set) or its loaded
+        binary (instantiated anew), else loaded here."""
+        kept = self.pool.take(self.sha256, self.name) if self.pool is not None else None
+        slave = kept.slave if kept is not None else self._load()
+        if kept is not None:
+            self._unzipped = kept.folder
         self._slave = slave
         last_log_line(self._instance, forget=True)
         quiet(self._instance)
-        if self.fmi3:
-            self._call(
-                "fmi3InstantiateCoSimulation",
-                lambda: slave.instantiate(visible=False, loggingOn=True, logMessage=logger3(self._instance)),
-            )
+        if kept is not None and kept.instantiated:
+            self.pool.counts.reset += 1
         else:
-            self._call("fmi2Instantiate", lambda: slave.instantiate(visible=False, loggingOn=True))
+            if kept is not None:
+                self.pool.counts.renewed += 1
+            self._instantiate(slave)
         self._quiet_logging(slave)
         self.names = names = FMI3_NAMES if self.fmi3 else FMI2_NAMES
         self._set, self._get, self._step = (bound_function(slave.dll, n) for n in (names.set, names.get, names.step))
@@ -194,6 +196,36 @@ class FmuSlave:
             self._call("fmi2SetupExperiment", lambda: slave.setupExperiment(startTime=0.0, stopTime=t_end))
         for name, value in self.values:
             self._set_value(name, value)
+
+    def _load(self) -> Any:
+        """fmpy's slave of this FMU: unzipped (`unzipped`), its binary loaded, no instance yet."""
+        description = self.description
+        self._unzipped = unzipped(self.path, self.sha256, description)
+        kwargs = dict(
+            unzipDirectory=str(self._unzipped),
+            modelIdentifier=description.coSimulation.modelIdentifier,
+            instanceName=self._instance,
+            guid=description.guid if not self.fmi3 else description.instantiationToken,
+        )
+        try:  # fmpy loads the binary and binds every FMI function here
+            slave = (FMU3SlaveChecked if self.fmi3 else FMU2SlaveChecked)(**kwargs)
+        except Exception as error:  # noqa: BLE001 - a binary that does not load, or lacks a function
+            raise SlaveError(
+                f"component {self.name!r} ({self.path.name}): its binary could not be loaded ({error_text(error, 200)})"
+            ) from None
+        if self.pool is not None:
+            self.pool.counts.loaded += 1
+        return slave
+
+    def _instantiate(self, slave: Any) -> None:
+        """A new instance from the loaded binary."""
+        if self.fmi3:
+            self._call(
+                "fmi3InstantiateCoSimulation",
+                lambda: slave.instantiate(visible=False, loggingOn=True, logMessage=logger3(self._instance)),
+            )
+        else:
+            self._call("fmi2Instantiate", lambda: slave.instantiate(visible=False, loggingOn=True))
 
     def _typed_reads(self) -> tuple:
         """The getters of the outputs of other types than Real (`fmi_pointers.typed_reads`)."""
@@ -246,13 +278,23 @@ class FmuSlave:
         self._call(f"{'fmi3' if self.fmi3 else 'fmi2'}ExitInitializationMode", self._slave.exitInitializationMode)
         self._stepping = True
 
-    def close(self) -> None:
+    def close(self, reuse: bool = False) -> None:
         """Terminate and free the instance (not after a fatal status), give back the unzipped
-        copy (removed with its last user)."""
+        copy (removed with its last user). With a pool: the instance goes back to it, reset
+        when `reuse` (a complete run) and the FMU accepts terminate and reset, else freed with
+        its binary kept loaded (`instance_pool`)."""
         slave, self._slave = self._slave, None
         folder, self._unzipped = self._unzipped, None
         try:
-            if slave is not None and not self._fatal:
+            if slave is not None and not self._fatal and self.pool is not None and folder is not None:
+                self._free_state(slave)
+                instantiated = reuse and self._reset(slave)
+                if not instantiated:
+                    self._free_instance(slave)
+                if not self._fatal:
+                    self.pool.give_back(self.sha256, self.name, Kept(slave, folder, instantiated))
+                    folder = None  # the pool holds it now
+            elif slave is not None and not self._fatal:
                 self._free_state(slave)
                 if self._stepping:  # terminate is not allowed before initialisation has ended
                     try:
@@ -263,10 +305,40 @@ class FmuSlave:
         except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
             pass
         finally:
+            if self._fatal and self.pool is not None:  # FMI: no further call to that binary
+                self.pool.fatal = True
             if folder is not None:
                 release(folder)
             last_log_line(self._instance, forget=True)
             quiet(self._instance, on=False)
+
+    def _reset(self, slave: Any) -> bool:
+        """Terminate and reset the instance for the next run (True), or False: not initialised,
+        or the FMU refused either call (a Fatal answer marks the FMU fatal)."""
+        if not self._stepping:
+            return False
+        try:
+            slave.terminate()
+            slave.reset()
+        except Exception as error:  # noqa: BLE001 - an FMU that cannot reset gets a new instance
+            self._fatal = getattr(error, "status", None) == FATAL
+            return False
+        return True
+
+    def _free_instance(self, slave: Any) -> None:
+        """Terminate (when initialised) and free the instance; the binary stays loaded. Never raises."""
+        if self._fatal or slave.component is None:
+            return
+        if self._stepping:
+            try:
+                slave.terminate()
+            except Exception:  # noqa: BLE001, S110 - an FMU in error state may refuse terminate
+                pass
+        try:
+            (slave.fmi3FreeInstance if self.fmi3 else slave.fmi2FreeInstance)(slave.component)
+        except Exception:  # noqa: BLE001, S110 - freeing never changes a run's outcome
+            pass
+        slave.component = None
 
     # -- checkpoints (FMI "get/set FMU state") --------------------------------------------------
     @property

@@ -44,6 +44,7 @@ from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
+from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
@@ -90,9 +91,14 @@ class Assembly:
     components: list[dict[str, Any]]
     units: dict[str, str]  # {column: unit} of the recorded columns that declare one
 
-    def close(self) -> None:
+    def close(self, reuse: bool = False) -> None:
+        """Free every component; FMU components taken from a pool go back to it, reset for the
+        next run when `reuse` (the run was complete), else freed (`instance_pool`)."""
         for slave in self.slaves:
-            slave.close()
+            if isinstance(slave, FmuSlave):
+                slave.close(reuse)
+            else:
+                slave.close()
 
 
 def unit_conversion(
@@ -170,7 +176,12 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
 
 
 def _controller_slave(
-    run: Run, name: str, controller: Controller | None, outputs: Sequence[str], units: Mapping[str, str | None]
+    run: Run,
+    name: str,
+    controller: Controller | None,
+    outputs: Sequence[str],
+    units: Mapping[str, str | None],
+    pool: InstancePool | None = None,
 ) -> Slave:
     """The run's controller as a component: a controller FMU as an FMU; any other natively (the
     built-in law and a python-control system then run in C in the compiled system loop:
@@ -178,16 +189,21 @@ def _controller_slave(
     if controller is None:
         controller = controller_for(run, outputs)
     if isinstance(controller, FmuController):
-        return FmuSlave(name, controller.fmu, controller.settings)
+        return FmuSlave(name, controller.fmu, controller.settings, pool=pool)
     diagnostics = check_controller(controller, outputs)
     return ControllerSlave(name, controller, diagnostics, COMMAND, units, outputs)
 
 
 def assemble(
-    run: Run, plant: PlantInterface, controller: Controller | None = None, coupling: str | None = None
+    run: Run,
+    plant: PlantInterface,
+    controller: Controller | None = None,
+    coupling: str | None = None,
+    pool: InstancePool | None = None,
 ) -> Assembly:
     """The run's system, checked and loaded (module docstring). Raises SystemError_ (one line) for
-    a system that cannot run as written, ControllerError for a controller that cannot be built."""
+    a system that cannot run as written, ControllerError for a controller that cannot be built.
+    `pool`: where the FMU components' instances come from and go back to (`instance_pool`)."""
     wiring, where = run.system, f"scenario {run.scenario}"
     jacobi = (coupling or run.coupling) == "jacobi"
     requested: dict[str, list[str]] = {}
@@ -196,16 +212,16 @@ def assemble(
     slaves: dict[str, Slave] = {}
     try:
         slaves[wiring.plant] = FmuSlave(
-            wiring.plant, plant, plant_settings(run, plant), requested.get(wiring.plant, ())
+            wiring.plant, plant, plant_settings(run, plant), requested.get(wiring.plant, ()), pool
         )
         slaves[wiring.controller] = _controller_slave(
-            run, wiring.controller, controller, plant.recorded_outputs, slaves[wiring.plant].interface.units
+            run, wiring.controller, controller, plant.recorded_outputs, slaves[wiring.plant].interface.units, pool
         )
         for part in wiring.parts:
             if part.name in slaves:
                 raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
             slaves[part.name] = FmuSlave(
-                part.name, _checked_part(part, run.source), part.values, requested.get(part.name, ())
+                part.name, _checked_part(part, run.source), part.values, requested.get(part.name, ()), pool
             )
         interfaces = {name: slave.interface for name, slave in slaves.items()}
         plant_outputs = set(interfaces[wiring.plant].outputs)  # a controller FMU's reference inputs stay unfed
@@ -404,19 +420,21 @@ def simulate_system(
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
     checkpoints: CheckpointOptions | None = None,
+    pool: InstancePool | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
     ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
     word shared with a supervising process): element 0 holds, while a component is called, its
     id (`component_names`), and 0 outside the run's loop. `checkpoints`: how a refused step is
-    retried (`system_retry`; default every 200 samples, in 10 substeps)."""
+    retried (`system_retry`; default every 200 samples, in 10 substeps). `pool`: the FMU
+    components' instances kept from run to run (`instance_pool`), reset after a complete run."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
         run = dataclasses.replace(run, coupling=coupling)
     n = run.steps
     try:
-        assembly = assemble(run, plant, controller)
+        assembly = assemble(run, plant, controller, pool=pool)
     except ControllerError as error:
         reason = bounded_text(str(error) if str(error).startswith("controller: ") else f"controller: {error}")
         wall = clock.perf_counter() - started
@@ -446,6 +464,7 @@ def simulate_system(
         execution.advance(k, k + 1, split=(c, substeps))
 
     handed: int | None = None
+    finished = False  # the loop returned: the instances may be reset for another run
     try:
         execution.initialize()
         loop_started = clock.perf_counter()
@@ -461,7 +480,7 @@ def simulate_system(
                 handed = handed_at()
         else:
             policy.drive(execution.advance, retake, 0, n)
-        loop_finished = clock.perf_counter()
+        loop_finished, finished = clock.perf_counter(), True
     except KeyboardInterrupt:
         loop_finished, interrupted = clock.perf_counter(), True
         reason = f"interrupted (SIGINT or SIGTERM) at t = {max(observer.rows - 1, 0) * run.T_s:.6g} s"
@@ -470,7 +489,7 @@ def simulate_system(
         reason = str(error)
     finally:
         calling[0] = 0
-        assembly.close()
+        assembly.close(reuse=finished and observer.rows == n + 1)
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])
     retried = retried_words(policy.passed())

@@ -2,10 +2,12 @@
 in a Dask worker) drives a plant host (`cosim.plant_host`), a child process that unzips the FMU
 and loads its binary once, then runs case after case on one instance, reset between cases
 (`master.simulate(..., session=)`); after a failed case the instance is freed and the next one
-gets a new one. A case that crashes, aborts or hangs the host is a failed row with the reason
-(and how far it got); the runner starts a new host for the next case. A case never sees what
-another left: the same case gives the same numbers alone, first in a host, after a failed case
-or after a complete one.
+gets a new one. A system's case does the same for every FMU component, kept by its FMU's
+SHA-256 and its name in the host's pool (`cosim.instance_pool`, `master.simulate(..., pool=)`).
+A case that crashes, aborts or hangs the host is a failed row with the reason (and how far it
+got); the runner starts a new host for the next case. A case never sees what another left: the
+same case gives the same numbers alone, first in a host, after a failed case or after a
+complete one.
 
 The host loads the FMU from a private copy (in its own folder, created 0700) of bytes whose
 SHA-256 it has checked against the sweep's: a file changed, or swapped, after the sweep checked
@@ -29,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
 from toggle_cosim.messages import bounded_text, error_text, said_in
@@ -117,13 +120,29 @@ def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | Non
     if "python" not in controller_doc and "fmu" not in controller_doc and not system:
         return trace_names(plant, inputs=inputs)
     source = payload.get("source")  # a system's columns are its recorded ports (`systems.system_columns`)
-    key = (repr(controller_doc), repr(system), source, plant.sha256, inputs)
+    key = (repr(controller_doc), repr(_system_shape(system)), source, plant.sha256, inputs)
     if key not in _columns:
         from toggle_cosim.cosim.supervision import probe_columns
 
         (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
         _columns[key] = probe_columns(run, plant, case_time_limit(payload, time_limit))
     return _columns[key]
+
+
+def _system_shape(system: Mapping[str, Any]) -> dict[str, Any]:
+    """A case's system keys without its components' values: what its trace columns depend on (its
+    FMUs, connections and `record:`), so that a sweep over a component's parameter probes its
+    columns once, not once a case."""
+    components = system.get("components")
+    if not isinstance(components, Mapping):
+        return dict(system)
+    return {
+        **system,
+        "components": {
+            name: {k: v for k, v in part.items() if k != "parameters"} if isinstance(part, Mapping) else part
+            for name, part in components.items()
+        },
+    }
 
 
 def case_view(buffer: np.ndarray, rows: int, columns: int) -> np.ndarray | None:
@@ -230,6 +249,7 @@ class CaseServer:
         self.calling = calling  # shared with the sweep's side: which component a system's case calls
         self.session: Any = None
         self.sessions: dict[tuple[str, ...], Any] = {}  # by the plant's other inputs the cases set
+        self.pool = InstancePool()  # a system's FMU components, kept loaded from case to case
         self.retired = False  # the plant answered Fatal: this host serves no more (`plant_host`)
 
     def _session(self, inputs: tuple[str, ...] = ()) -> Any:
@@ -261,8 +281,12 @@ class CaseServer:
                     source = payload.get("source")  # the base scenario: controller.python is imported from its folder
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
-                    session = self._session(tuple(run.plant.inputs)) if run.system.is_pair else None
-                    outcome = simulate(run, self.plant, buffer=view, session=session, count=count, calling=self.calling)
+                    pair = run.system.is_pair
+                    session = self._session(tuple(run.plant.inputs)) if pair else None
+                    pool = None if pair else self.pool
+                    outcome = simulate(
+                        run, self.plant, buffer=view, session=session, count=count, calling=self.calling, pool=pool
+                    )
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
                     row["reason"] = error_text(error)
@@ -280,7 +304,7 @@ class CaseServer:
         except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row
             row["status"] = "failed"
             row["reason"] = error_text(error)
-        if self.session is not None and self.session.fatal:  # FMI: no further call to that binary
+        if (self.session is not None and self.session.fatal) or self.pool.fatal:  # FMI: no further call to that binary
             self.retired = True
             row[RETIRED_KEY] = True
         row["wall_s"] = time.perf_counter() - started
