@@ -41,7 +41,7 @@ def _sine_load(folder: Path) -> Path:
     return path
 
 
-# scenario, the end of the window (it holds the load's change), the sample at which F_E first changes
+# the scenario (None: the sine, written per test) and the end of the window, which holds the load's change
 LOADS = {
     "step_load": (SCENARIOS / "step_load.yaml", 0.3),  # 0 -> 100 N at t = 0.25 s
     "measured_load": (SCENARIOS / "measured_load.yaml", 0.4),  # contact from t = 0.30 s

@@ -384,6 +384,7 @@ class FaultyPart(Fmi2Slave):
 '''
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("mode", "kernel", "said"),
     [
