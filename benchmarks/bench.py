@@ -48,7 +48,6 @@ the performance issue and prints PASS/FAIL for each; it exits 0 whatever they sa
 from __future__ import annotations
 
 import argparse
-import contextlib
 import ctypes
 import dataclasses
 import json
@@ -61,27 +60,32 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+import system_bench  # benchmarks/system_bench.py, beside this script
 import yaml
+from bench_parts import (  # benchmarks/bench_parts.py
+    PAPER,
+    ROOT,
+    SCENARIOS,
+    Table,
+    full_loop,
+    loop_switch,
+    paper_runs,
+    us,
+)
+from timing import run_to_last_file  # benchmarks/timing.py, beside this script
 
-ROOT = Path(__file__).resolve().parent.parent
-SCENARIOS = ROOT / "scenarios"
-PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
+from toggle_cosim.control.protocol import ControllerContext, ControlStep
+from toggle_cosim.cosim import compiled_loop, master, session
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
+from toggle_cosim.fmu_export import build_fmu
+from toggle_cosim.plant.contract import check_plant
+
 T_S_SWEEP = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
 FIXED_INPUTS = (1.0, 0.0)  # iq_ref [A], F_E [N] for "FMU alone"
-
-import system_bench  # noqa: E402 - benchmarks/system_bench.py, beside this script
-from timing import run_to_last_file  # noqa: E402 - benchmarks/timing.py, beside this script
-
-from toggle_cosim.control.protocol import ControllerContext, ControlStep  # noqa: E402
-from toggle_cosim.cosim import compiled_loop, master, pair, session  # noqa: E402
-from toggle_cosim.experiments.scenario import load_scenario, runs_from_document  # noqa: E402
-from toggle_cosim.fmu_export import build_fmu  # noqa: E402
-from toggle_cosim.plant.contract import check_plant  # noqa: E402
 
 # ------------------------------------------------------------------------------------------
 # A tiny C driver: the FMU's own C functions in a C loop, no Python per step.
@@ -192,10 +196,6 @@ def controller_fmu_cost(folder: Path, samples: int, repetitions: int) -> dict | 
 # ------------------------------------------------------------------------------------------
 # Runs
 # ------------------------------------------------------------------------------------------
-def paper_runs() -> list:
-    return [run for name in PAPER for run in load_scenario(SCENARIOS / f"{name}.yaml")]
-
-
 def linearize_cost(plant, run, repetitions: int) -> dict:
     """Wall time of trim + linearize at x_B = 0.28 m (design/), best of `repetitions`."""
     from toggle_cosim.design.linearize import linearize
@@ -295,64 +295,6 @@ def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
     finally:
         fmu.close()
     return elapsed / n
-
-
-class Timed(session.PlantSession):
-    """PlantSession that notes the time from instantiate to the end of close (terminate, free)."""
-
-    spans: list[float] = []
-
-    def instantiate(self, start: float, stop: float) -> None:
-        self._bench_started = time.perf_counter()
-        super().instantiate(start, stop)
-
-    def close(self) -> None:
-        super().close()
-        if hasattr(self, "_bench_started"):
-            Timed.spans.append(time.perf_counter() - self._bench_started)
-
-
-@contextlib.contextmanager
-def loop_switch(python_loop: bool) -> Iterator[str]:
-    """With python_loop, the compiled loop switched off (TOGGLE_COSIM_KERNEL=0) inside; yields
-    the loop kind run.json must then report."""
-    saved = os.environ.get("TOGGLE_COSIM_KERNEL")
-    if python_loop:
-        os.environ["TOGGLE_COSIM_KERNEL"] = "0"
-    try:
-        yield "python" if python_loop or not compiled_loop.kernel_available() else "compiled"
-    finally:
-        if python_loop:
-            if saved is None:
-                os.environ.pop("TOGGLE_COSIM_KERNEL", None)
-            else:
-                os.environ["TOGGLE_COSIM_KERNEL"] = saved
-
-
-def full_loop(plant, run, python_loop: bool = False) -> dict:
-    """One simulate(): per-step loop cost and three real-time factors. python_loop: with the
-    compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
-    Timed.spans.clear()
-    original, pair.PlantSession = pair.PlantSession, Timed  # the pair's fixed loop opens its session
-    try:
-        with loop_switch(python_loop) as expected:
-            outcome = master.simulate(run, plant)
-    finally:
-        pair.PlantSession = original
-    if not outcome.complete:
-        raise RuntimeError(f"{run.label}: {outcome.reason}")
-    if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop
-        raise RuntimeError(f"{run.label}: expected the {expected} loop, ran {outcome.record['loop']}")
-    steps = outcome.trace.data.shape[0] - 1
-    simulated = steps * run.T_s
-    return {
-        "per_step": outcome.loop_seconds / steps,
-        "rtf_loop": simulated / outcome.loop_seconds,
-        "rtf_inst": simulated / Timed.spans[-1],
-        "rtf_simulate": simulated / outcome.wall_seconds,
-        "u": outcome.trace.column("iq_ref").copy(),
-        "outcome": outcome,
-    }
 
 
 def best(values) -> float:
@@ -829,45 +771,8 @@ def big_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figu
 
 
 # ------------------------------------------------------------------------------------------
-# The table
+# The run: every figure, one table (bench_parts.Table)
 # ------------------------------------------------------------------------------------------
-class Table:
-    def __init__(self) -> None:
-        self.rows: list[tuple[str, ...]] = []
-        self.checks: list[tuple[str, bool, str]] = []
-
-    def section(self, title: str) -> None:
-        self.rows.append(("section", title))
-
-    def add(self, label: str, value: str, note: str = "") -> None:
-        self.rows.append(("row", label, value, note))
-
-    def text(self, line: str) -> None:
-        self.rows.append(("text", line))
-
-    def check(self, label: str, ok: bool, detail: str) -> None:
-        self.checks.append((label, ok, detail))
-
-    def print(self) -> None:
-        width = max(len(r[1]) for r in self.rows if r[0] == "row") + 2
-        vwidth = max(len(r[2]) for r in self.rows if r[0] == "row")
-        for row in self.rows:
-            if row[0] == "section":
-                print(f"\n{row[1]}")
-            elif row[0] == "text":
-                print(f"  {row[1]}")
-            else:
-                _, label, value, note = row
-                print(f"  {label:<{width}}{value:>{vwidth}}   {note}".rstrip())
-        print("\nTargets")
-        for label, ok, detail in self.checks:
-            print(f"  [{'PASS' if ok else 'FAIL'}] {label}: {detail}")
-
-
-def us(seconds: float) -> str:
-    return f"{seconds * 1e6:.2f} us"
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions and shorter runs (< 1 min)")

@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/system_bench.py [--quick] [--fmu PLANT.fmu]   # this section alone
 
-bench.py prints the same rows in its table (`section`). Two systems, each assembled and
+bench.py prints the same rows in its table (`section`); both take the table, the paper runs and
+the built-in pair's loop cost from bench_parts.py. Two systems, each assembled and
 initialised by the master (`cosim.systems.assemble`, `cosim.execution.Execution.initialize`: the
 FMUs loaded, their values set, one initialisation pass) and stepped over fig4_nominal/friction
 (3000 samples of 0.5 ms):
@@ -42,6 +43,7 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
+from bench_parts import ROOT, Table, full_loop, paper_runs, us  # benchmarks/bench_parts.py, beside this script
 
 from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
@@ -51,7 +53,6 @@ from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.system.model import Connection, Part, Port, Wiring
 
-ROOT = Path(__file__).resolve().parent.parent
 SOURCE = Path(__file__).resolve().parent / "system_master.c"
 
 
@@ -544,18 +545,11 @@ def ssp_masters(ssp: Path, T_s: float, t_end: float, repetitions: int, folder: P
     return found
 
 
-def us(seconds: float) -> str:
-    return f"{seconds * 1e6:.2f} us"
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3 repetitions instead of 9")
     parser.add_argument("--fmu", type=Path, default=None, help="the plant FMU (default: built here)")
     args = parser.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import bench
-
     from toggle_cosim.controller_fmu import build_controller_fmu
     from toggle_cosim.fmu_export import build_fmu
     from toggle_cosim.plant.contract import check_plant
@@ -568,9 +562,9 @@ def main() -> int:
         plant = check_plant(Path(fmu).resolve())
         controller = Path(build_controller_fmu(folder / "ToggleVSC.fmu", "2.0").path)
         repetitions = 3 if args.quick else 9
-        run = next(r for r in bench.paper_runs() if r.label == "fig4_nominal/friction")
-        builtin = min(bench.full_loop(plant, run)["per_step"] for _ in range(repetitions))
-        table, figures = bench.Table(), {}
+        run = next(r for r in paper_runs() if r.label == "fig4_nominal/friction")
+        builtin = min(full_loop(plant, run)["per_step"] for _ in range(repetitions))
+        table, figures = Table(), {}
         section(table, figures, plant, controller, folder, repetitions, builtin)
         table.print()
     finally:

@@ -272,6 +272,7 @@ def test_what_the_plant_cannot_do_is_refused_before_the_run(plant_fmu: Path, tmp
 # -- compare and sweep --------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_compare_gives_the_command_line_s_verdict(plant_fmu: Path, tmp_path: Path) -> None:
     fig4 = tc.load_scenario(FIG4)
     friction = tc.simulate(fig4["friction"], plant_fmu)

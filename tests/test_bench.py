@@ -12,7 +12,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from toggle_cosim.cosim import compiled_loop
+
+pytestmark = pytest.mark.slow  # the whole benchmark, --quick (about 1-2 min)
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -99,6 +99,7 @@ def test_events_per_sample_is_a_budget_of_the_runs_samples(plant_fmu: Path) -> N
     assert ", budget.events) by" in master.simulate(both, check_plant(plant_fmu)).reason
 
 
+@pytest.mark.slow
 def test_the_same_tuning_gives_the_same_trials_on_a_busy_machine(tmp_path: Path, plant_fmu: Path) -> None:
     """A small study run twice, the second time beside two processes that keep both cores busy:
     trials.csv is the same but for its duration_s column (the trials' wall time). A budget low

@@ -195,6 +195,7 @@ def test_nominal_positioning(nominal_run: Run) -> None:
     assert np.max(np.abs(r.u)) == pytest.approx(3.17, abs=0.01)
 
 
+@pytest.mark.slow
 def test_theta1_objective_reaches_target() -> None:
     """Option: regulating θ1 toward θ1* (eq. (26)) moves slider B to the same target on the
     nominal plant; S0 = C (θ1* − θ1_0) and T_h from eq. (21)."""

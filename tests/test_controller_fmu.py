@@ -333,6 +333,7 @@ def test_the_docs_variables_table_is_the_generated_one() -> None:
     assert page[page.index(TABLE_BEGIN) : page.index(TABLE_END) + len(TABLE_END)] == markdown_table()
 
 
+@pytest.mark.slow
 def test_the_cli_builds_the_controller_fmu_without_modelica(tmp_path: Path) -> None:
     """`toggle-cosim build --model ToggleVSC` needs a C compiler only: it works in a process where
     importing the Modelica compiler fails, writes fmus/ToggleVSC.fmu (fmus/ToggleVSC3.fmu for

@@ -192,6 +192,7 @@ def test_the_python_api_takes_the_coupling(plant_fmu: Path) -> None:
 BIT_FOR_BIT = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation", "integral_load")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmi_version", ["2.0", "3.0"])
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_the_generated_controller_fmu_is_the_builtin_law_bit_for_bit(

@@ -84,6 +84,7 @@ def test_every_extra_module_is_declared_in_its_extra() -> None:
         assert distribution.get(module, module) in names, (module, extra)
 
 
+@pytest.mark.slow
 def test_build_without_options_builds_the_shipped_plants_into_fmus_here(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:

@@ -33,6 +33,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+pytestmark = pytest.mark.slow  # each extra installed alone into a fresh venv (minutes)
+
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = ROOT / "templates" / "ci" / "toggle-cosim-references.yml"
 EXTRAS = ("core", "build", "sweep", "ci", "plot", "design", "report", "docs")

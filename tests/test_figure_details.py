@@ -75,6 +75,7 @@ def captured_figures(monkeypatch: pytest.MonkeyPatch) -> list:
     return saved
 
 
+@pytest.mark.slow
 def test_a_constant_heat_map_has_no_colour_bar_but_its_value(tmp_path: Path, captured_figures: list) -> None:
     from toggle_cosim.analysis.sweep_heatmaps import write_heatmaps
 

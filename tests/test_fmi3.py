@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow  # builds the FMI 3.0 plant and validates it
+
 fmpy = pytest.importorskip("fmpy")
 
 from fmpy import extract, read_model_description  # noqa: E402

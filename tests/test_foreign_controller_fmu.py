@@ -327,6 +327,7 @@ end PDLaw;
 """
 
 
+@pytest.mark.slow
 def test_the_same_law_as_an_fmi3_fmu_gives_the_same_trace(tmp_path: Path, plant_fmu: Path, pd_fmu: Path) -> None:
     """The PD law written in Modelica and exported as an FMI 3.0 Co-Simulation FMU (units
     declared: no warning) runs through fmi3SetFloat64/GetFloat64/DoStep and gives the PythonFMU

@@ -232,6 +232,7 @@ def test_a_run_whose_frictionless_twin_completes_completes_without_chatter(
     assert events <= MAX_EVENTS_PER_STEP * steps, f"{events} events in {steps} communication steps"
 
 
+@pytest.mark.slow
 def test_the_fmu_comes_to_rest_where_the_independent_filippov_reference_does(plant_fmu: Path) -> None:
     """Open loop, ideal current loop, F_E = 100 N, the dissipative model: 2.6 A for 50 ms (it breaks
     away forward), then 1.9 A, which static friction holds: the slider decelerates and comes to

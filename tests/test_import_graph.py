@@ -114,6 +114,30 @@ def test_no_import_cycles_in_the_package() -> None:
     assert cycles(import_graph(SRC / "toggle_cosim", lazy=True)) == []
 
 
+def script_graph(folder: Path) -> dict[str, set[str]]:
+    """The scripts of a folder that import each other by their file names (each run with its
+    folder first on sys.path, as benchmarks/ is): per script the others it imports, anywhere in it."""
+    scripts = {path.stem: path for path in folder.glob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in scripts.items():
+        named: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                named.update(alias.name.partition(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+                named.add(node.module.partition(".")[0])
+        graph[name] = {other for other in named if other in scripts and other != name}
+    return graph
+
+
+def test_the_benchmark_scripts_import_each_other_one_way_only() -> None:
+    """bench.py prints system_bench.py's rows; what both need (the table, the paper runs, the
+    pair's loop cost) is in bench_parts.py, so system_bench.py runs alone without bench.py."""
+    graph = script_graph(SRC.parent / "benchmarks")
+    assert "system_bench" in graph["bench"]  # the graph sees the scripts' imports
+    assert cycles(graph) == []
+
+
 def test_the_cosim_parts_import_each_other_one_way_only() -> None:
     """Within cosim/ not even a function-level import closes a loop (session never imports
     the compiled loop or the master), and the parts import no CLI or sweep."""

@@ -49,6 +49,8 @@ from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface, check_plant
 from toggle_cosim.runs.definition import Run
 
+pytestmark = pytest.mark.slow  # Ecos and FMPy replays of the paper's runs
+
 ROOT = Path(__file__).resolve().parent.parent
 RUNS = ("fig4_nominal/friction", "fig5_external_force/no_friction")
 # The outputs the check must cover at least (every recorded output of the plant is compared).

@@ -9,12 +9,15 @@ import json
 import os
 from pathlib import Path
 
+import pytest
 import yaml
 from PIL import Image
 from test_tune import BASE
 
 import toggle_cosim as tc
 from toggle_cosim.experiments.sweep import run_sweep
+
+pytestmark = pytest.mark.slow  # a sweep and a tuning over twelve axes
 
 # ten plant parameters, each at the plant's own value (the dynamics are the base scenario's)
 LONG_AXES = {

@@ -29,6 +29,8 @@ from toggle_cosim.fmu_export import build_fmu
 from toggle_cosim.fmu_export.compile import compile_model
 from toggle_cosim.fmu_export.package import write_fmu
 
+pytestmark = pytest.mark.slow  # builds the plant for Model Exchange and FMI 3.0, runs the FMI checkers
+
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = ROOT / "tests" / "models" / "ExchangeModels.mo"
 TOOL = f"toggle-cosim {__version__} (tests)"

@@ -51,6 +51,8 @@ from masters import (
 from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.ssp.layout import ssd_member
 
+pytestmark = pytest.mark.slow  # the paper's runs in libcosim and Ecos
+
 ROOT = Path(__file__).resolve().parent.parent
 PROBE = Path(__file__).resolve().parent / "models" / "probe_controller.py"
 T_S = 5e-4  # s

@@ -467,6 +467,7 @@ def test_reports_refuse_to_write_over_notes(tmp_path: Path, command: str, option
     assert not (tmp_path / "reports").exists()
 
 
+@pytest.mark.slow
 def test_plot_refuses_to_write_over_notes_and_replaces_its_own_figure(tmp_path: Path) -> None:
     from toggle_cosim.cli import main
 

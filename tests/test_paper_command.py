@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 from process_events import wait_until
 
+pytestmark = pytest.mark.slow  # the paper's runs and figures as a command
+
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
 

@@ -172,6 +172,7 @@ def test_the_probe_ends_a_helper_its_binary_starts(shim_fmu: Path, monkeypatch: 
             os.kill(pid, 9)
 
 
+@pytest.mark.slow
 def test_a_library_shipped_beside_the_binary_is_found(plant_fmu: Path, tmp_path: Path) -> None:
     """The binary needs libtoggle_helper.so from its own folder (run path $ORIGIN): the probe
     loads it from the whole extracted platform folder, as the run does, and the run completes

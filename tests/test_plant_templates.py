@@ -24,6 +24,8 @@ from toggle_cosim.cli import main
 from toggle_cosim.files.traces import read_csv
 from toggle_cosim.plant.contract import OUTPUTS, ContractError, check_plant
 
+pytestmark = pytest.mark.slow  # builds and runs the Modelica and PythonFMU templates
+
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
 SCENARIO = EXAMPLES / "guided_mass.yaml"

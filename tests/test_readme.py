@@ -271,6 +271,7 @@ def test_the_same_option_name_for_the_output_everywhere() -> None:
         assert "--output" not in options, name
 
 
+@pytest.mark.slow
 def test_the_documentation_site_builds_strictly(tmp_path: Path) -> None:
     """Every page in the nav, every link and anchor resolves, the API reference renders from
     the docstrings and the changelog is included (mkdocs.yml sets strict)."""
@@ -503,6 +504,7 @@ def test_the_skip_marks_are_few_and_say_why() -> None:
     assert sum(block.language == "python" for block in RUN_BLOCKS) >= 20
 
 
+@pytest.mark.slow
 def test_every_shell_and_python_example_runs_in_reading_order(working_copy: Path) -> None:
     before = set(os.listdir(working_copy))
     failures = run_in_reading_order(RUN_BLOCKS, working_copy)

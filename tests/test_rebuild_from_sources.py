@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 
+pytestmark = pytest.mark.slow  # rebuilds the FMU binaries from their sources
+
 RUN = dict(stop_time=0.3, output=["x_B", "v_B"], start_values={"iq_ref": 1.0, "mu": 0.2})
 
 

@@ -42,6 +42,7 @@ def test_shipped_run_matches_its_reference(run, plant_fmu: Path, no_gravity_fmu:
     assert checked.passed, "moved beyond tolerance: " + "; ".join(checked.failures)  # funnel and invariants
 
 
+@pytest.mark.slow
 def test_a_perturbed_model_parameter_fails_the_check_and_names_the_variables(plant_fmu: Path, tmp_path: Path) -> None:
     """Raising the friction coefficient from 0.2 to 0.25 in the plant (a model change the
     controller does not know about) must move the nominal run outside its funnel; the CI reports

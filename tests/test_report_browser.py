@@ -32,6 +32,8 @@ from hostile_names import ENTITY, HOSTILE, IMAGE, REASON, SCRIPT, hostile_runs, 
 from toggle_cosim.cli import main
 from toggle_cosim.files.traces import Trace, read_csv, select, write_csv
 
+pytestmark = pytest.mark.slow  # pages opened in Chromium
+
 ROOT = Path(__file__).resolve().parent.parent
 # Debian's chromium; TOGGLE_COSIM_CHROMIUM names another Chromium-based browser (GitHub's Ubuntu
 # runners have no chromium package but Google Chrome: .github/workflows/ci.yml sets it)

@@ -281,6 +281,7 @@ def test_the_report_refuses_a_link_and_names_the_missing_extra(tmp_path: Path, m
     )
 
 
+@pytest.mark.slow
 def test_sweep_html_writes_the_sweeps_page_with_its_kept_traces(plant_fmu: Path, tmp_path: Path) -> None:
     """A real 2 x 2 sweep with --keep-traces --html: the page has one heat map per figure of
     merit over F_E and m_B, and each case's x_B trace, ready for a click (the browser test

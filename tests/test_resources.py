@@ -189,6 +189,7 @@ def _variants(folder: Path, count: int) -> Path:
     return _scenario(folder, t_end=0.01, variants=variants)
 
 
+@pytest.mark.slow
 def test_finished_runs_hold_no_descriptor(tmp_path: Path, plant_fmu: Path) -> None:
     """Under `ulimit -n 20` a run of 40 variants writes all 40 (each finished run releases its
     trace buffer's descriptor) and leaves no run folder in TMPDIR."""

@@ -47,6 +47,7 @@ def test_each_source_and_setting_has_its_own_folder() -> None:
     assert results_folder(back) == PurePosixPath("fig4_nominal_gauss-seidel/friction")
 
 
+@pytest.mark.slow
 def test_a_jacobi_run_keeps_the_default_runs_results_and_a_rerun_says_it_replaced_its_own(
     tmp_path: Path, plant_fmu: Path
 ) -> None:
@@ -72,6 +73,7 @@ def test_a_jacobi_run_keeps_the_default_runs_results_and_a_rerun_says_it_replace
     ), again.output
 
 
+@pytest.mark.slow
 def test_an_ssp_run_keeps_the_yaml_runs_results(tmp_path: Path, plant_fmu: Path) -> None:
     """`run out/fig4.ssp --parameter-set friction` used to replace out/fig4_nominal/friction."""
     from toggle_cosim.controller_fmu import build_controller_fmu

@@ -136,6 +136,7 @@ def test_the_nominal_run_crosses_the_events_the_ratios_must_survive(runs):
     assert 75 % 7 and 75 % 10
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", RATIOS)
 @pytest.mark.parametrize("direction", ["result decimated", "reference decimated"])
 def test_the_unchanged_run_passes_against_itself_at_every_ratio(runs, ratio, direction):
@@ -147,6 +148,7 @@ def test_the_unchanged_run_passes_against_itself_at_every_ratio(runs, ratio, dir
     assert comparison.passed, comparison.failed
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio, offset", [(7, 3), (3, 1)])
 def test_grids_that_do_not_coincide_pass_too_and_still_catch_a_change(runs, ratio, offset):
     """A 3.5 ms grid against a 5 ms one: the jump of i_q* at the switch falls between samples of
@@ -158,6 +160,7 @@ def test_grids_that_do_not_coincide_pass_too_and_still_catch_a_change(runs, rati
     assert "E_fric" in _compare(decimated(changed, 10), decimated(full, ratio, offset)).failed
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", (1, *RATIOS))
 @pytest.mark.parametrize("direction", ["result decimated", "reference decimated"])
 @pytest.mark.parametrize("change", ["mu 0.2 -> 0.25", "gain C +5 %"])
@@ -175,6 +178,7 @@ def test_a_real_change_fails_at_every_ratio(runs, ratio, direction, change):
         assert {"iq_ref", "S"} <= failed  # a steeper sliding line changes the command
 
 
+@pytest.mark.slow
 def test_the_readme_compare_command_passes_on_a_fresh_run_and_fails_a_changed_one(runs, tmp_path, capsys):
     """`toggle-cosim compare out/fig4_nominal/friction/trace.csv scenarios/references/fig4_nominal/
     friction_ref.csv`: the full-resolution run against the stored reference (every 10th sample),

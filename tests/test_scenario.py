@@ -582,6 +582,7 @@ def test_finite_numbers_from_yaml_spellings(tmp_path: Path) -> None:
     assert run.t_end == 2.0 and run.T_s == 0.0005 and math.isfinite(run.t_end)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("text", "needle"),
     [

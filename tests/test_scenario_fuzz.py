@@ -27,6 +27,8 @@ from toggle_cosim.files.yaml_loader import Dumper  # quotes '1e5' as YAML 1.2 ne
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.runs.definition import Run
 
+pytestmark = pytest.mark.slow  # Hypothesis: hundreds of generated documents each
+
 ROOT = Path(__file__).resolve().parent.parent
 BASE_TEXT = (ROOT / "scenarios" / "fig4_nominal.yaml").read_text(encoding="utf-8")
 BASE: dict[str, Any] = yaml.safe_load(BASE_TEXT)

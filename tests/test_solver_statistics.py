@@ -76,6 +76,7 @@ def plant3_fmu(tmp_path_factory):
     return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant", output, fmi_version="3.0").fmu.path
 
 
+@pytest.mark.slow
 def test_fmi3_statistics_are_int64_and_count_as_fmi2(plant_fmu, plant3_fmu):
     """FMI 3.0 serves them through fmi3GetInt64; the solver core is the one FMI 2.0 uses, so
     the same run counts the same steps, rejections and events."""

@@ -269,6 +269,7 @@ def _ecospy():  # noqa: ANN202
     return ecospy
 
 
+@pytest.mark.slow
 def test_ecos_applies_a_set_only_when_named_and_bound_in_the_ssd_it_loads(
     fig5_ssp: Path, plant_fmu: Path, controller_fmu: Path, tmp_path: Path
 ) -> None:
@@ -854,6 +855,7 @@ def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu").path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario", SCENARIOS, ids=lambda p: p.stem)
 def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
     scenario: Path, request: pytest.FixtureRequest, toggle_vsc: Path, tmp_path: Path
@@ -894,6 +896,7 @@ def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
         assert [p.name for p in (default_out / f"{scenario.stem}_ssp").iterdir()] == [layout.set_name(runs[0].variant)]
 
 
+@pytest.mark.slow
 def test_a_named_variant_runs_that_variant_only(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
     """--variant NAME runs that root SSD alone, with its values (no_friction: mu = 0); the old
     option --parameter-set NAME is the same (a variant is named after its parameter set)."""
@@ -916,6 +919,7 @@ def _inline(values: list[tuple[str, str, str]], name: str) -> str:
     )
 
 
+@pytest.mark.slow
 def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
     """An SSP this project did not write: components named vsc and mechanism (the controller
     first), connections in another order, no Units, no annotations, parameter values inline. The

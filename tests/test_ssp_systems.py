@@ -364,6 +364,7 @@ def test_libcosim_runs_the_exported_system_as_our_jacobi_run_does(
     assert [c["name"] for c in record["system"]["components"]] == ["plant", "controller", "sensor"]
 
 
+@pytest.mark.slow
 def test_a_scenarios_system_and_its_ssp_give_one_trace_bit_for_bit(
     fmus: dict[str, Path], plant_fmu: Path, tmp_path: Path
 ) -> None:
@@ -437,6 +438,7 @@ def press(plant_fmu: Path, press_parts: dict[str, Path], tmp_path_factory: pytes
     return folder
 
 
+@pytest.mark.slow
 def test_the_press_example_as_an_ssp_runs_as_its_scenario_and_in_libcosim(press: Path) -> None:
     """Each variant of the press example run from its SSP gives the scenario's trace bit for bit
     on every column; libcosim, loading each variant's root SSD, gives our Jacobi run's x_B to
@@ -459,6 +461,7 @@ def test_the_press_example_as_an_ssp_runs_as_its_scenario_and_in_libcosim(press:
         assert np.max(np.abs(frame["controller.iq_ref"].to_numpy() - jacobi.column("controller.iq_ref"))) < 1e-10
 
 
+@pytest.mark.slow
 def test_ecos_runs_the_press_example_by_its_set_names_as_our_jacobi_run_does(press: Path) -> None:
     """Ecos applies a parameter set named at init: paper from press.ssp (SystemStructure.ssd
     binds it), integral from the SSP of that variant alone (`toggle-cosim ssp --variant integral`);

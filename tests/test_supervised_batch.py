@@ -27,6 +27,7 @@ def _pairs(plant_fmu: Path) -> list:
     return [(run, plant) for name in PAPER for run in load_scenario(ROOT / "scenarios" / f"{name}.yaml")]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("jobs", [1, 2, 3])
 def test_the_outcomes_are_in_order_and_bit_identical(plant_fmu: Path, jobs: int) -> None:
     pairs = _pairs(plant_fmu)
@@ -108,6 +109,7 @@ def test_jobs_follow_the_cores_and_the_runs() -> None:
     assert default_jobs(100) == cores
 
 
+@pytest.mark.slow
 def test_a_killed_commands_folders_are_removed_by_the_next(plant_fmu: Path, tmp_path: Path) -> None:
     """SIGKILL to a command leaves its runs' folders (nothing in it can run), but no trace buffer:
     that file is created without a name (O_TMPFILE), so no moment exists at which it is on disk.

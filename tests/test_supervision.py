@@ -81,6 +81,7 @@ def _scenario(folder: Path, kind: str = "") -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(REASONS))
 def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
     scratch = fault(kind)
@@ -125,6 +126,7 @@ def _sweep_file(folder: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(REASONS))
 def test_sweep_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tmp_path: Path) -> None:
     scratch = fault(kind)
@@ -235,6 +237,7 @@ def _signal_points(span: float) -> list[tuple[float, signal.Signals]]:
     return [(span * k / last, signal.SIGINT if k % 2 == 0 else signal.SIGTERM) for k in range(SIGNAL_POINTS)]
 
 
+@pytest.mark.slow
 def test_interrupts_at_any_moment_of_a_multi_variant_run(shim_fmu: Path, tmp_path: Path, held: Path) -> None:
     """SIGINT/SIGTERM at 12 moments from start-up to the last of seven runs (that one holds until
     the command ends it): exit 130 every time, no traceback, whole files only, the interrupted
@@ -261,6 +264,7 @@ def test_interrupts_at_any_moment_of_a_multi_variant_run(shim_fmu: Path, tmp_pat
             _whole_files_only(out)
 
 
+@pytest.mark.slow
 def test_interrupts_at_any_moment_of_a_sweep(
     shim_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, held: Path
 ) -> None:

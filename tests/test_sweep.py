@@ -21,6 +21,8 @@ import yaml
 
 from toggle_cosim.experiments.sweep import METRICS, execute_sweep, load_sweep, read_results, run_sweep
 
+pytestmark = pytest.mark.slow  # sweeps as commands: workers, Dask clusters, kills and resumes
+
 ROOT = Path(__file__).resolve().parent.parent
 
 BASE = {

@@ -83,9 +83,13 @@ def test_the_plan_sets_inputs_from_later_components_after_every_output() -> None
     # buffer: plant x_B v_B P | iq_ref F_E | ctrl u | x
     assert plan.outputs == ((0, 1, 2), (5,)) and plan.inputs == ((3, 4), (6,))
     assert plan.feed_source[3] == 5 and plan.feed_source[4] == SIGNAL and plan.feed_source[6] == 0
-    assert plan.early == ((1,), (0,))  # F_E (a signal) early; iq_ref late (its source comes later)
+    # iq_ref late (its source comes later), F_E late (a signal: sent after the outputs at t_k are
+    # read, as the pair sends it); ctrl.x early (the plant is read before it)
+    assert plan.early == ((), (0,)) and plan.late(0) == (0, 1)
+    # initialisation sets the signal before the first outputs are read
+    assert plan.init_early == ((1,), (0,)) and plan.late(0, initial=True) == (0,)
     jacobi = build_plan(("plant", "ctrl"), interfaces, wires, [Port("plant", "F_E")], None, jacobi=True)
-    assert jacobi.early == ((), ()) and jacobi.init_early == plan.early
+    assert jacobi.early == ((), ()) and jacobi.init_early == plan.init_early
     assert plan.names == ("time", "plant.x_B", "plant.v_B", "plant.P", "plant.iq_ref", "plant.F_E", "ctrl.u", "ctrl.x")
 
 
@@ -381,6 +385,7 @@ class FaultyPart(Fmi2Slave):
 '''
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("mode", "kernel", "said"),
     [

@@ -21,6 +21,8 @@ from toggle_cosim.experiments.tune_run import pareto_front
 from toggle_cosim.experiments.tune_score import PENALTY, WORKING_RANGE_FLAG, score
 from toggle_cosim.experiments.tune_spec import Constraints, Objective, TuneError, load_tuning
 
+pytestmark = pytest.mark.slow  # tunings: many trials of whole runs each
+
 ROOT = Path(__file__).resolve().parent.parent
 
 # the integral law (integral_load.yaml's), shortened: 0.6 s is enough for the final error to differ

@@ -261,6 +261,7 @@ def test_a_module_on_sys_path_is_not_checked_for_ownership(tmp_path: Path, plant
     assert code == 0, output
 
 
+@pytest.mark.slow
 def test_user_code_that_ends_hangs_or_interrupts_fails_its_own_run_only(
     tmp_path: Path, plant_fmu: Path, monkeypatch
 ) -> None:
@@ -467,6 +468,7 @@ def test_a_controller_that_kills_its_parent_after_the_answer_fails_its_run(tmp_p
     assert json.loads((out / "after" / "run" / "run.json").read_text(encoding="utf-8"))["status"] == "complete"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("how", "said"),
     [

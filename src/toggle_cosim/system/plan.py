@@ -12,11 +12,17 @@ One sample k under Gauss-Seidel (`coupling: gauss-seidel`):
     for each component c in order:  compute and set c's early inputs;  get c's outputs
     compute the late inputs;  record row k;  if k < n: set the late inputs;  doStep every c
 
-An input is early when its feed is a signal or an output of a component before c in the order,
-late otherwise (its component reads its outputs before that value exists; it has no direct
-feedthrough, `system.graph`). Under Jacobi every input is late: each component's outputs at
-t_k are read with the inputs it stepped with, and all inputs are then set from them, as
-libcosim's fixed-step algorithm does.
+An input is early when its feed is an output of a component before c in the order, late
+otherwise: fed by a later component (its component reads its outputs before that value exists;
+it has no direct feedthrough, `system.graph`) or by a signal. A signal's sample at t_k is sent
+after the component's outputs at t_k are read, with the values it steps with, as the pair
+(`cosim.pair`), FMPy and libcosim send theirs: the outputs at t_k are those of the inputs
+the component stepped with, so a step in a load shows in the outputs one sample later. Under
+Jacobi every input is late: each component's outputs at t_k are read with the inputs it stepped
+with, and all inputs are then set from them, as libcosim's fixed-step algorithm does.
+
+The initialisation pass (`init_early`) sets signals early too: every input is set before the
+outputs at t = 0 are read, as the pair initialises its plant with sample 0's inputs.
 """
 
 from __future__ import annotations
@@ -38,9 +44,10 @@ class Plan:
     """The tables of one system's run (module docstring). Per component, in stepping order:
     `outputs[c]` and `inputs[c]` the buffer slots of its outputs and of its fed inputs (their
     names in `output_names[c]`, `input_names[c]`), `early[c]` the positions in inputs[c] set
-    before its outputs are read. `feed_source[s]`, `feed_factor[s]`, `feed_offset[s]` feed the
-    input slot s (an output slot, or SIGNAL - j for signal column j; factor 1 and offset 0: a
-    copy). `record` are the slots recorded in trace columns 1 .., named `names[1:]`."""
+    before its outputs are read (never a signal's, module docstring). `feed_source[s]`,
+    `feed_factor[s]`, `feed_offset[s]` feed the input slot s (an output slot, or SIGNAL - j for
+    signal column j; factor 1 and offset 0: a copy). `record` are the slots recorded in trace
+    columns 1 .., named `names[1:]`."""
 
     order: tuple[str, ...]
     output_names: tuple[tuple[str, ...], ...]
@@ -56,9 +63,9 @@ class Plan:
     names: tuple[str, ...]
     size: int
     jacobi: bool
-    # the early inputs of the Gauss-Seidel order, whatever the coupling: initialisation runs one
-    # Gauss-Seidel pass, so every connected input starts from its source's initial output (the
-    # fixed point libcosim's initialisation iterates to)
+    # the early inputs of the Gauss-Seidel order and every signal, whatever the coupling:
+    # initialisation runs one Gauss-Seidel pass, so every connected input starts from its
+    # source's initial output (the fixed point libcosim's initialisation iterates to)
     init_early: tuple[tuple[int, ...], ...] = ()
 
     def late(self, c: int, initial: bool = False) -> tuple[int, ...]:
@@ -118,20 +125,20 @@ def build_plan(
     offset = np.zeros(size, dtype=np.float64)
     early, init_early = [], []
     for c, name in enumerate(order):
-        own_early = []
+        own_early, own_init = [], []
         for i, variable in enumerate(input_names[c]):
             port = Port(name, variable)
             feed, slot = fed[port], slots[port]
             if isinstance(feed, Connection):
                 source[slot] = slots[feed.start]
                 factor[slot], offset[slot] = feed.factor, feed.offset
-                is_early = position[feed.start.component] < c
+                if position[feed.start.component] < c:
+                    own_early.append(i)
+                    own_init.append(i)
             else:
                 source[slot] = SIGNAL - feed
-                is_early = True
-            if is_early:
-                own_early.append(i)
-        init_early.append(tuple(own_early))
+                own_init.append(i)  # a signal: set early only in the initialisation pass
+        init_early.append(tuple(own_init))
         early.append(() if jacobi else tuple(own_early))
     if record is None:
         chosen = [Port(name, v) for c, name in enumerate(order) for v in (*output_names[c], *input_names[c])]
