@@ -78,15 +78,20 @@ def _run(part: Path, **values: float):
     return dataclasses.replace(run, system=wiring)
 
 
-def _simulate(run, plant, engine: str, monkeypatch: pytest.MonkeyPatch, coupling: str | None = None, **options: object):
-    """The run by the compiled system loop or the Python execution, with its checkpoint options."""
+def _simulate(
+    run, plant, engine: str, monkeypatch: pytest.MonkeyPatch, coupling: str | None = None, controller=None, **options
+):
+    """The run by the compiled system loop or the Python execution, with its checkpoint options
+    (and a controller of the protocol in place of the scenario's)."""
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1" if engine == "compiled" else "0")
     if options:
         from toggle_cosim.cosim.system_retry import CheckpointOptions
 
-        outcome = systems.simulate_system(run, plant, coupling=coupling, checkpoints=CheckpointOptions(**options))
+        outcome = systems.simulate_system(
+            run, plant, coupling=coupling, checkpoints=CheckpointOptions(**options), controller=controller
+        )
     else:
-        outcome = systems.simulate_system(run, plant, coupling=coupling)
+        outcome = systems.simulate_system(run, plant, coupling=coupling, controller=controller)
     assert outcome.record["loop"]["kind"] == f"system, {engine}"
     return outcome
 
@@ -114,7 +119,9 @@ def test_a_part_that_refuses_three_steps_is_retried_and_its_run_completes(
         engine: _simulate(refused, plant, engine, monkeypatch, coupling, interval=interval)
         for engine in ("compiled", "python")
     }
-    assert "(controller natively in C)" in outcomes["compiled"].record["loop"]["reason"]  # its state is checkpointed too
+    assert (
+        "(controller natively in C)" in outcomes["compiled"].record["loop"]["reason"]
+    )  # its state is checkpointed too
     for outcome in outcomes.values():
         assert outcome.complete, outcome.reason
         assert outcome.record["samples"] == SAMPLES
@@ -271,22 +278,31 @@ class _Integrating:
         return ControlStep(12.0 * e + 40.0 * state - 2.5 * measurement["v_B"], (state,), state + e * T_S)
 
 
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_a_python_controllers_state_is_put_back_with_the_parts(
-    plant, refusing: Path, monkeypatch: pytest.MonkeyPatch
+    plant, refusing: Path, coupling: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """With a Python controller whose state is an integral (a component run in Python, so the
-    Python execution runs), a refused step is retried with every component put back to the
+    """With a Python controller whose state is an integral (a component the compiled system loop
+    calls back into Python), a refused step is retried with every component put back to the
     checkpoint, the controller's state too: the plant's and the controller's columns equal the
-    undisturbed run's bit for bit (an integral counted twice over the replayed samples would not)."""
+    undisturbed run's bit for bit (an integral counted twice over the replayed samples would not),
+    and the compiled loop and the Python execution give the same retries and the same trace."""
     refused = _run(refusing, refuse_from=START, refuse_until=START + 2.5 * T_S, pass_below=T_S / 2)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1")
-    clean = systems.simulate_system(_run(refusing), plant, controller=_Integrating())
-    outcome = systems.simulate_system(refused, plant, controller=_Integrating())
-    assert outcome.record["loop"]["kind"] == "system, python"
-    assert outcome.complete, outcome.reason
-    assert [r["outcome"] for r in outcome.record["retries"]] == ["passed"] * 3
-    for name in ("plant.x_B", "plant.v_B", "controller.iq_ref"):
-        assert np.array_equal(outcome.trace.column(name), clean.trace.column(name)), name
+    clean = systems.simulate_system(_run(refusing), plant, controller=_Integrating(), coupling=coupling)
+    outcomes = {
+        engine: _simulate(refused, plant, engine, monkeypatch, coupling, interval=25, controller=_Integrating())
+        for engine in ("compiled", "python")
+    }
+    assert "controller in Python, called back from C" in outcomes["compiled"].record["loop"]["reason"]
+    for outcome in outcomes.values():
+        assert outcome.complete, outcome.reason
+        assert [r["outcome"] for r in outcome.record["retries"]] == ["passed"] * 3
+        for name in ("plant.x_B", "plant.v_B", "controller.iq_ref"):
+            assert np.array_equal(outcome.trace.column(name), clean.trace.column(name)), name
+    compiled, python = outcomes["compiled"], outcomes["python"]
+    assert compiled.record["retries"] == python.record["retries"]
+    assert np.array_equal(compiled.trace.data, python.trace.data)
 
 
 @pytest.mark.parametrize("version", ["2.0", "3.0"])
