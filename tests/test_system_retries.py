@@ -232,12 +232,15 @@ class _Measures:
         return ControlStep(12.0 * e - 2.5 * measurement["v_B"], (e,), state)
 
 
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_a_value_a_native_controller_measures_that_is_not_finite_ends_the_run_naming_its_source(
-    plant, tmp_path: Path
+    plant, tmp_path: Path, coupling: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A part's output y, NaN from t = 0.01 s, is what the Python controller measures as x_B:
     the run fails at that sample with one line naming the part, its output and the time (the
-    controller is never given the NaN), its trace up to the sample before."""
+    controller is never given the NaN), its trace up to the sample before (under Jacobi the
+    controller's inputs are set after the sample's row: one row more), in the compiled loop (the
+    controller called back into Python) as in the Python execution."""
     from nan_values import PART
     from python_fmus import build_python_fmu
 
@@ -253,13 +256,16 @@ def test_a_value_a_native_controller_measures_that_is_not_finite_ends_the_run_na
         )
     )
     wiring = Wiring(parts=(Part("probe", probe),), connections=wires)
-    outcome = systems.simulate_system(dataclasses.replace(run, system=wiring), plant, controller=_Measures())
-    assert not outcome.complete
-    assert outcome.reason == (
-        "component 'probe': its output y is nan at t = 0.01 s, measured by the native controller 'controller', "
-        "which takes finite values only"
-    )
-    assert outcome.record["samples"] == 20  # t = 0 .. 0.0095 s
+    run = dataclasses.replace(run, system=wiring)
+    outcomes = [_simulate(run, plant, engine, monkeypatch, coupling, _Measures()) for engine in ("compiled", "python")]
+    for outcome in outcomes:
+        assert not outcome.complete
+        assert outcome.reason == (
+            "component 'probe': its output y is nan at t = 0.01 s, measured by the native controller 'controller', "
+            "which takes finite values only"
+        )
+        assert outcome.record["samples"] == (21 if coupling == "jacobi" else 20)  # t = 0 .. 0.0095 (0.01) s
+    assert np.array_equal(outcomes[0].trace.data, outcomes[1].trace.data, equal_nan=True)
 
 
 class _Integrating:

@@ -53,7 +53,7 @@ import numpy as np
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.cosim.compiled_loop import KERNEL_FLAGS
 from toggle_cosim.cosim.session import CFunctions
-from toggle_cosim.cosim.slaves import ControllerSlave
+from toggle_cosim.cosim.slaves import ControllerSlave, SlaveError
 from toggle_cosim.cosim.system_natives import NativeController, native_controller
 from toggle_cosim.cosim.system_python import Callbacks, PythonComponent, Turns, turns_of
 from toggle_cosim.native import load_library_from
@@ -73,6 +73,7 @@ __all__ = [
 
 DONE, HAND_BACK, FMI_FAILED, RAISED = 0, 1, 2, 3  # system_run's return codes (system_skeleton.c)
 _CALLS = {1: "get", 2: "set", 3: "step"}
+_CALLS_STEP = 3
 _TYPED = 4  # fault 4 + i: the component's typed read i (`fmi_pointers.TypedRead`)
 
 # The C structs' fields, in their order in system_skeleton.c.
@@ -94,6 +95,7 @@ _COMPONENT_POINTERS = (
 )
 _COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id", "n_typed")
 _COMPONENT_AFTER = ("native", "python")  # pointers after the longs
+_COMPONENT_LAST = ("pending",)  # a long after them
 _NATIVE_LONGS = ("kind", "n_in", "n_held", "n_state", "i_q", "i_qd", "m")
 _NATIVE_POINTERS = ("early_pos", "late_pos", "mem", "saved", "state", "ref", "a", "b", "c", "d")
 _NATIVE_DOUBLES = ("target", "origin")
@@ -117,6 +119,7 @@ def _component_struct() -> type[ctypes.Structure]:
     fields = [*((name, ctypes.c_void_p) for name in _COMPONENT_POINTERS)]
     fields += [(name, ctypes.c_long) for name in _COMPONENT_LONGS]
     fields += [(name, ctypes.c_void_p) for name in _COMPONENT_AFTER]
+    fields += [(name, ctypes.c_long) for name in _COMPONENT_LAST]
     return type("_Component", (ctypes.Structure,), {"_fields_": fields})
 
 
@@ -341,7 +344,10 @@ class SystemLoop:
             entry.n_early, entry.n_late = len(early), len(late)
             entry.id = ids[c] if ids is not None else c + 1
             if isinstance(calls, PythonComponent):
-                turns[c] = turns_of(calls.slave, early, late, arrays[4], buffer, entry.out0, len(outputs))
+                late_slots = [inputs[i] for i in late]
+                turns[c] = turns_of(
+                    calls.slave, early, late, late_slots, arrays[4], buffer, entry.out0, len(outputs), T_s
+                )
         self._natives = tuple(natives)
         self._callbacks = Callbacks(turns, self.T_s) if turns else None
         if self._callbacks is not None:
@@ -369,6 +375,7 @@ class SystemLoop:
         if self._callbacks is not None:
             s.answered = self._callbacks.answered.ctypes.data
         self._keep = keep  # everything the C side points into stays alive with the loop
+        self._table, self._calling = table, calling
         self._functions = tuple(functions)
         self._state = s
         self._pointer = ctypes.pointer(s)
@@ -399,8 +406,28 @@ class SystemLoop:
             with callbacks.catching():
                 code = self._library.system_run(self._pointer, k_end)
             if code == RAISED:
+                for c in callbacks.turns:  # the run ends here, or goes on from a checkpoint put back
+                    self._table[c].pending = 0
                 callbacks.reraise(self.plan.order[int(self._state.failed)], int(self._state.k))
+            self._finish(code)
         return code, int(self._state.k)
+
+    def _finish(self, code: int) -> None:
+        """The late inputs and doStep still to make of each component run in Python (`pending`),
+        as the Python execution makes them before the loop's next call: of the sample before
+        the one the loop stopped at, or of that sample when a doStep of it failed."""
+        s = self._state
+        k = int(s.k) if code == FMI_FAILED and int(s.fault) == _CALLS_STEP else int(s.k) - 1
+        for c, turn in self._callbacks.turns.items():
+            entry = self._table[c]
+            if entry.pending:
+                entry.pending = 0
+                self._calling[0] = entry.id
+                try:
+                    turn.finish(k)
+                except SlaveError as error:
+                    error.k = k
+                    raise
 
     @property
     def native_names(self) -> tuple[str, ...]:

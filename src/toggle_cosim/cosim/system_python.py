@@ -1,16 +1,18 @@
 """Components of a system's compiled loop (`cosim.system_loop`) that run in Python: a user's
 Python controller (a `ControllerSlave` whose controller is not a native kind, `system_natives`),
-or any slave without C calls. Every FMU call of the run stays in C; at such a component's turns
-of a sample the C calls back into Python (system_skeleton.c's `call_python`), which makes the
-slave's own calls with the values the C gathered:
+or any slave without C calls. Every FMU call of the run stays in C; at such a component's early
+turn of each sample k the C calls back into Python once (system_skeleton.c's `call_python`),
+and the callback makes the slave's own calls with the values the C computed:
 
-* CALL_EARLY: `set` its early inputs (when it has any), `get` its outputs straight into their
-  slots of the loop's buffer;
-* CALL_LATE: `set` its late inputs;
-* CALL_STEP: `do_step(t_k, T_s)`.
+* first, from sample k - 1 (CALL_AFTER_STEP): `set` its late inputs (their values still in their
+  slots of the loop's buffer) and `do_step(t_k-1, T_s)`;
+* then `set` its early inputs (gathered in its scratch), and `get` its outputs straight into
+  their slots of the buffer.
 
-These are the calls, in the order and with the values, that the Python execution
-(`cosim.execution.Execution`) makes, so the trace has its bits and the slave holds its own
+Where the loop returns between samples (a stretch's end, a sample handed back), the last
+sample's late inputs and doStep are made from Python (`Turns.finish`) before anything else runs.
+So the slave is given the calls, in the order and with the values, that the Python execution
+(`cosim.execution.Execution`) gives it: the trace has its bits, and the slave holds its own
 state (a checkpoint saves and restores it as ever).
 
 What the slave's code raises (an error, SystemExit, an interrupt landing in the callback) is not
@@ -36,7 +38,7 @@ from toggle_cosim.cosim.slaves import SlaveError
 
 __all__ = ["CALLBACK", "Callbacks", "PythonComponent"]
 
-CALL_EARLY, CALL_LATE, CALL_STEP = 1, 2, 3  # system_skeleton.c's turns of a component run in Python
+CALL_EARLY, CALL_AFTER_STEP = 1, 2  # system_skeleton.c's call codes of a component run in Python
 
 CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_long, ctypes.c_long, ctypes.c_long)  # python_t
 
@@ -53,14 +55,26 @@ class PythonComponent:
 @dataclass(frozen=True)
 class Turns:
     """What the callback needs of one component run in Python: its slave, the positions among its
-    fed inputs of its early and late inputs, its scratch (the values the C gathered) and its
-    outputs' slots of the buffer, as ctypes arrays over the C's memory."""
+    fed inputs of its early and late inputs, the buffer slots of its late inputs, and as ctypes
+    arrays over the C's memory its scratch (the early values the C gathered), its outputs' slots
+    and the whole buffer (`memory`); T_s the communication step."""
 
     slave: Any
     early: tuple[int, ...]
     late: tuple[int, ...]
+    late_slots: tuple[int, ...]
     scratch: ctypes.Array
     outputs: ctypes.Array
+    memory: ctypes.Array
+    T_s: float
+
+    def finish(self, k: int) -> None:
+        """Its late inputs and doStep of sample k, as the Python execution makes them."""
+        t = k * self.T_s
+        if self.late:
+            memory = self.memory
+            self.slave.set(self.late, [memory[slot] for slot in self.late_slots], t)
+        self.slave.do_step(t, self.T_s)
 
 
 class Callbacks:
@@ -80,15 +94,17 @@ class Callbacks:
         def call_python(c: int, call: int, k: int) -> None:
             try:
                 turn = turns[c]
+                if call & CALL_AFTER_STEP:
+                    try:
+                        turn.finish(k - 1)
+                    except SlaveError as error:
+                        error.k = k - 1  # a failure of sample k - 1's calls, as the Python execution gives it
+                        raise
                 t = k * T_s
-                if call == CALL_EARLY:
-                    if turn.early:
-                        turn.slave.set(turn.early, turn.scratch[: len(turn.early)], t)
-                    turn.slave.get(turn.outputs, t)
-                elif call == CALL_LATE:
-                    turn.slave.set(turn.late, turn.scratch[: len(turn.late)], t)
-                else:
-                    turn.slave.do_step(t, T_s)
+                early = turn.early
+                if early:
+                    turn.slave.set(early, turn.scratch[: len(early)], t)
+                turn.slave.get(turn.outputs, t)
                 answered[0] = 1
             except BaseException as error:  # noqa: BLE001 - kept, and raised by `reraise` once the C has returned
                 raised.append(error)
@@ -116,21 +132,30 @@ class Callbacks:
             sys.unraisablehook = previous
 
     def reraise(self, component: str, k: int) -> NoReturn:
-        """Raise what the callback of `component` kept at sample k (a SlaveError gets k, as the
-        Python execution gives it)."""
+        """Raise what the callback of `component` kept at sample k (a SlaveError gets k, unless it
+        is of the sample before's calls, as the Python execution gives it)."""
         if not self.raised:
             raise SlaveError(f"component {component!r}: its call at sample {k} did not return", component)
         error = self.raised[0]
         self.raised.clear()
-        if isinstance(error, SlaveError):
+        if isinstance(error, SlaveError) and error.k is None:
             error.k = k
         raise error
 
 
 def turns_of(
-    slave: Any, early: Sequence[int], late: Sequence[int], scratch: ctypes.Array, buffer: np.ndarray, out0: int, n: int
+    slave: Any,
+    early: Sequence[int],
+    late: Sequence[int],
+    late_slots: Sequence[int],
+    scratch: ctypes.Array,
+    buffer: np.ndarray,
+    out0: int,
+    n: int,
+    T_s: float,
 ) -> Turns:
-    """A component's `Turns`: its outputs the n slots of `buffer` from out0 (a ctypes array over
-    them, so `get` writes where the C reads)."""
+    """A component's `Turns`: its outputs the n slots of `buffer` from out0 (ctypes arrays over the
+    buffer, so `get` writes where the C reads, and the late values read are Python floats)."""
+    memory = (ctypes.c_double * buffer.size).from_address(buffer.ctypes.data)
     outputs = (ctypes.c_double * max(n, 1)).from_address(buffer.ctypes.data + out0 * buffer.itemsize)
-    return Turns(slave, tuple(early), tuple(late), scratch, outputs)
+    return Turns(slave, tuple(early), tuple(late), tuple(late_slots), scratch, outputs, memory, float(T_s))

@@ -22,12 +22,16 @@
    with HAND_BACK at that sample before any doStep of it, and the saved copy (`saved`: what the
    controller held at the sample's start) lets the Python execution take the sample from its start.
 
-   A component run in Python (a user's Python controller: cosim/system_loop.py's callback) is
-   called back at its three turns of the sample, with its inputs gathered in its scratch as for an
-   FMU: CALL_EARLY (set its early inputs, get its outputs into its buffer slots), CALL_LATE (set its
-   late inputs), CALL_STEP (its doStep). The callback sets *s->answered to 1 when the call is done;
-   anything else (the Python raised, or an interrupt landed in the callback) stops the loop with
-   RAISED at that sample, and the Python raises what it caught. */
+   A component run in Python (a user's Python controller: cosim/system_python.py's callback) is
+   called back once a sample, at its early turn, its early inputs computed into its scratch as for
+   an FMU: the callback sets its early inputs and gets its outputs into their buffer slots. Its
+   late inputs and its doStep of sample k are its own calls too, in the same order, made by the
+   same callback at sample k + 1 before the rest (CALL_AFTER_STEP: `pending`; the late values stay
+   in their buffer slots until then), or by the Python once the loop returns. So the component
+   sees the calls and values the Python execution makes, one callback a sample. The callback sets
+   *s->answered to 1 when the call is done; anything else (the Python raised, or an interrupt
+   landed in the callback) stops the loop with RAISED at that sample, and the Python raises what
+   it caught. */
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -38,7 +42,7 @@ typedef int (*step2_t)(void *, double, double, int);
 typedef int (*get3_t)(void *, const unsigned int *, size_t, double *, size_t);
 typedef int (*set3_t)(void *, const unsigned int *, size_t, const double *, size_t);
 typedef int (*step3_t)(void *, double, double, bool, bool *, bool *, bool *, double *);
-typedef void (*python_t)(long, long, long); /* (component, CALL_EARLY / CALL_LATE / CALL_STEP, k) */
+typedef void (*python_t)(long, long, long); /* (component, CALL_EARLY [| CALL_AFTER_STEP], k) */
 
 /* A native controller's kinds, and its memory: mem = dirty, held[n_held] (the command, then the
    diagnostics), row[n_in] (its fed inputs as set, in plan order), next[n_state] (the state its
@@ -75,6 +79,7 @@ typedef struct {
     long n_typed;
     native_t *native;                           /* NULL: an FMU */
     void *python;                               /* a python_t: the component runs in Python (NULL: not) */
+    long pending;                               /* its late inputs and doStep of the last sample are still to make */
 } component_t;
 
 typedef struct {
@@ -99,7 +104,7 @@ typedef struct {
 
 enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2, RAISED = 3 };
 enum { CALL_GET = 1, CALL_SET = 2, CALL_STEP = 3, CALL_TYPED = 4 };
-enum { CALL_EARLY = 1, CALL_LATE = 2 }; /* a component run in Python: its turns (and CALL_STEP) */
+enum { CALL_EARLY = 1, CALL_AFTER_STEP = 2 }; /* a component run in Python: its callback's call */
 
 /* Only OK (0) and Warning (1) let the loop go on: Discard, Error, Fatal, Pending and any value
    the standard does not define fail the run. */
@@ -222,9 +227,12 @@ static void native_set(native_t *p, const long *pos, long count, const double *v
     p->mem[0] = 1.0;
 }
 
-/* Call back the component c run in Python at its turn `call` of sample k: DONE, or RAISED (s->k,
-   s->failed set) when the callback did not say it was done. */
-static int call_python(system_t *s, const component_t *p, long c, long call, long k) {
+/* Call back the component c run in Python at its early turn of sample k (first its late inputs and
+   doStep of sample k - 1 when pending): DONE, or RAISED (s->k, s->failed set) when the callback
+   did not say it was done. */
+static int call_python(system_t *s, component_t *p, long c, long k) {
+    long call = CALL_EARLY | (p->pending ? CALL_AFTER_STEP : 0);
+    p->pending = 0;
     *s->answered = 0;
     ((python_t)p->python)(c, call, k);
     if (*s->answered == 1) { return DONE; }
@@ -271,7 +279,7 @@ int system_run(system_t *s, long k_end) {
             }
             if (p->python) {
                 if (p->n_early) { compute(s, p, p->early_slot, p->n_early, row); }
-                if (call_python(s, p, c, CALL_EARLY, k) != DONE) { return RAISED; }
+                if (call_python(s, p, c, k) != DONE) { return RAISED; }
                 continue;
             }
             if (p->n_early) {
@@ -298,15 +306,11 @@ int system_run(system_t *s, long k_end) {
         if (k == s->n) { s->k = k + 1; return DONE; }
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
-            if (p->n_late) {
+            if (p->n_late && !p->python) { /* a component run in Python: set with its doStep (pending) */
                 *s->calling = p->id;
                 for (i = 0; i < p->n_late; i++) { p->scratch[i] = s->buffer[p->late_slot[i]]; }
                 if (p->native) {
                     native_set(p->native, p->native->late_pos, p->n_late, p->scratch);
-                    continue;
-                }
-                if (p->python) {
-                    if (call_python(s, p, c, CALL_LATE, k) != DONE) { return RAISED; }
                     continue;
                 }
                 status = set_inputs(p, p->late_vr, p->n_late, p->scratch);
@@ -330,7 +334,7 @@ int system_run(system_t *s, long k_end) {
                 continue;
             }
             if (s->components[c].python) {
-                if (call_python(s, &s->components[c], c, CALL_STEP, k) != DONE) { return RAISED; }
+                s->components[c].pending = 1; /* its late inputs and doStep, at its next call */
                 continue;
             }
             status = do_step(&s->components[c], t, s->T_s, s->no_prior != 0);
