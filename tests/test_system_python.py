@@ -28,6 +28,7 @@ from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim import systems
 from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.system_loop import system_library, system_library_reason
+from toggle_cosim.cosim.system_retry import CheckpointOptions
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.runs.definition import Run
@@ -90,13 +91,16 @@ def _controller(kind: str, run: Run, plant: object) -> object:
     return _Pid(run.x_target, run.T_s)
 
 
-def _both(run: Run, plant: object, make: object, monkeypatch: pytest.MonkeyPatch, coupling: str) -> tuple:
+def _both(
+    run: Run, plant: object, make: object, monkeypatch: pytest.MonkeyPatch, coupling: str, interval: int = 200
+) -> tuple:
     """The run with a fresh controller from `make()` in the compiled loop, then in the Python
-    execution (no compiled loop made): the two outcomes."""
-    compiled = systems.simulate_system(run, plant, controller=make(), coupling=coupling)
+    execution (no compiled loop made), a checkpoint every `interval` samples: the two outcomes."""
+    options = CheckpointOptions(interval=interval)
+    compiled = systems.simulate_system(run, plant, controller=make(), coupling=coupling, checkpoints=options)
     with monkeypatch.context() as patch:
         patch.setattr(systems, "compiled_system", lambda *args, **kwargs: "the Python form, for the comparison")
-        python = systems.simulate_system(run, plant, controller=make(), coupling=coupling)
+        python = systems.simulate_system(run, plant, controller=make(), coupling=coupling, checkpoints=options)
     assert compiled.record["loop"]["kind"] == "system, compiled"
     assert CALLED_BACK in compiled.record["loop"]["reason"], compiled.record["loop"]
     assert python.record["loop"]["kind"] == "system, python"
@@ -148,18 +152,20 @@ def _fig4_system(t_end: float = 0.05) -> Run:
     return dataclasses.replace(run, system=Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B"))))
 
 
+@pytest.mark.parametrize("interval", [200, 21], ids=["mid-stretch", "at-a-stretch-end"])
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_a_controller_that_raises_at_a_sample_ends_both_forms_alike(
-    coupling: str, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
+    coupling: str, interval: int, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The controller's step raises at t = 0.01 s: the run fails with the same reason (naming the
-    component, the step, the time and the error), the same rows and the same run.json in the
-    compiled loop as in the Python execution. (Under Jacobi the controller computes at its doStep,
-    after the sample's row: one row more.)"""
+    """The controller's step raises at t = 0.01 s (sample 20): the run fails with the same reason
+    (naming the component, the step, the time and the error), the same rows and the same run.json
+    in the compiled loop as in the Python execution. (Under Jacobi the controller computes at its
+    doStep, after the sample's row: one row more; with a checkpoint every 21 samples that doStep
+    is the last of a stretch, made once the C has returned.)"""
     plant = check_plant(plant_fmu)
     run = _fig4_system()
     make = lambda: _RaisesAt(run.x_target, run.T_s, ValueError("the user's bug"))  # noqa: E731
-    compiled, python = _both(run, plant, make, monkeypatch, coupling)
+    compiled, python = _both(run, plant, make, monkeypatch, coupling, interval)
     assert not compiled.complete and not compiled.interrupted
     assert compiled.reason == python.reason
     assert compiled.reason == (

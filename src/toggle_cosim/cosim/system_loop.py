@@ -22,9 +22,9 @@ is not finite, the loop hands the sample back (HAND_BACK, before any doStep of i
 `give_back()` returns the slaves what they held at that sample's start.
 
 A component run in Python (a user's Python controller, any slave without C calls:
-`system_python.PythonComponent`) is called back at its turns of each sample
-(`system_python.Callbacks`): the slave makes the calls the Python execution makes, with the same
-values, so only that component costs Python time. What it raises stops the loop at that sample
+`system_python.PythonComponent`) is called back once a sample, at its early turn
+(`system_python.Callbacks`): the slave is given the calls the Python execution gives it, in their
+order and with the same values, so only that component costs Python time. What it raises stops the loop at that sample
 (RAISED) and `run` raises it, as the Python execution would.
 
 `compiled_system` makes the loop for a plan's slaves (`cosim.slaves`): an FMU's `c_functions()`,
@@ -73,7 +73,7 @@ __all__ = [
 
 DONE, HAND_BACK, FMI_FAILED, RAISED = 0, 1, 2, 3  # system_run's return codes (system_skeleton.c)
 _CALLS = {1: "get", 2: "set", 3: "step"}
-_CALLS_STEP = 3
+_CALLS_STEP = 3  # _CALLS's doStep: system_t's fault of a failed doStep
 _TYPED = 4  # fault 4 + i: the component's typed read i (`fmi_pointers.TypedRead`)
 
 # The C structs' fields, in their order in system_skeleton.c.
@@ -418,16 +418,16 @@ class SystemLoop:
         the one the loop stopped at, or of that sample when a doStep of it failed."""
         s = self._state
         k = int(s.k) if code == FMI_FAILED and int(s.fault) == _CALLS_STEP else int(s.k) - 1
-        for c, turn in self._callbacks.turns.items():
-            entry = self._table[c]
-            if entry.pending:
-                entry.pending = 0
-                self._calling[0] = entry.id
-                try:
-                    turn.finish(k)
-                except SlaveError as error:
-                    error.k = k
-                    raise
+        pending = [(c, turn) for c, turn in self._callbacks.turns.items() if self._table[c].pending]
+        for c, _ in pending:  # none left for the loop's next call, whatever these raise
+            self._table[c].pending = 0
+        for c, turn in pending:
+            self._calling[0] = self._table[c].id
+            try:
+                turn.finish(k)
+            except SlaveError as error:
+                error.k = k
+                raise
 
     @property
     def native_names(self) -> tuple[str, ...]:
