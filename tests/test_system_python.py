@@ -200,14 +200,16 @@ def test_sigint_sent_while_an_fmu_steps_in_c_interrupts_the_run(
     starts, the controller's callback (before its own handler can catch it). The run is
     interrupted in the compiled loop as in the Python execution, with the same rows, and
     nothing says an exception was ignored."""
-    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        pytest.skip("SIGINT is not Python's KeyboardInterrupt here")
     part = _refusing_part(tmp_path, True, "-DINTERRUPT_AT=0.01")
     plant = check_plant(plant_fmu)
     base = _fig4_system()
     wires = (*base.system.connections, _c("plant.x_B -> probe.x"))
     run = dataclasses.replace(base, system=Wiring(parts=(Part("probe", part),), connections=wires))
-    compiled, python = _both(run, plant, lambda: _Pid(run.x_target, run.T_s), monkeypatch, "gauss-seidel")
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)  # SIGINT raises KeyboardInterrupt, as in a command
+    try:
+        compiled, python = _both(run, plant, lambda: _Pid(run.x_target, run.T_s), monkeypatch, "gauss-seidel")
+    finally:
+        signal.signal(signal.SIGINT, old)
     for outcome in (compiled, python):
         assert outcome.interrupted and outcome.record["status"] == "interrupted", outcome.reason
     assert compiled.reason == python.reason
