@@ -216,3 +216,33 @@ def test_sigint_sent_while_an_fmu_steps_in_c_interrupts_the_run(
     assert compiled.record["samples"] == python.record["samples"] == 21  # t = 0 .. 0.01 s recorded
     assert np.array_equal(compiled.trace.data, python.trace.data)
     assert "ignored" not in capfd.readouterr().err
+
+
+def test_an_exception_escaping_the_callback_is_kept_by_its_loop_and_the_hook_put_back() -> None:
+    """While a loop with callbacks runs (two at once, as two threads would), an exception that
+    escapes a callback (Python reports it as unraisable, naming the callback) is kept by that
+    loop, to be raised from its `run`; any other unraisable goes to the hook in place before;
+    once the last loop has returned, that hook is back."""
+    import sys
+    from types import SimpleNamespace
+
+    from toggle_cosim.cosim.system_python import Callbacks
+
+    first, second = Callbacks({}, 0.001), Callbacks({}, 0.001)
+    before, other = sys.unraisablehook, []
+
+    def escaped(callbacks: Callbacks, error: BaseException) -> SimpleNamespace:
+        said = f"Exception ignored on calling ctypes callback function {callbacks.target!r}"
+        return SimpleNamespace(exc_value=error, object=None, err_msg=said, exc_type=type(error), exc_traceback=None)
+
+    sys.unraisablehook = other.append
+    try:
+        with first.catching():
+            with second.catching():
+                interrupt = KeyboardInterrupt()
+                sys.unraisablehook(escaped(second, interrupt))
+                sys.unraisablehook(SimpleNamespace(exc_value=ValueError("a __del__"), object=None, err_msg="x"))
+            assert second.raised == [interrupt] and first.raised == [] and len(other) == 1
+        assert sys.unraisablehook == other.append
+    finally:
+        sys.unraisablehook = before

@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import sys
+import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, NoReturn
@@ -85,8 +86,8 @@ class Callbacks:
         self.turns, self.T_s = turns, float(T_s)
         self.answered = np.zeros(1, dtype=np.int64)  # system_t's answered
         self.raised: list[BaseException] = []
-        self._python = self._callback()
-        self.function = CALLBACK(self._python)
+        self.target = self._callback()  # the Python function the C calls
+        self.function = CALLBACK(self.target)  # its C pointer, kept alive with the loop
 
     def _callback(self) -> Any:
         turns, T_s, answered, raised = self.turns, self.T_s, self.answered, self.raised
@@ -111,25 +112,18 @@ class Callbacks:
 
         return call_python
 
+    def owns(self, info: Any) -> bool:
+        """Whether an unraisable exception's `info` is one escaping this loop's callback (Python
+        3.13 names the callback in err_msg, 3.12 gives it as the object)."""
+        python = self.target
+        return info.object is python or repr(python) in (info.err_msg or "")
+
     @contextlib.contextmanager
     def catching(self) -> Iterator[None]:
         """While the C runs: an exception that escapes the callback (an interrupt landing before
         its handler runs) is kept for `reraise`, not printed and dropped by ctypes."""
-        previous, python = sys.unraisablehook, self._python
-        named = repr(python)  # Python 3.13 names the callback in err_msg, 3.12 gives it as object
-
-        def hook(info: Any) -> None:
-            error = getattr(info, "exc_value", None)
-            if error is not None and (info.object is python or named in (info.err_msg or "")):
-                self.raised.append(error)
-                return
-            previous(info)
-
-        sys.unraisablehook = hook
-        try:
+        with _catching(self):
             yield
-        finally:
-            sys.unraisablehook = previous
 
     def reraise(self, component: str, k: int) -> NoReturn:
         """Raise what the callback of `component` kept at sample k (a SlaveError gets k, unless it
@@ -141,6 +135,39 @@ class Callbacks:
         if isinstance(error, SlaveError) and error.k is None:
             error.k = k
         raise error
+
+
+_lock = threading.Lock()
+_active: list[Callbacks] = []  # the loops running now (any thread), whose callbacks' escapes `_hook` keeps
+_previous: list[Any] = []  # the unraisable hook in place before the first of them started
+
+
+def _hook(info: Any) -> None:
+    """sys.unraisablehook while a loop with callbacks runs: an exception escaping one of their
+    callbacks is kept by its loop; anything else goes to the hook in place before."""
+    error = getattr(info, "exc_value", None)
+    for callbacks in tuple(_active):
+        if error is not None and callbacks.owns(info):
+            callbacks.raised.append(error)
+            return
+    (_previous[0] if _previous else sys.__unraisablehook__)(info)
+
+
+@contextlib.contextmanager
+def _catching(callbacks: Callbacks) -> Iterator[None]:
+    """`_hook` installed from the first loop's start to the last one's end, whichever threads run them."""
+    with _lock:
+        if not _active:
+            _previous[:] = [sys.unraisablehook]
+            sys.unraisablehook = _hook
+        _active.append(callbacks)
+    try:
+        yield
+    finally:
+        with _lock:
+            _active.remove(callbacks)
+            if not _active and sys.unraisablehook is _hook:
+                sys.unraisablehook = _previous.pop()
 
 
 def turns_of(
