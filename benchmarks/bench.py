@@ -29,7 +29,9 @@ What is measured (benchmarks/README.md says more):
   a three-FMU system (a second controller instance reading the plant) and the press example's
   four FMUs per sample, beside the master's Python execution of the same plan, a plain C master
   of the same FMUs (benchmarks/system_master.c) and the sum of each FMU's own calls replayed
-  from C (benchmarks/system_replay.c; `system_bench.py`);
+  from C (benchmarks/system_replay.c; `system_bench.py`), and a Python controller (the examples' PD
+  law) in the press system, called back from the compiled system loop, against the same
+  controller in the pair;
 * the cost per step and per simulated second for T_s = 2 ms ... 0.05 ms;
 * the throughput of a batch of runs on 1 and 2 worker processes;
 * sweeps: cases per second of `toggle-cosim sweep`'s workers against simulate() alone on the

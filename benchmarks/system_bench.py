@@ -23,6 +23,14 @@ tables; its last x_B, last command and sum of x_B compared with the loop's trace
 `system_replay.c`, each FMU alone on a fresh instance making the loop's calls with the inputs
 the run recorded, summed over the FMUs (its outputs compared with the recorded ones).
 
+A user's Python controller (examples/controllers/my_controllers.py's PD law) in the press system
+against the same controller in the pair (`python_controller`), each by `master.simulate`,
+interleaved: the pair's fixed loop (`PythonStepper`, the plant's calls one C call per sample) on
+the press example's plant and stroke, and the four-part press system, whose compiled loop calls
+the controller back into Python at its turns (`cosim.system_python`), beside the master's Python
+execution of that system (TOGGLE_COSIM_KERNEL=0, the form a Python controller ran in before);
+the system's trace must have the Python execution's bits.
+
 And the built-in law through the one execution: fig4_nominal/friction with `record:` (a two-part
 system, the law natively in the compiled system loop) against the pair's fixed loop, both by
 `master.simulate` (`law_in_a_system`): the loop's seconds per sample, the ratio, and whether
@@ -141,6 +149,51 @@ def law_in_a_system(plant, repetitions: int) -> dict:  # noqa: ANN001
 
 
 PRESS = ROOT / "examples" / "press_system"
+
+
+def _pd_controller(run):  # noqa: ANN001, ANN202 - the examples' PDController
+    """examples/controllers/my_controllers.py's PD law (Kp 12 A/m, Kd 2.5 A s/m) for the run's target."""
+    import importlib.util
+
+    path = ROOT / "examples" / "controllers" / "my_controllers.py"
+    spec = importlib.util.spec_from_file_location("my_controllers_bench", path)
+    module = sys.modules.setdefault(spec.name, importlib.util.module_from_spec(spec))
+    if not hasattr(module, "PDController"):
+        spec.loader.exec_module(module)
+    return module.PDController(run.x_target, 12.0, 2.5)
+
+
+def python_controller(plant, parts: dict[str, Path], controller: Path, repetitions: int) -> dict:  # noqa: ANN001
+    """The examples' PD law in the pair (the press example's plant and stroke, its fixed Python
+    loop) and in the press system (the compiled system loop calling it back; the Python execution
+    with TOGGLE_COSIM_KERNEL=0), by `master.simulate`, interleaved: the best loop seconds per
+    sample of each, and whether the compiled loop's trace has the Python execution's bits."""
+    import os
+
+    run = press_with(controller, parts)
+    run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=None))
+    pair_run = dataclasses.replace(run, system=Wiring())
+    times: dict[str, list[float]] = {"pair": [], "system": [], "python": []}
+    same = True
+    for _ in range(repetitions):
+        pair = simulate(pair_run, plant, controller=_pd_controller(run))
+        system = simulate(run, plant, controller=_pd_controller(run))
+        previous = os.environ.get("TOGGLE_COSIM_KERNEL")
+        os.environ["TOGGLE_COSIM_KERNEL"] = "0"
+        try:
+            python = simulate(run, plant, controller=_pd_controller(run))
+        finally:
+            if previous is None:
+                os.environ.pop("TOGGLE_COSIM_KERNEL")
+            else:
+                os.environ["TOGGLE_COSIM_KERNEL"] = previous
+        for outcome, kind in ((pair, "python"), (system, "system, compiled"), (python, "system, python")):
+            if not outcome.complete or outcome.record["loop"]["kind"] != kind:
+                raise RuntimeError(f"a Python controller, {kind}: {outcome.reason or outcome.record['loop']}")
+        for key, outcome in (("pair", pair), ("system", system), ("python", python)):
+            times[key].append(outcome.loop_seconds / run.steps)
+        same = same and np.array_equal(system.trace.data, python.trace.data, equal_nan=True)
+    return {**{key: min(value) for key, value in times.items()}, "bit_for_bit": same, "samples": run.steps}
 
 
 def build_press_parts(folder: Path) -> dict[str, Path]:
@@ -432,6 +485,30 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
             f"{us(press['compiled'])} / {us(press['replay'])} = {ratio:.2f}"
             + ("" if press["bit_for_bit"] else "; NOT bit for bit"),
         )
+    python = python_controller(plant, parts, controller, repetitions)
+    figures["systems"]["python_controller"] = python
+    table.text(
+        f"a Python controller (examples/controllers' PD law) in the pair and in the press system, {python['samples']} samples:"
+    )
+    table.add("Python controller in the pair (its fixed loop)", us(python["pair"]), "the plant's calls in one C call")
+    bits = "same bits" if python["bit_for_bit"] else "NOT the same bits"
+    table.add(
+        "Python controller in the press system, compiled loop",
+        us(python["system"]),
+        f"called back from C at its turns; {bits} as the Python execution",
+    )
+    table.add(
+        "Python controller in the press system, Python execution",
+        us(python["python"]),
+        "TOGGLE_COSIM_KERNEL=0: every FMU called from Python",
+    )
+    ratio = python["system"] / python["pair"]
+    table.check(
+        "a Python controller in the press system <= 1.2 x the same controller in the pair",
+        ratio <= 1.2 and python["bit_for_bit"],
+        f"{us(python['system'])} / {us(python['pair'])} = {ratio:.2f}"
+        + ("" if python["bit_for_bit"] else "; NOT bit for bit"),
+    )
     ssp = _press_ssp(controller, parts, plant, folder)
     run = press_with(controller, parts)
     masters = ssp_masters(ssp, run.T_s, run.t_end, max(repetitions // 3, 1), folder)

@@ -85,6 +85,9 @@ def test_bench_quick_runs_and_measures_the_compiled_loop(plant_fmu: Path, tmp_pa
         press = figures["systems"]["press"]
         assert press["components"] == 4 and 0 < press["compiled"] < press["python"] and press["bit_for_bit"]
         assert "4-FMU press system in the compiled loop <= 1.2 x the sum of its FMUs' own calls from C" in result.stdout
+        python = figures["systems"]["python_controller"]  # a Python controller in the press system, beside the pair
+        assert python["bit_for_bit"] and 0 < python["system"] < python["python"] and python["pair"] > 0, python
+        assert "a Python controller in the press system <= 1.2 x the same controller in the pair" in result.stdout
         law = figures["systems"]["law_system"]  # the built-in law natively in a two-part system, beside the pair's loop
         assert law["bit_for_bit"] and 0 < law["system"] and 0 < law["pair"], law
         assert "built-in law in a two-part system <= 1.05 x the pair's loop" in result.stdout

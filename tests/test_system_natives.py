@@ -8,8 +8,8 @@ examples/controllers/pid_2dof.yaml and a tracking scenario, the system's trace h
 loop's bits in every column the two share; under Gauss-Seidel and Jacobi the C form has the bits
 of the Python form (the same `ControllerSlave` stepped by the Python execution); a sample the C
 cannot take (a state that overflows) goes to the Python execution with the rest of the run,
-which ends as the Python form ends; a controller whose step is its own runs in Python, with a
-reason naming it.
+which ends as the Python form ends; a controller whose step is its own runs in Python, called
+back from the compiled loop, with a reason naming it.
 """
 
 from __future__ import annotations
@@ -184,14 +184,16 @@ class _OwnStep(VSCController):
 
 
 def test_a_controller_with_its_own_step_runs_in_python_and_says_why(plant_fmu: Path) -> None:
-    """A subclass of the built-in law that overrides step is not the generated law: the system
-    runs in the Python execution, and run.json names the component and the reason."""
+    """A subclass of the built-in law that overrides step is not the generated law: the compiled
+    system loop calls it back into Python (`system_python`), and run.json names the component and
+    the reason."""
     run = _as_system(dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.05))
     plant = check_plant(plant_fmu)
     built = controller_for(run, plant.recorded_outputs)
     own = _OwnStep(**{f.name: getattr(built, f.name) for f in dataclasses.fields(VSCController)})
     result = simulate_system(run, plant, controller=own)
-    assert result.complete and result.record["loop"]["kind"] == "system, python"
+    assert result.complete and result.record["loop"]["kind"] == "system, compiled"
     assert (
-        "component controller runs in Python (_OwnStep: the controller's step is" in (result.record["loop"]["reason"])
+        "controller in Python, called back from C (_OwnStep: the controller's step is"
+        in (result.record["loop"]["reason"])
     )

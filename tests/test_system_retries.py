@@ -78,15 +78,20 @@ def _run(part: Path, **values: float):
     return dataclasses.replace(run, system=wiring)
 
 
-def _simulate(run, plant, engine: str, monkeypatch: pytest.MonkeyPatch, coupling: str | None = None, **options: object):
-    """The run by the compiled system loop or the Python execution, with its checkpoint options."""
+def _simulate(
+    run, plant, engine: str, monkeypatch: pytest.MonkeyPatch, coupling: str | None = None, controller=None, **options
+):
+    """The run by the compiled system loop or the Python execution, with its checkpoint options
+    (and a controller of the protocol in place of the scenario's)."""
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1" if engine == "compiled" else "0")
     if options:
         from toggle_cosim.cosim.system_retry import CheckpointOptions
 
-        outcome = systems.simulate_system(run, plant, coupling=coupling, checkpoints=CheckpointOptions(**options))
+        outcome = systems.simulate_system(
+            run, plant, coupling=coupling, checkpoints=CheckpointOptions(**options), controller=controller
+        )
     else:
-        outcome = systems.simulate_system(run, plant, coupling=coupling)
+        outcome = systems.simulate_system(run, plant, coupling=coupling, controller=controller)
     assert outcome.record["loop"]["kind"] == f"system, {engine}"
     return outcome
 
@@ -226,12 +231,15 @@ class _Measures:
         return ControlStep(12.0 * e - 2.5 * measurement["v_B"], (e,), state)
 
 
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_a_value_a_native_controller_measures_that_is_not_finite_ends_the_run_naming_its_source(
-    plant, tmp_path: Path
+    plant, tmp_path: Path, coupling: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A part's output y, NaN from t = 0.01 s, is what the Python controller measures as x_B:
     the run fails at that sample with one line naming the part, its output and the time (the
-    controller is never given the NaN), its trace up to the sample before."""
+    controller is never given the NaN), its trace up to the sample before (under Jacobi the
+    controller's inputs are set after the sample's row: one row more), in the compiled loop (the
+    controller called back into Python) as in the Python execution."""
     from nan_values import PART
     from python_fmus import build_python_fmu
 
@@ -247,13 +255,16 @@ def test_a_value_a_native_controller_measures_that_is_not_finite_ends_the_run_na
         )
     )
     wiring = Wiring(parts=(Part("probe", probe),), connections=wires)
-    outcome = systems.simulate_system(dataclasses.replace(run, system=wiring), plant, controller=_Measures())
-    assert not outcome.complete
-    assert outcome.reason == (
-        "component 'probe': its output y is nan at t = 0.01 s, measured by the native controller 'controller', "
-        "which takes finite values only"
-    )
-    assert outcome.record["samples"] == 20  # t = 0 .. 0.0095 s
+    run = dataclasses.replace(run, system=wiring)
+    outcomes = [_simulate(run, plant, engine, monkeypatch, coupling, _Measures()) for engine in ("compiled", "python")]
+    for outcome in outcomes:
+        assert not outcome.complete
+        assert outcome.reason == (
+            "component 'probe': its output y is nan at t = 0.01 s, measured by the native controller 'controller', "
+            "which takes finite values only"
+        )
+        assert outcome.record["samples"] == (21 if coupling == "jacobi" else 20)  # t = 0 .. 0.0095 (0.01) s
+    assert np.array_equal(outcomes[0].trace.data, outcomes[1].trace.data, equal_nan=True)
 
 
 class _Integrating:
@@ -272,22 +283,31 @@ class _Integrating:
         return ControlStep(12.0 * e + 40.0 * state - 2.5 * measurement["v_B"], (state,), state + e * T_S)
 
 
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
 def test_a_python_controllers_state_is_put_back_with_the_parts(
-    plant, refusing: Path, monkeypatch: pytest.MonkeyPatch
+    plant, refusing: Path, coupling: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """With a Python controller whose state is an integral (a component run in Python, so the
-    Python execution runs), a refused step is retried with every component put back to the
+    """With a Python controller whose state is an integral (a component the compiled system loop
+    calls back into Python), a refused step is retried with every component put back to the
     checkpoint, the controller's state too: the plant's and the controller's columns equal the
-    undisturbed run's bit for bit (an integral counted twice over the replayed samples would not)."""
+    undisturbed run's bit for bit (an integral counted twice over the replayed samples would not),
+    and the compiled loop and the Python execution give the same retries and the same trace."""
     refused = _run(refusing, refuse_from=START, refuse_until=START + 2.5 * T_S, pass_below=T_S / 2)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1")
-    clean = systems.simulate_system(_run(refusing), plant, controller=_Integrating())
-    outcome = systems.simulate_system(refused, plant, controller=_Integrating())
-    assert outcome.record["loop"]["kind"] == "system, python"
-    assert outcome.complete, outcome.reason
-    assert [r["outcome"] for r in outcome.record["retries"]] == ["passed"] * 3
-    for name in ("plant.x_B", "plant.v_B", "controller.iq_ref"):
-        assert np.array_equal(outcome.trace.column(name), clean.trace.column(name)), name
+    clean = systems.simulate_system(_run(refusing), plant, controller=_Integrating(), coupling=coupling)
+    outcomes = {
+        engine: _simulate(refused, plant, engine, monkeypatch, coupling, interval=25, controller=_Integrating())
+        for engine in ("compiled", "python")
+    }
+    assert "controller in Python, called back from C" in outcomes["compiled"].record["loop"]["reason"]
+    for outcome in outcomes.values():
+        assert outcome.complete, outcome.reason
+        assert [r["outcome"] for r in outcome.record["retries"]] == ["passed"] * 3
+        for name in ("plant.x_B", "plant.v_B", "controller.iq_ref"):
+            assert np.array_equal(outcome.trace.column(name), clean.trace.column(name)), name
+    compiled, python = outcomes["compiled"], outcomes["python"]
+    assert compiled.record["retries"] == python.record["retries"]
+    assert np.array_equal(compiled.trace.data, python.trace.data)
 
 
 @pytest.mark.parametrize("version", ["2.0", "3.0"])

@@ -21,9 +21,15 @@ compiles), so the trace has the Python execution's bits. Where the Python might 
 is not finite, the loop hands the sample back (HAND_BACK, before any doStep of it) and
 `give_back()` returns the slaves what they held at that sample's start.
 
-`compiled_system` makes the loop for a plan's slaves (`cosim.slaves`) when every one of them can
-run in C (an FMU's `c_functions()`, a native controller), or says in a line why not (a component
-run in Python, such as a user's Python controller; no compiled library).
+A component run in Python (a user's Python controller, any slave without C calls:
+`system_python.PythonComponent`) is called back once a sample, at its early turn
+(`system_python.Callbacks`): the slave is given the calls the Python execution gives it, in their
+order and with the same values, so only that component costs Python time. What it raises stops the loop at that sample
+(RAISED) and `run` raises it, as the Python execution would.
+
+`compiled_system` makes the loop for a plan's slaves (`cosim.slaves`): an FMU's `c_functions()`,
+a native controller, and every other component run in Python through the callback; or says in a
+line why there is none (no compiled library).
 
 A status other than OK or Warning stops the loop at that call; `failure()` names the component,
 the function, its status and the sample (`ComponentCallError`, one line).
@@ -47,8 +53,9 @@ import numpy as np
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.cosim.compiled_loop import KERNEL_FLAGS
 from toggle_cosim.cosim.session import CFunctions
-from toggle_cosim.cosim.slaves import ControllerSlave
+from toggle_cosim.cosim.slaves import ControllerSlave, SlaveError
 from toggle_cosim.cosim.system_natives import NativeController, native_controller
+from toggle_cosim.cosim.system_python import Callbacks, PythonComponent, Turns, turns_of
 from toggle_cosim.native import load_library_from
 from toggle_cosim.system.plan import Plan
 
@@ -57,14 +64,16 @@ __all__ = [
     "DONE",
     "FMI_FAILED",
     "HAND_BACK",
+    "RAISED",
     "SystemLoop",
     "compiled_system",
     "system_library",
     "system_library_reason",
 ]
 
-DONE, HAND_BACK, FMI_FAILED = 0, 1, 2  # system_run's return codes (system_skeleton.c)
+DONE, HAND_BACK, FMI_FAILED, RAISED = 0, 1, 2, 3  # system_run's return codes (system_skeleton.c)
 _CALLS = {1: "get", 2: "set", 3: "step"}
+_CALLS_STEP = 3  # _CALLS's doStep: system_t's fault of a failed doStep
 _TYPED = 4  # fault 4 + i: the component's typed read i (`fmi_pointers.TypedRead`)
 
 # The C structs' fields, in their order in system_skeleton.c.
@@ -85,14 +94,15 @@ _COMPONENT_POINTERS = (
     "typed_slot",
 )
 _COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id", "n_typed")
-_COMPONENT_AFTER = ("native",)  # pointers after the longs
+_COMPONENT_AFTER = ("native", "python")  # pointers after the longs
+_COMPONENT_LAST = ("pending",)  # a long after them
 _NATIVE_LONGS = ("kind", "n_in", "n_held", "n_state", "i_q", "i_qd", "m")
 _NATIVE_POINTERS = ("early_pos", "late_pos", "mem", "saved", "state", "ref", "a", "b", "c", "d")
 _NATIVE_DOUBLES = ("target", "origin")
 _SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record", "rows")
 _SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
 _SYSTEM_DOUBLES = ("T_s",)
-_SYSTEM_AFTER = ("calling",)  # pointers after T_s
+_SYSTEM_AFTER = ("calling", "answered")  # pointers after T_s
 
 
 class ComponentCallError(RuntimeError):
@@ -109,6 +119,7 @@ def _component_struct() -> type[ctypes.Structure]:
     fields = [*((name, ctypes.c_void_p) for name in _COMPONENT_POINTERS)]
     fields += [(name, ctypes.c_long) for name in _COMPONENT_LONGS]
     fields += [(name, ctypes.c_void_p) for name in _COMPONENT_AFTER]
+    fields += [(name, ctypes.c_long) for name in _COMPONENT_LAST]
     return type("_Component", (ctypes.Structure,), {"_fields_": fields})
 
 
@@ -146,11 +157,12 @@ def system_source() -> str:
 
 def system_inputs() -> list[Path]:
     """The files the library is built from: the law's and the LTI sums' (`control.law_c`), the
-    skeleton, this module (its struct mirror) and `system_natives` (the native kinds)."""
+    skeleton, this module (its struct mirror), `system_natives` (the native kinds) and
+    `system_python` (the callback's signature and turns)."""
     from toggle_cosim.control.law_c import law_inputs
 
-    natives = Path(__file__).with_name("system_natives.py")
-    return [*law_inputs(), _skeleton(), Path(__file__), natives]
+    here = Path(__file__)
+    return [*law_inputs(), _skeleton(), here, here.with_name("system_natives.py"), here.with_name("system_python.py")]
 
 
 _library: ctypes.CDLL | None = None
@@ -234,7 +246,8 @@ class SystemLoop:
         plan: the system's stepping plan.
         functions: per component in plan.order, its C calls: out_vr the value references of
             plan.output_names[c], in_vr those of plan.input_names[c], in those orders; or a
-            native controller (`system_natives.NativeController`), run in C.
+            native controller (`system_natives.NativeController`), run in C; or a component run
+            in Python (`system_python.PythonComponent`), called back.
         signals: the run's (n + 1, len(plan.signals)) C-contiguous float64 signal table.
         trace: the (n + 1, 1 + len(plan.record)) C-contiguous float64 trace the rows go into.
         n: the last sample (t_n = n T_s is recorded, and no doStep is made from it).
@@ -250,7 +263,7 @@ class SystemLoop:
     def __init__(
         self,
         plan: Plan,
-        functions: Sequence[CFunctions | NativeController],
+        functions: Sequence[CFunctions | NativeController | PythonComponent],
         signals: np.ndarray,
         trace: np.ndarray,
         n: int,
@@ -281,6 +294,8 @@ class SystemLoop:
         table = (_component_struct() * count)()
         keep: list[object] = [functions, signals, trace, rows]
         natives: list[tuple[int, NativeController, ctypes.Structure]] = []
+        buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
+        turns: dict[int, Turns] = {}
         for c, (entry, calls) in enumerate(zip(table, functions, strict=True)):
             inputs, outputs = plan.inputs[c], plan.outputs[c]
             if outputs and outputs != tuple(range(outputs[0], outputs[0] + len(outputs))):
@@ -293,6 +308,8 @@ class SystemLoop:
                 entry.native = ctypes.addressof(native)
                 in_vr: Sequence[int] = (0,) * len(inputs)
                 reads: Sequence = ()
+            elif isinstance(calls, PythonComponent):
+                in_vr, reads = (0,) * len(inputs), ()
             else:
                 in_vr = (ctypes.c_uint32 * len(inputs)).from_address(calls.in_vr) if inputs else ()
                 reads = calls.reads
@@ -326,8 +343,16 @@ class SystemLoop:
             entry.n_typed = len(reads)
             entry.n_early, entry.n_late = len(early), len(late)
             entry.id = ids[c] if ids is not None else c + 1
+            if isinstance(calls, PythonComponent):
+                late_slots = [inputs[i] for i in late]
+                turns[c] = turns_of(
+                    calls.slave, early, late, late_slots, arrays[4], buffer, entry.out0, len(outputs), T_s
+                )
         self._natives = tuple(natives)
-        buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
+        self._callbacks = Callbacks(turns, self.T_s) if turns else None
+        if self._callbacks is not None:
+            for c in turns:
+                table[c].python = ctypes.cast(self._callbacks.function, ctypes.c_void_p)
         source = np.ascontiguousarray(plan.feed_source, dtype=np.int64)
         factor = np.ascontiguousarray(plan.feed_factor, dtype=np.float64)
         offset = np.ascontiguousarray(plan.feed_offset, dtype=np.float64)
@@ -347,7 +372,10 @@ class SystemLoop:
         s.n_components, s.n_signals, s.n_record, s.n = count, m, len(plan.record), n
         s.T_s = self.T_s
         s.calling = calling.ctypes.data
+        if self._callbacks is not None:
+            s.answered = self._callbacks.answered.ctypes.data
         self._keep = keep  # everything the C side points into stays alive with the loop
+        self._table, self._calling = table, calling
         self._functions = tuple(functions)
         self._state = s
         self._pointer = ctypes.pointer(s)
@@ -365,17 +393,54 @@ class SystemLoop:
     def run(self, k0: int, k_end: int) -> tuple[int, int]:
         """Samples k0 .. k_end - 1 (k_end <= n + 1): (DONE, k_end), (FMI_FAILED, k) with k the
         sample whose call failed (`failure()` names it), or (HAND_BACK, k) with k the sample a
-        native controller hands to the Python execution (`give_back()`; no doStep of it made)."""
+        native controller hands to the Python execution (`give_back()`; no doStep of it made).
+        What a component run in Python raised at sample k is raised here (a SlaveError with its
+        `k`), as the Python execution raises it."""
         if not 0 <= k0 <= k_end <= self.n + 1:
             raise ValueError(f"samples {k0} .. {k_end - 1} are not within 0 .. {self.n}")
         self._state.k = k0
-        code = self._library.system_run(self._pointer, k_end)
+        callbacks = self._callbacks
+        if callbacks is None:
+            code = self._library.system_run(self._pointer, k_end)
+        else:
+            with callbacks.catching():
+                code = self._library.system_run(self._pointer, k_end)
+            if code == RAISED:
+                for c in callbacks.turns:  # the run ends here, or goes on from a checkpoint put back
+                    self._table[c].pending = 0
+                callbacks.reraise(self.plan.order[int(self._state.failed)], int(self._state.k))
+            self._finish(code)
         return code, int(self._state.k)
+
+    def _finish(self, code: int) -> None:
+        """The late inputs and doStep still to make of each component run in Python (`pending`),
+        as the Python execution makes them before the loop's next call: of the sample before
+        the one the loop stopped at, or of that sample when a doStep of it failed."""
+        s = self._state
+        k = int(s.k) if code == FMI_FAILED and int(s.fault) == _CALLS_STEP else int(s.k) - 1
+        pending = [(c, turn) for c, turn in self._callbacks.turns.items() if self._table[c].pending]
+        for c, _ in pending:  # none left for the loop's next call, whatever these raise
+            self._table[c].pending = 0
+        for c, turn in pending:
+            self._calling[0] = self._table[c].id
+            try:
+                turn.finish(k)
+            except SlaveError as error:
+                error.k = k
+                raise
 
     @property
     def native_names(self) -> tuple[str, ...]:
         """The components the loop runs natively (`system_natives`), in plan order."""
         return tuple(self.plan.order[c] for c, _, _ in self._natives)
+
+    @property
+    def in_python(self) -> tuple[tuple[str, str], ...]:
+        """The components the loop calls back into Python for (`system_python`), in plan order:
+        (name, why it is not run in C)."""
+        return tuple(
+            (self.plan.order[c], f.why) for c, f in enumerate(self._functions) if isinstance(f, PythonComponent)
+        )
 
     def give_back(self) -> None:
         """After HAND_BACK at sample k: each native controller's slave holds again what it held at
@@ -435,25 +500,26 @@ def compiled_system(
     calling: np.ndarray | None = None,
     ids: Sequence[int] | None = None,
 ) -> SystemLoop | str:
-    """The compiled loop over `slaves` (in plan.order, instantiated and initialised; each with a
-    `c_functions()` in the plan's order, as `cosim.slaves.FmuSlave` has, or a `ControllerSlave`
-    whose controller runs natively in C: `system_natives`), or why there is none: one line naming
-    the first component run in Python and why, or why the library is missing. `rows`, `calling`,
-    `ids`: as for `SystemLoop`."""
+    """The compiled loop over `slaves` (in plan.order, instantiated and initialised): each with a
+    `c_functions()` in the plan's order (as `cosim.slaves.FmuSlave` has) called from C, a
+    `ControllerSlave` whose controller runs natively in C (`system_natives`), every other one
+    called back into Python (`system_python.PythonComponent`, its `why` the line saying why it
+    is not in C); or why there is none (the library is missing). `rows`, `calling`, `ids`: as
+    for `SystemLoop`."""
     library = system_library()
     if library is None:
         return f"no compiled system loop: {system_library_reason()}"
-    functions: list[CFunctions | NativeController] = []
-    for c, (name, slave) in enumerate(zip(plan.order, slaves, strict=True)):
+    functions: list[CFunctions | NativeController | PythonComponent] = []
+    for c, slave in enumerate(slaves):
         if isinstance(slave, ControllerSlave):
             native = native_controller(slave, plan.input_names[c], n, T_s)
             if isinstance(native, str):
-                return f"component {name} runs in Python ({type(slave.controller).__name__}: {native})"
+                native = PythonComponent(slave, f"{type(slave.controller).__name__}: {native}")
             functions.append(native)
             continue
         make = getattr(slave, "c_functions", None)
         calls = make() if callable(make) else None
         if not isinstance(calls, CFunctions):
-            return f"component {name} runs in Python ({type(slave).__name__}): the compiled system loop calls FMUs only"
+            calls = PythonComponent(slave, f"{type(slave).__name__}: it has no C calls")
         functions.append(calls)
     return SystemLoop(plan, functions, signals, trace, n, T_s, library, rows, calling, ids)

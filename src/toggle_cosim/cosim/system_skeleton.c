@@ -20,7 +20,18 @@
    set, at the time of the first get or doStep after the set, and held; a doStep commits the state
    that computation gave. Where the Python might raise or a value is not finite, the loop stops
    with HAND_BACK at that sample before any doStep of it, and the saved copy (`saved`: what the
-   controller held at the sample's start) lets the Python execution take the sample from its start. */
+   controller held at the sample's start) lets the Python execution take the sample from its start.
+
+   A component run in Python (a user's Python controller: cosim/system_python.py's callback) is
+   called back once a sample, at its early turn, its early inputs computed into its scratch as for
+   an FMU: the callback sets its early inputs and gets its outputs into their buffer slots. Its
+   late inputs and its doStep of sample k are its own calls too, in the same order, made by the
+   same callback at sample k + 1 before the rest (CALL_AFTER_STEP: `pending`; the late values stay
+   in their buffer slots until then), or by the Python once the loop returns. So the component
+   sees the calls and values the Python execution makes, one callback a sample. The callback sets
+   *s->answered to 1 when the call is done; anything else (the Python raised, or an interrupt
+   landed in the callback) stops the loop with RAISED at that sample, and the Python raises what
+   it caught. */
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -31,6 +42,7 @@ typedef int (*step2_t)(void *, double, double, int);
 typedef int (*get3_t)(void *, const unsigned int *, size_t, double *, size_t);
 typedef int (*set3_t)(void *, const unsigned int *, size_t, const double *, size_t);
 typedef int (*step3_t)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef void (*python_t)(long, long, long); /* (component, CALL_EARLY [| CALL_AFTER_STEP], k) */
 
 /* A native controller's kinds, and its memory: mem = dirty, held[n_held] (the command, then the
    diagnostics), row[n_in] (its fed inputs as set, in plan order), next[n_state] (the state its
@@ -66,6 +78,8 @@ typedef struct {
     long id;                                    /* what *calling holds while it is called */
     long n_typed;
     native_t *native;                           /* NULL: an FMU */
+    void *python;                               /* a python_t: the component runs in Python (NULL: not) */
+    long pending;                               /* its late inputs and doStep of the last sample are still to make */
 } component_t;
 
 typedef struct {
@@ -85,10 +99,12 @@ typedef struct {
     double T_s;
     long long *calling;         /* the id of the component being called, written before each call: a
                                    supervising process reads it when a call ends the process */
+    long long *answered;        /* set to 0 before a callback of a component run in Python, to 1 by it when done */
 } system_t;
 
-enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2 };
+enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2, RAISED = 3 };
 enum { CALL_GET = 1, CALL_SET = 2, CALL_STEP = 3, CALL_TYPED = 4 };
+enum { CALL_EARLY = 1, CALL_AFTER_STEP = 2 }; /* a component run in Python: its callback's call */
 
 /* Only OK (0) and Warning (1) let the loop go on: Discard, Error, Fatal, Pending and any value
    the standard does not define fail the run. */
@@ -211,6 +227,20 @@ static void native_set(native_t *p, const long *pos, long count, const double *v
     p->mem[0] = 1.0;
 }
 
+/* Call back the component c run in Python at its early turn of sample k (first its late inputs and
+   doStep of sample k - 1 when pending): DONE, or RAISED (s->k, s->failed set) when the callback
+   did not say it was done. */
+static int call_python(system_t *s, component_t *p, long c, long k) {
+    long call = CALL_EARLY | (p->pending ? CALL_AFTER_STEP : 0);
+    p->pending = 0;
+    *s->answered = 0;
+    ((python_t)p->python)(c, call, k);
+    if (*s->answered == 1) { return DONE; }
+    s->k = k;
+    s->failed = c;
+    return RAISED;
+}
+
 static int hand_back(system_t *s, long k, long component) {
     s->k = k;
     s->failed = component;
@@ -221,7 +251,8 @@ static int hand_back(system_t *s, long k, long component) {
    s->k the sample of the failed call (its row not recorded when the call came before recording)
    and s->failed, s->fault, s->status naming it (nothing after a failed call is made), or HAND_BACK
    with s->k the sample a native controller s->failed hands to the Python (no doStep of it made;
-   each native controller's `saved` is what it held at that sample's start). */
+   each native controller's `saved` is what it held at that sample's start), or RAISED with s->k the
+   sample at which a component run in Python s->failed raised (call_python). */
 int system_run(system_t *s, long k_end) {
     long k, i, c;
     int status;
@@ -244,6 +275,11 @@ int system_run(system_t *s, long k_end) {
                 }
                 if (p->native->mem[0] != 0.0 && native_compute(p->native, k, t) != DONE) { return hand_back(s, k, c); }
                 for (i = 0; i < p->n_out; i++) { s->buffer[p->out0 + i] = p->native->mem[1 + i]; }
+                continue;
+            }
+            if (p->python) {
+                if (p->n_early) { compute(s, p, p->early_slot, p->n_early, row); }
+                if (call_python(s, p, c, k) != DONE) { return RAISED; }
                 continue;
             }
             if (p->n_early) {
@@ -270,7 +306,7 @@ int system_run(system_t *s, long k_end) {
         if (k == s->n) { s->k = k + 1; return DONE; }
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
-            if (p->n_late) {
+            if (p->n_late && !p->python) { /* a component run in Python: set with its doStep (pending) */
                 *s->calling = p->id;
                 for (i = 0; i < p->n_late; i++) { p->scratch[i] = s->buffer[p->late_slot[i]]; }
                 if (p->native) {
@@ -295,6 +331,10 @@ int system_run(system_t *s, long k_end) {
             *s->calling = s->components[c].id;
             if (native) {
                 for (i = 0; i < native->n_state; i++) { native->state[i] = native->mem[1 + native->n_held + native->n_in + i]; }
+                continue;
+            }
+            if (s->components[c].python) {
+                s->components[c].pending = 1; /* its late inputs and doStep, at its next call */
                 continue;
             }
             status = do_step(&s->components[c], t, s->T_s, s->no_prior != 0);

@@ -521,7 +521,9 @@ def simulate_system(
     where = f"in Python ({compiled})"
     if isinstance(compiled, SystemLoop):
         natives = compiled.native_names
-        where = "in the compiled system loop" + (f" ({', '.join(natives)} natively in C)" if natives else "")
+        parts = [f"{', '.join(natives)} natively in C"] if natives else []
+        parts += [f"{name} in Python, called back from C ({why})" for name, why in compiled.in_python]
+        where = "in the compiled system loop" + (f" ({'; '.join(parts)})" if parts else "")
         if handed is not None:
             where += f", from t = {handed * run.T_s:.6g} s in Python (a sample the native controller handed back)"
     loop = {

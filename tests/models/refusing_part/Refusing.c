@@ -4,7 +4,9 @@
    step is shorter than pass_below (a retry's substeps pass; 0: none does). Real no_prior (vr 5,
    output) is the last doStep's noSetFMUStatePriorToCurrentPoint (1 or 0). It saves and restores
    its state (fmi2GetFMUstate / fmi2SetFMUstate: a copy of its struct); built with -DREFUSE_STATE,
-   its fmi2GetFMUstate returns fmi2Error. */
+   its fmi2GetFMUstate returns fmi2Error; built with -DINTERRUPT_AT=t, the doStep from t sends
+   the process SIGINT (an interrupt that lands while the C runs). */
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -65,6 +67,9 @@ API int fmi2DoStep(void *c, double t, double h, int no_prior) {
         return 2; /* fmi2Discard */
     }
     p->v.y += p->v.x * h;
+#ifdef INTERRUPT_AT
+    if (t >= INTERRUPT_AT && t < INTERRUPT_AT + 0.5 * h) { raise(SIGINT); }
+#endif
     return 0;
 }
 API int fmi2GetFMUstate(void *c, void **state) {
