@@ -18,7 +18,7 @@ from toggle_cosim.cli.app import (
     main,
     require,
 )
-from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of
+from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of, report_options
 from toggle_cosim.files.outputs import HTML, JUNIT, MARKDOWN
 
 
@@ -82,19 +82,7 @@ def compare(
 @click.option("--update", is_flag=True, help="Rewrite the stored references from fresh runs (review the diff!).")
 @click.option("--folder", type=click.Path(path_type=Path), default=DEFAULT_REFERENCES, show_default=True)
 @click.option("--fmu", type=click.Path(path_type=Path), default=None, help="Plant FMU for every scenario.")
-@click.option(
-    "--out",
-    type=click.Path(path_type=Path),
-    default=DEFAULT_OUT / "references",
-    show_default=True,
-    help="Folder for the reports: junit.xml, summary.md, plots of failing variables.",
-)
-@click.option(
-    "--junit", type=click.Path(path_type=Path), default=None, help="JUnit XML report (default: OUT/junit.xml)."
-)
-@click.option(
-    "--summary", type=click.Path(path_type=Path), default=None, help="Markdown summary (default: OUT/summary.md)."
-)
+@report_options(DEFAULT_OUT / "references")
 @click.option(
     "--fail-on-solver-change", is_flag=True, help="A change of the stored solver statistics fails (default: a warning)."
 )

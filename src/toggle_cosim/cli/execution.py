@@ -7,7 +7,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import click
@@ -295,6 +295,39 @@ def raise_if_failed(outcomes) -> None:  # noqa: ANN001
         more = f"; and {len(failed) - SUMMARY_RUNS} more (each run's line and run.json say why)"
         named = "; ".join(failed[:SUMMARY_RUNS]) + (more if len(failed) > SUMMARY_RUNS else "")
         raise RunFailed(f"{len(failed)} run(s) failed: {named}")
+
+
+def report_options(default_out: Path) -> Callable:
+    """--out (default `default_out`), --junit and --summary: where a check writes its reports."""
+
+    def apply(command: Callable) -> Callable:
+        for option in reversed(
+            (
+                click.option(
+                    "--out",
+                    type=click.Path(path_type=Path),
+                    default=default_out,
+                    show_default=True,
+                    help="Folder for the reports: junit.xml, summary.md, plots of failing variables.",
+                ),
+                click.option(
+                    "--junit",
+                    type=click.Path(path_type=Path),
+                    default=None,
+                    help="JUnit XML report (default: OUT/junit.xml).",
+                ),
+                click.option(
+                    "--summary",
+                    type=click.Path(path_type=Path),
+                    default=None,
+                    help="Markdown summary (default: OUT/summary.md).",
+                ),
+            )
+        ):
+            command = option(command)
+        return command
+
+    return apply
 
 
 JOBS_OPTION = click.option(

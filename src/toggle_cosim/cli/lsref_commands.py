@@ -18,6 +18,7 @@ from toggle_cosim.cli.app import (
     out_file_option,
     require,
 )
+from toggle_cosim.cli.execution import report_options
 from toggle_cosim.files.outputs import FMU, HTML, JUNIT, MARKDOWN
 
 NAME = re.compile(r"[A-Za-z0-9_.-]{1,100}")
@@ -194,19 +195,7 @@ def pack(
 
 @main.command()
 @click.argument("fmu", type=click.Path(path_type=Path))
-@click.option(
-    "--out",
-    type=click.Path(path_type=Path),
-    default=DEFAULT_OUT / "verify",
-    show_default=True,
-    help="Folder for the reports: junit.xml, summary.md, plots of failing variables.",
-)
-@click.option(
-    "--junit", type=click.Path(path_type=Path), default=None, help="JUnit XML report (default: OUT/junit.xml)."
-)
-@click.option(
-    "--summary", type=click.Path(path_type=Path), default=None, help="Markdown summary (default: OUT/summary.md)."
-)
+@report_options(DEFAULT_OUT / "verify")
 @click.option("--html", is_flag=True, help="Also write OUT/report.html: each experiment against its reference.")
 def verify(fmu: Path, out: Path, junit: Path | None, summary: Path | None, html: bool) -> None:
     """Run the experiments FMU carries (FMI-LS-REF) and compare each with its carried reference in a
