@@ -268,6 +268,18 @@ class FmuSlave:
             last_log_line(self._instance, forget=True)
             quiet(self._instance, on=False)
 
+    def solver_statistics(self) -> dict[str, int] | str:
+        """The FMU's solver counts read now (`plant.solver_statistics`: the plant's integrator's,
+        what a work budget counts), or why there are none; run.json's `solver_statistics`."""
+        from toggle_cosim.plant.solver_statistics import NOT_EXPOSED, read_solver_statistics
+
+        if self._slave is None:
+            return NOT_EXPOSED
+        try:
+            return read_solver_statistics(self._slave, self.description)
+        except Exception as error:  # noqa: BLE001 - a run's record never fails for its statistics
+            return f"unreadable ({error})"
+
     # -- checkpoints (FMI "get/set FMU state") --------------------------------------------------
     @property
     def cannot_save_state(self) -> str | None:

@@ -67,7 +67,7 @@ from toggle_cosim.cosim.exit_reasons import (
     in_controller_reason,
     stopped_in_controller,
 )
-from toggle_cosim.cosim.pair import pair_summary
+from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.cosim.systems import SystemError_, component_names, system_columns
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, error_text
@@ -699,7 +699,7 @@ class SupervisedRun:
         else:
             controller = controller_record(run, self.controller)
         # the samples recorded before the end: their figures of merit, a partial summary
-        summary, warnings = pair_summary(run, trace, self._built[2] if self._built is not None else self.controller)
+        summary, warnings = run_figures(run, trace, self._built[2] if self._built is not None else self.controller)
         record = outcomes.run_record(
             run, plant, status_word, reason, rows, wall, wall, summary, warnings=warnings, controller=controller
         )

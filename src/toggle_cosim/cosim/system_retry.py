@@ -47,15 +47,21 @@ Retake = Callable[[int, int, int], None]
 class CheckpointOptions:
     """How a system's run keeps checkpoints and retries a refused step (module docstring):
     every `interval` samples, a failed step retried in `substeps` substeps; `enabled` False
-    keeps none (and a refused step ends the run)."""
+    keeps none (and a refused step ends the run). `lead` (0: none): the samples run as a stretch
+    of their own before the first full one (the pair's loop runs its first sample, which starts
+    the controller, alone, so its checkpoints and work-budget counts fall at 1 + m * interval)."""
 
     interval: int = CHECKPOINT_SAMPLES
     substeps: int = RETRY_SUBSTEPS
     enabled: bool = True
+    lead: int = 0
 
     def __post_init__(self) -> None:
-        if self.interval < 1 or self.substeps < 1:
-            raise ValueError(f"interval and substeps must be at least 1, not {self.interval} and {self.substeps}")
+        if self.interval < 1 or self.substeps < 1 or self.lead < 0:
+            raise ValueError(
+                f"interval and substeps must be at least 1 and lead at least 0, not {self.interval}, "
+                f"{self.substeps} and {self.lead}"
+            )
 
 
 def _retried(error: SlaveError) -> bool:
@@ -139,12 +145,17 @@ class SystemCheckpoints:
             return False
         return True
 
-    def drive(self, forward: Forward, retake: Retake, k: int, n: int) -> int:
+    def drive(
+        self, forward: Forward, retake: Retake, k: int, n: int, after: Callable[[int], None] | None = None
+    ) -> int:
         """Samples k .. n by `forward`, in stretches of `interval` that start at a checkpoint,
         a refused step retried (module docstring); the next sample (n + 1). Raises the
-        SlaveError that ends the run."""
+        SlaveError that ends the run. `after(k)` is called after every full stretch (not the
+        lead), k the next sample, e.g. to count the plant's work (`budget`), and may raise to end the run."""
+        lead = self.options.lead
         while k <= n:
-            stop = min(k + self.options.interval, n + 1)
+            leading = k < lead
+            stop = min(lead if leading else k + self.options.interval, n + 1)
             checkpoint, saved = k, self._save(k)
             try:
                 k = forward(k, stop)
@@ -157,6 +168,8 @@ class SystemCheckpoints:
                 self._retry(forward, retake, checkpoint, failure)
                 entry["outcome"] = "passed"
                 k = failure.k + 1
+            if after is not None and not leading:
+                after(k)
         return k
 
     def _retry(self, forward: Forward, retake: Retake, checkpoint: int, failure: SlaveError) -> None:
