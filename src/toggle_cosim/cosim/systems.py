@@ -17,7 +17,11 @@ of its name, the command to the plant's iq_ref). Each is checked before anything
 both ends exist, it runs from an output to an input, no input is fed twice, the units match or
 convert (`unit_conversion`: the same dimension, factor and offset from the FMUs' unit
 definitions; anything else refused). The order comes from the connections and the components'
-direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle.
+direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle. The pair's
+own wiring is stepped in the fixed loop's order, the plant then the controller: the plant's
+outputs at t_k are read before the command of sample k is set (a controller that measures an
+output the command feeds directly, such as a_B, reads it as the fixed loop does, with the
+command of sample k - 1).
 
 The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
 order) or the run's `record:` list, which may name any variable of an FMU component.
@@ -267,7 +271,11 @@ def assemble(
                     f"{where}: key record: {port} is an input nothing feeds (connect it, or record another variable)"
                 )
         try:
-            order = gauss_seidel_order(list(slaves), connections, interfaces)
+            order = (
+                (wiring.plant, wiring.controller)  # the pair's own wiring: the fixed loop's order
+                if wiring.connections is None and not wiring.parts
+                else gauss_seidel_order(list(slaves), connections, interfaces)
+            )
         except AlgebraicLoop as error:
             raise SystemError_(f"{where}: {error}") from None
         plan = build_plan(order, interfaces, connections, signal_ports, wiring.record, jacobi)
