@@ -11,7 +11,6 @@ import dataclasses
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 
@@ -180,16 +179,6 @@ def test_a_system_run_has_the_pair_s_summary_warnings_and_solver_statistics(plan
     assert system.warnings == fixed.warnings and system.warnings[0].startswith("|i_q*| exceeds the rated current 2 A")
     assert system.record["solver_statistics"] == fixed.record["solver_statistics"]
     assert isinstance(system.record["solver_statistics"], dict)
-
-
-def test_a_system_run_keeps_its_work_budget(plants) -> None:
-    """budget: the plant's work counted after every stretch of 200 samples, as the pair counts it."""
-    run = load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0]
-    run = dataclasses.replace(run, t_end=0.3, resolved={**run.resolved, "budget": {"steps": 50}})
-    system = master.simulate(_recorded(run), plants["plant"])
-    assert not system.complete and system.record["status"] == "failed"
-    assert system.reason.startswith("budget exceeded (") and "budget.steps) by t = 0.0995 s" in system.reason
-    assert len(system.trace.time) == 200 and np.isfinite(system.trace.data).all()
 
 
 def test_the_pair_s_budget_ends_the_execution_at_the_pair_s_sample(
