@@ -13,6 +13,7 @@ command to the plant's iq_ref, the load and the plant's other inputs fed by thei
   the retries without the component's name, no `system` or `units` entries, and `loop.kind` in
   the pair's words: "compiled" (the compiled system loop), "compiled, then python" (a sample
   handed back to the Python execution), "python"; `loop.reason` says what the execution did;
+* a plant's failures and retries are said in the pair's words (`PlantWords`);
 * checkpoints and the work budget fall at the pair's samples: its first sample runs alone, then
   stretches of `retry.CHECKPOINT_SAMPLES` (`CheckpointOptions.lead`).
 
@@ -24,19 +25,24 @@ from __future__ import annotations
 
 import dataclasses
 import time as clock
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import controller_for, controller_record
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.cosim.pair import INPUTS, close_controller, refused_outcome, trace_names
+from toggle_cosim.cosim.pair import INPUTS, close_controller, refused_outcome, retried_words, trace_names
 from toggle_cosim.cosim.plant_inputs import other_inputs
-from toggle_cosim.cosim.system_retry import CheckpointOptions
+from toggle_cosim.cosim.retry import failure_text
+from toggle_cosim.cosim.slaves import SlaveError
+from toggle_cosim.cosim.system_retry import CheckpointOptions, ComponentWords
 from toggle_cosim.cosim.systems import simulate_system
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.messages import said_in
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.model import Port, Wiring
@@ -74,6 +80,35 @@ def pair_loop(loop: dict[str, Any]) -> dict[str, Any]:
     return {"kind": kind, "reason": f"the pair as a system in the execution: {reason}"}
 
 
+@dataclass(frozen=True)
+class PlantWords:
+    """The pair's words for its plant's failures (`pair.simulate_pair`): a failed call as FMPy
+    says it with what the FMU logged (`retry.failure_text`), the retries as "the plant's
+    step(s)" (`pair.retried_words`), the reason "plant FMU failed at t = ...: ..."; the
+    controller's failures in the system's words (`ComponentWords`)."""
+
+    plant: str
+    T_s: float
+
+    def step(self, error: SlaveError, before: str | None = None) -> str:
+        if error.component != self.plant or not error.function or not isinstance(error.status, int):
+            return ComponentWords().step(error, before)
+        logged = error.logged
+        if before is not None and logged is not None and said_in(logged, before):  # said once
+            logged = None
+        return failure_text(FMICallException(error.function, error.status), logged)
+
+    def retried(self, passed: Sequence[dict[str, Any]]) -> str | None:
+        if all(entry["component"] == self.plant for entry in passed):
+            return retried_words(passed, self.T_s)
+        return ComponentWords().retried(passed)
+
+    def reason(self, error: SlaveError, t: float) -> str:
+        if error.component != self.plant:
+            return str(error)
+        return f"plant FMU failed at t = {t:.6g} s: {str(error) if error.retried else self.step(error)}"
+
+
 def simulate_pair_as_system(
     run: Run,
     plant: PlantInterface,
@@ -99,7 +134,16 @@ def simulate_pair_as_system(
     wiring = dataclasses.replace(run.system, record=pair_ports(run.system, plant, diagnostics, others))
     options = CheckpointOptions(lead=1)
     outcome = simulate_system(
-        dataclasses.replace(run, system=wiring), plant, progress, buffer, controller, coupling, count, calling, options
+        dataclasses.replace(run, system=wiring),
+        plant,
+        progress,
+        buffer,
+        controller,
+        coupling,
+        count,
+        calling,
+        options,
+        PlantWords(run.system.plant, run.T_s),
     )
     names = trace_names(plant, diagnostics, others)
     record = {key: value for key, value in outcome.record.items() if key not in ("system", "units")}

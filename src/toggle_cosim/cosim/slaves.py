@@ -37,6 +37,7 @@ from toggle_cosim.plant.fmi_calls import (
     FMU2SlaveChecked,
     FMU3SlaveChecked,
     failed,
+    last_error_message,
     last_log_line,
     logger3,
     quiet,
@@ -51,7 +52,9 @@ __all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError"]
 class SlaveError(Exception):
     """A component's call failed; str() names the component, the call and why. Where known:
     `component` (its name), `function` (the FMI call), `status` (what it returned) and `k` (the
-    sample, set by the execution), which the checkpoint retries read (`system_retry`)."""
+    sample, set by the execution), which the checkpoint retries read (`system_retry`); `logged`
+    what an FMU logged with a failing status about it (no label, one line), `retried` that it is
+    a retry's failure, its message telling both."""
 
     def __init__(
         self, message: str, component: str | None = None, function: str | None = None, status: object = None
@@ -59,6 +62,8 @@ class SlaveError(Exception):
         super().__init__(message)
         self.component, self.function, self.status = component, function, status
         self.k: int | None = None
+        self.logged: str | None = None
+        self.retried = False
 
 
 class Slave(Protocol):
@@ -135,12 +140,14 @@ class FmuSlave:
         line = last_log_line(self._instance)
         said = f"; it logged {' '.join(line.split())}" if line else ""
         at = f" at t = {t:.6g} s" if t is not None else ""
-        return SlaveError(
+        error = SlaveError(
             f"component {self.name!r} ({self.path.name}): {function}{at} returned status {status}{said}",
             self.name,
             function,
             status,
         )
+        error.logged = last_error_message(self._instance, forget=True)
+        return error
 
     def _call(self, function: str, call: Any) -> None:
         try:

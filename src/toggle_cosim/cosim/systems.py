@@ -54,7 +54,7 @@ from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
-from toggle_cosim.cosim.system_retry import CheckpointOptions, SystemCheckpoints, retried_words
+from toggle_cosim.cosim.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
@@ -424,13 +424,15 @@ def simulate_system(
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
     checkpoints: CheckpointOptions | None = None,
+    words: FailureWords | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
     ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
     word shared with a supervising process): element 0 holds, while a component is called, its
     id (`component_names`), and 0 outside the run's loop. `checkpoints`: how a refused step is
-    retried (`system_retry`; default every 200 samples, in 10 substeps)."""
+    retried (`system_retry`; default every 200 samples, in 10 substeps), `words` how failures
+    are said (`system_retry.FailureWords`; default each names its component)."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
         run = dataclasses.replace(run, coupling=coupling)
@@ -459,7 +461,7 @@ def simulate_system(
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
     compiled: SystemLoop | str = "the run ended before its first sample"
-    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s, calling, ids)
+    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s, calling, ids, words)
     policy.configure(*assembly.slaves)
     plant_slave = next(slave for slave in assembly.slaves if slave.name == run.system.plant)
     budget = WorkBudget.of(run.resolved.get("budget"), n)
@@ -496,7 +498,7 @@ def simulate_system(
         reason = f"interrupted (SIGINT or SIGTERM) at t = {max(observer.rows - 1, 0) * run.T_s:.6g} s"
     except SlaveError as error:
         loop_finished = clock.perf_counter()
-        reason = str(error)
+        reason = policy.words.reason(error, (error.k or 0) * run.T_s)
     except BudgetExceeded as error:  # the plant's work past the run's budget: the same sample on any machine
         loop_finished = clock.perf_counter()
         reason = str(error)
@@ -507,7 +509,7 @@ def simulate_system(
         assembly.close()
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])
-    retried = retried_words(policy.passed())
+    retried = policy.words.retried(policy.passed())
     if reason is not None and retried is not None:
         reason = f"{reason} (earlier, {retried})"
     reason = bounded_text(reason) if reason is not None else None
