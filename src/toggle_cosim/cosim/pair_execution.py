@@ -84,10 +84,11 @@ def pair_loop(loop: dict[str, Any]) -> dict[str, Any]:
 class PlantWords:
     """The pair's words for its plant's failures (`pair.simulate_pair`): a failed call as FMPy
     says it with what the FMU logged (`retry.failure_text`), the retries as "the plant's
-    step(s)" (`pair.retried_words`), the reason "plant FMU failed at t = ...: ..."; the
-    controller's failures in the system's words (`ComponentWords`)."""
+    step(s)" (`pair.retried_words`), the reason "plant FMU failed at t = ...: ..."; a native
+    controller's failure "controller failed: ..." as the pair says it."""
 
     plant: str
+    controller: str
     T_s: float
 
     def step(self, error: SlaveError, before: str | None = None) -> str:
@@ -104,8 +105,11 @@ class PlantWords:
         return ComponentWords().retried(passed)
 
     def reason(self, error: SlaveError, t: float) -> str:
+        said, own = str(error), f"component {self.controller!r}: "
+        if said.startswith(own):  # its step raised, or its command was refused
+            return f"controller failed: {said.removeprefix(own)}"
         if error.component != self.plant:
-            return str(error)
+            return said
         return f"plant FMU failed at t = {t:.6g} s: {str(error) if error.retried else self.step(error)}"
 
 
@@ -143,7 +147,7 @@ def simulate_pair_as_system(
         count,
         calling,
         options,
-        PlantWords(run.system.plant, run.T_s),
+        PlantWords(run.system.plant, run.system.controller, run.T_s),
     )
     names = trace_names(plant, diagnostics, others)
     record = {key: value for key, value in outcome.record.items() if key not in ("system", "units")}
