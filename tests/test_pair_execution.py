@@ -16,6 +16,7 @@ import yaml
 
 import toggle_cosim as tc
 from toggle_cosim import limits
+from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim import master
 from toggle_cosim.experiments import references
 from toggle_cosim.experiments.scenario import load_scenario
@@ -212,3 +213,28 @@ def test_a_plant_s_retries_and_failure_are_said_in_the_pair_s_words(
     assert not fixed.complete and fixed.reason.startswith("plant FMU failed at t = ")
     assert fixed.record["retries"] and executed.record["retries"]
     _same_files(fixed, executed, tmp_path / "files")
+
+
+class _RaisesAt:
+    """A user's controller (the protocol): i_q* = 20 (x* − x_B) until its step raises from t = 5 ms."""
+
+    diagnostics = ("e",)
+
+    def start(self, t0: float, measurement: object) -> None:
+        return None
+
+    def step(self, state: None, t: float, measurement) -> ControlStep:  # noqa: ANN001
+        if t >= 0.005 - 1e-12:
+            raise RuntimeError("the law gave up")
+        error = 0.3199 - measurement["x_B"]
+        return ControlStep(20.0 * error, (error,), state)
+
+
+def test_a_controller_that_raises_fails_the_run_in_the_pair_s_words(
+    plants, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """ "controller failed: the controller's step raised at t = 0.005 s: ...", the same trace."""
+    run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.02)
+    fixed, executed = _both(run, plants["plant"], monkeypatch, controller=_RaisesAt())
+    assert fixed.reason.startswith("controller failed: the controller's step raised at t = 0.005 s"), fixed.reason
+    _same_files(fixed, executed, tmp_path)
