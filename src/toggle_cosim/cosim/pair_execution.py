@@ -85,7 +85,8 @@ class PlantWords:
     """The pair's words for its plant's failures (`pair.simulate_pair`): a failed call as FMPy
     says it with what the FMU logged (`retry.failure_text`), the retries as "the plant's
     step(s)" (`pair.retried_words`), the reason "plant FMU failed at t = ...: ..."; a native
-    controller's failure "controller failed: ..." as the pair says it."""
+    controller's failure "controller failed: ...", and a plant output it measures that is not finite "plant
+    outputs became non-finite at t = ..." as the pair says them."""
 
     plant: str
     controller: str
@@ -105,6 +106,8 @@ class PlantWords:
         return ComponentWords().retried(passed)
 
     def reason(self, error: SlaveError, t: float) -> str:
+        if error.not_finite:  # what the controller measures: the plant's outputs
+            return f"plant outputs became non-finite at t = {t:.6g} s"
         said, own = str(error), f"component {self.controller!r}: "
         if said.startswith(own):  # its step raised, or its command was refused
             return f"controller failed: {said.removeprefix(own)}"

@@ -54,7 +54,8 @@ class SlaveError(Exception):
     `component` (its name), `function` (the FMI call), `status` (what it returned) and `k` (the
     sample, set by the execution), which the checkpoint retries read (`system_retry`); `logged`
     what an FMU logged with a failing status about it (no label, one line), `retried` that it is
-    a retry's failure, its message telling both."""
+    a retry's failure, its message telling both, `not_finite` that a native controller refused a
+    value it measures that is not finite."""
 
     def __init__(
         self, message: str, component: str | None = None, function: str | None = None, status: object = None
@@ -64,6 +65,7 @@ class SlaveError(Exception):
         self.k: int | None = None
         self.logged: str | None = None
         self.retried = False
+        self.not_finite = False
 
 
 class Slave(Protocol):
@@ -452,11 +454,13 @@ class ControllerSlave:
         row, isfinite = self._row, math.isfinite
         for i, value in zip(positions, values, strict=True):
             if not isfinite(value):
-                raise SlaveError(
+                error = SlaveError(
                     f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
                     f" {self.name!r}, which takes finite values only",
                     self.name,
                 )
+                error.not_finite = True
+                raise error
             row[i] = value
         self._dirty = True
 
