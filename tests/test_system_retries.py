@@ -114,9 +114,8 @@ def test_a_part_that_refuses_three_steps_is_retried_and_its_run_completes(
         engine: _simulate(refused, plant, engine, monkeypatch, coupling, interval=interval)
         for engine in ("compiled", "python")
     }
-    assert (
-        "(controller natively in C)" in outcomes["compiled"].record["loop"]["reason"]
-    )  # its state is checkpointed too
+    # its state is checkpointed too
+    assert "(controller natively in C)" in outcomes["compiled"].record["loop"]["reason"]
     for outcome in outcomes.values():
         assert outcome.complete, outcome.reason
         assert outcome.record["samples"] == SAMPLES
