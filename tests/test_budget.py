@@ -63,10 +63,20 @@ def test_a_bad_budget_is_one_line_naming_the_key(budget: dict, expected: str) ->
         runs_from_document(_document(budget=budget))
 
 
-def test_a_budget_on_a_system_is_refused() -> None:
-    document = _document(budget={"events": 5}, record=["plant.x_B"])
-    with pytest.raises(ScenarioError, match="key budget .*plain plant \\+ controller run only"):
-        runs_from_document(document)
+def test_a_budget_on_a_system_holds_for_its_plant(plant_fmu: Path) -> None:
+    """A system (here the pair with a `record:` list) counts its plant component's work after every
+    stretch of 200 samples, from sample 0: a tight budget ends it failed at t = 0.0995 s, its
+    trace kept to there; a loose one changes nothing."""
+    plant = check_plant(plant_fmu)
+    record = ["plant.x_B", "controller.iq_ref"]
+    (tight,) = runs_from_document(_document(budget={"events": 3}, record=record))
+    (loose,) = runs_from_document(_document(budget={"events": 10_000}, record=record))
+    limited = master.simulate(tight, plant)
+    assert not limited.complete and limited.record["status"] == "failed", limited.reason
+    assert re.fullmatch(r"budget exceeded \(\d+ events > 3, budget\.events\) by t = 0\.0995 s", limited.reason)
+    assert limited.record["samples"] == 200 and len(limited.trace.time) == 200
+    within = master.simulate(loose, plant)
+    assert within.complete and (within.trace.data[:200] == limited.trace.data).all()
 
 
 def test_tune_gives_every_case_a_budget_unless_its_file_says_otherwise(tmp_path: Path) -> None:

@@ -41,14 +41,23 @@ def ended_cleanly(status: int | None) -> bool:
     return status is None or (os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0)
 
 
-def stopped_in_controller(buffer: np.ndarray, rows: int, n_outputs: int, names: tuple[str, ...]) -> bool:
+def stopped_in_controller(
+    buffer: np.ndarray, rows: int, n_outputs: int, names: tuple[str, ...], calling: np.ndarray | None = None
+) -> bool:
     """True when a run's process ended (or was ended) inside its controller: the first unfinished
     sample of the trace `buffer` has every plant output read but no command, and both loops write
-    a sample in that order (read the plant, run the controller, record the command, step the plant)."""
+    a sample in that order (read the plant, run the controller, record the command, step the plant).
+    The pair run in the execution records a sample whole: there `calling` (the component it was
+    calling, 1 + its place in `systems.component_names`: 2 is the controller) says it."""
+    if calling is not None and int(calling[0]) != 0:
+        return int(calling[0]) == CONTROLLER_ID
     if rows >= buffer.shape[0] or "iq_ref" not in names:
         return False
     row = buffer[rows]
     return bool(np.all(np.isfinite(row[1 : 1 + n_outputs])) and np.isnan(row[names.index("iq_ref")]))
+
+
+CONTROLLER_ID = 2  # the controller's id while the master calls it (`systems.component_names`: plant, controller, ...)
 
 
 def controller_words(python: str | None, fmu: Path | str | None, building: bool = False) -> str:

@@ -12,6 +12,9 @@ A run's system (`Run.system`) decides how it is stepped:
   instances kept loaded from run to run (`instance_pool`).
 
 The pair run as a system gives the fixed loop's values bit for bit (tests/test_systems.py).
+With TOGGLE_COSIM_MASTER=execution (`limits.pair_as_execution`; default: the fixed loop) the
+plain pair runs as that two-part system in the execution, with the fixed loop's trace columns and
+run.json (`pair_execution`); a kept plant `session` is then not used (the execution loads its own).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from toggle_cosim import limits
 from toggle_cosim.control.protocol import Controller
 from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome
@@ -31,6 +35,7 @@ from toggle_cosim.cosim.pair import (
     simulate_pair,
     trace_names,
 )
+from toggle_cosim.cosim.pair_execution import simulate_pair_as_system
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
 from toggle_cosim.cosim.session import PlantSession
 from toggle_cosim.cosim.systems import simulate_system
@@ -76,6 +81,10 @@ def simulate(
     (a system only): where the execution writes which component it calls
     (`systems.simulate_system`). `pool` (a system only, `instance_pool`): its FMU components'
     instances, kept loaded from run to run by the caller."""
+    if run.system.is_pair and limits.pair_as_execution():  # TOGGLE_COSIM_MASTER=execution (module docstring)
+        if coupling is not None and coupling not in COUPLINGS:
+            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
+        return simulate_pair_as_system(run, plant, progress, buffer, controller, coupling, count, calling)
     if run.system.is_pair:
         return simulate_pair(run, plant, progress, buffer, controller, session, coupling, count)
     if coupling is not None and coupling not in COUPLINGS:

@@ -53,9 +53,9 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
 from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.controllers import controller_for, controller_record
+from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
-from toggle_cosim.cosim.plausibility import plausibility_warnings
 from toggle_cosim.cosim.recorder import ProgressHook, Recorder
 from toggle_cosim.cosim.retry import CheckpointPolicy, failure_text
 from toggle_cosim.cosim.session import PlantSession
@@ -68,11 +68,8 @@ from toggle_cosim.cosim.stepper import (
     Timing,
     compiled_controller,
 )
-from toggle_cosim.cosim.summary import RunSummary, summarize
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
-from toggle_cosim.physics.mechanism import working_range
-from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import COUPLINGS, Run
 
@@ -80,7 +77,6 @@ __all__ = [
     "JACOBI_REASON",
     "RunOutcome",
     "close_controller",
-    "pair_summary",
     "open_session",
     "refused_outcome",
     "simulate_pair",
@@ -97,43 +93,6 @@ def trace_names(
     F_E), the controller's diagnostics (the built-in law's by default), then the plant's other
     inputs the run sets (`inputs`: `other_inputs(run)`)."""
     return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics, *inputs)
-
-
-def _number(value: object) -> float | None:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
-
-
-def _diagnostics(trace: Trace, names: tuple[str, ...]) -> tuple[np.ndarray | None, ...]:
-    """The columns `names` of the trace if it has them all (the built-in law's S and phase), else Nones."""
-    if all(name in trace.names for name in names):
-        return tuple(trace.column(name) for name in names)
-    return tuple(None for _ in names)
-
-
-def pair_summary(run: Run, trace: Trace, controller: object) -> tuple[RunSummary | None, list[str]]:
-    """A pair's figures of merit and plausibility warnings from its trace, whole or partial (a
-    run that failed or hit its time limit: the samples it recorded); (None, []) before its
-    second sample or without the columns x_B and iq_ref. `controller` gives T_h and S0 when it
-    has them."""
-    if trace.data.shape[0] < 2 or not {"x_B", "iq_ref"} <= set(trace.names):
-        return None, []
-    x_B, iq_ref = trace.column("x_B"), trace.column("iq_ref")
-    summary = summarize(
-        trace.time,
-        x_B,
-        iq_ref,
-        trace.column("E_in") if "E_in" in trace.names else None,
-        trace.column("E_fric") if "E_fric" in trace.names else None,
-        run.x_start,
-        run.x_target,
-        _number(getattr(controller, "T_h", None)),
-        _number(getattr(controller, "S0", None)),
-        *_diagnostics(trace, ("S", "phase")),
-        None if run.x_final == run.x_target else run.x_final,
-    )
-    limits = run.plant.working_range or working_range(MechanismParameters())
-    diagnostics = _diagnostics(trace, ("S", "phase"))
-    return summary, plausibility_warnings(trace.time, x_B, iq_ref, run.plant.rated_current, limits, *diagnostics)
 
 
 def open_session(plant: PlantInterface, instance_name: str, inputs: tuple[str, ...] = ()) -> PlantSession:
@@ -278,7 +237,7 @@ def simulate_pair(
     trace, rows, reason = recorder.trace(), recorder.rows, state.reason
     reason = bounded_text(reason) if reason is not None else None  # one line, whatever the plant or controller said
     complete = reason is None and rows == n + 1
-    summary, warnings = pair_summary(run, trace, state.controller)
+    summary, warnings = run_figures(run, trace, state.controller)
     if retried is not None:  # what the first one failed with, in run.json's retries too
         warnings = [*warnings, bounded_text(f"{retried[0].upper()}{retried[1:]}: {policy.passed()[0]['error']}")]
     wall = clock.perf_counter() - started

@@ -38,6 +38,7 @@ from toggle_cosim.plant.fmi_calls import (
     FMU2SlaveChecked,
     FMU3SlaveChecked,
     failed,
+    last_error_message,
     last_log_line,
     logger3,
     quiet,
@@ -52,7 +53,10 @@ __all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError"]
 class SlaveError(Exception):
     """A component's call failed; str() names the component, the call and why. Where known:
     `component` (its name), `function` (the FMI call), `status` (what it returned) and `k` (the
-    sample, set by the execution), which the checkpoint retries read (`system_retry`)."""
+    sample, set by the execution), which the checkpoint retries read (`system_retry`); `logged`
+    what an FMU logged with a failing status about it (no label, one line), `retried` that it is
+    a retry's failure, its message telling both, `not_finite` that a native controller refused a
+    value it measures that is not finite."""
 
     def __init__(
         self, message: str, component: str | None = None, function: str | None = None, status: object = None
@@ -60,6 +64,9 @@ class SlaveError(Exception):
         super().__init__(message)
         self.component, self.function, self.status = component, function, status
         self.k: int | None = None
+        self.logged: str | None = None
+        self.retried = False
+        self.not_finite = False
 
 
 class Slave(Protocol):
@@ -146,12 +153,14 @@ class FmuSlave:
         line = last_log_line(self._instance)
         said = f"; it logged {' '.join(line.split())}" if line else ""
         at = f" at t = {t:.6g} s" if t is not None else ""
-        return SlaveError(
+        error = SlaveError(
             f"component {self.name!r} ({self.path.name}): {function}{at} returned status {status}{said}",
             self.name,
             function,
             status,
         )
+        error.logged = last_error_message(self._instance, forget=True)
+        return error
 
     def _call(self, function: str, call: Any) -> None:
         try:
@@ -340,6 +349,18 @@ class FmuSlave:
             pass
         slave.component = None
 
+    def solver_statistics(self) -> dict[str, int] | str:
+        """The FMU's solver counts read now (`plant.solver_statistics`: the plant's integrator's,
+        what a work budget counts), or why there are none; run.json's `solver_statistics`."""
+        from toggle_cosim.plant.solver_statistics import NOT_EXPOSED, read_solver_statistics
+
+        if self._slave is None:
+            return NOT_EXPOSED
+        try:
+            return read_solver_statistics(self._slave, self.description)
+        except Exception as error:  # noqa: BLE001 - a run's record never fails for its statistics
+            return f"unreadable ({error})"
+
     # -- checkpoints (FMI "get/set FMU state") --------------------------------------------------
     @property
     def cannot_save_state(self) -> str | None:
@@ -505,11 +526,13 @@ class ControllerSlave:
         row, isfinite = self._row, math.isfinite
         for i, value in zip(positions, values, strict=True):
             if not isfinite(value):
-                raise SlaveError(
+                error = SlaveError(
                     f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
                     f" {self.name!r}, which takes finite values only",
                     self.name,
                 )
+                error.not_finite = True
+                raise error
             row[i] = value
         self._dirty = True
 

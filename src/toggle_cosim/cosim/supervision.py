@@ -67,7 +67,7 @@ from toggle_cosim.cosim.exit_reasons import (
     in_controller_reason,
     stopped_in_controller,
 )
-from toggle_cosim.cosim.pair import pair_summary
+from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.cosim.systems import SystemError_, component_names, system_columns
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, error_text
@@ -510,8 +510,7 @@ class SupervisedRun:
         if self._with_progress:
             self.progress_slot = shared_word(np.float64)
         self.count = shared_count()
-        if not self.run.system.is_pair:
-            self.calling = shared_word()  # the component being called
+        self.calling = shared_word()  # the component being called (a system's, the pair's in the execution)
         read_fd, write_fd = os.pipe()
         self._read_fd = read_fd
         self.relay = OutputRelay()
@@ -680,7 +679,7 @@ class SupervisedRun:
                 users  # the built-in law neither crashes nor hangs: a stop there is the plant's
                 and not self.interrupted
                 and self.status is not None
-                and stopped_in_controller(self.buffer, rows, len(plant.recorded_outputs), self.names)
+                and stopped_in_controller(self.buffer, rows, len(plant.recorded_outputs), self.names, self.calling)
             )
             called = self._called()
             if called is not None and not self.interrupted:  # a system's component was being called
@@ -699,7 +698,7 @@ class SupervisedRun:
         else:
             controller = controller_record(run, self.controller)
         # the samples recorded before the end: their figures of merit, a partial summary
-        summary, warnings = pair_summary(run, trace, self._built[2] if self._built is not None else self.controller)
+        summary, warnings = run_figures(run, trace, self._built[2] if self._built is not None else self.controller)
         record = outcomes.run_record(
             run, plant, status_word, reason, rows, wall, wall, summary, warnings=warnings, controller=controller
         )
@@ -708,7 +707,7 @@ class SupervisedRun:
     def _called(self) -> str | None:
         """The component of a system whose call was under way when its process ended, in words
         (`component_words`); None for the pair, or outside any call."""
-        if self.calling is None:
+        if self.calling is None or self.run.system.is_pair:
             return None
         number = int(self.calling[0])
         names = component_names(self.run.system)

@@ -30,12 +30,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 from toggle_cosim.cosim.retry import CHECKPOINT_SAMPLES, RETRIED_STATUSES, RETRY_SUBSTEPS
 from toggle_cosim.cosim.slaves import Slave, SlaveError
 
-__all__ = ["CheckpointOptions", "SystemCheckpoints", "retried_words"]
+__all__ = ["CheckpointOptions", "ComponentWords", "FailureWords", "SystemCheckpoints", "retried_words"]
 
 # Samples k .. stop - 1 of the run, the next sample; a failed call raises SlaveError with its `k`.
 Forward = Callable[[int, int], int]
@@ -47,15 +47,48 @@ Retake = Callable[[int, int, int], None]
 class CheckpointOptions:
     """How a system's run keeps checkpoints and retries a refused step (module docstring):
     every `interval` samples, a failed step retried in `substeps` substeps; `enabled` False
-    keeps none (and a refused step ends the run)."""
+    keeps none (and a refused step ends the run). `lead` (0: none): the samples run as a stretch
+    of their own before the first full one (the pair's loop runs its first sample, which starts
+    the controller, alone, so its checkpoints and work-budget counts fall at 1 + m * interval)."""
 
     interval: int = CHECKPOINT_SAMPLES
     substeps: int = RETRY_SUBSTEPS
     enabled: bool = True
+    lead: int = 0
 
     def __post_init__(self) -> None:
-        if self.interval < 1 or self.substeps < 1:
-            raise ValueError(f"interval and substeps must be at least 1, not {self.interval} and {self.substeps}")
+        if self.interval < 1 or self.substeps < 1 or self.lead < 0:
+            raise ValueError(
+                f"interval and substeps must be at least 1 and lead at least 0, not {self.interval}, "
+                f"{self.substeps} and {self.lead}"
+            )
+
+
+class FailureWords(Protocol):
+    """How a run says its components' failures: a failed call (`step`; `before`: a failure
+    already said, e.g. the first of a retry that failed too), the retries that passed
+    (`retried`, None for none) and the run's reason (`reason`; t the failed sample's time)."""
+
+    def step(self, error: SlaveError, before: str | None = None) -> str: ...
+    def retried(self, passed: Sequence[dict[str, Any]]) -> str | None: ...
+    def reason(self, error: SlaveError, t: float) -> str: ...
+
+
+class ComponentWords:
+    """A system's words: every failure names its component (`SlaveError`'s own text)."""
+
+    def step(self, error: SlaveError, before: str | None = None) -> str:
+        said = str(error)
+        prefix = f"component {error.component!r}"
+        if before is not None and said.startswith(prefix) and ": " in said:  # the component is named already
+            said = said.split(": ", 1)[1]
+        return said
+
+    def retried(self, passed: Sequence[dict[str, Any]]) -> str | None:
+        return retried_words(passed)
+
+    def reason(self, error: SlaveError, t: float) -> str:
+        return str(error)
 
 
 def _retried(error: SlaveError) -> bool:
@@ -75,6 +108,7 @@ class SystemCheckpoints:
     retries: list[dict[str, Any]] = field(default_factory=list)
     calling: Any = None  # an int64 array: element 0 gets the id of the component being saved or restored
     ids: Sequence[int] = ()
+    words: FailureWords = field(default_factory=ComponentWords)
 
     @classmethod
     def of(
@@ -84,17 +118,18 @@ class SystemCheckpoints:
         T_s: float,
         calling: Any = None,
         ids: Sequence[int] | None = None,
+        words: FailureWords | None = None,
     ) -> SystemCheckpoints:
         """The checkpoints of a run, off when the options say so or a component cannot save its
         state. `calling`, `ids`: as the execution's, so a supervising process knows whose save or
-        restore ended the process."""
+        restore ended the process. `words`: how failures are said (default `ComponentWords`)."""
         off = None if options.enabled else "checkpoints are off in this run's options"
         for slave in slaves:
             if off is not None:
                 break
             off = getattr(slave, "cannot_save_state", f"component {slave.name!r} cannot save its state")
         ids = tuple(ids) if ids is not None else tuple(range(1, len(slaves) + 1))
-        return cls(options, tuple(slaves), float(T_s), off, calling=calling, ids=ids)
+        return cls(options, tuple(slaves), float(T_s), off, calling=calling, ids=ids, words=words or ComponentWords())
 
     def _each(self) -> Any:
         """The components in order, each noted in `calling` before it is called."""
@@ -139,24 +174,31 @@ class SystemCheckpoints:
             return False
         return True
 
-    def drive(self, forward: Forward, retake: Retake, k: int, n: int) -> int:
+    def drive(
+        self, forward: Forward, retake: Retake, k: int, n: int, after: Callable[[int], None] | None = None
+    ) -> int:
         """Samples k .. n by `forward`, in stretches of `interval` that start at a checkpoint,
         a refused step retried (module docstring); the next sample (n + 1). Raises the
-        SlaveError that ends the run."""
+        SlaveError that ends the run. `after(k)` is called after every full stretch (not the
+        lead), k the next sample, e.g. to count the plant's work (`budget`), and may raise to end the run."""
+        lead = self.options.lead
         while k <= n:
-            stop = min(k + self.options.interval, n + 1)
+            leading = k < lead
+            stop = min(lead if leading else k + self.options.interval, n + 1)
             checkpoint, saved = k, self._save(k)
             try:
                 k = forward(k, stop)
             except SlaveError as failure:
                 if not saved or failure.k is None or not _retried(failure):
                     raise
-                entry = {"component": failure.component, "t": failure.k * self.T_s, "error": str(failure)}
+                entry = {"component": failure.component, "t": failure.k * self.T_s, "error": self.words.step(failure)}
                 entry["outcome"] = "failed"
                 self.retries.append(entry)
                 self._retry(forward, retake, checkpoint, failure)
                 entry["outcome"] = "passed"
                 k = failure.k + 1
+            if after is not None and not leading:
+                after(k)
         return k
 
     def _retry(self, forward: Forward, retake: Retake, checkpoint: int, failure: SlaveError) -> None:
@@ -171,17 +213,16 @@ class SystemCheckpoints:
                 raise SlaveError(f"the samples from t = {checkpoint * self.T_s:.6g} s did not run again")
             retake(k, c, substeps)
         except SlaveError as again:
-            prefix = f"component {failure.component!r}"
-            said = str(again)
-            if said.startswith(prefix) and ": " in said:
-                said = said.split(": ", 1)[1]
-            raise SlaveError(
-                f"{str(failure).rstrip('.')}. Retried from the checkpoint at t = {checkpoint * self.T_s:.6g} s in "
-                f"{substeps} substeps: {said}",
+            first = self.words.step(failure)
+            both = SlaveError(
+                f"{first.rstrip('.')}. Retried from the checkpoint at t = {checkpoint * self.T_s:.6g} s in "
+                f"{substeps} substeps: {self.words.step(again, before=first)}",
                 failure.component,
                 failure.function,
                 failure.status,
-            ) from None
+            )
+            both.k, both.retried = failure.k, True
+            raise both from None
 
 
 def retried_words(passed: Sequence[dict[str, Any]]) -> str | None:

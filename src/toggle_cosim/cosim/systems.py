@@ -17,7 +17,11 @@ of its name, the command to the plant's iq_ref). Each is checked before anything
 both ends exist, it runs from an output to an input, no input is fed twice, the units match or
 convert (`unit_conversion`: the same dimension, factor and offset from the FMUs' unit
 definitions; anything else refused). The order comes from the connections and the components'
-direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle.
+direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle. The pair's
+own wiring is stepped in the fixed loop's order, the plant then the controller: the plant's
+outputs at t_k are read before the command of sample k is set (a controller that measures an
+output the command feeds directly, such as a_B, reads it as the fixed loop does, with the
+command of sample k - 1).
 
 The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
 order) or the run's `record:` list, which may name any variable of an FMU component.
@@ -40,17 +44,18 @@ from typing import Any
 import numpy as np
 
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
+from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
+from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
-from toggle_cosim.cosim.summary import summarize
 from toggle_cosim.cosim.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
-from toggle_cosim.cosim.system_retry import CheckpointOptions, SystemCheckpoints, retried_words
+from toggle_cosim.cosim.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
@@ -282,7 +287,11 @@ def assemble(
                     f"{where}: key record: {port} is an input nothing feeds (connect it, or record another variable)"
                 )
         try:
-            order = gauss_seidel_order(list(slaves), connections, interfaces)
+            order = (
+                (wiring.plant, wiring.controller)  # the pair's own wiring: the fixed loop's order
+                if wiring.connections is None and not wiring.parts
+                else gauss_seidel_order(list(slaves), connections, interfaces)
+            )
         except AlgebraicLoop as error:
             raise SystemError_(f"{where}: {error}") from None
         plan = build_plan(order, interfaces, connections, signal_ports, wiring.record, jacobi)
@@ -406,8 +415,19 @@ def _compiled_forward(
     return forward, lambda: handed[0] if handed else None
 
 
-def _column(trace: Trace, name: str) -> np.ndarray | None:
-    return trace.column(name) if name in trace.names else None
+def plant_statistics(slave: Slave) -> dict[str, int] | str | None:
+    """The plant component's solver counts now (`FmuSlave.solver_statistics`), None if it has none."""
+    read = getattr(slave, "solver_statistics", None)
+    return read() if callable(read) else None
+
+
+def _controller_state(slaves: Sequence[Slave], name: str, controller: object) -> object:
+    """What gives the run's T_h and S0 (`figures.run_figures`): a native controller's state as
+    the run left it, else the controller given."""
+    for slave in slaves:
+        if slave.name == name and isinstance(slave, ControllerSlave):
+            return slave.sample_state().state
+    return controller
 
 
 def simulate_system(
@@ -421,13 +441,15 @@ def simulate_system(
     calling: np.ndarray | None = None,
     checkpoints: CheckpointOptions | None = None,
     pool: InstancePool | None = None,
+    words: FailureWords | None = None,
 ) -> RunOutcome:
     """Run a system (module docstring); never raises for a component's failure: the outcome is
     failed with the reason and the trace up to the last complete sample. SystemError_ or
     ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
     word shared with a supervising process): element 0 holds, while a component is called, its
     id (`component_names`), and 0 outside the run's loop. `checkpoints`: how a refused step is
-    retried (`system_retry`; default every 200 samples, in 10 substeps). `pool`: the FMU
+    retried (`system_retry`; default every 200 samples, in 10 substeps), `words` how failures
+    are said (`system_retry.FailureWords`; default each names its component). `pool`: the FMU
     components' instances kept from run to run (`instance_pool`), reset after a complete run."""
     started = clock.perf_counter()
     if coupling is not None and coupling != run.coupling:
@@ -457,8 +479,17 @@ def simulate_system(
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
     compiled: SystemLoop | str = "the run ended before its first sample"
-    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s, calling, ids)
+    policy = SystemCheckpoints.of(checkpoints or CheckpointOptions(), assembly.slaves, run.T_s, calling, ids, words)
     policy.configure(*assembly.slaves)
+    plant_slave = next(slave for slave in assembly.slaves if slave.name == run.system.plant)
+    budget = WorkBudget.of(run.resolved.get("budget"), n)
+
+    def counted(k: int) -> None:
+        """The plant's work after a stretch, against the run's budget (`budget`)."""
+        if budget is not None and k > 0:
+            exceeded = budget.exceeded(plant_statistics(plant_slave), (k - 1) * run.T_s)
+            if exceeded is not None:
+                raise BudgetExceeded(exceeded)
 
     def retake(k: int, c: int, substeps: int) -> None:
         execution.advance(k, k + 1, split=(c, substeps))
@@ -475,46 +506,36 @@ def simulate_system(
             policy.configure(compiled)
             forward, handed_at = _compiled_forward(compiled, assembly.slaves, n, progress, run, execution)
             try:
-                policy.drive(forward, retake, 0, n)
+                policy.drive(forward, retake, 0, n, counted)
             finally:
                 handed = handed_at()
         else:
-            policy.drive(execution.advance, retake, 0, n)
+            policy.drive(execution.advance, retake, 0, n, counted)
         loop_finished, finished = clock.perf_counter(), True
     except KeyboardInterrupt:
         loop_finished, interrupted = clock.perf_counter(), True
         reason = f"interrupted (SIGINT or SIGTERM) at t = {max(observer.rows - 1, 0) * run.T_s:.6g} s"
     except SlaveError as error:
         loop_finished = clock.perf_counter()
+        reason = policy.words.reason(error, (error.k or 0) * run.T_s)
+    except BudgetExceeded as error:  # the plant's work past the run's budget: the same sample on any machine
+        loop_finished = clock.perf_counter()
         reason = str(error)
     finally:
         calling[0] = 0
+        solver_statistics = plant_statistics(plant_slave)
+        controller_state = _controller_state(assembly.slaves, run.system.controller, controller)
         assembly.close(reuse=finished and observer.rows == n + 1)
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])
-    retried = retried_words(policy.passed())
+    retried = policy.words.retried(policy.passed())
     if reason is not None and retried is not None:
         reason = f"{reason} (earlier, {retried})"
     reason = bounded_text(reason) if reason is not None else None
     complete = reason is None and rows == n + 1
-    summary = None
-    p, c = run.system.plant, run.system.controller
-    x_B, iq_ref = _column(trace, f"{p}.x_B"), _column(trace, f"{c}.{COMMAND}")
-    if rows > 1 and x_B is not None and iq_ref is not None:
-        summary = summarize(
-            trace.time,
-            x_B,
-            iq_ref,
-            _column(trace, f"{p}.E_in"),
-            _column(trace, f"{p}.E_fric"),
-            run.x_start,
-            run.x_target,
-            None,
-            None,
-            _column(trace, f"{c}.S"),
-            _column(trace, f"{c}.phase"),
-            None if run.x_final == run.x_target else run.x_final,
-        )
+    summary, warnings = run_figures(run, trace, controller_state)
+    if retried is not None:  # what the first one failed with, in run.json's retries too
+        warnings = [*warnings, bounded_text(f"{retried[0].upper()}{retried[1:]}: {policy.passed()[0]['error']}")]
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
     coupled = "jacobi" if plan.jacobi else "gauss-seidel"
@@ -541,8 +562,8 @@ def simulate_system(
         summary,
         policy.retries,
         loop,
-        None,
-        warnings=[bounded_text(f"{retried[0].upper()}{retried[1:]}: {policy.passed()[0]['error']}")] if retried else [],
+        solver_statistics,
+        warnings=warnings,
         controller=next((c for c in assembly.components if c["name"] == run.system.controller), None),
     )
     record["system"] = {

@@ -678,11 +678,6 @@ def _build_run(document: Mapping[str, Any], variant: str | None, source: Path | 
     )
     trajectory = _trajectory(stroke, controller, t_end, suffix)
     system = _wiring(document, source, suffix)
-    if document.get("budget") and not system.is_pair:
-        raise ScenarioError(
-            f"key budget{suffix}: a work budget holds for a plain plant + controller run only; remove it, "
-            "or the keys components, connections and record"
-        )
     fmu = document.get("fmu")
     fmu_path = None
     if fmu is not None:
