@@ -71,6 +71,8 @@ def pair_loop(loop: dict[str, Any]) -> dict[str, Any]:
     reason = str(loop.get("reason", ""))
     if loop.get("kind") != "system, compiled":
         kind = "python" if loop.get("kind") == "system, python" else str(loop.get("kind"))
+    elif "in Python, called back from C" in reason:  # the controller's own code runs at every sample
+        kind = "python"
     else:
         kind = (
             "compiled, then python"
@@ -149,8 +151,8 @@ def simulate_pair_as_system(
         coupling,
         count,
         calling,
-        options,
-        PlantWords(run.system.plant, run.system.controller, run.T_s),
+        checkpoints=options,
+        words=PlantWords(run.system.plant, run.system.controller, run.T_s),
     )
     names = trace_names(plant, diagnostics, others)
     record = {key: value for key, value in outcome.record.items() if key not in ("system", "units")}
