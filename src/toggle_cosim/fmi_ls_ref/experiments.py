@@ -22,6 +22,7 @@ from importlib import resources
 
 from lxml import etree
 
+from toggle_cosim.files.xml_schema import first_problem
 from toggle_cosim.fmi_ls_ref.manifest import LsRefError
 from toggle_cosim.ssp.checks import Element, SspError, parse_xml
 
@@ -66,11 +67,7 @@ def schema() -> etree.XMLSchema:
 
 
 def _problem(root: Element) -> str | None:
-    checker = schema()
-    if checker.validate(root):
-        return None
-    entry = checker.error_log[0]
-    return f"line {entry.line}: {' '.join(entry.message.split())}"
+    return first_problem(schema(), root)
 
 
 def _number(value: float | None) -> str:

@@ -24,6 +24,7 @@ from urllib.parse import unquote, urlsplit
 from lxml import etree
 
 from toggle_cosim.files.bounded import MiB
+from toggle_cosim.files.xml_schema import first_problem
 from toggle_cosim.ssp.checks import Element, SspError, parse_xml
 
 FOLDER = "extra/org.fmi-standard.fmi-ls-ref"
@@ -92,11 +93,7 @@ def schema() -> etree.XMLSchema:
 
 def schema_problem(root: Element) -> str | None:
     """None if `root` is a valid FMI-LS-REF manifest, else its first problem in one line."""
-    checker = schema()
-    if checker.validate(root):
-        return None
-    entry = checker.error_log[0]
-    return f"line {entry.line}: {' '.join(entry.message.split())}"
+    return first_problem(schema(), root)
 
 
 def manifest_xml(related: Sequence[Related]) -> bytes:

@@ -37,6 +37,7 @@ from lxml import etree
 from toggle_cosim.files.bounded import InputFileError, MiB, file_problem, read_bounded
 from toggle_cosim.files.checksums import file_sha3_256
 from toggle_cosim.files.outputs import SRMD, SRMD_NAMESPACE, write_file
+from toggle_cosim.files.xml_schema import first_problem
 
 SRMD_NS = SRMD_NAMESPACE
 STC_NS = "http://ssp-standard.org/SSPTraceability1/SSPTraceabilityCommon"
@@ -231,11 +232,7 @@ def schema() -> etree.XMLSchema:
 
 def schema_problem(root: Any) -> str | None:
     """None if `root` is a valid SRMD element, else the first problem in one line."""
-    checker = schema()
-    if checker.validate(root):
-        return None
-    entry = checker.error_log[0]
-    return f"line {entry.line}: {' '.join(entry.message.split())}"
+    return first_problem(schema(), root)
 
 
 def from_xml(data: bytes, where: str) -> Record:

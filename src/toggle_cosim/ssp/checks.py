@@ -17,6 +17,7 @@ from typing import Any, TypeAlias
 from lxml import etree
 
 from toggle_cosim.files.bounded import MiB
+from toggle_cosim.files.xml_schema import first_problem
 from toggle_cosim.plant.archive import ArchiveError, check_archive
 
 SCHEMAS = {
@@ -66,11 +67,7 @@ def schema_problem(root: Element, kind: str) -> str | None:
     2.0), else the first problem in one line."""
     if (problem := version_problem(root)) is not None:
         return problem
-    checker = schema(kind, root.get("version"))
-    if checker.validate(root):
-        return None
-    entry = checker.error_log[0]
-    return f"line {entry.line}: {' '.join(entry.message.split())}"
+    return first_problem(schema(kind, root.get("version")), root)
 
 
 def parse_xml(data: bytes, where: str) -> Element:
