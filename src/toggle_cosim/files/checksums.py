@@ -11,11 +11,9 @@ from pathlib import Path
 
 
 def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
+    """The SHA-256 of the file at `path` (hashlib reads it in blocks)."""
     with Path(path).open("rb") as stream:
-        for chunk in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
+        return hashlib.file_digest(stream, "sha256").hexdigest()
 
 
 def file_sha3_256(path: Path) -> str:
@@ -25,10 +23,7 @@ def file_sha3_256(path: Path) -> str:
     with os.fdopen(fd, "rb") as stream:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             raise OSError(errno.EINVAL, "not a regular file (a FIFO, device or socket)", str(path))
-        digest = hashlib.sha3_256()
-        for chunk in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
+        return hashlib.file_digest(stream, "sha3_256").hexdigest()
 
 
 def bytes_sha256(data: bytes) -> str:
