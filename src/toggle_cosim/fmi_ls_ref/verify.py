@@ -13,6 +13,7 @@ experiment (how the Reference FMUs carry their reference results).
 
 from __future__ import annotations
 
+import functools
 import tempfile
 import zipfile
 from collections.abc import Callable
@@ -32,7 +33,7 @@ from toggle_cosim.analysis.csv_traces import CompareInputError, read_trace
 from toggle_cosim.files.bounded import MiB
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.fmi_ls_ref.experiments import MIME, Experiment, read_experiments
-from toggle_cosim.fmi_ls_ref.manifest import LsRefError, Related, check_members, read_manifest, read_member
+from toggle_cosim.fmi_ls_ref.manifest import LsRefError, check_members, read_manifest, read_member
 from toggle_cosim.fmi_ls_ref.metadata import check_record
 from toggle_cosim.fmi_ls_ref.pack import open_fmu
 from toggle_cosim.ssp.checks import SspError, parse_xml, schema_problem
@@ -211,25 +212,31 @@ def _description(fmu: Path):  # noqa: ANN202 - FMPy's ModelDescription
         raise LsRefError(f"{fmu}: its modelDescription.xml cannot be read ({' '.join(str(error).split())})") from None
 
 
-def _default_experiment(fmu: Path, result: Related) -> Experiment:
+Times = tuple[float, float, float, float | None]  # start, stop, step, tolerance
+
+
+def _default_times(fmu: Path) -> Times:
+    """The FMU's default experiment (start, stop, step, tolerance), with 0, 1 and (stop - start) / 500
+    where it gives none."""
     default = _description(fmu).defaultExperiment
     start = float(default.startTime) if default is not None and default.startTime is not None else 0.0
     stop = float(default.stopTime) if default is not None and default.stopTime is not None else 1.0
     step = default.stepSize if default is not None and default.stepSize is not None else (stop - start) / 500
     tolerance = float(default.tolerance) if default is not None and default.tolerance is not None else None
-    return Experiment("default experiment", start, stop, float(step), result.source, tolerance)
+    return start, stop, float(step), tolerance
 
 
-def _with_times(experiment: Experiment, fmu: Path) -> Experiment:
-    """The experiment with the times its document leaves out taken from the FMU's default experiment."""
+def _with_times(experiment: Experiment, fmu: Path, default: Callable[[], Times]) -> Experiment:
+    """The experiment with the times its document leaves out taken from the FMU's default
+    experiment (`default`, read once for all of an FMU's experiments)."""
     if None not in (experiment.start, experiment.stop, experiment.step):
         return experiment
-    default = _default_experiment(fmu, Related(experiment.reference, "result"))
-    start = default.start if experiment.start is None else experiment.start
-    stop = default.stop if experiment.stop is None else experiment.stop
+    start_0, stop_0, step_0, _ = default()
+    start = start_0 if experiment.start is None else experiment.start
+    stop = stop_0 if experiment.stop is None else experiment.stop
     step = experiment.step
     if step is None:
-        step = default.step if experiment.stop is None and experiment.start is None else (stop - start) / 500
+        step = step_0 if experiment.stop is None and experiment.start is None else (stop - start) / 500
     if stop <= start:
         raise LsRefError(f"{fmu}: experiment {experiment.name!r} stops at {stop:g} s, not after its start {start:g} s")
     return replace(experiment, start=start, stop=stop, step=step)
@@ -248,6 +255,7 @@ def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list
     check_record(archive, where)
     experiments: list[Experiment] = []
     skipped: list[str] = []
+    default = functools.cache(lambda: _default_times(fmu))
     for entry in related:
         if entry.main_role != "experiment":
             continue
@@ -256,14 +264,14 @@ def carried(archive: zipfile.ZipFile, fmu: Path) -> tuple[list[Experiment], list
             continue
         data = read_member(archive, entry.member, where)
         found, passed_over = read_experiments(data, f"{fmu}: {entry.member}", entry.source)
-        experiments += [_with_times(experiment, fmu) for experiment in found]
+        experiments += [_with_times(experiment, fmu, default) for experiment in found]
         skipped += passed_over
     named = {experiment.reference for experiment in experiments}
     for entry in related:
         if entry.main_role == "result" and entry.source not in named and entry.source.lower().endswith(".csv"):
-            experiments.append(
-                replace(_default_experiment(fmu, entry), name=f"default_experiment/{Path(entry.source).stem}")
-            )
+            start, stop, step, tolerance = default()
+            name = f"default_experiment/{Path(entry.source).stem}"
+            experiments.append(Experiment(name, start, stop, step, entry.source, tolerance))
     if not experiments and skipped:
         raise LsRefError(
             f"{fmu}: carries no experiment toggle-cosim can verify ({', '.join(skipped)}); "
