@@ -101,6 +101,10 @@ class ControllerState:
     law: LawParameters | None = None
     z: float = 0.0
 
+    def __deepcopy__(self, memo: dict) -> ControllerState:
+        """Itself: a frozen value of floats and frozen parameters (a checkpoint keeps it as is)."""
+        return self
+
 
 @dataclass(frozen=True)
 class ControlOutput(ControlStep):

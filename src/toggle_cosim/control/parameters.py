@@ -108,6 +108,10 @@ class LawParameters:
         ),
     )
 
+    def __deepcopy__(self, memo: dict) -> LawParameters:
+        """Itself: a frozen value of floats (a checkpoint of a controller's state keeps it as is)."""
+        return self
+
 
 # The fields the law's start sets at its first sample (`laws.law_start`): t0 and T_h. A law that
 # runs on its own (the controller FMU) computes them; every other field is a setting.

@@ -501,12 +501,19 @@ class ControllerSlave:
         self._n_diagnostics = len(diagnostics)
         self._sources = tuple(f"input {name}" for name in measured)
         self._saved: tuple | None = None
+        self._changes = 0  # how many times what it holds has changed (`changes`)
+
+    @property
+    def changes(self) -> int:
+        """A count that moves whenever what it holds changes: equal counts, the same holding."""
+        return self._changes
 
     def bind(self, fed: Sequence[str], outputs: Sequence[str]) -> None:
         """Its measurement holds the fed inputs only, in the plan's order: reading another raises KeyError."""
         self._index = {name: i for i, name in enumerate(fed)}
         self._row = [0.0] * len(fed)
         self._sources = tuple(f"input {name}" for name in fed)
+        self._changes = getattr(self, "_changes", 0) + 1
 
     def fed_from(self, sources: Sequence[str]) -> None:
         """What feeds each fed input, in words (e.g. "component 'plant': its output x_B"), for
@@ -535,6 +542,7 @@ class ControllerSlave:
                 raise error
             row[i] = value
         self._dirty = True
+        self._changes += 1
 
     @property
     def cannot_save_state(self) -> str | None:
@@ -542,10 +550,11 @@ class ControllerSlave:
         return None
 
     def save_state(self) -> None:
-        """Keep a deep copy of the controller's state, its held outputs and its inputs as set."""
-        kept = (self._state, self._next, self._held, self._started, self._dirty, self._row)
+        """Keep a deep copy of the controller's state, with its held outputs and its inputs as set
+        (numbers, copied as they are)."""
         try:
-            self._saved = copy.deepcopy(kept)
+            states = copy.deepcopy((self._state, self._next))
+            self._saved = (*states, tuple(self._held), self._started, self._dirty, tuple(self._row))
         except Exception as error:  # noqa: BLE001 - a state that cannot be copied: no checkpoint
             raise SlaveError(
                 f"component {self.name!r} cannot save its state (its controller's state cannot be copied:"
@@ -556,9 +565,11 @@ class ControllerSlave:
     def restore_state(self) -> None:
         if self._saved is None:
             raise SlaveError(f"component {self.name!r}: no checkpoint to restore", self.name)
-        state, following, held, started, dirty, row = copy.deepcopy(self._saved)
-        self._state, self._next, self._held, self._started, self._dirty = state, following, held, started, dirty
+        state, following, held, started, dirty, row = self._saved
+        self._state, self._next = copy.deepcopy((state, following))
+        self._held, self._started, self._dirty = held, started, dirty
         self._row[:] = row
+        self._changes += 1
 
     def _fail(self, what: str, t: float, error: BaseException) -> SlaveError:
         if not interrupts.raised_by_code(error):
@@ -569,6 +580,7 @@ class ControllerSlave:
 
     def _compute(self, t: float) -> None:
         """The step at t from the inputs as set: the held outputs and the pending state."""
+        self._changes += 1
         measurement = Measurement(self._index, self._row)
         if not self._started:
             try:
@@ -596,6 +608,7 @@ class ControllerSlave:
         self._state, self._next, self._held = held.state, held.next, tuple(held.held)
         self._row[:] = held.row
         self._dirty, self._started = held.dirty, held.started
+        self._changes += 1
 
     def get(self, values: Any, t: float) -> None:
         if self._dirty:
@@ -607,6 +620,7 @@ class ControllerSlave:
         if self._dirty:
             self._compute(t)
         self._state = self._next
+        self._changes += 1
 
     def close(self) -> None:
         close = getattr(self.controller, "close", None)

@@ -349,6 +349,9 @@ class SystemLoop:
                     calls.slave, early, late, late_slots, arrays[4], buffer, entry.out0, len(outputs), T_s
                 )
         self._natives = tuple(natives)
+        # per native controller, its slave's `changes` when it held what the C holds (`take_back`;
+        # none once the loop runs again)
+        self._synced = {native.slave.name: native.slave.changes for _, native, _ in natives}
         self._callbacks = Callbacks(turns, self.T_s) if turns else None
         if self._callbacks is not None:
             for c in turns:
@@ -399,6 +402,7 @@ class SystemLoop:
         if not 0 <= k0 <= k_end <= self.n + 1:
             raise ValueError(f"samples {k0} .. {k_end - 1} are not within 0 .. {self.n}")
         self._state.k = k0
+        self._synced.clear()  # the C's memory moves on from what any slave holds
         callbacks = self._callbacks
         if callbacks is None:
             code = self._library.system_run(self._pointer, k_end)
@@ -463,11 +467,14 @@ class SystemLoop:
         for _, native, entry in self._natives:
             memory, state = self._memory(native, entry)
             native.slave.resume(native.given_back(state[: native.n_state], memory[:]))
+            self._synced[native.slave.name] = native.slave.changes
 
     def hand_over(self) -> None:
         """Between samples: the C holds what each native controller's slave holds now (a
         checkpoint put back, a sample the Python execution took); `take_back`'s inverse, bit for bit."""
         for _, native, entry in self._natives:
+            if self._synced.get(native.slave.name) == native.slave.changes:  # it holds what the C holds
+                continue
             held = native.slave.sample_state()
             memory, state = self._memory(native, entry)
             values = [1.0 if held.dirty else 0.0, *held.held, *held.row, *native.state_values(held.next)]
