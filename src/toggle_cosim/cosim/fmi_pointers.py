@@ -120,18 +120,23 @@ def is_fmi3(slave: Any) -> bool:
 
 
 def fmu_functions(
-    slave: Any, outputs: Sequence[int], inputs: Sequence[int], reads: Sequence[TypedRead] = ()
+    slave: Any,
+    outputs: Sequence[int],
+    inputs: Sequence[int],
+    reads: Sequence[TypedRead] = (),
+    bound: tuple[Any, Any, Any] | None = None,
 ) -> CFunctions:
     """The C calls of an instantiated fmpy FMU2Slave / FMU3Slave that reads the Real (Float64)
     variables of value references `outputs` and sets those of `inputs`, in those orders, and
-    makes the typed `reads` (`typed_reads`: other types, after the Real outputs).
+    makes the typed `reads` (`typed_reads`: other types, after the Real outputs); `bound`: its
+    (get, set, step) already bound (`bound_function`), else bound here.
     ValueError (one line) when it is not instantiated or its library lacks one of the three
     functions. The result keeps the slave and its arrays alive."""
     names = FMI3_NAMES if is_fmi3(slave) else FMI2_NAMES
     component = getattr(slave, "component", None)
     if component is None:
         raise ValueError(f"{getattr(slave, 'instanceName', 'the FMU')}: not instantiated, so it has no C calls yet")
-    functions = tuple(bound_function(slave.dll, name) for name in (names.get, names.set, names.step))
+    functions = bound or tuple(bound_function(slave.dll, name) for name in (names.get, names.set, names.step))
     missing = [name for name, f in zip((names.get, names.set, names.step), functions, strict=True) if f is None]
     if missing:
         raise ValueError(

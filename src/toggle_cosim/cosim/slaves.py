@@ -442,7 +442,9 @@ class FmuSlave:
     def c_functions(self) -> CFunctions:
         """What a C loop calls (`fmi_pointers.fmu_functions`): the three functions, the instance,
         the value references of its outputs and fed inputs, in the plan's order."""
-        return fmu_functions(self._slave, self._out_refs, self._in_refs, self._reads)
+        return fmu_functions(
+            self._slave, self._out_refs, self._in_refs, self._reads, (self._get, self._set, self._step)
+        )
 
 
 @dataclass(frozen=True)

@@ -47,6 +47,7 @@ import os
 from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -197,11 +198,25 @@ def _longs(values: Sequence[int]) -> ctypes.Array:
     return (ctypes.c_long * max(len(values), 1))(*values)
 
 
+class _NativeSlot(NamedTuple):
+    """A native controller in the loop: its component's index, itself, its native_t and the
+    arrays that native_t points to: its memory (dirty, held, row, next state), the memory's copy
+    at the sample's start (`saved`) and its committed state."""
+
+    c: int
+    native: NativeController
+    entry: ctypes.Structure
+    memory: ctypes.Array
+    saved: ctypes.Array
+    state: ctypes.Array
+
+
 def _native_entry(
     native: NativeController, early: Sequence[int], late: Sequence[int], n_out: int, keep: list[object]
-) -> ctypes.Structure:
+) -> tuple[ctypes.Structure, list[ctypes.Array]]:
     """system_skeleton.c's native_t of a native controller, its memory filled from what its slave
-    held (`NativeController.start`); everything it points into goes into `keep`."""
+    held (`NativeController.start`), and the arrays it points into (its early and late
+    positions, memory, saved memory, state, ...); everything it points into goes into `keep`."""
     start = native.start
     n_held, n_in, n_state = len(start.held), len(start.row), native.n_state
     if n_held != n_out:
@@ -233,10 +248,10 @@ def _native_entry(
         entry.a, entry.b, entry.c, entry.d = (ctypes.addressof(a) for a in matrices)
         entry.m, entry.target, entry.origin = m.m, native.target, native.origin
     if native.law is not None:
-        for name in LawParameters.__dataclass_fields__:
-            setattr(entry.law, name, float(getattr(native.law, name)))
+        law = native.law
+        entry.law = type(entry.law)(*(float(getattr(law, name)) for name in LawParameters.__dataclass_fields__))
     keep += [entry, arrays, native.reference]
-    return entry
+    return entry, arrays
 
 
 class SystemLoop:
@@ -293,7 +308,7 @@ class SystemLoop:
         self._library = library
         table = (_component_struct() * count)()
         keep: list[object] = [functions, signals, trace, rows]
-        natives: list[tuple[int, NativeController, ctypes.Structure]] = []
+        natives: list[_NativeSlot] = []
         buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
         turns: dict[int, Turns] = {}
         for c, (entry, calls) in enumerate(zip(table, functions, strict=True)):
@@ -303,8 +318,8 @@ class SystemLoop:
             early = plan.early[c]
             late = plan.late(c)
             if isinstance(calls, NativeController):
-                native = _native_entry(calls, early, late, len(outputs), keep)
-                natives.append((c, calls, native))
+                native, held = _native_entry(calls, early, late, len(outputs), keep)
+                natives.append(_NativeSlot(c, calls, native, *held[2:5]))
                 entry.native = ctypes.addressof(native)
                 in_vr: Sequence[int] = (0,) * len(inputs)
                 reads: Sequence = ()
@@ -351,7 +366,7 @@ class SystemLoop:
         self._natives = tuple(natives)
         # per native controller, its slave's `changes` when it held what the C holds (`take_back`;
         # none once the loop runs again)
-        self._synced = {native.slave.name: native.slave.changes for _, native, _ in natives}
+        self._synced = {slot.native.slave.name: slot.native.slave.changes for slot in natives}
         self._callbacks = Callbacks(turns, self.T_s) if turns else None
         if self._callbacks is not None:
             for c in turns:
@@ -436,7 +451,7 @@ class SystemLoop:
     @property
     def native_names(self) -> tuple[str, ...]:
         """The components the loop runs natively (`system_natives`), in plan order."""
-        return tuple(self.plan.order[c] for c, _, _ in self._natives)
+        return tuple(self.plan.order[slot.c] for slot in self._natives)
 
     @property
     def in_python(self) -> tuple[tuple[str, str], ...]:
@@ -449,34 +464,26 @@ class SystemLoop:
     def give_back(self) -> None:
         """After HAND_BACK at sample k: each native controller's slave holds again what it held at
         the start of sample k, so the Python execution takes the run from that sample."""
-        for _, native, entry in self._natives:
-            size = 1 + len(native.start.held) + len(native.start.row) + native.n_state
-            saved = (ctypes.c_double * size).from_address(entry.saved)
-            state = (ctypes.c_double * max(native.n_state, 1)).from_address(entry.state)
-            native.slave.resume(native.given_back(state[: native.n_state], saved[:]))
-
-    def _memory(self, native: NativeController, entry: ctypes.Structure) -> tuple[ctypes.Array, ctypes.Array]:
-        """A native controller's memory in C (dirty, held, row, next state) and its committed state."""
-        size = 1 + len(native.start.held) + len(native.start.row) + native.n_state
-        memory = (ctypes.c_double * size).from_address(entry.mem)
-        return memory, (ctypes.c_double * max(native.n_state, 1)).from_address(entry.state)
+        for slot in self._natives:
+            native = slot.native
+            native.slave.resume(native.given_back(slot.state[: native.n_state], slot.saved[:]))
 
     def take_back(self) -> None:
         """Between samples: each native controller's slave holds what the C holds now (so a
         checkpoint saves it, or the Python execution takes the next sample from it)."""
-        for _, native, entry in self._natives:
-            memory, state = self._memory(native, entry)
-            native.slave.resume(native.given_back(state[: native.n_state], memory[:]))
+        for slot in self._natives:
+            native = slot.native
+            native.slave.resume(native.given_back(slot.state[: native.n_state], slot.memory[:]))
             self._synced[native.slave.name] = native.slave.changes
 
     def hand_over(self) -> None:
         """Between samples: the C holds what each native controller's slave holds now (a
         checkpoint put back, a sample the Python execution took); `take_back`'s inverse, bit for bit."""
-        for _, native, entry in self._natives:
+        for slot in self._natives:
+            native, memory, state = slot.native, slot.memory, slot.state
             if self._synced.get(native.slave.name) == native.slave.changes:  # it holds what the C holds
                 continue
             held = native.slave.sample_state()
-            memory, state = self._memory(native, entry)
             values = [1.0 if held.dirty else 0.0, *held.held, *held.row, *native.state_values(held.next)]
             if len(values) != len(memory):
                 raise ValueError(f"component {native.slave.name!r}: its state does not fit its native memory")
