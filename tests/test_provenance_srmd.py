@@ -102,7 +102,8 @@ def _with_href(href: str) -> str:
 @pytest.mark.parametrize(
     ("text", "says"),
     [
-        ("scenario: not xml\n", "not an XML file"),
+        ("scenario: not xml\n", "not well-formed XML"),
+        ("<a>" * 65 + "</a>" * 65, "XML nested deeper than 64 levels (refused; a record is flatter)"),
         ('<?xml version="1.0"?><run/>', "not an SRMD record"),
         (
             '<!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>'

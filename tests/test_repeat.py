@@ -110,7 +110,7 @@ def test_a_record_naming_a_file_the_run_does_not_use_is_refused(recorded: Path, 
 @pytest.mark.parametrize(
     ("content", "says"),
     [
-        (b"not xml at all\n", "not an XML file"),
+        (b"not xml at all\n", "not well-formed XML"),
         (b'<?xml version="1.0"?><SimulationResourceMetaData/>', "not an SRMD record"),
     ],
 )

@@ -22,9 +22,10 @@ from importlib import resources
 
 from lxml import etree
 
+from toggle_cosim.files.xml_reading import XmlKind, XmlRefused, read_xml
 from toggle_cosim.files.xml_schema import first_problem
 from toggle_cosim.fmi_ls_ref.manifest import LsRefError
-from toggle_cosim.ssp.checks import Element, SspError, parse_xml
+from toggle_cosim.ssp.checks import Element
 
 MIME = "application/x-ma-hs-experiments"
 SCHEMA = "maHarmonizedSpecificationExperiments.xsd"
@@ -33,6 +34,8 @@ ANNOTATION = "org.toggle-cosim.experiment"  # our files of an experiment the for
 # XML Schema 1.0 (libxml2, xmlschema) allows that only as an include, which is how it is loaded.
 _IMPORT = b'<xs:import schemaLocation="fmi3Annotation.xsd" />'
 _INCLUDE = b'<xs:include schemaLocation="fmi3Annotation.xsd"/>'
+
+EXPERIMENTS_FILE = XmlKind("an experiments document", "write it again with toggle-cosim pack")
 
 
 @dataclass(frozen=True)
@@ -132,8 +135,8 @@ def read_experiments(
     type, or no References), each with why; LsRefError naming `where` for a document that is not
     valid against the schema or runs backwards."""
     try:
-        root = parse_xml(data, where)
-    except SspError as error:
+        root = read_xml(data, where, EXPERIMENTS_FILE)
+    except XmlRefused as error:
         raise LsRefError(str(error)) from None
     problem = _problem(root)
     if problem is not None:

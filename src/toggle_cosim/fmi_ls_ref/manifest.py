@@ -24,8 +24,9 @@ from urllib.parse import unquote, urlsplit
 from lxml import etree
 
 from toggle_cosim.files.bounded import MiB
+from toggle_cosim.files.xml_reading import XmlKind, XmlRefused, read_xml
 from toggle_cosim.files.xml_schema import first_problem
-from toggle_cosim.ssp.checks import Element, SspError, parse_xml
+from toggle_cosim.ssp.checks import Element
 
 FOLDER = "extra/org.fmi-standard.fmi-ls-ref"
 MANIFEST = f"{FOLDER}/fmi-ls-manifest.xml"
@@ -40,6 +41,8 @@ CHECKSUM_NS = "https://github.com/toggle-cosim/toggle-cosim/fmi-ls-ref"
 CHECKSUM_ALGORITHM = "SHA3-256"
 
 XML_LIMIT = 4 * MiB  # a manifest or experiment document: ours are a few kB
+
+MANIFEST_FILE = XmlKind("an FMI-LS-REF manifest", "pack the FMU again (toggle-cosim pack)")
 
 
 class LsRefError(Exception):
@@ -157,8 +160,8 @@ def read_manifest(archive: zipfile.ZipFile, where: str) -> tuple[Related, ...] |
         return None
     data = read_member(archive, MANIFEST, where)
     try:
-        root = parse_xml(data, f"{where}: {MANIFEST}")
-    except SspError as error:
+        root = read_xml(data, f"{where}: {MANIFEST}", MANIFEST_FILE)
+    except XmlRefused as error:
         raise LsRefError(str(error)) from None
     if etree.QName(root).localname != "fmiReferences":
         raise LsRefError(f"{where}: {MANIFEST} is not an FMI-LS-REF manifest (its root is not fmiReferences)")

@@ -37,6 +37,7 @@ from lxml import etree
 from toggle_cosim.files.bounded import InputFileError, MiB, file_problem, read_bounded
 from toggle_cosim.files.checksums import file_sha3_256
 from toggle_cosim.files.outputs import SRMD, SRMD_NAMESPACE, write_file
+from toggle_cosim.files.xml_reading import XmlKind, XmlRefused, read_xml
 from toggle_cosim.files.xml_schema import first_problem
 
 SRMD_NS = SRMD_NAMESPACE
@@ -47,6 +48,7 @@ NAMESPACES = {"srmd": SRMD_NS, "stc": STC_NS, "xlink": XLINK_NS}
 SRMD_VERSION = "1.0.0"  # the SRMD format version, as the schema's documentation gives it for this release
 CHECKSUM_TYPE = "SHA3-256"
 RECORD_LIMIT = 4 * MiB  # a record names tens of files in a few kB
+RECORD_FILE = XmlKind("a record", "give a run's record")
 
 RESOURCE = "org.toggle-cosim.resource"
 TOOLS = "org.toggle-cosim.tools"
@@ -236,15 +238,13 @@ def schema_problem(root: Any) -> str | None:
 
 
 def from_xml(data: bytes, where: str) -> Record:
-    """The Record of an SRMD document; RecordError naming `where` if it is not well-formed XML,
-    has a DOCTYPE, is not valid SRMD, or names a file by anything but a relative path."""
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
+    """The Record of an SRMD document; RecordError naming `where` if it cannot be read within
+    bounds (`files.xml_reading`: well-formed, no DOCTYPE), is not valid SRMD, or names a file by
+    anything but a relative path."""
     try:
-        root = etree.fromstring(data, parser)
-    except etree.XMLSyntaxError as error:
-        raise RecordError(f"{where}: not an XML file ({' '.join(str(error).split())}); give a run's record") from None
-    if root.getroottree().docinfo.doctype:
-        raise RecordError(f"{where}: a DOCTYPE (refused: a record needs none); give a run's record")
+        root = read_xml(data, where, RECORD_FILE)
+    except XmlRefused as error:
+        raise RecordError(str(error)) from None
     if root.tag != _q("srmd", "SimulationResourceMetaData"):
         raise RecordError(f"{where}: not an SRMD record (its root is {root.tag}); give a run's record")
     problem = schema_problem(root)

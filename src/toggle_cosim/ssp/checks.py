@@ -1,14 +1,13 @@
 """What the SSP writer and reader both check: XML against the vendored SSP schemas of its
 version (`schemas/`: SSP 1.0; `schemas/ssp2/`: SSP 2.0, whose namespaces are 1.0's; validated with
 lxml, which FMPy's own SSP reader uses too; `VERSIONS`), XML read within bounds
-(member size XML_LIMIT, MAX_ELEMENTS elements, MAX_DEPTH levels; no DOCTYPE, so no entities, and
+(member size XML_LIMIT, then `files.xml_reading`'s bounds: no DOCTYPE, so no entities, and
 nothing fetched), and the archive's safety (the FMU archive checks of `plant.archive`: member
 names, sizes, members, corrupt data)."""
 
 from __future__ import annotations
 
 import functools
-import io
 import zipfile
 from importlib import resources
 from pathlib import Path
@@ -17,6 +16,7 @@ from typing import Any, TypeAlias
 from lxml import etree
 
 from toggle_cosim.files.bounded import MiB
+from toggle_cosim.files.xml_reading import XmlKind, XmlRefused, read_xml
 from toggle_cosim.files.xml_schema import first_problem
 from toggle_cosim.plant.archive import ArchiveError, check_archive
 
@@ -34,8 +34,7 @@ VERSIONS = {"1.0": ("schemas",), "2.0": ("schemas", "ssp2")}
 DEFAULT_VERSION = "1.0"  # what `toggle-cosim ssp` writes unless asked: the version libcosim and Ecos read
 
 XML_LIMIT = 4 * MiB  # an SSD or .ssv: ours are a few kB
-MAX_ELEMENTS = 100_000
-MAX_DEPTH = 64
+SSP_FILE = XmlKind("an SSP file", "fix or rewrite it")
 
 Element: TypeAlias = Any  # an lxml element (lxml names its class privately)
 
@@ -71,34 +70,12 @@ def schema_problem(root: Element, kind: str) -> str | None:
 
 
 def parse_xml(data: bytes, where: str) -> Element:
-    """The root of the XML document `data`, read within MAX_ELEMENTS elements and MAX_DEPTH
-    levels; a DOCTYPE (and so any entity) is refused, entities are never resolved and nothing
-    is fetched. SspError naming `where` otherwise."""
-    counted = depth = 0
-    events = etree.iterparse(
-        io.BytesIO(data),
-        events=("start", "end"),
-        resolve_entities=False,
-        no_network=True,
-        huge_tree=False,
-        load_dtd=False,
-    )
+    """The root of the SSP XML document `data`, read within bounds (`files.xml_reading`);
+    SspError naming `where` otherwise."""
     try:
-        for event, _ in events:
-            if event == "end":
-                depth -= 1
-                continue
-            counted, depth = counted + 1, depth + 1
-            if counted > MAX_ELEMENTS:
-                raise SspError(f"{where}: more than {MAX_ELEMENTS} XML elements (refused; an SSP file is smaller)")
-            if depth > MAX_DEPTH:
-                raise SspError(f"{where}: XML nested deeper than {MAX_DEPTH} levels (refused; an SSP file is flatter)")
-        root = events.root
-    except etree.XMLSyntaxError as error:
-        raise SspError(f"{where}: not well-formed XML ({' '.join(str(error).split())}); fix or rewrite it") from None
-    if root.getroottree().docinfo.doctype or any(node.tag is etree.Entity for node in root.iter()):
-        raise SspError(f"{where}: a DOCTYPE or entity reference (refused: an SSP file needs neither; remove it)")
-    return root
+        return read_xml(data, where, SSP_FILE)
+    except XmlRefused as error:
+        raise SspError(str(error)) from None
 
 
 def parse_member(archive: zipfile.ZipFile, member: str, kind: str, where: str) -> Element:
