@@ -28,9 +28,16 @@ from typing import Any, Protocol
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
-from toggle_cosim.cosim.fmi_pointers import FMI2_NAMES, FMI3_NAMES, fmu_functions, read_typed, typed_reads
+from toggle_cosim.cosim.fmi_pointers import (
+    FMI2_NAMES,
+    FMI3_NAMES,
+    CFunctions,
+    bound_function,
+    fmu_functions,
+    read_typed,
+    typed_reads,
+)
 from toggle_cosim.cosim.instance_pool import InstancePool, Kept
-from toggle_cosim.cosim.session import CFunctions, bound_function
 from toggle_cosim.cosim.unzipped import release, unzipped
 from toggle_cosim.messages import error_text
 from toggle_cosim.plant.fmi_calls import (
