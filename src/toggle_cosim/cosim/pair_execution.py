@@ -130,7 +130,8 @@ def pair_loop(loop: dict[str, Any], stepping: Stepping | None) -> dict[str, Any]
 class PlantWords:
     """The pair's words for its plant's failures: a failed call as FMPy says it with what the FMU
     logged (`system_retry.failure_text`), the retries as "the plant's step(s)", the reason "plant
-    FMU failed at t = ...: ..."; a native controller's failure "controller failed: ...", and a
+    FMU failed at t = ...: ..."; the controller's failure "controller failed: ..." (a controller
+    FMU's with its file name: "controller failed: Law.fmu: fmi2DoStep at t = ..."), and a
     plant output it measures that is not finite "plant outputs became non-finite at t = ..."."""
 
     plant: str
@@ -162,9 +163,11 @@ class PlantWords:
     def reason(self, error: SlaveError, t: float) -> str:
         if error.not_finite:  # what the controller measures: the plant's outputs
             return f"plant outputs became non-finite at t = {t:.6g} s"
-        said, own = str(error), f"component {self.controller!r}: "
-        if said.startswith(own):  # its step raised, or its command was refused
-            return f"controller failed: {said.removeprefix(own)}"
+        said, own = str(error), f"component {self.controller!r}"
+        if said.startswith(f"{own}: "):  # its step raised, or its command was refused
+            return f"controller failed: {said.removeprefix(f'{own}: ')}"
+        if error.component == self.controller and said.startswith(f"{own} ("):  # a controller FMU's call
+            return f"controller failed: {said.removeprefix(f'{own} (').replace('): ', ': ', 1)}"
         if error.component != self.plant:
             return said
         return f"plant FMU failed at t = {t:.6g} s: {str(error) if error.retried else self.step(error)}"
