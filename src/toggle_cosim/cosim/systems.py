@@ -1,8 +1,7 @@
 """A run as a system (`system.model`), and the run of one (`simulate_system`).
 
-A run whose `Run.system` is not the plain pair (`Wiring.is_pair`: it has parts around the
-plant, connections of its own, or a `record:` list) is stepped by an `Execution` (execution.py)
-over these components:
+Every run's system (`Run.system`; the plain pair through `pair_execution`) is stepped by an
+`Execution` (execution.py) over these components:
 
 * the plant (component `plant`, or an SSD's name for it): the run's plant FMU with the values
   the scenario gives it (`master.plant_settings`);
@@ -18,10 +17,9 @@ both ends exist, it runs from an output to an input, no input is fed twice, the 
 convert (`unit_conversion`: the same dimension, factor and offset from the FMUs' unit
 definitions; anything else refused). The order comes from the connections and the components'
 direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle. The pair's
-own wiring is stepped in the fixed loop's order, the plant then the controller: the plant's
-outputs at t_k are read before the command of sample k is set (a controller that measures an
-output the command feeds directly, such as a_B, reads it as the fixed loop does, with the
-command of sample k - 1).
+own wiring is stepped in the pair's order, the plant then the controller: the plant's outputs
+at t_k are read before the command of sample k is set (a controller that measures an output the
+command feeds directly, such as a_B, reads it with the command of sample k - 1).
 
 The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
 order) or the run's `record:` list, which may name any variable of an FMU component.
