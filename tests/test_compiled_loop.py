@@ -57,7 +57,9 @@ def test_compiled_and_python_loops_agree_bit_for_bit(
     python = simulate(run, plant)
     assert compiled.record["loop"]["kind"] == "compiled", compiled.record["loop"]
     assert python.record["loop"]["kind"] == "python"
-    assert python.record["loop"]["reason"].endswith("in Python (no compiled system loop: disabled by TOGGLE_COSIM_KERNEL=0)")
+    assert python.record["loop"]["reason"].endswith(
+        "in Python (no compiled system loop: disabled by TOGGLE_COSIM_KERNEL=0)"
+    )
     # the θ1 case with friction stops at the plant's Zeno guard (t = 1.0845 s): both loops alike
     assert (compiled.complete, compiled.reason) == (python.complete, python.reason)
     assert compiled.trace.names == python.trace.names
