@@ -419,7 +419,10 @@ class CaseRunner:
         names = case_columns(payload, self.plant)
         controller = payload["document"].get("controller") or {}
         users = "python" in controller or "fmu" in controller  # the built-in law neither crashes nor hangs
-        if users and view is not None and stopped_in_controller(view, rows, len(self.plant.recorded_outputs), names):
+        stopped = view is not None and stopped_in_controller(
+            view, rows, len(self.plant.recorded_outputs), names, self.calling
+        )
+        if users and stopped:
             words = controller_words(controller.get("python"), controller.get("fmu"))
             limited = answer.failure.startswith("time limit")
             return crash_row(
@@ -429,7 +432,8 @@ class CaseRunner:
 
     def _called(self, payload: Mapping[str, Any]) -> str | None:
         """The component a system's case was calling when its host ended, in words
-        (`exit_reasons.component_words`); None for the pair, or outside any call."""
+        (`exit_reasons.component_words`); None for the plain pair (its controller is said in the
+        pair's words, `exit_reasons.in_controller_reason`), or outside any call."""
         number = int(self.calling[0]) if self.calling is not None else 0
         if number <= 0:
             return None
@@ -440,6 +444,8 @@ class CaseRunner:
         try:
             (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
         except Exception:  # noqa: BLE001 - a case that ran was read before: no words, the plain reason
+            return None
+        if run.system.is_pair:
             return None
         names = component_names(run.system)
         return component_words(run, self.plant.path, names[number - 1]) if number <= len(names) else None
