@@ -18,7 +18,9 @@ plant's other inputs fed by their signals) with a `record:` list of the pair's c
   "python"; `loop.reason` says what the execution did;
 * a plant's failures and retries are said in the pair's words (`PlantWords`);
 * checkpoints and the work budget fall at the pair's samples: its first sample runs alone, then
-  stretches of `system_retry.CHECKPOINT_SAMPLES` (`CheckpointOptions.lead`).
+  stretches of `system_retry.CHECKPOINT_SAMPLES` (`CheckpointOptions.lead`);
+* a controller FMU on a trajectory run is refused (the execution does not feed its reference
+  inputs x_ref, v_ref, a_ref), rather than run against its constant target.
 
 The summary (with T_h and S0), the plausibility warnings and the solver statistics are the
 execution's own, as for every system run (`figures.run_figures`).
@@ -38,7 +40,7 @@ from fmpy.fmi1 import FMICallException
 from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for, controller_record
+from toggle_cosim.cosim.controllers import ControllerFmuPart, controller_for, controller_record
 from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
 from toggle_cosim.cosim.plant_inputs import other_inputs
@@ -192,6 +194,12 @@ def simulate_pair_as_system(
         if controller is None:
             controller = controller_for(run, plant.recorded_outputs)
         diagnostics = tuple(check_controller(controller, plant.recorded_outputs))
+        if isinstance(controller, ControllerFmuPart) and controller.reference is not None:
+            raise ControllerError(
+                f"key controller.fmu: {controller.fmu.path.name} would track stroke.trajectory, but the execution does"
+                " not feed a controller FMU's reference inputs yet (run the trajectory with the built-in law, or"
+                " remove stroke.trajectory)"
+            )
     except ControllerError as error:
         close_controller(controller)
         return refused_outcome(run, plant, str(error), started)
