@@ -142,9 +142,9 @@ def test_the_controller_fmu_runs_in_c_with_the_python_loops_bits(
 @pytest.mark.parametrize(
     ("mode", "said"),
     [
-        (1, "FlakyLaw.fmu: fmi2DoStep at t = 0.05 s returned status 4"),
-        (2, "FlakyLaw.fmu: fmi2SetReal at t = 0.05 s returned status 4"),
-        (3, "FlakyLaw.fmu: fmi2GetReal at t = 0.05 s returned status 4"),
+        (1, "FlakyLaw.fmu: fmi2DoStep at t = 0.05 s returned status 4; it logged [FATAL] "),
+        (2, "FlakyLaw.fmu: fmi2SetReal at t = 0.05 s returned status 4; it logged [FATAL] "),
+        (3, "FlakyLaw.fmu: fmi2GetReal at t = 0.05 s returned status 4; it logged [FATAL] "),
         pytest.param(
             4,
             "the controller's command at t = 0.05 s is nan, not a finite float",
@@ -160,7 +160,7 @@ def test_a_failing_controller_fmu_gives_the_python_loops_reason_and_rows(
     mode: int, said: str, flaky_fmu: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Each call of the controller FMU failing at t = 0.05 s: the same reason, naming the FMU and
-    its call, and the trace cut at the same row as in the Python execution (the doStep from 0.05 s
+    its call, with its log line, and the trace cut at the same row as in the Python execution (the doStep from 0.05 s
     fails at the next sample, which keeps sample 0.05 s; the others fail at 0.05 s itself)."""
     document = {
         "name": "flaky",

@@ -253,9 +253,14 @@ class FmuSlave:
     def _quiet_logging(self, slave: Any) -> None:
         """Logging stays on for what a failure's reason needs: where the FMU declares log
         categories, only those of non-OK statuses (the standard's logStatus*, or a name with
-        Error or Warning in it), so an FMU that logs every step does not call back every step."""
+        Error or Warning in it), so an FMU that logs every step does not call back every step. A
+        PythonFMU keeps its own logging (it logs only what its code logs, and the exception that
+        fails a call under no category, which choosing categories would drop)."""
         categories = [c.name for c in getattr(self.description, "logCategories", None) or ()]
         chosen = [c for c in categories if c.startswith("logStatus") or "Error" in c or "Warning" in c]
+        tool = str(getattr(self.description, "generationTool", "") or "")
+        if tool.startswith("PythonFMU"):  # it logs a failure's cause under no category, which chosen ones drop
+            return
         if categories and chosen:
             try:  # the others off by name, then those on (a shell may add to the categories it has)
                 unwanted = [c for c in categories if c not in chosen]
