@@ -24,7 +24,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, NoReturn, Protocol
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
@@ -526,6 +526,7 @@ class ControllerSlave:
         """Its measurement holds the fed inputs only, in the plan's order: reading another raises KeyError."""
         self._index = {name: i for i, name in enumerate(fed)}
         self._row = [0.0] * len(fed)
+        self._every = tuple(range(len(fed)))  # positions that set every fed input, in order
         self._sources = tuple(f"input {name}" for name in fed)
         self._changes = getattr(self, "_changes", 0) + 1
 
@@ -544,19 +545,32 @@ class ControllerSlave:
         pass
 
     def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
+        """Set the fed inputs at `positions` to `values`; a value that is not finite is refused
+        (SlaveError naming its source, `not_finite`), the first in the positions' order. Every
+        input at once (a Python controller's sample) is one check and one copy."""
         row, isfinite = self._row, math.isfinite
-        for i, value in zip(positions, values, strict=True):
-            if not isfinite(value):
-                error = SlaveError(
-                    f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
-                    f" {self.name!r}, which takes finite values only",
-                    self.name,
-                )
-                error.not_finite = True
-                raise error
-            row[i] = value
+        if len(values) == len(row) and positions == self._every:
+            if not all(map(isfinite, values)):
+                self._refuse(positions, values, t)
+            row[:] = values
+        else:
+            for i, value in zip(positions, values, strict=True):
+                if not isfinite(value):
+                    self._refuse(positions, values, t)
+                row[i] = value
         self._dirty = True
         self._changes += 1
+
+    def _refuse(self, positions: Sequence[int], values: Sequence[float], t: float) -> NoReturn:
+        """Raise the error of the first value that is not finite, naming its source."""
+        i, value = next((i, v) for i, v in zip(positions, values, strict=True) if not math.isfinite(v))
+        error = SlaveError(
+            f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
+            f" {self.name!r}, which takes finite values only",
+            self.name,
+        )
+        error.not_finite = True
+        raise error
 
     @property
     def cannot_save_state(self) -> str | None:
