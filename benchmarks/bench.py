@@ -22,9 +22,9 @@ What is measured (benchmarks/README.md says more):
   law) when `toggle_cosim.controller_fmu` is there, else a PD law built here with PythonFMU;
 * controllers in the loop: the shipped example's python-control PID with its matrices in the
   compiled loop against the built-in law on the same run (and in the Python loop), and the
-  Python loop's own cost per sample around a step that returns a constant (the loop, which calls
-  the plant once per sample from C, minus the plant's share of the same samples replayed by the C
-  driver; beside it the same loop with the session's three ctypes calls);
+  own cost per sample of a Python controller whose step returns a constant (called back from the
+  compiled system loop, which calls the plant from C, minus the plant's share of the same samples
+  replayed by the C driver; beside it the same run in the Python execution);
 * systems in the compiled system loop (`cosim.system_loop`): the plant + controller-FMU system,
   a three-FMU system (a second controller instance reading the plant) and the press example's
   four FMUs per sample, beside the master's Python execution of the same plan, a plain C master
@@ -80,8 +80,9 @@ from bench_parts import (  # benchmarks/bench_parts.py
 )
 from timing import run_to_last_file  # benchmarks/timing.py, beside this script
 
+from toggle_cosim import native
 from toggle_cosim.control.protocol import ControllerContext, ControlStep
-from toggle_cosim.cosim import compiled_loop, master, session
+from toggle_cosim.cosim import master, slaves, system_loop
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.fmu_export import build_fmu
 from toggle_cosim.plant.contract import check_plant
@@ -221,14 +222,14 @@ def _settings(run, plant) -> list:
     return master.plant_settings(run, plant)
 
 
-def open_fmu(plant, run, inputs=FIXED_INPUTS, stop: float | None = None) -> session.PlantSession:
-    """A PlantSession set up as simulate() does (same parameters), initialised with `inputs`."""
-    fmu = session.PlantSession(plant, "bench", list(plant.recorded_outputs), ["iq_ref", "F_E"])
-    fmu.instantiate(0.0, stop if stop is not None else run.t_end)
-    for name, value in _settings(run, plant):
-        fmu.set_value(name, value)
+def open_fmu(plant, run, inputs=FIXED_INPUTS, stop: float | None = None) -> slaves.FmuSlave:
+    """The plant as the execution opens it (`slaves.FmuSlave`, the same parameters), reading its
+    recorded outputs, setting iq_ref and F_E, initialised with `inputs`."""
+    fmu = slaves.FmuSlave("plant", plant, _settings(run, plant))
+    fmu.bind(("iq_ref", "F_E"), plant.recorded_outputs)
+    fmu.instantiate(stop if stop is not None else run.t_end)
     fmu.enter_initialization()
-    fmu.write_inputs(inputs)
+    fmu.set((0, 1), inputs, 0.0)
     fmu.exit_initialization()
     return fmu
 
@@ -243,10 +244,10 @@ def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
     n, h = run.steps, run.T_s
     fmu = open_fmu(plant, run, inputs=(0.0, run.plant.F_E) if how == "replay" else FIXED_INPUTS)
     try:
-        slave = fmu.fmu
+        functions = fmu.c_functions()
+        slave = functions.owner[0]  # fmpy's slave, which the C calls were bound from
         c = slave.component
         raw = slave.dll.fmi2DoStep  # with the argument types fmpy gave it
-        functions = fmu.c_functions()
         if how == "fmpy":
             wrapped = slave.fmi2DoStep
             started = time.perf_counter()
@@ -297,23 +298,6 @@ def fmu_alone(plant, run, how: str, driver=None, inputs_trace=None) -> float:
     finally:
         fmu.close()
     return elapsed / n
-
-
-def execution_loop(plant, run) -> float:
-    """One simulate() of the plain pair as a two-part system in the execution
-    (TOGGLE_COSIM_MASTER=execution): its loop's seconds per step."""
-    saved = os.environ.get("TOGGLE_COSIM_MASTER")
-    os.environ["TOGGLE_COSIM_MASTER"] = "execution"
-    try:
-        outcome = master.simulate(run, plant)
-    finally:
-        if saved is None:
-            os.environ.pop("TOGGLE_COSIM_MASTER", None)
-        else:
-            os.environ["TOGGLE_COSIM_MASTER"] = saved
-    if not outcome.complete or outcome.record["loop"]["kind"] != "compiled":
-        raise RuntimeError(f"{run.label} in the execution: {outcome.reason or outcome.record['loop']}")
-    return outcome.loop_seconds / (outcome.trace.data.shape[0] - 1)
 
 
 def best(values) -> float:
@@ -374,12 +358,12 @@ def builtin_loop(plant, run) -> float:
 
 
 def python_loop_overhead(plant, run, driver) -> dict:
-    """The Python loop's own cost per sample around a step that returns a constant: simulate()
-    with `ConstantController(FIXED_INPUTS[0])` (the Python loop: the compiled loop cannot run it)
-    minus the plant's share of the same samples from the C driver (reading the outputs, setting
-    the same inputs, stepping). The loop makes the plant's calls in one C call per sample where the
-    compiled loop's library is there (`PlantExchange`); `three_calls_s` is the same run with
-    TOGGLE_COSIM_KERNEL=0, the session's three ctypes calls per sample, measured right after."""
+    """A Python controller's own cost per sample around a step that returns a constant: simulate()
+    with `ConstantController(FIXED_INPUTS[0])` (the compiled system loop calls it back once a
+    sample, the plant's calls made from C) minus the plant's share of the same samples from the C
+    driver (reading the outputs, setting the same inputs, stepping); `three_calls_s` is the same
+    run with TOGGLE_COSIM_KERNEL=0 (the Python execution: the plant's three ctypes calls per
+    sample from Python), measured right after."""
     per_sample = {}
     for three_calls in (False, True):
         with loop_switch(three_calls):
@@ -400,25 +384,25 @@ def python_loop_overhead(plant, run, driver) -> dict:
 
 
 def python_replay(plant, run, commands: np.ndarray) -> float:
-    """Seconds per sample of the plant's share called from Python as the loop calls it (the
-    session's read_outputs, write_inputs, do_step with the recorded commands): the loop minus
-    this is the stepper's own cost, this minus the C driver's replay the cost of calling the
-    FMI functions from Python."""
-    from toggle_cosim.cosim.retry import CHECKPOINT_SAMPLES
+    """Seconds per sample of the plant's share called from Python as the Python execution calls
+    it (the FmuSlave's get, set and do_step with the recorded commands): the loop minus this is
+    the execution's own cost, this minus the C driver's replay the cost of calling the FMI
+    functions from Python."""
+    from toggle_cosim.cosim.system_retry import CHECKPOINT_SAMPLES
 
     fmu = open_fmu(plant, run, inputs=(0.0, run.plant.F_E))
-    saving = fmu.can_save_state  # as simulate()'s checkpoint policy: doStep's flag, a checkpoint every 200 samples
+    saving = fmu.cannot_save_state is None  # as simulate()'s checkpoints: doStep's flag, one every 200 samples
     fmu.no_set_state_prior_to_current_point = not saving
-    row = np.zeros(len(plant.recorded_outputs))
-    read, write, step = fmu.read_outputs, fmu.write_inputs, fmu.do_step
+    row = (ctypes.c_double * len(plant.recorded_outputs))()
+    read, write, step = fmu.get, fmu.set, fmu.do_step
     u, F_E, h = commands.tolist(), run.plant.F_E, run.T_s
     try:
         started = time.perf_counter()
         for k in range(run.steps):
             if saving and k % CHECKPOINT_SAMPLES == 1:
                 fmu.save_state()
-            read(row)
-            write((u[k], F_E))
+            read(row, k * h)
+            write((0, 1), (u[k], F_E), k * h)
             step(k * h, h)
         return (time.perf_counter() - started) / run.steps
     finally:
@@ -477,11 +461,11 @@ def controller_fmu(folder: Path) -> tuple[Path, str] | None:
 
 def fmu_controller_loop(plant, run, fmu: Path, coupling: str = "gauss-seidel", python_loop: bool = False) -> float:
     """Seconds per step of simulate()'s loop for `run` with the controller FMU `fmu`; python_loop:
-    with the compiled loop switched off (TOGGLE_COSIM_KERNEL=0; jacobi runs in Python anyway)."""
+    with the compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
     import dataclasses
 
     settings = dataclasses.replace(run.controller, fmu=fmu, python=None)
-    with loop_switch(python_loop or coupling == "jacobi") as expected:
+    with loop_switch(python_loop) as expected:
         outcome = master.simulate(dataclasses.replace(run, controller=settings), plant, coupling=coupling)
     if not outcome.complete:
         raise RuntimeError(f"{run.label} with the controller FMU {fmu.name}: {outcome.reason}")
@@ -825,15 +809,17 @@ def main() -> int:
             f"{os.getloadavg()[0]:.2f}",
             "other processes share the cores: compare ratios, not absolutes",
         )
-        compiled = compiled_loop.kernel_available()
+        compiled = system_loop.system_library() is not None
         loop_kind = "compiled" if compiled else "python"
         table.add(
             "co-simulation loop",
             loop_kind,
-            "generated from control/laws.py" if compiled else f"why not compiled: {compiled_loop.kernel_reason()}",
+            "the compiled system loop, the law generated from control/laws.py"
+            if compiled
+            else f"why not compiled: {system_loop.system_library_reason()}",
         )
         figures["loop"] = loop_kind
-        figures["loop_reason"] = None if compiled else compiled_loop.kernel_reason()
+        figures["loop_reason"] = None if compiled else system_loop.system_library_reason()
 
         # ---------------------------------------------------------------- build
         table.section("Build: Modelica source -> FMU")
@@ -857,7 +843,13 @@ def main() -> int:
             os.environ["TOGGLE_COSIM_CACHE"] = str(folder / "kernel-cache")
             try:
                 t0 = time.perf_counter()
-                compiled_loop._build_kernel()
+                native.cached_library_from(
+                    system_loop.system_inputs(),
+                    system_loop.system_source,
+                    "system-loop",
+                    native.KERNEL_FLAGS,
+                    ("-lm",),
+                )
                 kernel_s = time.perf_counter() - t0
             finally:
                 if saved is None:
@@ -873,11 +865,10 @@ def main() -> int:
         # ---------------------------------------------------------------- per step, T_s = 0.5 ms
         table.section("Cost per communication step, T_s = 0.5 ms (fig4_nominal/friction: 1.5 s, 3000 steps)")
         run = next(r for r in paper_runs() if r.label == "fig4_nominal/friction")
-        res: dict[str, list[float]] = {k: [] for k in ("fmpy", "ctypes", "C", "replay", "loop", "execution", "python")}
+        res: dict[str, list[float]] = {k: [] for k in ("fmpy", "ctypes", "C", "replay", "loop", "python")}
         for _ in range(reps):
             loop = full_loop(plant, run)
             res["loop"].append(loop["per_step"])
-            res["execution"].append(execution_loop(plant, run))
             res["python"].append(full_loop(plant, run, python_loop=True)["per_step"])
             res["fmpy"].append(fmu_alone(plant, run, "fmpy"))
             res["ctypes"].append(fmu_alone(plant, run, "ctypes"))
@@ -904,12 +895,6 @@ def main() -> int:
             "full co-simulation loop (as shipped)", us(b["loop"]), f"{loop_kind}: read, control, set, step, record"
         )
         table.add("full co-simulation loop, Python path", us(b["python"]), "TOGGLE_COSIM_KERNEL=0")
-        figures["ratio_execution_over_loop"] = b["execution"] / b["loop"]
-        table.add(
-            "the pair as a system in the execution",
-            us(b["execution"]),
-            f"TOGGLE_COSIM_MASTER=execution; {b['execution'] / b['loop']:.2f} x the fixed loop",
-        )
         ratio = b["loop"] / b["ctypes"]
         table.add(
             "ratio full loop / FMU alone (ctypes)", f"{ratio:.2f}", "the master's overhead, as the issue defines it"
@@ -973,29 +958,29 @@ def main() -> int:
             own = min(overheads, key=lambda o: o["own_s"])
             figures["python_loop_overhead"] = own
             table.add(
-                "Python loop, a step returning a constant (fig4_nominal/friction, F_E = 0)",
+                "Python controller, a step returning a constant (fig4_nominal/friction, F_E = 0)",
                 us(own["loop_s"]),
                 f"{FIXED_INPUTS[0]:g} A every sample; "
-                + ("the plant's calls in one C call per sample" if compiled else "no compiled loop library"),
+                + ("called back from the compiled system loop" if compiled else "no compiled loop library"),
             )
             table.add(
-                "  the same, the session's three ctypes calls per sample",
+                "  the same in the Python execution (the plant's three ctypes calls per sample)",
                 us(own["three_calls_s"]),
-                f"TOGGLE_COSIM_KERNEL=0; ratio one call / three calls {own['loop_s'] / own['three_calls_s']:.2f}",
+                f"TOGGLE_COSIM_KERNEL=0; ratio compiled / Python {own['loop_s'] / own['three_calls_s']:.2f}",
             )
             table.add(
-                "  the plant's share, called from Python as the three-call loop calls it",
+                "  the plant's share, called from Python as the Python execution calls it",
                 us(own["python_calls_s"]),
-                "the session's read, write, doStep (same flag, checkpoints) with the same commands",
+                "FmuSlave's get, set, do_step (same flag, checkpoints) with the same commands",
             )
             table.add("  the plant's share, called from the C driver", us(own["plant_s"]), "get, set, doStep")
             table.add(
-                "  the Python loop's own cost per sample (Measurement, step, checks, recording, the C call)",
+                "  the controller's own cost per sample (Measurement, step, checks, recording, the callback)",
                 us(own["own_s"]),
                 "loop - the plant's share from the C driver",
             )
             table.check(
-                "Python loop's own cost per sample (a step returning a constant) <= 5 us",
+                "Python controller's own cost per sample (a step returning a constant) <= 5 us",
                 own["own_s"] <= 5e-6,
                 f"{us(own['loop_s'])} - {us(own['plant_s'])} (the C driver's plant share) = {us(own['own_s'])}",
             )
@@ -1040,7 +1025,7 @@ def main() -> int:
                 for key, (coupling, python) in loops.items()
             }
             figures["master_with_controller_fmu"] = {"fmu": what, "per_step_s": per_step}
-            compiled_name = "compiled" if compiled_loop.kernel_available() else "Python (no compiled loop)"
+            compiled_name = "compiled" if (system_loop.system_library() is not None) else "Python (no compiled loop)"
             table.add("built-in law, compiled loop", us(b["loop"]), "as above")
             table.add("built-in law, Python loop", us(b["python"]), "as above")
             table.add(f"controller FMU, gauss-seidel, {compiled_name} loop", us(per_step["gauss-seidel"]), what)
@@ -1049,7 +1034,9 @@ def main() -> int:
                 us(per_step["gauss-seidel-python"]),
                 "TOGGLE_COSIM_KERNEL=0",
             )
-            table.add("controller FMU, jacobi (Python loop)", us(per_step["jacobi"]), "the command held one sample")
+            table.add(
+                f"controller FMU, jacobi, {compiled_name} loop", us(per_step["jacobi"]), "the command held one sample"
+            )
             table.add(
                 "ratio controller FMU / built-in law, compiled loop",
                 f"{per_step['gauss-seidel'] / b['loop']:.2f}",

@@ -1,6 +1,6 @@
 """What bench.py and system_bench.py share: the paper's runs, one simulate()'s loop cost
-(`full_loop`, the built-in pair's figure the system rows are compared with) and the table the
-figures are printed in. Both scripts import it; system_bench.py imports nothing of bench.py, so
+(`full_loop`: the built-in law's pair, run by the execution, the figure the system rows are
+compared with) and the table the figures are printed in. Both scripts import it; system_bench.py imports nothing of bench.py, so
 it runs alone, and bench.py imports system_bench.py for its section of the table."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from toggle_cosim.cosim import compiled_loop, master, pair, session
+from toggle_cosim.cosim import master, slaves, system_loop
 from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -24,19 +24,29 @@ def paper_runs() -> list:
     return [run for name in PAPER for run in load_scenario(SCENARIOS / f"{name}.yaml")]
 
 
-class Timed(session.PlantSession):
-    """PlantSession that notes the time from instantiate to the end of close (terminate, free)."""
-
+@contextlib.contextmanager
+def instance_spans(component: str) -> Iterator[list[float]]:
+    """The seconds from instantiate to the end of close (terminate, free) of each instance of the
+    FMU component `component` made inside (`slaves.FmuSlave`), in order."""
     spans: list[float] = []
+    started: dict[int, float] = {}
+    instantiate, close = slaves.FmuSlave.instantiate, slaves.FmuSlave.close
 
-    def instantiate(self, start: float, stop: float) -> None:
-        self._bench_started = time.perf_counter()
-        super().instantiate(start, stop)
+    def timed_instantiate(self: slaves.FmuSlave, t_end: float) -> None:
+        if self.name == component:
+            started[id(self)] = time.perf_counter()
+        instantiate(self, t_end)
 
-    def close(self) -> None:
-        super().close()
-        if hasattr(self, "_bench_started"):
-            Timed.spans.append(time.perf_counter() - self._bench_started)
+    def timed_close(self: slaves.FmuSlave, reuse: bool = False) -> None:
+        close(self, reuse)
+        if id(self) in started:
+            spans.append(time.perf_counter() - started.pop(id(self)))
+
+    slaves.FmuSlave.instantiate, slaves.FmuSlave.close = timed_instantiate, timed_close
+    try:
+        yield spans
+    finally:
+        slaves.FmuSlave.instantiate, slaves.FmuSlave.close = instantiate, close
 
 
 @contextlib.contextmanager
@@ -47,7 +57,7 @@ def loop_switch(python_loop: bool) -> Iterator[str]:
     if python_loop:
         os.environ["TOGGLE_COSIM_KERNEL"] = "0"
     try:
-        yield "python" if python_loop or not compiled_loop.kernel_available() else "compiled"
+        yield "python" if python_loop or system_loop.system_library() is None else "compiled"
     finally:
         if python_loop:
             if saved is None:
@@ -57,15 +67,10 @@ def loop_switch(python_loop: bool) -> Iterator[str]:
 
 
 def full_loop(plant, run, python_loop: bool = False) -> dict:
-    """One simulate(): per-step loop cost and three real-time factors. python_loop: with the
-    compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
-    Timed.spans.clear()
-    original, pair.PlantSession = pair.PlantSession, Timed  # the pair's fixed loop opens its session
-    try:
-        with loop_switch(python_loop) as expected:
-            outcome = master.simulate(run, plant)
-    finally:
-        pair.PlantSession = original
+    """One simulate() (the pair in the execution): per-step loop cost and three real-time
+    factors. python_loop: with the compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
+    with instance_spans(run.system.plant) as spans, loop_switch(python_loop) as expected:
+        outcome = master.simulate(run, plant)
     if not outcome.complete:
         raise RuntimeError(f"{run.label}: {outcome.reason}")
     if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop
@@ -75,7 +80,7 @@ def full_loop(plant, run, python_loop: bool = False) -> dict:
     return {
         "per_step": outcome.loop_seconds / steps,
         "rtf_loop": simulated / outcome.loop_seconds,
-        "rtf_inst": simulated / Timed.spans[-1],
+        "rtf_inst": simulated / spans[-1],
         "rtf_simulate": simulated / outcome.wall_seconds,
         "u": outcome.trace.column("iq_ref").copy(),
         "outcome": outcome,

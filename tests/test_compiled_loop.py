@@ -1,13 +1,15 @@
-"""The compiled loop and the Python loop give the same bits over whole runs.
+"""The compiled system loop and the Python execution give the same bits over whole runs.
 
-The law is defined once (`control/laws.py`, `control/nominal.py`); the compiled loop runs its
-C translation. Every shipped scenario (every variant), plus the θ1 objective and the
-integral law on the paper's strokes, is run twice, once compiled and once in Python
-(TOGGLE_COSIM_KERNEL=0), and every column of the two traces must be equal bit for bit.
+The law is defined once (`control/laws.py`, `control/nominal.py`); the compiled system loop runs
+its C translation (`control.law_c`). Every shipped scenario (every variant), plus the θ1
+objective and the integral law on the paper's strokes, is run twice through `simulate`, once
+compiled and once in Python (TOGGLE_COSIM_KERNEL=0), and every column of the two traces must be
+equal bit for bit; the generated law alone matches the Python at every sample point.
 """
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import math
 from pathlib import Path
@@ -15,10 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.control import laws, nominal, translate
+from toggle_cosim import native
+from toggle_cosim.control import law_c, laws, nominal, translate
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.cosim import compiled_loop
+from toggle_cosim.cosim import system_loop
 from toggle_cosim.cosim.master import simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
@@ -53,7 +56,10 @@ def test_compiled_and_python_loops_agree_bit_for_bit(
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
     python = simulate(run, plant)
     assert compiled.record["loop"]["kind"] == "compiled", compiled.record["loop"]
-    assert python.record["loop"] == {"kind": "python", "reason": "disabled by TOGGLE_COSIM_KERNEL=0"}
+    assert python.record["loop"]["kind"] == "python"
+    assert python.record["loop"]["reason"].endswith(
+        "in Python (no compiled system loop: disabled by TOGGLE_COSIM_KERNEL=0)"
+    )
     # the θ1 case with friction stops at the plant's Zeno guard (t = 1.0845 s): both loops alike
     assert (compiled.complete, compiled.reason) == (python.complete, python.reason)
     assert compiled.trace.names == python.trace.names
@@ -61,6 +67,30 @@ def test_compiled_and_python_loops_agree_bit_for_bit(
         a, b = compiled.trace.data[:, j], python.trace.data[:, j]
         assert np.array_equal(a, b), name
         assert np.array_equal(_bits(a), _bits(b)), name
+
+
+HARNESS = """
+int law_sample(double t, double q, double qd, double z, double r, double rd, double rdd, const law_t *p,
+               double *out) {
+    int i;
+    if (!(isfinite(q) && isfinite(qd))) { return 1; }
+    if (law_step(t, q, qd, z, r, rd, rdd, p, &out[0], &out[1], &out[2], &out[3], &out[4])) { return 1; }
+    for (i = 0; i < 5; i++) { if (!isfinite(out[i])) { return 1; } }
+    return 0;
+}
+"""
+
+
+def _law_library() -> ctypes.CDLL:
+    """The generated law with a harness that calls it as system_skeleton.c does (a hand-back,
+    1, where a measurement or an output is not finite or the law refuses), built like the loop."""
+    if system_loop.system_library() is None:
+        pytest.skip(f"no compiled loop: {system_loop.system_library_reason()}")
+    source = law_c.law_source() + HARNESS
+    library = native.load_library(native.cached_library(source, "law-harness", native.KERNEL_FLAGS, ("-lm",)))
+    library.law_sample.restype = ctypes.c_int
+    library.law_sample.argtypes = [ctypes.c_double] * 7 + [ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)]
+    return library
 
 
 def _law(law: float, objective: float) -> LawParameters:
@@ -79,21 +109,23 @@ def _law(law: float, objective: float) -> LawParameters:
 @pytest.mark.parametrize("law", [0.0, 1.0], ids=["paper", "integral"])
 @pytest.mark.parametrize("objective", [0.0, 1.0], ids=["x_B", "theta1"])
 def test_generated_law_matches_the_python_at_every_sample_point(law: float, objective: float) -> None:
-    """kernel_control (the generated C) against laws.law_step at states across and beyond the
+    """The generated C law (`law_c`, as the system loop calls it, its outputs checked finite)
+    against laws.law_step at states across and beyond the
     stroke (x_B beyond the reach at both ends; θ1 over a turn and a half, past the folded
     position at −180°), both phases, moving both ways, with the integrator positive and
     negative, and at non-finite measurements: the same bits where the Python returns finite
     values, a hand-back (None) where it raises or returns a non-finite value."""
-    library = compiled_loop.kernel_library()
-    if library is None:
-        pytest.skip(f"no compiled loop: {compiled_loop.kernel_reason()}")
+    library = _law_library()
     p = _law(law, objective)
-    loop = compiled_loop.CompiledLoop.__new__(compiled_loop.CompiledLoop)
-    k = compiled_loop._kernel_struct()()
-    for name in LawParameters.__dataclass_fields__:
-        setattr(k.law, name, getattr(p, name))
-    loop._library, loop._state, loop._pointer = library, k, __import__("ctypes").pointer(k)
-    loop._out = (__import__("ctypes").c_double * 5)()
+    parameters = translate.ctypes_struct(LawParameters)(
+        *(getattr(p, name) for name in LawParameters.__dataclass_fields__)
+    )
+    out = (ctypes.c_double * 5)()
+
+    def control(t: float, q: float, qd: float, z: float, ref: tuple[float, float, float]) -> tuple | None:
+        code = library.law_sample(t, q, qd, z, *ref, ctypes.byref(parameters), out)
+        return None if code else tuple(out)
+
     if objective == 0.0:  # the measured (q, q̇): (x_B [m], v_B [m/s]) or (θ1 [rad], ω1 [rad/s])
         coordinates, rates = np.linspace(0.05, 0.40, 36), (-0.9, -0.2, 0.0, 0.3, 1.1)
     else:
@@ -112,7 +144,7 @@ def test_generated_law_matches_the_python_at_every_sample_point(law: float, obje
                             expected = None
                     except (ArithmeticError, ValueError):
                         expected = None
-                    got = loop.control(t, float(q), qd, z, ref)
+                    got = control(t, float(q), qd, z, ref)
                     if expected is None:
                         assert got is None, (q, qd, t, z)
                         deferred += 1
@@ -151,17 +183,16 @@ def test_translator_rejects_what_it_cannot_translate_exactly() -> None:
 
 
 def test_the_generated_source_has_the_law_once_and_no_hand_written_physics() -> None:
-    """The loop skeleton holds no law (no mass-matrix term, no gain); the generated source holds
-    the mass terms exactly once, and the struct has the dataclass's fields in order."""
-    skeleton = (ROOT / "src" / "toggle_cosim" / "control" / "loop_skeleton.c").read_text()
+    """The system loop's skeleton holds no law (no mass-matrix term, no gain); the generated source
+    holds the mass terms exactly once, and the struct has the dataclass's fields in order."""
+    skeleton = (ROOT / "src" / "toggle_cosim" / "cosim" / "system_skeleton.c").read_text()
     for word in ("M11", "beta", "delta", "sin(", "K_f"):
         assert word not in skeleton
-    source = compiled_loop.kernel_source()
+    source = system_loop.system_source()
     assert source.count("static int mass_terms(") == 2  # the prototype and the definition
     fields = [line.split()[1].rstrip(";") for line in translate.c_struct(LawParameters).splitlines()[1:-1]]
     assert fields == list(LawParameters.__dataclass_fields__)
-    assert [n for n, _ in compiled_loop._law_struct()._fields_] == fields
-    assert not (ROOT / "src" / "toggle_cosim" / "compiled_loop.c").exists()
+    assert [n for n, _ in translate.ctypes_struct(LawParameters)._fields_] == fields
     # the nominal mass terms exist once in the sources: control/nominal.py
     hits = [p.name for p in (ROOT / "src").rglob("*.py") if "M11 = J2 +" in p.read_text()] + [
         p.name for p in (ROOT / "src").rglob("*.c") if "M11" in p.read_text()

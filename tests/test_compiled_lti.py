@@ -1,13 +1,13 @@
-"""python-control controllers in the compiled loop (`compiled_loop`'s third controller kind).
+"""python-control controllers in the compiled system loop (`system_natives`' second native kind).
 
 Behaviour checked: a python-control system adapted by `control.lti` (the shipped example's PID, a
 transfer function; a 4th-order state-space controller) runs in C and gives the Python loop's
 trace bit for bit, every column (the C sums C x + D e and A x + B e in `lti_step`'s order,
 compiled without contraction); the command is the system's own response to the recorded error
 (python-control's forced_response, to 1e-9 of its scale: numpy sums in another order); a
-subclass that overrides step runs in Python and says why; jacobi coupling runs the Python loop;
+subclass that overrides step runs in Python and says why; jacobi coupling runs in C too;
 a state that overflows mid-run is handed back to Python, which fails the run at the same sample
-with the same reason as the Python loop alone.
+with the same reason as the Python execution alone.
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ import pytest
 
 from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.control.protocol import ControllerContext
-from toggle_cosim.cosim.compiled_loop import kernel_available
 from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.system_loop import system_library
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 
@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "controllers" / "user_controllers.yaml"
 T_END = 0.3  # s: 600 samples, the PID's integral and derivative both at work
 
-pytestmark = pytest.mark.skipif(not kernel_available(), reason="no C compiler for the compiled loop")
+pytestmark = pytest.mark.skipif(system_library() is None, reason="no C compiler for the compiled loop")
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +61,7 @@ def _fourth_order(run) -> control.StateSpace:  # noqa: ANN001
 
 
 def _both(run, plant, make, monkeypatch):  # noqa: ANN001, ANN202
-    """(the outcome with the compiled loop, the outcome with the Python loop alone)."""
+    """(the outcome with the compiled loop, the outcome with the Python execution alone)."""
     compiled = simulate(run, plant, controller=make())
     with monkeypatch.context() as patch:
         patch.setenv("TOGGLE_COSIM_KERNEL", "0")
@@ -86,7 +86,7 @@ def test_lti_controller_runs_in_c_with_the_python_loops_bits(which, pid_run, pla
     compiled, python = _both(pid_run, plant, make, monkeypatch)
     assert compiled.complete and python.complete, (compiled.reason, python.reason)
     assert compiled.record["loop"]["kind"] == "compiled", compiled.record["loop"]
-    assert "python-control system" in compiled.record["loop"]["reason"]
+    assert "(controller natively in C)" in compiled.record["loop"]["reason"]
     assert python.record["loop"]["kind"] == "python"
     _same_bits(compiled, python)
     # the command is the system's response to the recorded error, x = 0 at the start
@@ -97,7 +97,7 @@ def test_lti_controller_runs_in_c_with_the_python_loops_bits(which, pid_run, pla
     assert np.max(np.abs(u - expected)) <= 1e-9 * np.max(np.abs(expected))
 
 
-def test_a_subclass_that_overrides_step_and_jacobi_run_in_python(pid_run, plant_fmu) -> None:  # noqa: ANN001
+def test_a_subclass_that_overrides_step_runs_in_python_and_jacobi_in_c(pid_run, plant_fmu) -> None:  # noqa: ANN001
     plant = check_plant(plant_fmu)
     system = _pid(pid_run)
 
@@ -117,14 +117,17 @@ def test_a_subclass_that_overrides_step_and_jacobi_run_in_python(pid_run, plant_
         controller=DiscreteSystemController(system, "x_B", pid_run.x_target, pid_run.T_s),
         coupling="jacobi",
     )
-    assert jacobi.complete and jacobi.record["loop"]["kind"] == "python"
-    assert "jacobi" in jacobi.record["loop"]["reason"]
+    assert jacobi.complete and jacobi.record["loop"]["kind"] == "compiled"
+    assert (
+        ", jacobi, " in jacobi.record["loop"]["reason"]
+        and "(controller natively in C)" in jacobi.record["loop"]["reason"]
+    )
 
 
 def test_a_state_that_overflows_hands_back_and_fails_as_in_python(pid_run, plant_fmu, monkeypatch) -> None:  # noqa: ANN001
     """x ← 10 x + e overflows to inf after about 310 samples while u = 0·x stays 0; the sample
     whose next state is inf goes back to Python, and the next sample's u = 0·inf = nan fails the
-    run there, as in the Python loop alone."""
+    run there, as in the Python execution alone."""
     plant = check_plant(plant_fmu)
     system = control.ss([[10.0]], [[1.0]], [[0.0]], [[0.0]], pid_run.T_s)
 

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 import yaml
 from fault_plants import fault_environment
-from fmpy.fmi1 import FMICallException
 from process_events import wait_until
 
-from toggle_cosim.cosim import master, session
+from toggle_cosim.cosim import master
+from toggle_cosim.cosim.slaves import FmuSlave
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.files.traces import read_csv
 from toggle_cosim.fmu_export import build_fmu
@@ -57,13 +57,13 @@ def _nominal(**plant: object):
 
 def _count_frees(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     freed: list[int] = []
-    original = session.PlantSession.close
+    original = FmuSlave.close
 
-    def close(self: session.PlantSession) -> None:
-        original(self)
+    def close(self: FmuSlave, reuse: bool = False) -> None:
+        original(self, reuse)
         freed.append(1)
 
-    monkeypatch.setattr(session.PlantSession, "close", close)
+    monkeypatch.setattr(FmuSlave, "close", close)
     return freed
 
 
@@ -88,20 +88,20 @@ def test_each_error_status_of_a_step(
     """A mock failure of one doStep at t = 0.1 s with Discard (2), Error (3) or Fatal (4): Discard
     and Error are retried from the saved state and the run completes with the same trace as an
     undisturbed run; Fatal is not retried and ends the run, trace kept up to the fault."""
-    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")  # the Python loop, whose do_step we can intercept
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")  # the Python execution, whose do_step we can intercept
     plant = check_plant(plant_fmu)
     clean = master.simulate(_nominal(), plant)
     freed = _count_frees(monkeypatch)
-    original = session.PlantSession.do_step
+    original = FmuSlave.do_step
     failed: list[float] = []
 
-    def do_step(self: session.PlantSession, t: float, h: float) -> None:
+    def do_step(self: FmuSlave, t: float, h: float) -> None:
         if abs(t - 0.1) < 1e-12 and h == 0.0005 and not failed:
             failed.append(t)
-            raise FMICallException(function="fmi2DoStep", status=status)
+            raise self.failure("fmi2DoStep", t, status)
         original(self, t, h)
 
-    monkeypatch.setattr(session.PlantSession, "do_step", do_step)
+    monkeypatch.setattr(FmuSlave, "do_step", do_step)
     outcome = master.simulate(_nominal(), plant)
     assert failed == [pytest.approx(0.1)] and freed == [1]
     if retried:
@@ -122,17 +122,17 @@ def test_each_error_status_of_a_step(
 
 
 def test_non_finite_outputs_end_the_run(plant_fmu: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    original = session.PlantSession.read_outputs
-    calls = [0]
+    """The plant's outputs read at t = 0.15 s and after are NaN: the run ends there, the FMU
+    freed, the trace kept up to the sample before."""
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")  # the Python execution, whose get we can intercept
+    original = FmuSlave.get
 
-    def read_outputs(self: session.PlantSession, into: np.ndarray) -> None:
-        original(self, into)
-        calls[0] += 1
-        if calls[0] > 300:
-            into[:] = np.nan
+    def get(self: FmuSlave, values: object, t: float) -> None:
+        original(self, values, t)
+        if t >= 0.15 - 1e-12:
+            values[:] = [np.nan] * len(values)
 
-    monkeypatch.setattr(session.PlantSession, "read_outputs", read_outputs)
+    monkeypatch.setattr(FmuSlave, "get", get)
     freed = _count_frees(monkeypatch)
     outcome = master.simulate(_nominal(), check_plant(plant_fmu))
     assert not outcome.complete and freed == [1]

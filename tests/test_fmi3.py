@@ -591,24 +591,6 @@ def test_fmi3_plant_under_the_master_matches_the_stored_reference(plant3_fmu: Pa
         assert checked.comparison.passed, checked.failures
 
 
-def test_the_python_loops_plant_exchange_gives_the_three_calls_trace(
-    plant3_fmu: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """The Python loop's one C call per sample (fmi3SetFloat64, fmi3DoStep, fmi3GetFloat64) gives
-    the trace of the session's three calls, bit for bit."""
-    from test_plant_exchange import _run, _same
-
-    from toggle_cosim.cosim import compiled_loop
-    from toggle_cosim.plant.contract import check_plant
-
-    if not compiled_loop.kernel_available():
-        pytest.skip("no compiled loop library (no C compiler)")
-    plant = check_plant(plant3_fmu)
-    through, three = _run(plant, monkeypatch, True), _run(plant, monkeypatch, False)
-    assert through.complete and through.record["samples"] == 1001
-    _same(through, three)
-
-
 @pytest.mark.parametrize("kernel", ["1", "0"])
 def test_record_reads_an_fmi3_plants_int64_and_boolean_with_their_getters(
     plant3_fmu: Path, plant_fmu: Path, kernel: str, monkeypatch: pytest.MonkeyPatch

@@ -1,70 +1,35 @@
-"""The plain pair run as a two-part system in the execution (TOGGLE_COSIM_MASTER=execution) gives
-the fixed loop's outcome: trace.csv byte for byte and run.json field for field (its timings and
-its loop's reason aside), for every stored reference's scenario, a sweep and user controllers;
-and what the pair's record has (T_h, S0, plausibility warnings, the work budget) every system
-run has too.
+"""The plain pair runs as the two-part system it is, in the execution (`master.simulate` ->
+`pair_execution`; every stored reference through it: test_references.py), with the pair's trace
+columns and run.json (its loop's kind from what the execution did): the built-in law, user
+controllers, a controller FMU, a sweep, the work budget, a plant's retries and failures and a
+controller that raises give the pair's outcome; and what the pair's record has (T_h, S0,
+plausibility warnings) every system run has too.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 
 import pytest
 import yaml
 
 import toggle_cosim as tc
-from toggle_cosim import limits
 from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim import master
-from toggle_cosim.experiments import references
-from toggle_cosim.experiments.scenario import load_scenario
-from toggle_cosim.files.traces import write_csv, write_json
+from toggle_cosim.cosim.outcome import Stepping
+from toggle_cosim.cosim.pair_execution import pair_loop
+from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.system.model import Port, Wiring
 
 ROOT = Path(__file__).resolve().parent.parent
-FOLDER = ROOT / "scenarios" / "references"
-STORED = sorted(FOLDER.glob("*/*_ref.csv"))
-TIMINGS = ("wall_time_s", "loop_time_s", "real_time_factor")
-
-
-def _run(reference: Path):
-    runs = load_scenario(ROOT / "scenarios" / f"{reference.parent.name}.yaml")
-    return next(run for run in runs if f"{references.reference_stem(FOLDER, run)}_ref.csv" == str(reference))
-
-
-def _both(run, plant, monkeypatch: pytest.MonkeyPatch, **kwargs):
-    """The run in the fixed loop, then in the execution."""
-    monkeypatch.delenv("TOGGLE_COSIM_MASTER", raising=False)
-    fixed = master.simulate(run, plant, **kwargs)
-    monkeypatch.setenv("TOGGLE_COSIM_MASTER", "execution")
-    executed = master.simulate(run, plant, **kwargs)
-    monkeypatch.delenv("TOGGLE_COSIM_MASTER")
-    return fixed, executed
-
-
-def _files(outcome, folder: Path) -> tuple[bytes, dict]:
-    """trace.csv's bytes and run.json without its timings and its loop's reason, as the command writes them."""
-    folder.mkdir(parents=True)
-    write_csv(folder / "trace.csv", outcome.trace, every=int(outcome.run.resolved.get("record_every", 1)))
-    write_json(folder / "run.json", outcome.record)
-    record = json.loads((folder / "run.json").read_text())
-    for key in TIMINGS:
-        record.pop(key)
-    record["loop"].pop("reason")
-    return (folder / "trace.csv").read_bytes(), record
-
-
-def _same_files(fixed, executed, folder: Path) -> None:
-    trace_fixed, record_fixed = _files(fixed, folder / "pair")
-    trace_executed, record_executed = _files(executed, folder / "execution")
-    if fixed.run.coupling == "jacobi":  # the fixed loop runs jacobi in Python only, the execution in C too
-        assert record_fixed["loop"].pop("kind") == "python"
-        assert record_executed["loop"].pop("kind") in ("compiled", "python")
-    assert record_executed == record_fixed
-    assert trace_executed == trace_fixed
+BUDGET_ROWS = 201  # samples 0 .. 200: t = 0.1 s
+FAULT_ROWS = {"zeno": 401, "chatter": 501, "error": 201, "nan": 201}  # up to the failed step's start
+EARLIER = {  # the retries that passed, in the pair's words, at the end of the reason
+    "zeno": "(earlier, the plant's step at t = 0.1 s failed and passed when retried from a checkpoint)",
+    "chatter": "(earlier, 300 of the plant's steps from t = 0.1 s to 0.2495 s failed and passed when retried",
+}
 
 
 @pytest.fixture(scope="module")
@@ -76,80 +41,64 @@ def _plant(plants, run):
     return plants["no_gravity" if run.scenario == "swap_no_gravity" else "plant"]
 
 
-def _stored() -> list:
-    """Every stored reference, the loads that change in time (a step, a measured table) included."""
-    return [pytest.param(p, id=f"{p.parent.name}/{p.stem}") for p in STORED]
-
-
-@pytest.mark.parametrize("reference", _stored())
-def test_every_stored_reference_passes_through_the_execution(
-    reference: Path, plants, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    run = _run(reference)
-    monkeypatch.setenv("TOGGLE_COSIM_MASTER", "execution")
-    outcome = master.simulate(run, _plant(plants, run))
-    assert outcome.complete, outcome.reason
-    assert "system" not in outcome.record and outcome.record["loop"]["reason"].startswith("the pair as a system")
-    checked = references.check(outcome, FOLDER)
-    assert checked.passed, "; ".join(checked.failures)
-
-
-@pytest.mark.parametrize("reference", _stored())
-def test_every_stored_reference_s_run_writes_the_pair_s_files_through_the_execution(
-    reference: Path, plants, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    """trace.csv byte for byte, run.json equal but for its timings and loop.reason."""
-    run = _run(reference)
-    fixed, executed = _both(run, _plant(plants, run), monkeypatch)
-    assert fixed.complete and executed.complete, executed.reason
-    assert executed.record["loop"]["kind"] == "compiled"
-    _same_files(fixed, executed, tmp_path)
+@pytest.mark.parametrize(
+    ("stepping", "kind"),
+    [
+        (Stepping(True, None, ("controller",)), "compiled"),
+        (Stepping(True, None, ("controller",), (), 7), "compiled, then python"),
+        (Stepping(True, None, (), (("controller", "a user's controller"),)), "python"),
+        (Stepping(False, "no C compiler"), "python"),
+        (None, "none"),
+    ],
+)
+def test_the_pair_s_loop_kind_comes_from_what_the_execution_did(stepping, kind: str) -> None:
+    """Not from the words of its reason: a reason that says otherwise does not change the kind."""
+    loop = {"kind": "none", "reason": "in Python, called back from C; a sample the native controller handed back"}
+    assert pair_loop(loop, stepping) == {
+        "kind": kind,
+        "reason": f"the pair as a system in the execution: {loop['reason']}",
+    }
 
 
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
-def test_user_controllers_and_a_controller_fmu_give_the_pair_s_files(
-    plants, vsc_fmu: Path, coupling: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+def test_user_controllers_and_a_controller_fmu_run_with_the_pair_s_columns(
+    plants, vsc_fmu: Path, coupling: str
 ) -> None:
     """The examples' PD law (which measures a_B, an output the command feeds directly), a
-    python-control PID (natively in C) and a limited VSC, and the built-in law's controller FMU."""
+    python-control PID (natively in C) and a limited VSC, and the built-in law's controller FMU:
+    complete, the pair's columns, the controller as the pair records it; the user's Python
+    controllers called back from C ("python"), the others compiled."""
     runs = [
         dataclasses.replace(r, t_end=0.2) for r in load_scenario(ROOT / "examples/controllers/user_controllers.yaml")
     ]
     fig5 = load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0]
     runs.append(dataclasses.replace(fig5, t_end=0.2, controller=dataclasses.replace(fig5.controller, fmu=vsc_fmu)))
+    runs.append(dataclasses.replace(fig5, t_end=0.2))  # the built-in law, natively in C
     for run in runs:
-        fixed, executed = _both(dataclasses.replace(run, coupling=coupling), plants["plant"], monkeypatch)
-        assert fixed.complete and executed.complete, (run.label, executed.reason)
-        _same_files(fixed, executed, tmp_path / run.label / coupling)
+        outcome = master.simulate(dataclasses.replace(run, coupling=coupling), plants["plant"])
+        assert outcome.complete, (run.label, outcome.reason)
+        diagnostics = tuple(outcome.record["controller"]["diagnostics"])
+        assert outcome.trace.names == master.trace_names(plants["plant"], diagnostics, master.other_inputs(run))
+        assert "system" not in outcome.record and "units" not in outcome.record
+        natively = "natively in C" in outcome.record["loop"]["reason"]
+        assert outcome.record["loop"]["kind"] == ("compiled" if natively or run.controller.fmu else "python"), run.label
 
 
-def test_a_sweep_gives_the_pair_s_rows_through_the_execution(
-    plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    """A sweep's cases (each on the plant instance its worker keeps, in the fixed loop) give the
-    same rows in the execution, but for their wall times."""
+def test_a_sweep_s_cases_give_the_rows_of_runs_alone(plant_fmu: Path, tmp_path: Path) -> None:
+    """A sweep's cases, each on the plant instance its worker keeps in its pool, give the rows of
+    the same case swept alone (the first case of a fresh worker), but for their wall times."""
     base = yaml.safe_load((ROOT / "scenarios" / "fig4_nominal.yaml").read_text())
     base.update(fmu=str(plant_fmu), t_end=0.2)
     (tmp_path / "base.yaml").write_text(yaml.safe_dump(base, sort_keys=False))
-    sweep = {"base": "base.yaml", "variant": "friction", "axes": {"plant.F_E": {"values": [0.0, 40.0, 80.0]}}}
+    values = [0.0, 40.0, 80.0]
+    sweep = {"base": "base.yaml", "variant": "friction", "axes": {"plant.F_E": {"values": values}}}
     (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep))
-    tables = {}
-    for master_ in ("pair", "execution"):
-        monkeypatch.setenv("TOGGLE_COSIM_MASTER", master_)
-        tables[master_] = tc.sweep(tmp_path / "sweep.yaml", output=tmp_path / master_, workers=1)
-    columns = [c for c in tables["pair"].columns if not c.startswith("wall")]
-    assert list(tables["pair"]["status"]) == ["ok"] * 3
-    assert tables["execution"][columns].equals(tables["pair"][columns])
-
-
-def test_the_master_variable_is_checked_with_the_others(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv("TOGGLE_COSIM_MASTER", raising=False)
-    assert not limits.pair_as_execution()  # the default: the fixed loop
-    monkeypatch.setenv("TOGGLE_COSIM_MASTER", "execution")
-    assert limits.pair_as_execution()
-    monkeypatch.setenv("TOGGLE_COSIM_MASTER", "libcosim")
-    with pytest.raises(limits.LimitError, match=r"^TOGGLE_COSIM_MASTER='libcosim': give pair or execution, or"):
-        limits.check_environment()
+    together = tc.sweep(tmp_path / "sweep.yaml", output=tmp_path / "together", workers=1)
+    columns = [c for c in together.columns if not c.startswith(("wall", "case"))]
+    assert list(together["status"]) == ["ok"] * 3
+    (tmp_path / "one.yaml").write_text(yaml.safe_dump({**sweep, "axes": {"plant.F_E": {"values": [values[-1]]}}}))
+    alone = tc.sweep(tmp_path / "one.yaml", output=tmp_path / "alone", workers=1)
+    assert alone[columns].iloc[0].equals(together[columns].iloc[-1])
 
 
 # -- what every system run's record has, as the pair's ------------------------------------------
@@ -172,16 +121,14 @@ def test_a_system_run_has_the_pair_s_summary_warnings_and_solver_statistics(plan
     assert isinstance(system.record["solver_statistics"], dict)
 
 
-def test_the_pair_s_budget_ends_the_execution_at_the_pair_s_sample(
-    plants, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    """The pair counts the plant's work after its first sample and every 200 samples from there
-    (t = 0.1 s at 0.5 ms); the execution at the same samples, with the same reason and trace."""
+def test_the_pair_s_budget_ends_the_run_at_the_pair_s_sample(plants) -> None:
+    """The pair's plant work is counted after its first sample and every 200 samples from there
+    (t = 0.1 s at 0.5 ms): the run ends there, failed, its trace kept up to that sample."""
     run = load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0]
     run = dataclasses.replace(run, t_end=0.3, resolved={**run.resolved, "budget": {"steps": 50}})
-    fixed, executed = _both(run, plants["plant"], monkeypatch)
-    assert fixed.reason is not None and "budget.steps) by t = 0.1 s" in fixed.reason
-    _same_files(fixed, executed, tmp_path)
+    outcome = master.simulate(run, plants["plant"])
+    assert outcome.reason is not None and "budget.steps) by t = 0.1 s" in outcome.reason
+    assert len(outcome.trace.data) == BUDGET_ROWS
 
 
 @pytest.mark.parametrize(
@@ -198,7 +145,8 @@ def test_a_plant_s_retries_and_failure_are_said_in_the_pair_s_words(
 ) -> None:
     """The shim plant (`fault_plants`) refusing steps from t = 0.1 s (zeno: once, a retry passes,
     and every step from 0.2 s; chatter: every full step, each retry passing until 0.25 s; error:
-    every step) or answering NaN (nan): the same trace, retries, warnings and reason."""
+    every step) or answering NaN (nan): the pair's reason and retries, the trace kept up to the
+    sample the failed step started from."""
     from fault_plants import fault_environment, make_faulty_fmu
 
     faulty = check_plant(make_faulty_fmu(plant_fmu, tmp_path / f"{kind}.fmu"))
@@ -207,10 +155,12 @@ def test_a_plant_s_retries_and_failure_are_said_in_the_pair_s_words(
         monkeypatch.setenv(name, environment[name])
     monkeypatch.setenv("TOGGLE_FAULT_END", repr(end))
     run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.3)
-    fixed, executed = _both(run, faulty, monkeypatch)
-    assert not fixed.complete and fixed.reason.startswith(reason), fixed.reason
-    assert bool(fixed.record["retries"]) == (kind != "nan")
-    _same_files(fixed, executed, tmp_path / "files")
+    outcome = master.simulate(run, faulty)
+    assert not outcome.complete and outcome.reason.startswith(reason), outcome.reason
+    assert bool(outcome.record["retries"]) == (kind != "nan")
+    assert all(set(entry) == {"t", "error", "outcome"} for entry in outcome.record["retries"])  # no component
+    assert (EARLIER[kind] in outcome.reason) if kind in EARLIER else "earlier" not in outcome.reason
+    assert len(outcome.trace.data) == FAULT_ROWS[kind]
 
 
 class _RaisesAt:
@@ -228,11 +178,31 @@ class _RaisesAt:
         return ControlStep(20.0 * error, (error,), state)
 
 
-def test_a_controller_that_raises_fails_the_run_in_the_pair_s_words(
-    plants, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    """ "controller failed: the controller's step raised at t = 0.005 s: ...", the same trace."""
+def test_a_controller_that_raises_fails_the_run_in_the_pair_s_words(plants) -> None:
+    """ "controller failed: the controller's step raised at t = 0.005 s: ...", the trace up to
+    the sample before (t = 0.0045 s)."""
     run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.02)
-    fixed, executed = _both(run, plants["plant"], monkeypatch, controller=_RaisesAt())
-    assert fixed.reason.startswith("controller failed: the controller's step raised at t = 0.005 s"), fixed.reason
-    _same_files(fixed, executed, tmp_path)
+    outcome = master.simulate(run, plants["plant"], controller=_RaisesAt())
+    assert outcome.reason.startswith("controller failed: the controller's step raised at t = 0.005 s"), outcome.reason
+    assert outcome.record["loop"]["kind"] == "python"
+    assert len(outcome.trace.data) == 10
+
+
+def test_a_controller_fmu_on_a_trajectory_run_is_refused_not_run_against_its_target(plants, vsc_fmu: Path) -> None:
+    """The execution does not feed a controller FMU's reference inputs (x_ref, v_ref, a_ref): the
+    run fails before its first sample with one line naming controller.fmu and the fix."""
+    document = {
+        "name": "tracking",
+        "t_end": 0.7,
+        "T_s": 0.0005,
+        "stroke": {
+            "x_start": 0.2329,
+            "x_target": 0.3199,
+            "trajectory": {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0},
+        },
+        "controller": {"fmu": str(vsc_fmu)},
+    }
+    outcome = master.simulate(runs_from_document(document)[0], plants["plant"])
+    assert not outcome.complete and len(outcome.trace.data) == 0
+    assert outcome.reason.startswith("controller: key controller.fmu: ToggleVSC.fmu would track stroke.trajectory")
+    assert outcome.reason.endswith("(run the trajectory with the built-in law, or remove stroke.trajectory)")

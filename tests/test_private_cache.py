@@ -228,24 +228,24 @@ def test_a_marker_naming_a_library_outside_the_cache_is_ignored(caches: tuple[Pa
 
 
 KERNEL_PROBE = (
-    "from toggle_cosim.cosim import compiled_loop; from toggle_cosim import native\n"
-    "print(compiled_loop.kernel_available()); print(compiled_loop.kernel_reason())\n"
+    "from toggle_cosim.cosim import system_loop\n"
+    "print(system_loop.system_library() is not None); print(system_loop.system_library_reason())\n"
 )
 
 
 def plant_kernel_payload(folder: Path, flag: Path, shared: Path) -> None:
-    """As the attacker, make `folder` with a payload named by every loop-kernel marker the
+    """As the attacker, make `folder` with a payload named by every system-loop marker the
     victim could look for (the marker's name is public: it hashes public inputs), with a
     matching SHA-256 record: only the folder's owner tells it is not the victim's."""
-    from toggle_cosim.cosim import compiled_loop
+    from toggle_cosim.cosim import system_loop
 
-    payload = compile_payload(shared, flag, "loop-kernel-0000000000000000.so")
+    payload = compile_payload(shared, flag, "system-loop-0000000000000000.so")
     digest = native.hashlib.sha256()
-    for path in compiled_loop.kernel_inputs():
+    for path in system_loop.system_inputs():
         digest.update(str(path).encode() + b"\0" + Path(path).read_bytes() + b"\0")
-    extra = (*compiled_loop.KERNEL_FLAGS, "-lm", native.c_compiler(), native.platform.machine(), sys.platform)
+    extra = (*native.KERNEL_FLAGS, "-lm", native.c_compiler(), native.platform.machine(), sys.platform)
     digest.update("\0".join((*extra, sys.version)).encode())
-    marker = f"loop-kernel-inputs-{digest.hexdigest()[:16]}.txt"
+    marker = f"system-loop-inputs-{digest.hexdigest()[:16]}.txt"
     sha = native.hashlib.sha256(payload.read_bytes()).hexdigest()
     os.chmod(shared / "payload.c", 0o644)
     os.chmod(payload, 0o755)
@@ -298,7 +298,7 @@ def test_a_run_ignores_a_cache_planted_by_another_user_and_completes(shared: Pat
         assert not flag.exists(), "the planted library ran"
         assert done.stderr.count(f"warning: {planted}: the cache folder belongs to another user") == 1
         assert '"kind": "compiled"' in (out / "fig4_nominal" / "friction" / "run.json").read_text()
-        assert list((private_tmp / f"toggle-cosim-{os.geteuid()}").glob("loop-kernel-*.so"))
+        assert list((private_tmp / f"toggle-cosim-{os.geteuid()}").glob("system-loop-*.so"))
     finally:
         shutil.rmtree(private_tmp, ignore_errors=True)
 

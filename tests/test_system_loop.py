@@ -293,7 +293,6 @@ def test_three_fmus_hand_over_from_the_python_execution_to_c_with_its_bits(
     controller = controller_for(run, plant.recorded_outputs)
     inputs = [v for v in controller.fmu.inputs if v in plant.recorded_outputs]
     wiring = Wiring(parts=(Part("monitor", fmu, tuple(controller.settings)),))
-    controller.close()
     connections = pair_connections(wiring, inputs) + (
         Connection(Port("plant", "x_B"), Port("monitor", "x_B")),
         Connection(Port("plant", "v_B"), Port("monitor", "v_B")),

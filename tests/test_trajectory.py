@@ -278,6 +278,9 @@ def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu", "2.0").path
 
 
+@pytest.mark.xfail(
+    strict=True, reason="the execution does not feed a controller FMU's reference inputs: such a run is refused"
+)
 @pytest.mark.parametrize("law", ["paper", "integral"])
 def test_the_controller_fmu_tracks_the_trajectory_with_the_built_in_laws_bits_in_both_loops(
     toggle_vsc: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, law: str

@@ -81,7 +81,7 @@ def _check_user_law(run, trace, record) -> None:
     assert np.max(np.abs(got - vsc)) > 0.1, "the built-in law ran, not the user's"
     assert record["controller"]["python"] == run.controller.python
     if run.variant == "pid":  # a python-control system: its matrices in the compiled loop (test_compiled_lti)
-        assert record["loop"]["kind"] == "compiled" and "python-control system" in record["loop"]["reason"]
+        assert record["loop"]["kind"] == "compiled" and "(controller natively in C)" in record["loop"]["reason"]
         return
     assert record["loop"]["kind"] == "python"
     method = {"pd": "PDController.step", "limited_vsc": "LimitedVSC.step"}

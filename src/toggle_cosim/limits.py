@@ -21,8 +21,6 @@ DEFAULT_MAX_OUTPUT = 2_000_000_000  # bytes a run's trace buffer or CSV may take
 DEFAULT_PLANT_MEMORY = 4 << 30  # bytes a plant may allocate beyond the process as forked
 DEFAULT_MAX_LOG = 64 << 10  # bytes of a run's own printing (plant, controller) relayed to the console
 FLAGS = ("TOGGLE_COSIM_KERNEL", "TOGGLE_COSIM_FAST_CSV", "TOGGLE_COSIM_SUPERVISE")  # "0" or "1"
-MASTER = "TOGGLE_COSIM_MASTER"  # which master runs the plain pair: its fixed loop or the execution
-MASTERS = ("pair", "execution")  # the default first
 
 
 class LimitError(ValueError):
@@ -75,25 +73,12 @@ def plant_memory() -> int:
     return byte_size(text, "TOGGLE_COSIM_PLANT_MEMORY", suffixes=True) if text.strip() else DEFAULT_PLANT_MEMORY
 
 
-def pair_as_execution() -> bool:
-    """Whether TOGGLE_COSIM_MASTER=execution: the plain pair runs as a two-part system in the
-    execution (`cosim.pair_execution`), with the fixed loop's trace and run.json; unset or "pair":
-    in its fixed loop (`cosim.pair`). Any other value: LimitError naming the values."""
-    value = os.environ.get(MASTER)
-    if value is None or not value.strip():
-        return False
-    if value.strip() not in MASTERS:
-        raise LimitError(f"{MASTER}={value!r}: give {' or '.join(MASTERS)}, or leave it unset (pair)")
-    return value.strip() == "execution"
-
-
 def check_environment() -> None:
-    """Every variable above, TOGGLE_COSIM_MASTER, and the on/off FLAGS ("0" or "1", or unset);
+    """Every variable above and the on/off FLAGS ("0" or "1", or unset);
     LimitError for the first bad one."""
     max_output()
     max_log()
     plant_memory()
-    pair_as_execution()
     for name in FLAGS:
         value = os.environ.get(name)
         if value is not None and value.strip() not in ("0", "1"):
@@ -106,7 +91,6 @@ __all__ = [
     "check_environment",
     "max_log",
     "max_output",
-    "pair_as_execution",
     "plant_memory",
     "seconds",
 ]

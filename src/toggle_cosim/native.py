@@ -1,6 +1,7 @@
 """Small C libraries compiled on the user's machine, kept in a private cache and loaded only
-after their content is checked: the co-simulation loop generated from the control law
-(`cosim.compiled_loop`) and the loop that steps a system (`cosim.system_loop`).
+after their content is checked: the loop that steps a system (`cosim.system_loop`), generated
+behind the control law, compiled with `KERNEL_FLAGS` (strict IEEE arithmetic: no contraction into
+fused multiply-adds, no fast math, no built-in substitutions, so C and Python agree bit for bit).
 
 The compiler is $CC, else cc, gcc or clang: `c_compiler` is the one lookup, for these helpers and
 for the FMU export's build alike (it lives here, below the FMU export, because importing that
@@ -32,6 +33,8 @@ import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+KERNEL_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math", "-fno-builtin")
 
 
 class CacheError(RuntimeError):

@@ -18,8 +18,8 @@ realisation python-control gives)::
 
 The products are evaluated by `lti_step` as explicit sums in a fixed order (row by row, column 0
 first, then the input terms, input 0 first) rather than by numpy's matmul, whose BLAS may sum in
-another order: the compiled loop (`cosim.compiled_loop`) runs the same sums in C, so both loops
-give the same bits. The command is not clipped or saturated. The diagnostic recorded in the trace
+another order: the compiled system loop (`cosim.system_loop`, lti_sums.c) runs the same sums in C,
+so both forms give the same bits. The command is not clipped or saturated. The diagnostic recorded in the trace
 is e = r − y for either form; the state is an `LtiState` (x and y0).
 
 A continuous-time system is refused unless a discretisation method is named (`discretise`,
@@ -77,7 +77,7 @@ class LtiState:
 
 def lti_step(m: LtiMatrices, x: tuple[float, ...], u: tuple[float, ...]) -> tuple[float, tuple[float, ...]]:
     """(y, x_next): y = C x + D u, x_next = A x + B u, each sum from 0.0, column 0 first, the input
-    terms last, input 0 first (the order loop_skeleton.c's lti_control sums in)."""
+    terms last, input 0 first (the order lti_sums.c's lti_sums sums in)."""
     y = 0.0
     for c, xj in zip(m.C, x, strict=True):
         y += c * xj

@@ -16,8 +16,8 @@ A controller is any object with these three members (structural typing: no base 
 * ``start(t0, measurement)``: the controller's state at the first sample;
 * ``step(state, t, measurement)``: a `ControlStep`.
 
-Optionally ``close()``: what the controller holds outside Python (a controller FMU's instance,
-library and unzipped copy, `cosim.fmu_controller`) is released; the master calls it, if the
+Optionally ``close()``: what the controller holds outside Python (a library, a file, a process)
+is released; the master calls it, if the
 controller has it, on every exit path of a run (complete, failed, interrupted, refused).
 
 The measurement is the plant's outputs at the sample, by name (`Measurement`, a read-only

@@ -6,7 +6,7 @@ does not depend on how fast or busy the machine is (a wall-clock limit does).
     budget: {events_per_sample: 4}     # the same, as so many events per sample of the run
     budget: {steps: 400000}            # solver.steps, its integrator's accepted steps
 
-The pair's loop (`retry.CheckpointPolicy.drive`) reads the counts after every stretch of
+The execution (`system_retry.SystemCheckpoints.drive`) reads the counts after every stretch of
 `CHECKPOINT_SAMPLES` samples and at the end, at the same samples on every machine: a run past
 its budget ends there, failed, its trace kept, with the reason `exceeded`. A scenario key (any
 run, a sweep's cases); `tune` sets DEFAULT_BUDGET on every case unless its file says otherwise.

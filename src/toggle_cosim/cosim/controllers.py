@@ -20,7 +20,8 @@ given to `tc.simulate`. Or it names a controller FMU::
       fmu: controllers/MyLaw.fmu            # relative to the scenario file
       parameters: {K_p: 40.0}               # FMU parameters, set by name before initialisation
 
-checked by `plant.controller_contract` and run by `fmu_controller.FmuController`; an FMU with the
+checked by `plant.controller_contract` and run as an FMU component of the execution
+(`ControllerFmuPart`, `systems`); an FMU with the
 built-in law's parameters (`controller_contract.LAW_PARAMETERS`) first gets the scenario's own
 controller settings. Every failure is a `ControllerError` whose message names the key and
 the fix; the run commands prefix the scenario file.
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -55,6 +57,7 @@ from toggle_cosim.plant.controller_contract import ControllerFmu, check_controll
 from toggle_cosim.runs.definition import Run
 
 __all__ = [
+    "ControllerFmuPart",
     "builtin_controller",
     "check_user_controller",
     "controller_for",
@@ -289,10 +292,36 @@ def _checked_fmu(run: Run, outputs: Sequence[str]) -> ControllerFmu:
         raise ControllerError(f"key controller.fmu: {error}") from None
 
 
-def _fmu_controller(run: Run, outputs: Sequence[str]) -> Any:
-    """The controller FMU of controller.fmu, checked, its binary loaded (`FmuController`)."""
-    from toggle_cosim.cosim.fmu_controller import FmuController
+@dataclass(frozen=True)
+class ControllerFmuPart:
+    """A run's controller FMU as the execution runs it, an FMU component (`slaves.FmuSlave`): the
+    checked archive (`fmu`; its binary is not loaded here), the values set on it before
+    initialisation (`settings`) and the reference a tracking law follows (`reference`; None: its
+    constant target). It names its diagnostics and measurements as the controller protocol does;
+    the execution steps the FMU itself, so `start` and `step` are never called."""
 
+    fmu: ControllerFmu
+    settings: tuple[tuple[str, Any], ...]
+    reference: SampledReference | None = None
+
+    @property
+    def diagnostics(self) -> tuple[str, ...]:
+        return self.fmu.diagnostics
+
+    @property
+    def measured(self) -> tuple[str, ...]:
+        """The plant outputs it reads: the FMU's inputs."""
+        return self.fmu.inputs
+
+    def start(self, t0: float, measurement: object) -> None:
+        raise ControllerError(f"{self.fmu.path.name}: a controller FMU is stepped as an FMU component of the execution")
+
+    def step(self, state: object, t: float, measurement: object) -> None:
+        raise ControllerError(f"{self.fmu.path.name}: a controller FMU is stepped as an FMU component of the execution")
+
+
+def _fmu_controller(run: Run, outputs: Sequence[str]) -> ControllerFmuPart:
+    """The controller FMU of controller.fmu, checked, as the execution runs it (`ControllerFmuPart`)."""
     fmu = _checked_fmu(run, outputs)
     reference = None
     if run.trajectory is not None:
@@ -303,9 +332,7 @@ def _fmu_controller(run: Run, outputs: Sequence[str]) -> Any:
                 " or remove stroke.trajectory)"
             )
         reference = builtin_controller(run).reference
-    return FmuController(
-        fmu, fmu_settings(run, fmu), run.T_s, run.t_end, instance_name=f"controller {run.label}", reference=reference
-    )
+    return ControllerFmuPart(fmu, tuple(fmu_settings(run, fmu)), reference)
 
 
 def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:

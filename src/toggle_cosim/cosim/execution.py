@@ -30,11 +30,21 @@ from typing import Protocol
 
 import numpy as np
 
-from toggle_cosim.cosim.recorder import row_count
 from toggle_cosim.cosim.slaves import Slave, SlaveError
 from toggle_cosim.system.plan import SIGNAL, Plan
 
-__all__ = ["Execution", "Observer", "TraceObserver"]
+__all__ = ["Execution", "Observer", "TraceObserver", "row_count"]
+
+
+def row_count(count: np.ndarray | None = None) -> np.ndarray:
+    """The row count a trace observer keeps its `rows` in: `count` (checked: one int64, set to 0),
+    or a new one. A supervising process passes one it shares with the child (`supervision`)."""
+    if count is None:
+        return np.zeros(1, dtype=np.int64)
+    if count.shape != (1,) or count.dtype != np.int64 or not count.flags.c_contiguous:
+        raise ValueError(f"the row count must be one C-contiguous int64, not {count.dtype} {count.shape}")
+    count[0] = 0
+    return count
 
 
 class Observer(Protocol):
@@ -45,7 +55,7 @@ class Observer(Protocol):
 
 class TraceObserver:
     """Records the plan's recorded slots into row k of `data` ((n + 1) x (1 + len(record)),
-    column 0 the time); `rows` counts the samples recorded, in `count` (`recorder.row_count`:
+    column 0 the time); `rows` counts the samples recorded, in `count` (`row_count`:
     its own, or one shared with a supervising process; the compiled loop counts in it too),
     never from the values: a recorded NaN is a value."""
 

@@ -1,6 +1,8 @@
 """What C needs to call an FMU loaded by fmpy: its getReal / setReal / doStep functions (FMI 2.0)
 or getFloat64 / setFloat64 / doStep (FMI 3.0) with their FMI prototypes, its instance, and the
-value references of the variables the caller reads and sets (`CFunctions`).
+value references of the variables the caller reads and sets (`CFunctions`), each function bound
+from the FMU's library with its FMI prototype (`bound_function`) and called directly, without
+fmpy's wrapper.
 
 `fmu_functions` makes one from any instantiated fmpy `FMU2Slave` or `FMU3Slave` (fmpy's checked
 subclasses of `plant.fmi_calls` included): a system's FMU components (`slaves.FmuSlave`) hand
@@ -25,18 +27,104 @@ from typing import Any
 
 from fmpy.fmi3 import FMU3Slave
 
-from toggle_cosim.cosim.session import CFunctions, FunctionNames, bound_function
-
 __all__ = [
+    "CFunctions",
+    "FunctionNames",
     "FMI2_NAMES",
     "FMI3_NAMES",
     "RECORDED_TYPES",
     "TypedRead",
+    "bound_function",
     "fmu_functions",
     "is_fmi3",
     "read_typed",
     "typed_reads",
 ]
+
+_VR, _DOUBLES = ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_double)
+_BOOL_OUT = ctypes.POINTER(ctypes.c_bool)
+# The FMI prototypes of the three hot functions (fmi2FunctionTypes.h, fmi3FunctionTypes.h).
+_PROTOTYPES = {
+    "fmi2GetReal": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES),
+    "fmi2SetReal": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES),
+    "fmi2DoStep": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int),
+    "fmi3GetFloat64": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES, ctypes.c_size_t),
+    "fmi3SetFloat64": ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, _VR, ctypes.c_size_t, _DOUBLES, ctypes.c_size_t),
+    "fmi3DoStep": ctypes.CFUNCTYPE(
+        ctypes.c_int,
+        ctypes.c_void_p,
+        ctypes.c_double,
+        ctypes.c_double,
+        ctypes.c_bool,
+        _BOOL_OUT,
+        _BOOL_OUT,
+        _BOOL_OUT,
+        _DOUBLES,
+    ),
+}
+
+
+def bound_function(dll: Any, name: str):  # noqa: ANN201 - a ctypes function pointer, or None
+    """The FMU library's exported C function `name` (fmi2GetReal, fmi3DoStep, ...) with its FMI
+    prototype, called directly (no fmpy wrapper), or None if the library does not export it."""
+    try:
+        return _PROTOTYPES[name]((name, dll))
+    except (AttributeError, TypeError):
+        return None
+
+
+@dataclass(frozen=True)
+class FunctionNames:
+    """The FMI names of the hot functions, for error messages (fmi2GetReal / fmi3GetFloat64, ...)."""
+
+    get: str
+    set: str
+    step: str
+
+
+@dataclass(frozen=True)
+class CFunctions:
+    """What the compiled loop needs to call the FMU from C: addresses of the three functions,
+    the instance, and the value-reference arrays (kept alive by `owner`)."""
+
+    get: int
+    set: int
+    step: int
+    component: int
+    out_vr: int
+    in_vr: int
+    fmi3: bool
+    names: FunctionNames
+    owner: Any
+    reads: tuple[Any, ...] = ()  # a system's typed reads after the Real outputs (`fmi_pointers.TypedRead`)
+
+    @classmethod
+    def of(
+        cls,
+        functions: tuple[Any, Any, Any],
+        component: int,
+        out_vr: Any,
+        in_vr: Any,
+        fmi3: bool,
+        names: FunctionNames,
+        holder: object = None,
+    ) -> CFunctions:
+        """From the bound (get, set, step) functions (`bound_function`), the instance and the
+        value-reference arrays (ctypes arrays), all kept alive by the result (and `holder`, the
+        object that owns them)."""
+        get, set_, step = (ctypes.cast(f, ctypes.c_void_p).value for f in functions)
+        return cls(
+            get=get,
+            set=set_,
+            step=step,
+            component=component,
+            out_vr=ctypes.addressof(out_vr),
+            in_vr=ctypes.addressof(in_vr),
+            fmi3=fmi3,
+            names=names,
+            owner=(holder, functions, out_vr, in_vr),
+        )
+
 
 FMI2_NAMES = FunctionNames(get="fmi2GetReal", set="fmi2SetReal", step="fmi2DoStep")
 FMI3_NAMES = FunctionNames(get="fmi3GetFloat64", set="fmi3SetFloat64", step="fmi3DoStep")

@@ -1,20 +1,11 @@
 """The co-simulation master: `simulate` runs one run of a scenario or an SSP.
 
-A run's system (`Run.system`) decides how it is stepped:
-
-* the plain pair, a plant FMU and its controller (a scenario without `components:`,
-  `connections:` or `record:`, and an SSP of exactly that loop): the pair's fixed loop
-  (`pair.simulate_pair`, with the compiled law, hand-back to Python, checkpoint retries and a
-  plant session kept across runs);
-* any other system: an execution of its components in the order of its connections
-  (`systems.simulate_system`), in the compiled system loop where every component is an FMU,
-  with checkpoint retries of every component (`system_retry`) and, given a pool, its FMU
-  instances kept loaded from run to run (`instance_pool`).
-
-The pair run as a system gives the fixed loop's values bit for bit (tests/test_systems.py).
-With TOGGLE_COSIM_MASTER=execution (`limits.pair_as_execution`; default: the fixed loop) the
-plain pair runs as that two-part system in the execution, with the fixed loop's trace columns and
-run.json (`pair_execution`); a kept plant `session` is then not used (the execution loads its own).
+Every run is an execution of its system's components (`systems.simulate_system`), in the
+compiled system loop where it can, with checkpoint retries of every component (`system_retry`)
+and, given a pool, its FMU instances kept loaded from run to run (`instance_pool`). The plain
+pair, a plant FMU and its controller (a scenario without `components:`, `connections:` or
+`record:`, and an SSP of exactly that loop), is the two-part system it is, run with the pair's
+trace columns and run.json (`pair_execution`).
 """
 
 from __future__ import annotations
@@ -23,32 +14,20 @@ from collections.abc import Callable
 
 import numpy as np
 
-from toggle_cosim import limits
 from toggle_cosim.control.protocol import Controller
 from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.cosim.pair import (
-    JACOBI_REASON,
-    close_controller,
-    open_session,
-    refused_outcome,
-    simulate_pair,
-    trace_names,
-)
-from toggle_cosim.cosim.pair_execution import simulate_pair_as_system
+from toggle_cosim.cosim.pair_execution import close_controller, refused_outcome, simulate_pair_as_system, trace_names
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
-from toggle_cosim.cosim.session import PlantSession
 from toggle_cosim.cosim.systems import simulate_system
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import COUPLINGS, Run
 
 __all__ = [
-    "JACOBI_REASON",
     "RunOutcome",
     "close_controller",
     "input_samples",
     "other_inputs",
-    "open_session",
     "plant_settings",
     "refused_outcome",
     "simulate",
@@ -62,34 +41,25 @@ def simulate(
     progress: Callable[[float], None] | None = None,
     buffer: np.ndarray | None = None,
     controller: Controller | None = None,
-    session: PlantSession | None = None,
     coupling: str | None = None,
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
     pool: InstancePool | None = None,
 ) -> RunOutcome:
-    """Run one scenario variant against `plant`: the plain pair in its fixed loop, any other
-    system as an execution of its components (module docstring). Never raises for a plant, part
-    or controller fault: see RunOutcome.
+    """Run one scenario variant against `plant`: its system as an execution of its components, the
+    plain pair with the pair's trace and run.json (module docstring). Never raises for a plant,
+    part or controller fault: see RunOutcome.
 
     `controller`: any object that meets the controller protocol (`control.protocol`); None: the
     run's own. `buffer`, if given, is the trace's storage ((steps + 1) x columns, filled with NaN),
     and `count`, if given, the one int64 the number of samples recorded is kept in as they are
     recorded (both shared with a supervising process, `supervision`).
-    `session` (the plain pair only, `open_session`): a plant already loaded that the caller keeps.
-    `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`). `calling`
-    (a system only): where the execution writes which component it calls
-    (`systems.simulate_system`). `pool` (a system only, `instance_pool`): its FMU components'
-    instances, kept loaded from run to run by the caller."""
-    if run.system.is_pair and limits.pair_as_execution():  # TOGGLE_COSIM_MASTER=execution (module docstring)
-        if coupling is not None and coupling not in COUPLINGS:
-            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
-        return simulate_pair_as_system(run, plant, progress, buffer, controller, coupling, count, calling)
-    if run.system.is_pair:
-        return simulate_pair(run, plant, progress, buffer, controller, session, coupling, count)
+    `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`). `calling`:
+    where the execution writes which component it calls (`systems.simulate_system`). `pool`
+    (`instance_pool`): the FMU components' instances, the plant's included, kept loaded from run
+    to run by the caller."""
     if coupling is not None and coupling not in COUPLINGS:
         raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
-    if session is not None:
-        close_controller(controller)
-        raise ValueError("a system's run loads its own components: simulate it without session=")
+    if run.system.is_pair:
+        return simulate_pair_as_system(run, plant, progress, buffer, controller, coupling, count, calling, pool)
     return simulate_system(run, plant, progress, buffer, controller, coupling, count, calling, pool=pool)

@@ -19,6 +19,21 @@ from toggle_cosim.signals.definitions import as_signal, describe
 
 
 @dataclass(frozen=True)
+class Stepping:
+    """How the execution stepped a run, as data (run.json's `loop` says it in words): in the
+    compiled system loop or in Python (`why_python`: why not compiled), the native controllers
+    the C ran (`natives`), the components it called back in Python, with why (`called_back`),
+    and the sample a native controller handed back to Python, from which the Python execution
+    ran the rest (`handed_back`; None: none was)."""
+
+    compiled: bool
+    why_python: str | None = None
+    natives: tuple[str, ...] = ()
+    called_back: tuple[tuple[str, str], ...] = ()
+    handed_back: int | None = None
+
+
+@dataclass(frozen=True)
 class RunOutcome:
     """A finished (or stopped) run: its trace and what the run record says about it."""
 
@@ -31,6 +46,7 @@ class RunOutcome:
     summary: RunSummary | None
     record: dict[str, Any] = field(default_factory=dict)
     interrupted: bool = False  # stopped by SIGINT/SIGTERM: the caller should stop too
+    stepping: Stepping | None = None  # how the execution stepped it; None: it never started
 
     @property
     def warnings(self) -> tuple[str, ...]:

@@ -1,21 +1,26 @@
-"""The plain pair run as the two-part system it is: the plant and its controller stepped by the
-execution (`systems.simulate_system`), with the fixed loop's outcome (`pair.simulate_pair`).
+"""The plain pair, a plant FMU and its controller (`Run.system.is_pair`: a scenario without
+`components:`, `connections:` or `record:`), run as the two-part system it is: the plant and its
+controller stepped by the execution (`systems.simulate_system`), with the pair's trace and
+run.json.
 
-`master.simulate` sends the pair here under TOGGLE_COSIM_MASTER=execution (`limits.pair_as_execution`).
-The run is the pair's wiring (each controller input from the plant output of its name, the
-command to the plant's iq_ref, the load and the plant's other inputs fed by their signals) with a
-`record:` list of the pair's columns (`pair_ports`), so that:
+`master.simulate` sends every plain pair here. The run is the pair's wiring (each controller
+input from the plant output of its name, the command to the plant's iq_ref, the load and the
+plant's other inputs fed by their signals) with a `record:` list of the pair's columns
+(`pair_ports`), so that:
 
 * the trace has the pair's columns in the pair's order and names (`trace_names`: time, the
-  plant's recorded outputs, iq_ref, F_E, the controller's diagnostics, the other inputs), and
-  trace.csv is the pair's;
+  plant's recorded outputs, iq_ref, F_E, the controller's diagnostics, the other inputs), the
+  columns of every stored reference;
 * run.json is the pair's: the controller as the pair records it (`controllers.controller_record`),
   the retries without the component's name, no `system` or `units` entries, and `loop.kind` in
-  the pair's words: "compiled" (the compiled system loop), "compiled, then python" (a sample
-  handed back to the Python execution), "python"; `loop.reason` says what the execution did;
+  the pair's words, from what the execution did (`outcome.Stepping`): "compiled" (the compiled
+  system loop), "compiled, then python" (a sample handed back to the Python execution),
+  "python"; `loop.reason` says what the execution did;
 * a plant's failures and retries are said in the pair's words (`PlantWords`);
 * checkpoints and the work budget fall at the pair's samples: its first sample runs alone, then
-  stretches of `retry.CHECKPOINT_SAMPLES` (`CheckpointOptions.lead`).
+  stretches of `system_retry.CHECKPOINT_SAMPLES` (`CheckpointOptions.lead`);
+* a controller FMU on a trajectory run is refused (the execution does not feed its reference
+  inputs x_ref, v_ref, a_ref), rather than run against its constant target.
 
 The summary (with T_h and S0), the plausibility warnings and the solver statistics are the
 execution's own, as for every system run (`figures.run_figures`).
@@ -32,24 +37,69 @@ from typing import Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for, controller_record
-from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.cosim.pair import INPUTS, close_controller, refused_outcome, retried_words, trace_names
+from toggle_cosim import interrupts
+from toggle_cosim.control.controller import VSCController
+from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
+from toggle_cosim.cosim.controllers import ControllerFmuPart, controller_for, controller_record
+from toggle_cosim.cosim.instance_pool import InstancePool
+from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
 from toggle_cosim.cosim.plant_inputs import other_inputs
-from toggle_cosim.cosim.retry import failure_text
 from toggle_cosim.cosim.slaves import SlaveError
-from toggle_cosim.cosim.system_retry import CheckpointOptions, ComponentWords
+from toggle_cosim.cosim.system_retry import CheckpointOptions, ComponentWords, failure_text
 from toggle_cosim.cosim.systems import simulate_system
 from toggle_cosim.files.traces import Trace
-from toggle_cosim.messages import said_in
+from toggle_cosim.messages import bounded_text, said_in
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.model import Port, Wiring
 
-__all__ = ["pair_loop", "pair_ports", "simulate_pair_as_system"]
+__all__ = [
+    "INPUTS",
+    "close_controller",
+    "pair_loop",
+    "pair_ports",
+    "refused_outcome",
+    "simulate_pair_as_system",
+    "trace_names",
+]
 
+INPUTS = COMMAND_COLUMNS
 COMMAND, LOAD = INPUTS  # iq_ref (the controller's output), F_E (the plant's input)
+
+
+def trace_names(
+    plant: PlantInterface, diagnostics: tuple[str, ...] = VSCController.diagnostics, inputs: tuple[str, ...] = ()
+) -> tuple[str, ...]:
+    """The columns of a run's trace: time, the plant's recorded outputs, the inputs (iq_ref,
+    F_E), the controller's diagnostics (the built-in law's by default), then the plant's other
+    inputs the run sets (`inputs`: `other_inputs(run)`)."""
+    return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics, *inputs)
+
+
+def close_controller(controller: object) -> None:
+    """Call the controller's close(), if it has one; whatever it raises is ignored (the run's
+    outcome stands), but for an interrupt or exit the code raised itself."""
+    close = getattr(controller, "close", None)
+    if callable(close):
+        try:
+            close()
+        except BaseException as error:  # noqa: BLE001 - freeing never changes a run's outcome
+            if not interrupts.raised_by_code(error):  # SystemExit, or KeyboardInterrupt in a run's child
+                raise
+
+
+def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:
+    """The outcome of a run whose controller could not be built (`reason`, a ControllerError's
+    message): failed, no sample; `started` is the run's perf_counter() start."""
+    names = trace_names(plant, inputs=other_inputs(run))
+    trace = Trace(names, np.empty((0, len(names))))
+    reason = bounded_text(reason if reason.startswith("controller: ") else f"controller: {reason}")
+    loop = {"kind": "none", "reason": "the controller could not be built"}
+    wall = clock.perf_counter() - started
+    record = run_record(
+        run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None, warnings=None, controller=None
+    )
+    return RunOutcome(run, trace, False, reason, wall, 0.0, None, record)
 
 
 def pair_ports(
@@ -66,33 +116,28 @@ def pair_ports(
     )
 
 
-def pair_loop(loop: dict[str, Any]) -> dict[str, Any]:
-    """run.json's `loop` of the execution in the pair's kinds (module docstring)."""
-    reason = str(loop.get("reason", ""))
-    if loop.get("kind") != "system, compiled":
-        kind = "python" if loop.get("kind") == "system, python" else str(loop.get("kind"))
-    elif "in Python, called back from C" in reason:  # the controller's own code runs at every sample
+def pair_loop(loop: dict[str, Any], stepping: Stepping | None) -> dict[str, Any]:
+    """run.json's `loop` of the execution (`loop`, with what it did: `stepping`) in the pair's
+    kinds (module docstring); a run that never stepped keeps its kind ("none")."""
+    if stepping is None:
+        kind = str(loop.get("kind"))
+    elif not stepping.compiled or stepping.called_back:  # the controller's own code runs at every sample
         kind = "python"
     else:
-        kind = (
-            "compiled, then python"
-            if "in Python (a sample the native controller handed back)" in reason
-            else "compiled"
-        )
-    return {"kind": kind, "reason": f"the pair as a system in the execution: {reason}"}
+        kind = "compiled, then python" if stepping.handed_back is not None else "compiled"
+    return {"kind": kind, "reason": f"the pair as a system in the execution: {loop.get('reason', '')}"}
 
 
 @dataclass(frozen=True)
 class PlantWords:
-    """The pair's words for its plant's failures (`pair.simulate_pair`): a failed call as FMPy
-    says it with what the FMU logged (`retry.failure_text`), the retries as "the plant's
-    step(s)" (`pair.retried_words`), the reason "plant FMU failed at t = ...: ..."; a native
-    controller's failure "controller failed: ...", and a plant output it measures that is not finite "plant
-    outputs became non-finite at t = ..." as the pair says them."""
+    """The pair's words for its plant's failures: a failed call as FMPy says it with what the FMU
+    logged (`system_retry.failure_text`), the retries as "the plant's step(s)", the reason "plant
+    FMU failed at t = ...: ..."; the controller's failure "controller failed: ..." (a controller
+    FMU's with its file name: "controller failed: Law.fmu: fmi2DoStep at t = ..."), and a
+    plant output it measures that is not finite "plant outputs became non-finite at t = ..."."""
 
     plant: str
     controller: str
-    T_s: float
 
     def step(self, error: SlaveError, before: str | None = None) -> str:
         if error.component != self.plant or not error.function or not isinstance(error.status, int):
@@ -103,16 +148,28 @@ class PlantWords:
         return failure_text(FMICallException(error.function, error.status), logged)
 
     def retried(self, passed: Sequence[dict[str, Any]]) -> str | None:
-        if all(entry["component"] == self.plant for entry in passed):
-            return retried_words(passed, self.T_s)
-        return ComponentWords().retried(passed)
+        """The plant's steps that failed and passed when retried from a checkpoint, in words (a
+        run's warning; a failure reason's note, short so the reason's own words stay in its
+        bound), or None; another component's as every system says them."""
+        if not passed:
+            return None
+        if not all(entry["component"] == self.plant for entry in passed):
+            return ComponentWords().retried(passed)
+        if len(passed) == 1:
+            return f"the plant's step at t = {passed[0]['t']:.6g} s failed and passed when retried from a checkpoint"
+        return (
+            f"{len(passed)} of the plant's steps from t = {passed[0]['t']:.6g} s to {passed[-1]['t']:.6g} s failed "
+            "and passed when retried from a checkpoint"
+        )
 
     def reason(self, error: SlaveError, t: float) -> str:
         if error.not_finite:  # what the controller measures: the plant's outputs
             return f"plant outputs became non-finite at t = {t:.6g} s"
-        said, own = str(error), f"component {self.controller!r}: "
-        if said.startswith(own):  # its step raised, or its command was refused
-            return f"controller failed: {said.removeprefix(own)}"
+        said, own = str(error), f"component {self.controller!r}"
+        if said.startswith(f"{own}: "):  # its step raised, or its command was refused
+            return f"controller failed: {said.removeprefix(f'{own}: ')}"
+        if error.component == self.controller and said.startswith(f"{own} ("):  # a controller FMU's call
+            return f"controller failed: {said.removeprefix(f'{own} (').replace('): ', ': ', 1)}"
         if error.component != self.plant:
             return said
         return f"plant FMU failed at t = {t:.6g} s: {str(error) if error.retried else self.step(error)}"
@@ -127,15 +184,22 @@ def simulate_pair_as_system(
     coupling: str | None = None,
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
+    pool: InstancePool | None = None,
 ) -> RunOutcome:
-    """Run the plain pair `run` (`Run.system.is_pair`) in the execution with the fixed loop's
-    trace and run.json (module docstring); arguments as `master.simulate`'s. Never raises for a
-    plant or controller fault: see RunOutcome."""
+    """Run the plain pair `run` (`Run.system.is_pair`) in the execution with the pair's trace and
+    run.json (module docstring); arguments as `master.simulate`'s. Never raises for a plant or
+    controller fault: see RunOutcome."""
     started = clock.perf_counter()
     try:
         if controller is None:
             controller = controller_for(run, plant.recorded_outputs)
         diagnostics = tuple(check_controller(controller, plant.recorded_outputs))
+        if isinstance(controller, ControllerFmuPart) and controller.reference is not None:
+            raise ControllerError(
+                f"key controller.fmu: {controller.fmu.path.name} would track stroke.trajectory, but the execution does"
+                " not feed a controller FMU's reference inputs yet (run the trajectory with the built-in law, or"
+                " remove stroke.trajectory)"
+            )
     except ControllerError as error:
         close_controller(controller)
         return refused_outcome(run, plant, str(error), started)
@@ -152,12 +216,13 @@ def simulate_pair_as_system(
         count,
         calling,
         checkpoints=options,
-        words=PlantWords(run.system.plant, run.system.controller, run.T_s),
+        pool=pool,
+        words=PlantWords(run.system.plant, run.system.controller),
     )
     names = trace_names(plant, diagnostics, others)
     record = {key: value for key, value in outcome.record.items() if key not in ("system", "units")}
     record["controller"] = controller_record(run, controller)
-    record["loop"] = pair_loop(outcome.record["loop"])
+    record["loop"] = pair_loop(outcome.record["loop"], outcome.stepping)
     record["retries"] = [
         {key: value for key, value in entry.items() if key != "component"} for entry in record["retries"]
     ]

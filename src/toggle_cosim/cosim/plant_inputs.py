@@ -1,6 +1,6 @@
 """What a run sets on its plant: the parameters before initialisation (`plant_settings`) and
-the inputs besides the command at every sample (`other_inputs`, `input_samples`). The pair's
-fixed loop (`master`) and a system's execution (`systems`) both take them from here."""
+the inputs besides the command at every sample (`other_inputs`, `input_samples`). The
+execution (`systems`) takes them from here for every run, the plain pair's included."""
 
 from __future__ import annotations
 

@@ -24,13 +24,20 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, NoReturn, Protocol
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
-from toggle_cosim.cosim.fmi_pointers import FMI2_NAMES, FMI3_NAMES, fmu_functions, read_typed, typed_reads
+from toggle_cosim.cosim.fmi_pointers import (
+    FMI2_NAMES,
+    FMI3_NAMES,
+    CFunctions,
+    bound_function,
+    fmu_functions,
+    read_typed,
+    typed_reads,
+)
 from toggle_cosim.cosim.instance_pool import InstancePool, Kept
-from toggle_cosim.cosim.session import CFunctions, bound_function
 from toggle_cosim.cosim.unzipped import release, unzipped
 from toggle_cosim.messages import error_text
 from toggle_cosim.plant.fmi_calls import (
@@ -246,9 +253,14 @@ class FmuSlave:
     def _quiet_logging(self, slave: Any) -> None:
         """Logging stays on for what a failure's reason needs: where the FMU declares log
         categories, only those of non-OK statuses (the standard's logStatus*, or a name with
-        Error or Warning in it), so an FMU that logs every step does not call back every step."""
+        Error or Warning in it), so an FMU that logs every step does not call back every step. A
+        PythonFMU keeps its own logging (it logs only what its code logs, and the exception that
+        fails a call under no category, which choosing categories would drop)."""
         categories = [c.name for c in getattr(self.description, "logCategories", None) or ()]
         chosen = [c for c in categories if c.startswith("logStatus") or "Error" in c or "Warning" in c]
+        tool = str(getattr(self.description, "generationTool", "") or "")
+        if tool.startswith("PythonFMU"):  # it logs a failure's cause under no category, which chosen ones drop
+            return
         if categories and chosen:
             try:  # the others off by name, then those on (a shell may add to the categories it has)
                 unwanted = [c for c in categories if c not in chosen]
@@ -514,6 +526,7 @@ class ControllerSlave:
         """Its measurement holds the fed inputs only, in the plan's order: reading another raises KeyError."""
         self._index = {name: i for i, name in enumerate(fed)}
         self._row = [0.0] * len(fed)
+        self._every = tuple(range(len(fed)))  # positions that set every fed input, in order
         self._sources = tuple(f"input {name}" for name in fed)
         self._changes = getattr(self, "_changes", 0) + 1
 
@@ -532,19 +545,32 @@ class ControllerSlave:
         pass
 
     def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
+        """Set the fed inputs at `positions` to `values`; a value that is not finite is refused
+        (SlaveError naming its source, `not_finite`), the first in the positions' order. Every
+        input at once (a Python controller's sample) is one check and one copy."""
         row, isfinite = self._row, math.isfinite
-        for i, value in zip(positions, values, strict=True):
-            if not isfinite(value):
-                error = SlaveError(
-                    f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
-                    f" {self.name!r}, which takes finite values only",
-                    self.name,
-                )
-                error.not_finite = True
-                raise error
-            row[i] = value
+        if len(values) == len(row) and positions == self._every:
+            if not all(map(isfinite, values)):
+                self._refuse(positions, values, t)
+            row[:] = values
+        else:
+            for i, value in zip(positions, values, strict=True):
+                if not isfinite(value):
+                    self._refuse(positions, values, t)
+                row[i] = value
         self._dirty = True
         self._changes += 1
+
+    def _refuse(self, positions: Sequence[int], values: Sequence[float], t: float) -> NoReturn:
+        """Raise the error of the first value that is not finite, naming its source."""
+        i, value = next((i, v) for i, v in zip(positions, values, strict=True) if not math.isfinite(v))
+        error = SlaveError(
+            f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
+            f" {self.name!r}, which takes finite values only",
+            self.name,
+        )
+        error.not_finite = True
+        raise error
 
     @property
     def cannot_save_state(self) -> str | None:

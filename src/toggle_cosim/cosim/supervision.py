@@ -172,7 +172,7 @@ def warm_up() -> None:
 
     outcomes.installed_versions()
     with contextlib.suppress(Exception):
-        from toggle_cosim.cosim.compiled_loop import kernel_library
+        from toggle_cosim.cosim.system_loop import system_library as kernel_library
 
         kernel_library()
 

@@ -16,8 +16,8 @@ steps instances that are ready.
 
 A native controller's entry holds the law's parameters or the system's matrices and what its
 `ControllerSlave` held; the C samples it as that slave does, with the law generated from
-`control.laws` and the LTI sums of `control.lti` (`control.law_c`: the source the pair's loop
-compiles), so the trace has the Python execution's bits. Where the Python might raise or a value
+`control.laws` and the LTI sums of `control.lti` (`control.law_c`: the source the controller
+FMU compiles too), so the trace has the Python execution's bits. Where the Python might raise or a value
 is not finite, the loop hands the sample back (HAND_BACK, before any doStep of it) and
 `give_back()` returns the slaves what they held at that sample's start.
 
@@ -52,12 +52,11 @@ from typing import NamedTuple
 import numpy as np
 
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.cosim.compiled_loop import KERNEL_FLAGS
-from toggle_cosim.cosim.session import CFunctions
+from toggle_cosim.cosim.fmi_pointers import CFunctions
 from toggle_cosim.cosim.slaves import ControllerSlave, SlaveError
 from toggle_cosim.cosim.system_natives import NativeController, native_controller
 from toggle_cosim.cosim.system_python import Callbacks, PythonComponent, Turns, turns_of
-from toggle_cosim.native import load_library_from
+from toggle_cosim.native import KERNEL_FLAGS, load_library_from
 from toggle_cosim.system.plan import Plan
 
 __all__ = [
@@ -150,7 +149,7 @@ def _skeleton() -> Path:
 @functools.cache
 def system_source() -> str:
     """The C source of the system loop: the generated law and the LTI sums (`control.law_c`, the
-    one source the pair's loop compiles too), then system_skeleton.c."""
+    one source the controller FMU compiles too), then system_skeleton.c."""
     from toggle_cosim.control import law_c
 
     return "\n".join([law_c.law_source(), law_c.lti_source(), _skeleton().read_text(encoding="utf-8")])
@@ -268,7 +267,7 @@ class SystemLoop:
         n: the last sample (t_n = n T_s is recorded, and no doStep is made from it).
         T_s: the communication step [s].
         library: the compiled library (None: `system_library()`; ValueError when there is none).
-        rows: the trace's row count (one int64, `recorder.row_count`), set to k + 1 as soon as row
+        rows: the trace's row count (one int64, `execution.row_count`), set to k + 1 as soon as row
             k is recorded; None: not counted in C.
         calling: an int64 array whose element 0 the loop sets, before each call of a component,
             to that component's entry of `ids` (per component in plan.order; default 1, 2, ...):

@@ -2,12 +2,11 @@
 FMUs: the built-in law (`VSCController`, either law, tracking its sampled reference or its
 constant target) and a python-control system (`control.lti.DiscreteSystemController`).
 
-`native_controller(slave, ...)` says whether a `ControllerSlave`'s controller is one of them, by
-the rules of the pair's compiled loop (`stepper.compiled_law`, `stepper.compiled_controller`: its
-start and step are the built-in ones, with their diagnostics and state), and takes over what the
-slave holds (`SampleState`): the C then samples it as the slave does (system_skeleton.c), from the
-same generated law (`control.law_c`) and the same sums (`lti_sums`) as the pair's loop, so the
-trace has the slave's bits. `NativeController.given_back` turns the C's memory back into a
+`native_controller(slave, ...)` says whether a `ControllerSlave`'s controller is one of them
+(`compiled_law`, `compiled_controller`: its start and step are the built-in ones, with their
+diagnostics and state), and takes over what the slave holds (`SampleState`): the C then samples
+it as the slave does (system_skeleton.c), from the generated law (`control.law_c`) and the sums
+(`lti_sums`) in Python's order, so the trace has the slave's bits. `NativeController.given_back` turns the C's memory back into a
 `SampleState`, for the Python execution to take a sample the C handed back.
 """
 
@@ -18,15 +17,74 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from toggle_cosim.control.controller import ControllerState
+from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.lti import DiscreteSystemController, LtiMatrices, LtiState
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.cosim.slaves import ControllerSlave, SampleState
-from toggle_cosim.cosim.stepper import compiled_controller, compiled_law
 
-__all__ = ["NATIVE_LAW", "NATIVE_LTI", "NativeController", "native_controller"]
+__all__ = [
+    "NATIVE_LAW",
+    "NATIVE_LTI",
+    "NativeController",
+    "compiled_controller",
+    "compiled_law",
+    "native_controller",
+]
 
 NATIVE_LAW, NATIVE_LTI = 1, 2  # native_t's kinds (system_skeleton.c)
+
+
+def _name(function: object) -> str:
+    return getattr(function, "__qualname__", repr(function))
+
+
+def _replaced(controller: object, reference: type, method: str) -> bool:
+    """Whether the controller's `method` is not `reference`'s own (overridden by its class, absent,
+    or set on the object)."""
+    own = getattr(type(controller), method, None)
+    return own is not getattr(reference, method) or method in getattr(controller, "__dict__", {})
+
+
+def compiled_law(controller: object, state: object) -> LawParameters | str:
+    """The law the compiled loop may run in place of `controller`, or why it may not.
+
+    The C is the translation of `VSCController.step`, so it runs only a controller whose start
+    and step *are* those functions (a subclass that overrides either, or an object of another
+    class with the same methods, runs in Python at every sample), with the built-in diagnostics
+    and a state `VSCController.start` made."""
+    only = "the compiled loop runs only the built-in law and controller FMUs"
+    for method in ("step", "start"):
+        if _replaced(controller, VSCController, method):
+            own = getattr(type(controller), method, None)
+            return (
+                f"the controller's {method} is {_name(own)}, not the built-in law's {_name(getattr(VSCController, method))}: "
+                + only
+            )
+    if getattr(controller, "diagnostics", None) != VSCController.diagnostics:
+        return f"the controller's diagnostics are not the built-in law's: {only}"
+    if not isinstance(state, ControllerState) or state.law is None:
+        return f"the controller's state is not the built-in law's: {only}"
+    return state.law
+
+
+def compiled_controller(controller: object, state: object) -> LawParameters | DiscreteSystemController | str:
+    """What the compiled loop may run in place of `controller`: the built-in law (`compiled_law`),
+    a python-control system's adapter whose start and step are `DiscreteSystemController`'s (with
+    its diagnostics and a state its start made), or why neither."""
+    if not isinstance(controller, DiscreteSystemController):
+        return compiled_law(controller, state)
+    for method in ("step", "start"):
+        if _replaced(controller, DiscreteSystemController, method):
+            own = getattr(type(controller), method, None)
+            return (
+                f"the controller's {method} is {_name(own)}, not {_name(getattr(DiscreteSystemController, method))}: "
+                "the compiled loop runs only the latter's sums"
+            )
+    if controller.diagnostics != DiscreteSystemController.diagnostics:
+        return "the controller's diagnostics are not DiscreteSystemController's: the compiled loop records only e"
+    if not (isinstance(state, LtiState) and len(state.x) == controller.matrices.n):
+        return "the controller's state is not an LtiState of its system's states"
+    return controller
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,5 @@
-"""Checkpoint retries of a system's run, the pair's (`retry.CheckpointPolicy`) for every
-component: an execution option (`CheckpointOptions`) that the Python execution and the compiled
-system loop use alike.
+"""Checkpoint retries of a system's run, for every component: an execution option
+(`CheckpointOptions`) that the Python execution and the compiled system loop use alike.
 
 Every `interval` samples the state of every component is saved (an FMU's by fmi2GetFMUstate /
 fmi3GetFMUState, a native controller's by a deep copy of its protocol state). When a
@@ -22,7 +21,7 @@ Each retry goes into run.json's `retries`: {"component", "t" (the failed step's 
 "error" (its failure), "outcome" ("passed" or "failed")}.
 
 doStep's noSetFMUStatePriorToCurrentPoint (FMI 2.0 section 4.2.2, 3.0 section 4.2.1) is false
-whenever a checkpoint may be restored and true only when none is kept, as the pair sets it;
+whenever a checkpoint may be restored and true only when none is kept;
 `configure` sets it on every FMU component and on the compiled loop.
 """
 
@@ -32,10 +31,23 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from toggle_cosim.cosim.retry import CHECKPOINT_SAMPLES, RETRIED_STATUSES, RETRY_SUBSTEPS
 from toggle_cosim.cosim.slaves import Slave, SlaveError
 
-__all__ = ["CheckpointOptions", "ComponentWords", "FailureWords", "SystemCheckpoints", "retried_words"]
+__all__ = [
+    "CHECKPOINT_SAMPLES",
+    "RETRIED_STATUSES",
+    "RETRY_SUBSTEPS",
+    "CheckpointOptions",
+    "ComponentWords",
+    "FailureWords",
+    "SystemCheckpoints",
+    "failure_text",
+    "retried_words",
+]
+
+CHECKPOINT_SAMPLES = 200  # every component's state is saved every this many samples (where it can be)
+RETRY_SUBSTEPS = 10  # a failed step is retried from the checkpoint in this many smaller steps
+RETRIED_STATUSES = (2, 3)  # discard, error; fatal is not retried
 
 # Samples k .. stop - 1 of the run, the next sample; a failed call raises SlaveError with its `k`.
 Forward = Callable[[int, int], int]
@@ -48,7 +60,7 @@ class CheckpointOptions:
     """How a system's run keeps checkpoints and retries a refused step (module docstring):
     every `interval` samples, a failed step retried in `substeps` substeps; `enabled` False
     keeps none (and a refused step ends the run). `lead` (0: none): the samples run as a stretch
-    of their own before the first full one (the pair's loop runs its first sample, which starts
+    of their own before the first full one (the plain pair runs its first sample, which starts
     the controller, alone, so its checkpoints and work-budget counts fall at 1 + m * interval)."""
 
     interval: int = CHECKPOINT_SAMPLES
@@ -241,3 +253,12 @@ def retried_words(passed: Sequence[dict[str, Any]]) -> str | None:
         f"{len(passed)} steps of component {names} from t = {passed[0]['t']:.6g} s to {passed[-1]['t']:.6g} s "
         "failed and passed when retried from a checkpoint"
     )
+
+
+def failure_text(error: BaseException, logged: str | None) -> str:
+    """A failed FMI call's message followed by what the FMU logged about it, if anything:
+    "fmi2DoStep failed with status 3 (error): more than 10000 events in one communication step..."."""
+    text = str(error)
+    if not logged:
+        return text
+    return f"{text.rstrip('.')}: {logged}"

@@ -1,8 +1,7 @@
 """A run as a system (`system.model`), and the run of one (`simulate_system`).
 
-A run whose `Run.system` is not the plain pair (`Wiring.is_pair`: it has parts around the
-plant, connections of its own, or a `record:` list) is stepped by an `Execution` (execution.py)
-over these components:
+Every run's system (`Run.system`; the plain pair through `pair_execution`) is stepped by an
+`Execution` (execution.py) over these components:
 
 * the plant (component `plant`, or an SSD's name for it): the run's plant FMU with the values
   the scenario gives it (`master.plant_settings`);
@@ -18,10 +17,9 @@ both ends exist, it runs from an output to an input, no input is fed twice, the 
 convert (`unit_conversion`: the same dimension, factor and offset from the FMUs' unit
 definitions; anything else refused). The order comes from the connections and the components'
 direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle. The pair's
-own wiring is stepped in the fixed loop's order, the plant then the controller: the plant's
-outputs at t_k are read before the command of sample k is set (a controller that measures an
-output the command feeds directly, such as a_B, reads it as the fixed loop does, with the
-command of sample k - 1).
+own wiring is stepped in the pair's order, the plant then the controller: the plant's outputs
+at t_k are read before the command of sample k is set (a controller that measures an output the
+command feeds directly, such as a_B, reads it with the command of sample k - 1).
 
 The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
 order) or the run's `record:` list, which may name any variable of an FMU component.
@@ -45,13 +43,12 @@ import numpy as np
 
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
-from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.controllers import ControllerFmuPart, controller_for
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
-from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.instance_pool import InstancePool
-from toggle_cosim.cosim.outcome import RunOutcome, run_record
+from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
@@ -193,7 +190,7 @@ def _controller_slave(
     `system_natives`), its connectors in the units of the plant variables of their names (`units`)."""
     if controller is None:
         controller = controller_for(run, outputs)
-    if isinstance(controller, FmuController):
+    if isinstance(controller, ControllerFmuPart):
         return FmuSlave(name, controller.fmu, controller.settings, pool=pool)
     diagnostics = check_controller(controller, outputs)
     return ControllerSlave(name, controller, diagnostics, COMMAND, units, outputs)
@@ -430,6 +427,25 @@ def _controller_state(slaves: Sequence[Slave], name: str, controller: object) ->
     return controller
 
 
+def loop_words(stepping: Stepping, components: int, plan: Plan, T_s: float) -> dict[str, str]:
+    """run.json's `loop`: its kind ("system, compiled" or "system, python") and, in words, how
+    the execution stepped the run's `components` in the plan's order (`stepping`)."""
+    coupled = "jacobi" if plan.jacobi else "gauss-seidel"
+    where = f"in Python ({stepping.why_python})"
+    if stepping.compiled:
+        parts = [f"{', '.join(stepping.natives)} natively in C"] if stepping.natives else []
+        parts += [f"{name} in Python, called back from C ({why})" for name, why in stepping.called_back]
+        where = "in the compiled system loop" + (f" ({'; '.join(parts)})" if parts else "")
+        if stepping.handed_back is not None:
+            where += (
+                f", from t = {stepping.handed_back * T_s:.6g} s in Python (a sample the native controller handed back)"
+            )
+    return {
+        "kind": "system, compiled" if stepping.compiled else "system, python",
+        "reason": f"{components} components, {coupled}, in the order {', '.join(plan.order)}, {where}",
+    }
+
+
 def simulate_system(
     run: Run,
     plant: PlantInterface,
@@ -538,19 +554,12 @@ def simulate_system(
         warnings = [*warnings, bounded_text(f"{retried[0].upper()}{retried[1:]}: {policy.passed()[0]['error']}")]
     wall = clock.perf_counter() - started
     status = "complete" if complete else "interrupted" if interrupted else "failed"
-    coupled = "jacobi" if plan.jacobi else "gauss-seidel"
-    where = f"in Python ({compiled})"
-    if isinstance(compiled, SystemLoop):
-        natives = compiled.native_names
-        parts = [f"{', '.join(natives)} natively in C"] if natives else []
-        parts += [f"{name} in Python, called back from C ({why})" for name, why in compiled.in_python]
-        where = "in the compiled system loop" + (f" ({'; '.join(parts)})" if parts else "")
-        if handed is not None:
-            where += f", from t = {handed * run.T_s:.6g} s in Python (a sample the native controller handed back)"
-    loop = {
-        "kind": "system, compiled" if isinstance(compiled, SystemLoop) else "system, python",
-        "reason": f"{len(assembly.slaves)} components, {coupled}, in the order {', '.join(plan.order)}, {where}",
-    }
+    stepping = (
+        Stepping(True, None, compiled.native_names, tuple(compiled.in_python), handed)
+        if isinstance(compiled, SystemLoop)
+        else Stepping(False, compiled)
+    )
+    loop = loop_words(stepping, len(assembly.slaves), plan, run.T_s)
     record = run_record(
         run,
         plant,
@@ -582,4 +591,6 @@ def simulate_system(
         "checkpoints": policy.record(),
     }
     record["units"] = assembly.units
-    return RunOutcome(run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted)
+    return RunOutcome(
+        run, trace, complete, reason, wall, loop_finished - loop_started, summary, record, interrupted, stepping
+    )

@@ -1,9 +1,9 @@
 """Sweep cases in a worker that keeps the plant loaded: a `CaseRunner` (in the sweep's process, or
-in a Dask worker) drives a plant host (`cosim.plant_host`), a child process that unzips the FMU
-and loads its binary once, then runs case after case on one instance, reset between cases
-(`master.simulate(..., session=)`); after a failed case the instance is freed and the next one
-gets a new one. A system's case does the same for every FMU component, kept by its FMU's
-SHA-256 and its name in the host's pool (`cosim.instance_pool`, `master.simulate(..., pool=)`).
+in a Dask worker) drives a plant host (`cosim.plant_host`), a child process that unzips each FMU
+and loads its binary once, then runs case after case on one instance of each component (the
+plant, a controller FMU, a system's parts), kept by its FMU's SHA-256 and its name in the host's
+pool (`cosim.instance_pool`, `master.simulate(..., pool=)`) and reset between cases; after a
+failed case the instances are freed and the next one gets new ones.
 A case that crashes, aborts or hangs the host is a failed row with the reason (and how far it
 got); the runner starts a new host for the next case. A case never sees what another left: the
 same case gives the same numbers alone, first in a host, after a failed case or after a
@@ -247,23 +247,20 @@ class CaseServer:
         self.plant = plant
         self.sha256 = fmu_sha256
         self.calling = calling  # shared with the sweep's side: which component a system's case calls
-        self.session: Any = None
-        self.sessions: dict[tuple[str, ...], Any] = {}  # by the plant's other inputs the cases set
-        self.pool = InstancePool()  # a system's FMU components, kept loaded from case to case
+        self.loaded: Any = None  # the plant as the cases load it: from this host's private copy
+        self.pool = InstancePool()  # every FMU component of a case, the plant's included, kept loaded
         self.retired = False  # the plant answered Fatal: this host serves no more (`plant_host`)
 
-    def _session(self, inputs: tuple[str, ...] = ()) -> Any:
-        """The plant's session for cases that set the other inputs `inputs` (`plant.inputs`), opened
-        at the first such case: the FMU's bytes checked against the sweep's SHA-256, copied into
-        this host's own folder and loaded from there."""
-        if inputs not in self.sessions:
-            from toggle_cosim.cosim.master import open_session
-
-            copy_path = _private_copy(_verified_bytes(self.plant.path, self.sha256), Path(tempfile.gettempdir()))
-            plant = dataclasses.replace(self.plant, path=copy_path)
-            self.sessions[inputs] = open_session(plant, plant.model_identifier, inputs)
-        self.session = self.sessions[inputs]
-        return self.session
+    def _loaded_plant(self) -> Any:
+        """The plant the cases load (through the pool), made at the first case: the FMU's bytes
+        checked against the sweep's SHA-256, copied into this host's own folder and loaded from
+        there, so a file changed or swapped after the sweep checked it is never loaded."""
+        if self.loaded is None:
+            copy_path = _private_copy(
+                _verified_bytes(self.plant.path, self.sha256), _private_folder(), f"host-{self.sha256[:32]}.fmu"
+            )
+            self.loaded = dataclasses.replace(self.plant, path=copy_path)
+        return self.loaded
 
     def __call__(self, payload: Mapping[str, Any], buffer: np.ndarray, count: np.ndarray) -> dict[str, Any]:
         from toggle_cosim.cosim.master import simulate
@@ -281,11 +278,8 @@ class CaseServer:
                     source = payload.get("source")  # the base scenario: controller.python is imported from its folder
                     (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
-                    pair = run.system.is_pair
-                    session = self._session(tuple(run.plant.inputs)) if pair else None
-                    pool = None if pair else self.pool
                     outcome = simulate(
-                        run, self.plant, buffer=view, session=session, count=count, calling=self.calling, pool=pool
+                        run, self._loaded_plant(), buffer=view, count=count, calling=self.calling, pool=self.pool
                     )
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
@@ -304,7 +298,7 @@ class CaseServer:
         except Exception as error:  # noqa: BLE001 - even a failure of the bookkeeping is a row
             row["status"] = "failed"
             row["reason"] = error_text(error)
-        if (self.session is not None and self.session.fatal) or self.pool.fatal:  # FMI: no further call to that binary
+        if self.pool.fatal:  # FMI: no further call to that binary
             self.retired = True
             row[RETIRED_KEY] = True
         row["wall_s"] = time.perf_counter() - started
@@ -425,7 +419,10 @@ class CaseRunner:
         names = case_columns(payload, self.plant)
         controller = payload["document"].get("controller") or {}
         users = "python" in controller or "fmu" in controller  # the built-in law neither crashes nor hangs
-        if users and view is not None and stopped_in_controller(view, rows, len(self.plant.recorded_outputs), names):
+        stopped = view is not None and stopped_in_controller(
+            view, rows, len(self.plant.recorded_outputs), names, self.calling
+        )
+        if users and stopped:
             words = controller_words(controller.get("python"), controller.get("fmu"))
             limited = answer.failure.startswith("time limit")
             return crash_row(
@@ -435,7 +432,8 @@ class CaseRunner:
 
     def _called(self, payload: Mapping[str, Any]) -> str | None:
         """The component a system's case was calling when its host ended, in words
-        (`exit_reasons.component_words`); None for the pair, or outside any call."""
+        (`exit_reasons.component_words`); None for the plain pair (its controller is said in the
+        pair's words, `exit_reasons.in_controller_reason`), or outside any call."""
         number = int(self.calling[0]) if self.calling is not None else 0
         if number <= 0:
             return None
@@ -446,6 +444,8 @@ class CaseRunner:
         try:
             (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
         except Exception:  # noqa: BLE001 - a case that ran was read before: no words, the plain reason
+            return None
+        if run.system.is_pair:
             return None
         names = component_names(run.system)
         return component_words(run, self.plant.path, names[number - 1]) if number <= len(names) else None

@@ -1,7 +1,8 @@
 """The contract of a controller FMU, and the check that an FMU meets it before a run.
 
 A scenario may name a controller FMU (``controller: {fmu: PATH}``) in place of the built-in law;
-the master runs it as one more controller (`cosim.fmu_controller`). Before any run,
+the master runs it as an FMU component of the run's execution (`cosim.controllers.ControllerFmuPart`).
+Before any run,
 `check_controller_fmu` refuses in one line, naming the file and the fix, an FMU that:
 
 * is not a safe, readable FMU archive, is not FMI 2.0 or 3.0, has no Co-Simulation interface or

@@ -98,7 +98,7 @@ class Run:
     # constant target x_target
     trajectory: ProfileSpec | None = None
     # the parts around the plant and controller, the connections and what to record (`system`);
-    # the default is the plain pair, which the master's fixed loop runs
+    # the default is the plain pair, which the master runs with the pair's trace and run.json
     system: Wiring = field(default_factory=Wiring)
 
     @property

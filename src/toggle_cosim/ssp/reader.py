@@ -16,7 +16,7 @@ within bounds and valid against the SSP schemas of its version, 1.0 or 2.0 (`che
 more FMU components, Co-Simulation (not SSP 2.0's Scheduled Execution), whose FMUs
 the archive holds; the connections (`wiring`: kinds, units, transformations, algebraic loops).
 Connections exactly the pair's loop and no other component: `Run.system` is the plain pair
-(`Wiring()` with the SSD's component names), which the master's fixed loop runs bit for bit;
+(`Wiring()` with the SSD's component names), which the master runs as the scenario's pair, bit for bit;
 anything else: the parts and every connection in document order; every bound name a
 parameter or input of its FMU, of its type, finite; the values within the scenario's ranges
 (`as_scenario`); the experiment starting at 0 and ending at a whole number of samples.
@@ -337,8 +337,8 @@ class _System:
 def _components(variant: Variant, archive: zipfile.ZipFile, path: Path, fmus: _Extracted) -> _System:
     """The components of a root SSD with their FMUs' variables: wiring read and checked (`wiring`),
     values bound (`_component_values`). The connections exactly the pair's loop and no other
-    component: the plain pair (`Wiring` with no parts and no connections), which the master's
-    fixed loop runs; otherwise every component and connection."""
+    component: the plain pair (`Wiring` with no parts and no connections), which the master runs as
+    the scenario's pair; otherwise every component and connection."""
     where = f"{path}: {variant.member}"
     children = _elements(variant.ssd, where)
     found: dict[str, tuple[str, Path, FmuVariables, str]] = {}

@@ -15,8 +15,8 @@ One sample k under Gauss-Seidel (`coupling: gauss-seidel`):
 An input is early when its feed is an output of a component before c in the order, late
 otherwise: fed by a later component (its component reads its outputs before that value exists;
 it has no direct feedthrough, `system.graph`) or by a signal. A signal's sample at t_k is sent
-after the component's outputs at t_k are read, with the values it steps with, as the pair
-(`cosim.pair`), FMPy and libcosim send theirs: the outputs at t_k are those of the inputs
+after the component's outputs at t_k are read, with the values it steps with, as FMPy and
+libcosim send theirs: the outputs at t_k are those of the inputs
 the component stepped with, so a step in a load shows in the outputs one sample later. Under
 Jacobi every input is late: each component's outputs at t_k are read with the inputs it stepped
 with, and all inputs are then set from them, as libcosim's fixed-step algorithm does.
