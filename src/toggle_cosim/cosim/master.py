@@ -6,10 +6,13 @@ A run's system (`Run.system`) decides how it is stepped:
   `connections:` or `record:`, and an SSP of exactly that loop): the pair's fixed loop
   (`pair.simulate_pair`, with the compiled law, hand-back to Python, checkpoint retries and a
   plant session kept across runs);
-* any other system: an execution of its components in the order of its connections
-  (`systems.simulate_system`), in the compiled system loop where every component is an FMU,
-  with checkpoint retries of every component (`system_retry`) and, given a pool, its FMU
-  instances kept loaded from run to run (`instance_pool`).
+* any other system: checked once (`checked.check_run`: components, controller, connections,
+  units, order, plan, columns; nothing loaded), then executed (`systems.execute`): its
+  components instantiated and stepped in the order of its connections, in the compiled system
+  loop where every component is an FMU, with checkpoint retries of every component
+  (`system_retry`) and, given a pool, its FMU instances kept loaded from run to run
+  (`instance_pool`). A caller that checked the run before (a supervising process, before it
+  forks the run's child) passes the result (`checked=`) and nothing is checked again.
 
 The pair run as a system gives the fixed loop's values bit for bit (tests/test_systems.py).
 With TOGGLE_COSIM_MASTER=execution (`limits.pair_as_execution`; default: the fixed loop) the
@@ -19,12 +22,15 @@ run.json (`pair_execution`); a kept plant `session` is then not used (the execut
 
 from __future__ import annotations
 
+import dataclasses
+import time as clock
 from collections.abc import Callable
 
 import numpy as np
 
 from toggle_cosim import limits
-from toggle_cosim.control.protocol import Controller
+from toggle_cosim.control.protocol import Controller, ControllerError
+from toggle_cosim.cosim.checked import CheckedRun, check_run
 from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.cosim.pair import (
@@ -38,7 +44,7 @@ from toggle_cosim.cosim.pair import (
 from toggle_cosim.cosim.pair_execution import simulate_pair_as_system
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
 from toggle_cosim.cosim.session import PlantSession
-from toggle_cosim.cosim.systems import simulate_system
+from toggle_cosim.cosim.systems import execute, ready, refused
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import COUPLINGS, Run
 
@@ -67,6 +73,7 @@ def simulate(
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
     pool: InstancePool | None = None,
+    checked: CheckedRun | None = None,
 ) -> RunOutcome:
     """Run one scenario variant against `plant`: the plain pair in its fixed loop, any other
     system as an execution of its components (module docstring). Never raises for a plant, part
@@ -80,16 +87,25 @@ def simulate(
     `coupling`: "gauss-seidel" or "jacobi"; None: the run's own (`Run.coupling`). `calling`
     (a system only): where the execution writes which component it calls
     (`systems.simulate_system`). `pool` (a system only, `instance_pool`): its FMU components'
-    instances, kept loaded from run to run by the caller."""
-    if run.system.is_pair and limits.pair_as_execution():  # TOGGLE_COSIM_MASTER=execution (module docstring)
-        if coupling is not None and coupling not in COUPLINGS:
-            raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
-        return simulate_pair_as_system(run, plant, progress, buffer, controller, coupling, count, calling)
-    if run.system.is_pair:
+    instances, kept loaded from run to run by the caller. `checked`: the run as `checked.check_run`
+    checked it (with `run`, `plant`, `controller` and `coupling`), by a caller that checked it
+    before (a supervising process before the fork); None: checked here. A controller.python
+    still to be built is built here (`systems.ready`)."""
+    if run.system.is_pair and not limits.pair_as_execution():
         return simulate_pair(run, plant, progress, buffer, controller, session, coupling, count)
     if coupling is not None and coupling not in COUPLINGS:
         raise ValueError(f"coupling: choose one of {', '.join(COUPLINGS)}, not {coupling!r}")
-    if session is not None:
+    if session is not None and not run.system.is_pair:
         close_controller(controller)
         raise ValueError("a system's run loads its own components: simulate it without session=")
-    return simulate_system(run, plant, progress, buffer, controller, coupling, count, calling, pool=pool)
+    started = clock.perf_counter()
+    try:
+        checked = ready(checked if checked is not None else check_run(run, plant, controller, coupling))
+    except ControllerError as error:
+        close_controller(controller)
+        if run.system.is_pair:
+            return refused_outcome(run, plant, str(error), started)
+        return refused(dataclasses.replace(run, coupling=coupling or run.coupling), plant, error, started)
+    if checked.pair:
+        return simulate_pair_as_system(checked, progress, buffer, count, calling, started)
+    return execute(checked, progress, buffer, count, calling, pool=pool, started=started)

@@ -1,12 +1,12 @@
 """The plain pair run as the two-part system it is: the plant and its controller stepped by the
-execution (`systems.simulate_system`), with the fixed loop's outcome (`pair.simulate_pair`).
+execution (`systems.execute`), with the fixed loop's outcome (`pair.simulate_pair`).
 
 `master.simulate` sends the pair here under TOGGLE_COSIM_MASTER=execution (`limits.pair_as_execution`).
 The run is the pair's wiring (each controller input from the plant output of its name, the
 command to the plant's iq_ref, the load and the plant's other inputs fed by their signals) with a
-`record:` list of the pair's columns (`pair_ports`), so that:
+`record:` list of the pair's columns (`checked.pair_ports`, set by the run's check), so that:
 
-* the trace has the pair's columns in the pair's order and names (`trace_names`: time, the
+* the trace has the pair's columns in the pair's order and names (`CheckedRun.names`: time, the
   plant's recorded outputs, iq_ref, F_E, the controller's diagnostics, the other inputs), and
   trace.csv is the pair's;
 * run.json is the pair's: the controller as the pair records it (`controllers.controller_record`),
@@ -24,7 +24,6 @@ execution's own, as for every system run (`figures.run_figures`).
 from __future__ import annotations
 
 import dataclasses
-import time as clock
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,38 +31,18 @@ from typing import Any
 import numpy as np
 from fmpy.fmi1 import FMICallException
 
-from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for, controller_record
+from toggle_cosim.cosim.checked import CheckedRun, pair_ports
+from toggle_cosim.cosim.controllers import controller_record
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.cosim.pair import INPUTS, close_controller, refused_outcome, retried_words, trace_names
-from toggle_cosim.cosim.plant_inputs import other_inputs
+from toggle_cosim.cosim.pair import retried_words
 from toggle_cosim.cosim.retry import failure_text
 from toggle_cosim.cosim.slaves import SlaveError
 from toggle_cosim.cosim.system_retry import CheckpointOptions, ComponentWords
-from toggle_cosim.cosim.systems import simulate_system
+from toggle_cosim.cosim.systems import execute
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import said_in
-from toggle_cosim.plant.contract import PlantInterface
-from toggle_cosim.runs.definition import Run
-from toggle_cosim.system.model import Port, Wiring
 
 __all__ = ["pair_loop", "pair_ports", "simulate_pair_as_system"]
-
-COMMAND, LOAD = INPUTS  # iq_ref (the controller's output), F_E (the plant's input)
-
-
-def pair_ports(
-    wiring: Wiring, plant: PlantInterface, diagnostics: tuple[str, ...], inputs: tuple[str, ...]
-) -> tuple[Port, ...]:
-    """The ports whose values are the pair's trace columns after time (`trace_names`), in its order."""
-    p, c = wiring.plant, wiring.controller
-    return (
-        *(Port(p, name) for name in plant.recorded_outputs),
-        Port(c, COMMAND),
-        Port(p, LOAD),
-        *(Port(c, name) for name in diagnostics),
-        *(Port(p, name) for name in inputs),
-    )
 
 
 def pair_loop(loop: dict[str, Any]) -> dict[str, Any]:
@@ -119,47 +98,32 @@ class PlantWords:
 
 
 def simulate_pair_as_system(
-    run: Run,
-    plant: PlantInterface,
+    checked: CheckedRun,
     progress: Callable[[float], None] | None = None,
     buffer: np.ndarray | None = None,
-    controller: Controller | None = None,
-    coupling: str | None = None,
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
+    started: float | None = None,
 ) -> RunOutcome:
-    """Run the plain pair `run` (`Run.system.is_pair`) in the execution with the fixed loop's
-    trace and run.json (module docstring); arguments as `master.simulate`'s. Never raises for a
-    plant or controller fault: see RunOutcome."""
-    started = clock.perf_counter()
-    try:
-        if controller is None:
-            controller = controller_for(run, plant.recorded_outputs)
-        diagnostics = tuple(check_controller(controller, plant.recorded_outputs))
-    except ControllerError as error:
-        close_controller(controller)
-        return refused_outcome(run, plant, str(error), started)
-    others = other_inputs(run)
-    wiring = dataclasses.replace(run.system, record=pair_ports(run.system, plant, diagnostics, others))
-    options = CheckpointOptions(lead=1)
-    outcome = simulate_system(
-        dataclasses.replace(run, system=wiring),
-        plant,
+    """Run the plain pair, checked (`checked.check_run`: its trace the pair's columns,
+    `CheckedRun.pair`), in the execution with the fixed loop's trace and run.json (module
+    docstring); arguments as `systems.execute`'s. Never raises for a plant or controller fault:
+    see RunOutcome."""
+    run = checked.run
+    outcome = execute(
+        checked,
         progress,
         buffer,
-        controller,
-        coupling,
         count,
         calling,
-        checkpoints=options,
+        checkpoints=CheckpointOptions(lead=1),
         words=PlantWords(run.system.plant, run.system.controller, run.T_s),
+        started=started,
     )
-    names = trace_names(plant, diagnostics, others)
     record = {key: value for key, value in outcome.record.items() if key not in ("system", "units")}
-    record["controller"] = controller_record(run, controller)
+    record["controller"] = controller_record(run, checked.controller)
     record["loop"] = pair_loop(outcome.record["loop"])
     record["retries"] = [
         {key: value for key, value in entry.items() if key != "component"} for entry in record["retries"]
     ]
-    ran = dataclasses.replace(outcome.run, system=run.system)  # the run as given, its coupling as run
-    return dataclasses.replace(outcome, run=ran, trace=Trace(names, outcome.trace.data), record=record)
+    return dataclasses.replace(outcome, trace=Trace(checked.names, outcome.trace.data), record=record)

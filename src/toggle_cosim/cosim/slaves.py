@@ -47,7 +47,7 @@ from toggle_cosim.plant.fmi_calls import (
 from toggle_cosim.system.interfaces import FLOAT64_TYPES, fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
-__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError"]
+__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError", "native_interface"]
 
 
 class SlaveError(Exception):
@@ -94,7 +94,8 @@ class FmuSlave:
     feeds (`Plan.input_names`), `outputs` the variables it reads every sample
     (`Plan.output_names`), both set by `bind` before `instantiate`. `pool`: where its instance
     comes from and goes back to (`instance_pool`: kept loaded from run to run); None: loaded
-    for this run and unloaded by `close`."""
+    for this run and unloaded by `close`. `interface`: its connectors as the run's check found
+    them (`checked.FmuComponent`); None: read from its model description here."""
 
     def __init__(
         self,
@@ -103,11 +104,12 @@ class FmuSlave:
         values: Sequence[tuple[str, Value]] = (),
         observed: Sequence[str] = (),
         pool: InstancePool | None = None,
+        interface: Interface | None = None,
     ):
         self.name, self.path, self.values = name, Path(fmu.path), tuple(values)
         self.description, self.sha256 = fmu.model_description, fmu.sha256
         self.variables = {v.name: v for v in self.description.modelVariables}
-        self.interface = fmu_interface(self.description, observed)
+        self.interface = interface if interface is not None else fmu_interface(self.description, observed)
         self.fmi3 = self.description.fmiVersion.startswith("3")
         self._slave: Any = None
         self._unzipped: Path | None = None
@@ -490,10 +492,8 @@ class ControllerSlave:
         declares it measures (`measured`), else `readable` (the plant's outputs, which its
         measurement holds in the plant + controller loop); its measurement holds those fed."""
         self.name, self.controller = name, controller
-        measured = tuple(getattr(controller, "measured", None) or readable)
-        outputs = (command, *diagnostics)
-        units = {n: (units or {}).get(n) for n in (*measured, command)}
-        self.interface = Interface(measured, outputs, {output: measured for output in outputs}, units)
+        self.interface = native_interface(controller, diagnostics, command, units, readable)
+        measured, outputs = self.interface.inputs, self.interface.outputs
         self.bind(measured, outputs)
         self._state: Any = None
         self._next: Any = None
@@ -632,6 +632,22 @@ class ControllerSlave:
             except BaseException as error:  # noqa: BLE001 - freeing never changes the outcome
                 if not interrupts.raised_by_code(error):
                     raise
+
+
+def native_interface(
+    controller: Controller,
+    diagnostics: Sequence[str],
+    command: str = "iq_ref",
+    units: Mapping[str, str | None] | None = None,
+    readable: Sequence[str] = (),
+) -> Interface:
+    """A native controller's connectors (`ControllerSlave`): its inputs the names it declares it
+    measures (`measured`), else `readable`; its outputs the command and its diagnostics, each
+    depending directly on every input; their units those of the plant variables of their names."""
+    measured = tuple(getattr(controller, "measured", None) or readable)
+    outputs = (command, *diagnostics)
+    units = {n: (units or {}).get(n) for n in (*measured, command)}
+    return Interface(measured, outputs, {output: measured for output in outputs}, units)
 
 
 def values_of(mapping: Mapping[str, Value]) -> tuple[tuple[str, Value], ...]:
