@@ -67,23 +67,21 @@ def _one_run(run: Run | Scenario) -> Run:
 
 def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> None:
     """What the command line checks before a run starts: the settings against the plant's
-    variables, the user's controller without running its code (`check_user_controller`; a
-    python-control system's factory, controller.error given, built in a supervised child) and
+    variables, the run as the master checks it (`cosim.checked.check_run`: the controller, a
+    user's without running its code, the parts, connections, units and order; nothing loaded;
+    a python-control system's factory, controller.error given, built in a supervised child) and
     the size of the trace buffer (ScenarioError, one line)."""
-    from toggle_cosim.cosim.controllers import check_user_controller
+    from toggle_cosim.cosim.checked import SystemError_, check_run
     from toggle_cosim.cosim.supervision import probe_columns
-    from toggle_cosim.cosim.systems import SystemError_, system_columns
     from toggle_cosim.experiments.resources import ResourceError, check_runs
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     try:
         check_settings(run, plant)
         if own_controller:  # the scenario's, not one given to simulate
-            check_user_controller(run, plant.recorded_outputs)
-            if run.controller.python is not None and run.controller.error is not None:
+            checked = check_run(run, plant)
+            if checked.builds_controller and run.controller.error is not None:
                 probe_columns(run, plant)  # a python-control system: built in a supervised child, checked
-            if not run.system.is_pair and run.controller.python is None:
-                system_columns(run, plant)  # connections, units, order: every check, nothing loaded
         check_runs([(run, plant)], None)
     except (SettingError, ControllerError, SystemError_) as error:
         raise ScenarioError(f"{run.source or run.label}: {error}") from None

@@ -46,7 +46,7 @@ import numpy as np
 
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.controllers import check_user_controller, controller_for
 from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
@@ -322,6 +322,8 @@ def check_run(
     )
     if controller is None and run.controller.python is None:
         controller = controller_for(run, outputs)  # the built-in law or controller.fmu: no code of the user's runs
+    elif controller is None:
+        check_user_controller(run, outputs)  # controller.python's module found and owned, not imported
     control = (
         None if controller is None else _controller_component(wiring, controller, outputs, plant_part.interface.units)
     )
