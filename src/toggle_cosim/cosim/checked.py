@@ -46,16 +46,15 @@ import numpy as np
 
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import check_user_controller, controller_for
+from toggle_cosim.cosim.controllers import check_user_controller, own_controller
 from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.fmu_controller import FmuController
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
-from toggle_cosim.cosim.slaves import native_interface
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterface, read_fmu
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
-from toggle_cosim.system.interfaces import SettableError, check_settable, fmu_interface
+from toggle_cosim.system.interfaces import SettableError, check_settable, controller_interface, fmu_interface
 from toggle_cosim.system.model import Connection, Interface, Part, Port, Value, Wiring
 from toggle_cosim.system.plan import Plan, build_plan
 from toggle_cosim.system.units import BASE, UnitDefinitionError, conversion, unit_meaning
@@ -99,14 +98,12 @@ class FmuComponent:
 class NativeComponent:
     """A controller of the protocol run natively (`slaves.ControllerSlave`): the built-in law, a
     controller given to `simulate`, or a user's built in the run's child; its diagnostics and
-    its connectors in the plant's units (`native_interface`)."""
+    its connectors in the plant's units (`system.interfaces.controller_interface`)."""
 
     name: str
     controller: Controller
     diagnostics: tuple[str, ...]
     interface: Interface
-    units: Mapping[str, str | None]
-    readable: tuple[str, ...]
 
 
 Component = FmuComponent | NativeComponent
@@ -295,8 +292,11 @@ def _controller_component(
         fmu = controller.fmu
         return FmuComponent(name, fmu, tuple(controller.settings), fmu_interface(fmu.model_description))
     diagnostics = tuple(check_controller(controller, outputs))
-    interface = native_interface(controller, diagnostics, COMMAND, units, outputs)
-    return NativeComponent(name, controller, diagnostics, interface, units, outputs)
+    measured = tuple(
+        getattr(controller, "measured", None) or outputs
+    )  # what it declares it reads, else the plant's outputs
+    interface = controller_interface(measured, diagnostics, COMMAND, units)
+    return NativeComponent(name, controller, diagnostics, interface)
 
 
 def check_run(
@@ -320,8 +320,8 @@ def check_run(
         tuple(plant_settings(run, plant)),
         fmu_interface(plant.model_description, observed.get(wiring.plant, ())),
     )
-    if controller is None and run.controller.python is None:
-        controller = controller_for(run, outputs)  # the built-in law or controller.fmu: no code of the user's runs
+    if controller is None and (run.controller.python is None or run.controller.fmu is not None):
+        controller = own_controller(run, outputs)  # the built-in law or controller.fmu: no code of the user's runs
     elif controller is None:
         check_user_controller(run, outputs)  # controller.python's module found and owned, not imported
     control = (

@@ -100,7 +100,9 @@ def simulate(
         raise ValueError("a system's run loads its own components: simulate it without session=")
     started = clock.perf_counter()
     try:
-        checked = ready(checked if checked is not None else check_run(run, plant, controller, coupling))
+        if checked is None:
+            checked = check_run(run, plant, controller, coupling)
+        checked = ready(checked)  # a controller.python built here, in this process
     except ControllerError as error:
         close_controller(controller)
         if run.system.is_pair:

@@ -47,7 +47,7 @@ from toggle_cosim.plant.fmi_calls import (
 from toggle_cosim.system.interfaces import FLOAT64_TYPES, fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
-__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError", "native_interface"]
+__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError"]
 
 
 class SlaveError(Exception):
@@ -483,17 +483,16 @@ class ControllerSlave:
         name: str,
         controller: Controller,
         diagnostics: Sequence[str],
-        command: str = "iq_ref",
-        units: Mapping[str, str | None] | None = None,
-        readable: Sequence[str] = (),
+        interface: Interface,
     ):
-        """`units`: its connectors' units by name (the plant's variables of those names: what
-        the controller measures and commands), None: none declared. Its inputs are the names it
-        declares it measures (`measured`), else `readable` (the plant's outputs, which its
-        measurement holds in the plant + controller loop); its measurement holds those fed."""
+        """`interface`: its connectors as the run's check found them (`checked.NativeComponent`):
+        its inputs the names it declares it measures (`measured`), else the plant's outputs
+        (which its measurement holds in the plant + controller loop), its outputs the command
+        and `diagnostics`, in the units of the plant's variables of their names; its measurement
+        holds those fed."""
         self.name, self.controller = name, controller
-        self.interface = native_interface(controller, diagnostics, command, units, readable)
-        measured, outputs = self.interface.inputs, self.interface.outputs
+        self.interface = interface
+        measured, outputs = interface.inputs, interface.outputs
         self.bind(measured, outputs)
         self._state: Any = None
         self._next: Any = None
@@ -632,22 +631,6 @@ class ControllerSlave:
             except BaseException as error:  # noqa: BLE001 - freeing never changes the outcome
                 if not interrupts.raised_by_code(error):
                     raise
-
-
-def native_interface(
-    controller: Controller,
-    diagnostics: Sequence[str],
-    command: str = "iq_ref",
-    units: Mapping[str, str | None] | None = None,
-    readable: Sequence[str] = (),
-) -> Interface:
-    """A native controller's connectors (`ControllerSlave`): its inputs the names it declares it
-    measures (`measured`), else `readable`; its outputs the command and its diagnostics, each
-    depending directly on every input; their units those of the plant variables of their names."""
-    measured = tuple(getattr(controller, "measured", None) or readable)
-    outputs = (command, *diagnostics)
-    units = {n: (units or {}).get(n) for n in (*measured, command)}
-    return Interface(measured, outputs, {output: measured for output in outputs}, units)
 
 
 def values_of(mapping: Mapping[str, Value]) -> tuple[tuple[str, Value], ...]:

@@ -57,7 +57,7 @@ from toggle_cosim.control.protocol import Controller, ControllerError
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
 from toggle_cosim.cosim.checked import CheckedRun, SystemError_, built, check_run, component_names
-from toggle_cosim.cosim.controllers import controller_for, controller_record
+from toggle_cosim.cosim.controllers import controller_record, user_controller
 from toggle_cosim.cosim.exit_reasons import (
     building_reason,
     component_reason,
@@ -248,7 +248,7 @@ def _build_controller(checked: CheckedRun, buffer_fd: int, write_fd: int) -> tup
     with the reason)."""
     run, plant = checked.run, checked.plant
     try:
-        controller = controller_for(run, plant.recorded_outputs)
+        controller = user_controller(run, plant.recorded_outputs)
         checked = built(checked, controller)
     except ControllerError:
         raise

@@ -29,7 +29,6 @@ import numpy as np
 from toggle_cosim.control.protocol import Controller, ControllerError
 from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.checked import (
-    COMMAND,
     CheckedRun,
     FmuComponent,
     SystemError_,
@@ -39,7 +38,7 @@ from toggle_cosim.cosim.checked import (
     pair_connections,
     unit_conversion,
 )
-from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.controllers import user_controller
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.cosim.instance_pool import InstancePool
@@ -93,13 +92,13 @@ class Assembly:
 
 
 def ready(checked: CheckedRun) -> CheckedRun:
-    """`checked` with its controller.python built here, in this process (`controllers.controller_for`:
+    """`checked` with its controller.python built here, in this process (`controllers.user_controller`:
     the user's factory runs), and checked (`checked.built`); a checked run that needs no
     building as it is. A run's supervised child builds it itself (`supervision`). Raises
     ControllerError or SystemError_."""
     if not checked.builds_controller:
         return checked
-    return built(checked, controller_for(checked.run, checked.plant.recorded_outputs))
+    return built(checked, user_controller(checked.run, checked.plant.recorded_outputs))
 
 
 def instantiate(checked: CheckedRun, pool: InstancePool | None = None) -> Assembly:
@@ -116,12 +115,7 @@ def instantiate(checked: CheckedRun, pool: InstancePool | None = None) -> Assemb
             )
         else:
             slaves[component.name] = ControllerSlave(
-                component.name,
-                component.controller,
-                component.diagnostics,
-                COMMAND,
-                component.units,
-                component.readable,
+                component.name, component.controller, component.diagnostics, component.interface
             )
     return Assembly(
         [slaves[name] for name in checked.order],
