@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from toggle_cosim.cosim import controllers
+from toggle_cosim.cosim.supervised_batch import run_supervised
 from toggle_cosim.cosim.supervision import probe_columns, simulate_supervised
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
@@ -62,6 +63,20 @@ def test_a_supervised_run_is_checked_once_in_its_parent_and_never_in_its_child(
     outcome = simulate_supervised(run, plant, scratch=tmp_path)
     assert outcome.complete, outcome.reason
     assert log.read_text(encoding="utf-8").split() == [str(os.getpid())]
+
+
+def test_runs_at_once_are_each_checked_once_in_the_parent(
+    plant, vsc_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Three system runs, two at a time (`supervised_batch`): three contract reads, all by the
+    supervising process, none by the children; every run completes."""
+    run = _fmu_run(vsc_fmu)
+    runs = [dataclasses.replace(run, system=Wiring(record=(Port("plant", "x_B"),)), t_end=0.02) for k in range(3)]
+    log = tmp_path / "reads.txt"
+    _reads(monkeypatch, log)
+    outcomes = list(run_supervised([(r, plant) for r in runs], jobs=2, scratch=tmp_path))
+    assert [outcome.complete for outcome in outcomes] == [True] * 3, [o.reason for o in outcomes]
+    assert log.read_text(encoding="utf-8").split() == [str(os.getpid())] * 3
 
 
 def test_columns_the_check_knows_are_probed_without_a_child(
