@@ -65,6 +65,21 @@ def test_a_supervised_run_is_checked_once_in_its_parent_and_never_in_its_child(
     assert log.read_text(encoding="utf-8").split() == [str(os.getpid())]
 
 
+def test_simulate_checks_a_run_once_for_its_refusals_and_its_run(
+    plant_fmu: Path, vsc_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`tc.simulate` refuses bad input before the run starts with the same check the run then
+    uses: one contract read in all, by this process, the run's child none."""
+    import toggle_cosim as tc
+
+    run = dataclasses.replace(_fmu_run(vsc_fmu), system=Wiring(record=(Port("plant", "x_B"),)))
+    log = tmp_path / "reads.txt"
+    _reads(monkeypatch, log)
+    result = tc.simulate(run, plant_fmu)
+    assert result.status == "complete", result.reason
+    assert log.read_text(encoding="utf-8").split() == [str(os.getpid())]
+
+
 def test_runs_at_once_are_each_checked_once_in_the_parent(
     plant, vsc_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -436,6 +436,7 @@ class SupervisedRun:
         with_progress: bool = False,
         controller: Controller | None = None,
         probe: bool = False,
+        checked: CheckedRun | None = None,
     ) -> None:
         self._probe = probe  # only build the user's controller and send its columns (`probe_columns`)
         self.run = run
@@ -445,9 +446,10 @@ class SupervisedRun:
         self.refused: str | None = None  # why the controller or the system was refused
         self.reason: str | None = None
         # the one check of the run (`checked.check_run`), here, before the fork: the child inherits it
-        self.checked: CheckedRun | None = None
+        self.checked: CheckedRun | None = checked  # given: checked by the caller, with `controller`
         try:
-            self.checked = check_run(run, plant, controller)
+            if checked is None:
+                self.checked = check_run(run, plant, controller)
         except (ControllerError, SystemError_) as error:
             self.refused = str(error)
         except ValueError as error:  # a plant setting the plant does not have: the run cannot start
@@ -754,11 +756,14 @@ def simulate_supervised(
     progress: Callable[[float], None] | None = None,
     scratch: Path | None = None,
     controller: Controller | None = None,
+    checked: CheckedRun | None = None,
 ) -> outcomes.RunOutcome:
     """`master.simulate` in a supervised child process; never raises for anything the plant or
     the controller does. `controller`: as for `master.simulate` (the child inherits it); None:
-    the run's own, built in the child. What the child prints is written to this process's
-    sys.stdout and sys.stderr once the run is over, capped (`relay`).
+    the run's own, built in the child. `checked`: the run as `checked.check_run` checked it with
+    `controller`, by a caller that checked it before (None: checked here, before the fork).
+    What the child prints is written to this process's sys.stdout and sys.stderr once the run
+    is over, capped (`relay`).
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
     interrupted (`outcome.interrupted`); the caller stops after writing it."""
@@ -769,6 +774,7 @@ def simulate_supervised(
         scratch=scratch,
         with_progress=progress is not None,
         controller=controller,
+        checked=checked,
     )
     try:
         child.start()
