@@ -23,6 +23,7 @@ from toggle_cosim.api.units import trace_units
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
 from toggle_cosim.cosim import master
+from toggle_cosim.cosim.checked import CheckedRun
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.experiments.scenario import ScenarioError
 from toggle_cosim.plant.contract import ContractError, PlantInterface, check_plant
@@ -65,30 +66,31 @@ def _one_run(run: Run | Scenario) -> Run:
     return run
 
 
-def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> None:
+def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> CheckedRun | None:
     """What the command line checks before a run starts: the settings against the plant's
-    variables, the user's controller without running its code (`check_user_controller`; a
-    python-control system's factory, controller.error given, built in a supervised child) and
-    the size of the trace buffer (ScenarioError, one line)."""
-    from toggle_cosim.cosim.controllers import check_user_controller
+    variables, the run as the master checks it (`cosim.checked.check_run`: the controller, a
+    user's without running its code, the parts, connections, units and order; nothing loaded;
+    a python-control system's factory, controller.error given, built in a supervised child) and
+    the size of the trace buffer (ScenarioError, one line). The checked run, which the run then
+    uses as it is (None: a controller given, checked with it as the run starts)."""
+    from toggle_cosim.cosim.checked import SystemError_, check_run
     from toggle_cosim.cosim.supervision import probe_columns
-    from toggle_cosim.cosim.systems import SystemError_, system_columns
     from toggle_cosim.experiments.resources import ResourceError, check_runs
     from toggle_cosim.plant.settings import SettingError, check_settings
 
+    checked = None
     try:
         check_settings(run, plant)
         if own_controller:  # the scenario's, not one given to simulate
-            check_user_controller(run, plant.recorded_outputs)
-            if run.controller.python is not None and run.controller.error is not None:
+            checked = check_run(run, plant)
+            if checked.builds_controller and run.controller.error is not None:
                 probe_columns(run, plant)  # a python-control system: built in a supervised child, checked
-            if not run.system.is_pair and run.controller.python is None:
-                system_columns(run, plant)  # connections, units, order: every check, nothing loaded
         check_runs([(run, plant)], None)
     except (SettingError, ControllerError, SystemError_) as error:
         raise ScenarioError(f"{run.source or run.label}: {error}") from None
     except ResourceError as error:
         raise ScenarioError(f"{run.source or run.label}: {error.message}") from None
+    return checked
 
 
 def _adapted(controller: object, run: Run, plant: PlantInterface) -> Controller | None:
@@ -113,17 +115,21 @@ def _outcome(
     time_limit: float | None,
     progress: Callable[[float], None] | None,
     controller: Controller | None = None,
+    checked: CheckedRun | None = None,
 ) -> RunOutcome:
-    """The one place a run starts, supervised or in this process."""
+    """The one place a run starts, supervised or in this process; `checked`: the run as
+    `_checks` checked it (None: checked as it starts)."""
     if not supervised:
         from toggle_cosim.cosim.supervision import in_process_folder
 
         with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
-            return master.simulate(run, plant, progress, controller=controller)
+            return master.simulate(run, plant, progress, controller=controller, checked=checked)
     from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
 
     remove_stale_folders()
-    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, controller=controller)
+    return simulate_supervised(
+        run, plant, time_limit=time_limit, progress=progress, controller=controller, checked=checked
+    )
 
 
 def simulate(
@@ -195,14 +201,14 @@ def simulate(
     if time_limit is not None and not time_limit > 0:
         raise ValueError(f"time_limit: give a positive number of seconds, not {time_limit!r}")
     plant = checked_plant(os.fspath(chosen))
-    _checks(run, plant, own_controller=controller is None)
+    checked = _checks(run, plant, own_controller=controller is None)
     controller = _adapted(controller, run, plant)
     if controller is not None:
         try:
             check_controller(controller, plant.recorded_outputs)
         except ControllerError as error:
             raise ScenarioError(f"controller: {error}") from None
-    outcome = _outcome(run, plant, supervised, time_limit, progress, controller)
+    outcome = _outcome(run, plant, supervised, time_limit, progress, controller, checked)
     units = trace_units(outcome.trace.names, plant, run.controller.objective)
     if isinstance(outcome.record.get("units"), dict):  # a system's run: its columns' own units
         units = dict(outcome.record["units"])

@@ -60,28 +60,25 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 click.echo(note, err=True)
     pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
+    from toggle_cosim.cosim.checked import SystemError_, check_run
     from toggle_cosim.cosim.supervision import probe_columns
-    from toggle_cosim.cosim.systems import SystemError_, system_columns
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     noted: set[str] = set()
     for run, plant in pairs:  # every name and value the run sets, and its controller, before any run starts
         try:
             check_settings(run, plant)
-            if run.controller.python is None and run.controller.fmu is None:
-                controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
-            # a user's controller: checked without running its code, which runs in the run's child alone
-            fmu = check_user_controller(run, plant.recorded_outputs)
-            if run.controller.python is not None and run.controller.error is not None:
+            # the run as the master checks it: the controller (a user's without running its code, which
+            # runs in the run's child alone), the parts, connections, units and order; nothing loaded
+            checked = check_run(run, plant)
+            if checked.builds_controller and run.controller.error is not None:
                 # a python-control system: built and checked in a supervised child, as a sweep's
                 # controllers are, so a system the run cannot take (continuous-time, another dt,
                 # other inputs) is refused before any run
                 probe_columns(run, plant)
-            if not run.system.is_pair and run.controller.python is None:
-                system_columns(run, plant)  # connections, units, order: every check, nothing loaded
         except (SettingError, ControllerError, SystemError_) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
+        fmu = getattr(checked.controller, "fmu", None)  # a controller FMU's contract, as checked
         for warning in getattr(fmu, "warnings", ()):  # a controller FMU's missing units, once per file
             if f"{fmu.path}: {warning}" not in noted:
                 noted.add(f"{fmu.path}: {warning}")

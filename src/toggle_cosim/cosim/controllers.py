@@ -26,9 +26,11 @@ built-in law's parameters (`controller_contract.LAW_PARAMETERS`) first gets the 
 controller settings. Every failure is a `ControllerError` whose message names the key and
 the fix; the run commands prefix the scenario file.
 
-`controller_for` runs the user's code (imports the module, calls the factory, loads the FMU):
-the run commands call it only in the run's supervised child (`supervision`); before any run
-they call `check_user_controller`, which runs none of it.
+`user_controller` runs the user's code (imports the module, calls the factory): the run
+commands call it only in the run's supervised child (`supervision`); `own_controller` (the
+built-in law, a controller FMU with its binary not loaded) and `check_user_controller` run none
+of it, and the run's check (`checked.check_run`) calls them before any run. `controller_for` is
+either, as the run asks.
 """
 
 from __future__ import annotations
@@ -66,8 +68,10 @@ __all__ = [
     "is_python_control_system",
     "load_factory",
     "one_line",
+    "own_controller",
     "run_reference",
     "system_controller",
+    "user_controller",
 ]
 
 
@@ -336,47 +340,70 @@ def _fmu_controller(run: Run, outputs: Sequence[str]) -> ControllerFmuPart:
 
 
 def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
-    """The controller of `run`: the built-in VSC, or what controller.python's factory returns
-    (a python-control system adapted), checked against the protocol; `outputs` are the plant's
-    recorded outputs (the measurement's names, which diagnostics may not reuse). Raises
-    ControllerError with the one-line reason."""
+    """The controller of `run`: the built-in VSC or its controller FMU (`own_controller`), or what
+    controller.python's factory returns (`user_controller`, a python-control system adapted),
+    checked against the protocol; `outputs` are the plant's recorded outputs (the measurement's
+    names, which diagnostics may not reuse). Raises ControllerError with the one-line reason."""
+    if run.controller.python is None or run.controller.fmu is not None:
+        return own_controller(run, outputs)
+    return user_controller(run, outputs)
+
+
+def own_controller(run: Run, outputs: Sequence[str] = ()) -> Controller:
+    """The run's controller when it runs no code of the user's (no controller.python): the
+    built-in VSC, or controller.fmu's `ControllerFmuPart` (its archive checked, its binary not
+    loaded), checked against the protocol. Raises ControllerError with the one-line reason."""
     try:
-        return _controller_for(run, outputs)
+        if run.controller.fmu is not None:
+            return _checked(run, _fmu_controller(run, outputs), outputs)
+        return _checked(run, builtin_controller(run), outputs)
     except ControllerError as error:  # the scenario's module names, as the scenario gave them
         raise ControllerError(user_code.shown(str(error))) from None
 
 
-def _controller_for(run: Run, outputs: Sequence[str]) -> Controller:
+def user_controller(run: Run, outputs: Sequence[str] = ()) -> Controller:
+    """What controller.python's factory returns (its module imported, the factory called: the
+    user's code runs, in the run's child), a python-control system adapted (`system_controller`),
+    checked against the protocol. Raises ControllerError with the one-line reason."""
+    try:
+        return _checked(run, _user_controller(run, outputs), outputs)
+    except ControllerError as error:  # the scenario's module names, as the scenario gave them
+        raise ControllerError(user_code.shown(str(error))) from None
+
+
+def _user_controller(run: Run, outputs: Sequence[str]) -> Any:
     settings = run.controller
-    if settings.fmu is not None:
-        controller: Any = _fmu_controller(run, outputs)
-    elif settings.python is None:
-        controller = builtin_controller(run)
-    else:
-        factory = load_factory(settings.python, run.source.parent if run.source is not None else None)
-        try:
-            controller = factory(_context(run, outputs), **dict(settings.parameters))
-        except BaseException as error:  # noqa: BLE001 - the user's factory: any failure is the message
-            if not interrupts.raised_by_code(error):
-                raise
-            names = ", ".join(settings.parameters) or "none"
+    assert settings.python is not None
+    factory = load_factory(settings.python, run.source.parent if run.source is not None else None)
+    try:
+        controller = factory(_context(run, outputs), **dict(settings.parameters))
+    except BaseException as error:  # noqa: BLE001 - the user's factory: any failure is the message
+        if not interrupts.raised_by_code(error):
+            raise
+        names = ", ".join(settings.parameters) or "none"
+        raise ControllerError(
+            f"key controller.python: {settings.python} raised {one_line(error)} (called with the context and"
+            f" controller.parameters: {names}; fix the factory or the parameters)"
+        ) from None
+    if is_python_control_system(controller):
+        if settings.error is None:
             raise ControllerError(
-                f"key controller.python: {settings.python} raised {one_line(error)} (called with the context and"
-                f" controller.parameters: {names}; fix the factory or the parameters)"
-            ) from None
-        if is_python_control_system(controller):
-            if settings.error is None:
-                raise ControllerError(
-                    f"key controller.error: missing; {settings.python} returned a python-control system, so name the"
-                    " plant output it reads (error: {output: x_B})"
-                )
-            controller = system_controller(controller, run, outputs, settings.python)
-        elif settings.error is not None or settings.discretise is not None:
-            key = "error" if settings.error is not None else "discretise"
-            raise ControllerError(
-                f"key controller.{key}: {settings.python} returned a controller, not a python-control system; the {key}"
-                " is for python-control systems only (remove it: the controller reads the measurement itself)"
+                f"key controller.error: missing; {settings.python} returned a python-control system, so name the"
+                " plant output it reads (error: {output: x_B})"
             )
+        return system_controller(controller, run, outputs, settings.python)
+    if settings.error is not None or settings.discretise is not None:
+        key = "error" if settings.error is not None else "discretise"
+        raise ControllerError(
+            f"key controller.{key}: {settings.python} returned a controller, not a python-control system; the {key}"
+            " is for python-control systems only (remove it: the controller reads the measurement itself)"
+        )
+    return controller
+
+
+def _checked(run: Run, controller: Any, outputs: Sequence[str]) -> Controller:
+    """`controller` checked against the protocol, a failure naming its key (controller.python, .fmu)."""
+    settings = run.controller
     try:
         check_controller(controller, outputs)
     except ControllerError as error:

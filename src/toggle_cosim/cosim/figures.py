@@ -24,9 +24,10 @@ def _number(value: object) -> float | None:
 
 
 def trace_prefixes(run: Run, trace: Trace) -> tuple[str, str]:
-    """The prefixes of the plant's and the controller's columns in the trace: none for the pair's
-    columns (`x_B`), else the system's component names (`plant.`, `controller.`)."""
-    if run.system.is_pair or "x_B" in trace.names:
+    """The prefixes of the plant's and the controller's columns in the trace, read from its
+    columns: none for the pair's (`x_B`), else the system's component names (`plant.`,
+    `controller.`)."""
+    if "x_B" in trace.names:
         return "", ""
     return f"{run.system.plant}.", f"{run.system.controller}."
 

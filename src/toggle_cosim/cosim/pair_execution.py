@@ -39,19 +39,19 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
-from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
-from toggle_cosim.cosim.controllers import ControllerFmuPart, controller_for, controller_record
+from toggle_cosim.control.protocol import COMMAND_COLUMNS
+from toggle_cosim.cosim.checked import CheckedRun, pair_ports
+from toggle_cosim.cosim.controllers import controller_record
 from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
 from toggle_cosim.cosim.plant_inputs import other_inputs
 from toggle_cosim.cosim.slaves import SlaveError
 from toggle_cosim.cosim.system_retry import CheckpointOptions, ComponentWords, failure_text
-from toggle_cosim.cosim.systems import simulate_system
+from toggle_cosim.cosim.systems import execute
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, said_in
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
-from toggle_cosim.system.model import Port, Wiring
 
 __all__ = [
     "INPUTS",
@@ -63,8 +63,7 @@ __all__ = [
     "trace_names",
 ]
 
-INPUTS = COMMAND_COLUMNS
-COMMAND, LOAD = INPUTS  # iq_ref (the controller's output), F_E (the plant's input)
+INPUTS = COMMAND_COLUMNS  # iq_ref (the controller's output), F_E (the plant's input)
 
 
 def trace_names(
@@ -100,20 +99,6 @@ def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float
         run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None, warnings=None, controller=None
     )
     return RunOutcome(run, trace, False, reason, wall, 0.0, None, record)
-
-
-def pair_ports(
-    wiring: Wiring, plant: PlantInterface, diagnostics: tuple[str, ...], inputs: tuple[str, ...]
-) -> tuple[Port, ...]:
-    """The ports whose values are the pair's trace columns after time (`trace_names`), in its order."""
-    p, c = wiring.plant, wiring.controller
-    return (
-        *(Port(p, name) for name in plant.recorded_outputs),
-        Port(c, COMMAND),
-        Port(p, LOAD),
-        *(Port(c, name) for name in diagnostics),
-        *(Port(p, name) for name in inputs),
-    )
 
 
 def pair_loop(loop: dict[str, Any], stepping: Stepping | None) -> dict[str, Any]:
@@ -176,55 +161,34 @@ class PlantWords:
 
 
 def simulate_pair_as_system(
-    run: Run,
-    plant: PlantInterface,
+    checked: CheckedRun,
     progress: Callable[[float], None] | None = None,
     buffer: np.ndarray | None = None,
-    controller: Controller | None = None,
-    coupling: str | None = None,
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
     pool: InstancePool | None = None,
+    started: float | None = None,
 ) -> RunOutcome:
-    """Run the plain pair `run` (`Run.system.is_pair`) in the execution with the pair's trace and
-    run.json (module docstring); arguments as `master.simulate`'s. Never raises for a plant or
-    controller fault: see RunOutcome."""
-    started = clock.perf_counter()
-    try:
-        if controller is None:
-            controller = controller_for(run, plant.recorded_outputs)
-        diagnostics = tuple(check_controller(controller, plant.recorded_outputs))
-        if isinstance(controller, ControllerFmuPart) and controller.reference is not None:
-            raise ControllerError(
-                f"key controller.fmu: {controller.fmu.path.name} would track stroke.trajectory, but the execution does"
-                " not feed a controller FMU's reference inputs yet (run the trajectory with the built-in law, or"
-                " remove stroke.trajectory)"
-            )
-    except ControllerError as error:
-        close_controller(controller)
-        return refused_outcome(run, plant, str(error), started)
-    others = other_inputs(run)
-    wiring = dataclasses.replace(run.system, record=pair_ports(run.system, plant, diagnostics, others))
-    options = CheckpointOptions(lead=1)
-    outcome = simulate_system(
-        dataclasses.replace(run, system=wiring),
-        plant,
+    """Run the plain pair, checked (`checked.check_run`: its trace the pair's columns,
+    `CheckedRun.pair`), in the execution with the pair's trace and run.json (module docstring);
+    arguments as `systems.execute`'s. Never raises for a plant or controller fault: see
+    RunOutcome."""
+    run = checked.run
+    outcome = execute(
+        checked,
         progress,
         buffer,
-        controller,
-        coupling,
         count,
         calling,
-        checkpoints=options,
+        checkpoints=CheckpointOptions(lead=1),
         pool=pool,
         words=PlantWords(run.system.plant, run.system.controller),
+        started=started,
     )
-    names = trace_names(plant, diagnostics, others)
     record = {key: value for key, value in outcome.record.items() if key not in ("system", "units")}
-    record["controller"] = controller_record(run, controller)
+    record["controller"] = controller_record(run, checked.controller)
     record["loop"] = pair_loop(outcome.record["loop"], outcome.stepping)
     record["retries"] = [
         {key: value for key, value in entry.items() if key != "component"} for entry in record["retries"]
     ]
-    ran = dataclasses.replace(outcome.run, system=run.system)  # the run as given, its coupling as run
-    return dataclasses.replace(outcome, run=ran, trace=Trace(names, outcome.trace.data), record=record)
+    return dataclasses.replace(outcome, trace=Trace(checked.names, outcome.trace.data), record=record)

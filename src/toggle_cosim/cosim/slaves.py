@@ -101,7 +101,8 @@ class FmuSlave:
     feeds (`Plan.input_names`), `outputs` the variables it reads every sample
     (`Plan.output_names`), both set by `bind` before `instantiate`. `pool`: where its instance
     comes from and goes back to (`instance_pool`: kept loaded from run to run); None: loaded
-    for this run and unloaded by `close`."""
+    for this run and unloaded by `close`. `interface`: its connectors as the run's check found
+    them (`checked.FmuComponent`); None: read from its model description here."""
 
     def __init__(
         self,
@@ -110,11 +111,12 @@ class FmuSlave:
         values: Sequence[tuple[str, Value]] = (),
         observed: Sequence[str] = (),
         pool: InstancePool | None = None,
+        interface: Interface | None = None,
     ):
         self.name, self.path, self.values = name, Path(fmu.path), tuple(values)
         self.description, self.sha256 = fmu.model_description, fmu.sha256
         self.variables = {v.name: v for v in self.description.modelVariables}
-        self.interface = fmu_interface(self.description, observed)
+        self.interface = interface if interface is not None else fmu_interface(self.description, observed)
         self.fmi3 = self.description.fmiVersion.startswith("3")
         self._slave: Any = None
         self._unzipped: Path | None = None
@@ -493,19 +495,16 @@ class ControllerSlave:
         name: str,
         controller: Controller,
         diagnostics: Sequence[str],
-        command: str = "iq_ref",
-        units: Mapping[str, str | None] | None = None,
-        readable: Sequence[str] = (),
+        interface: Interface,
     ):
-        """`units`: its connectors' units by name (the plant's variables of those names: what
-        the controller measures and commands), None: none declared. Its inputs are the names it
-        declares it measures (`measured`), else `readable` (the plant's outputs, which its
-        measurement holds in the plant + controller loop); its measurement holds those fed."""
+        """`interface`: its connectors as the run's check found them (`checked.NativeComponent`):
+        its inputs the names it declares it measures (`measured`), else the plant's outputs
+        (which its measurement holds in the plant + controller loop), its outputs the command
+        and `diagnostics`, in the units of the plant's variables of their names; its measurement
+        holds those fed."""
         self.name, self.controller = name, controller
-        measured = tuple(getattr(controller, "measured", None) or readable)
-        outputs = (command, *diagnostics)
-        units = {n: (units or {}).get(n) for n in (*measured, command)}
-        self.interface = Interface(measured, outputs, {output: measured for output in outputs}, units)
+        self.interface = interface
+        measured, outputs = interface.inputs, interface.outputs
         self.bind(measured, outputs)
         self._state: Any = None
         self._next: Any = None

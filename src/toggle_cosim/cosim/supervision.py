@@ -53,10 +53,11 @@ import numpy as np
 
 from toggle_cosim import interrupts, limits, process_tree
 from toggle_cosim.control.controller import VSCController
-from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
+from toggle_cosim.control.protocol import Controller, ControllerError
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
-from toggle_cosim.cosim.controllers import controller_for, controller_record
+from toggle_cosim.cosim.checked import CheckedRun, SystemError_, built, check_run, component_names
+from toggle_cosim.cosim.controllers import controller_record, user_controller
 from toggle_cosim.cosim.exit_reasons import (
     building_reason,
     component_reason,
@@ -68,7 +69,6 @@ from toggle_cosim.cosim.exit_reasons import (
     stopped_in_controller,
 )
 from toggle_cosim.cosim.figures import run_figures
-from toggle_cosim.cosim.systems import SystemError_, component_names, system_columns
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.plant.contract import PlantInterface
@@ -239,37 +239,34 @@ def _messages(chunks: list[bytes]) -> list[tuple]:
     return found
 
 
-def _build_controller(
-    run: Run, plant: PlantInterface, buffer_fd: int, write_fd: int
-) -> tuple[Controller, np.ndarray | None]:
-    """In the child: the run's user controller (controller.python imported and its factory called,
-    or controller.fmu), checked; its trace columns and record sent to the parent ("columns"), and
-    the trace buffer sized for them in the file the parent opened (`buffer_fd`). A controller that
-    cannot be built raises ControllerError (the run is refused with the reason)."""
+def _build_controller(checked: CheckedRun, buffer_fd: int, write_fd: int) -> tuple[CheckedRun, np.ndarray | None]:
+    """In the child: the run's controller.python built (its module imported, its factory called)
+    and what only that instance tells checked (its diagnostics, and with them the connections,
+    the plan and the columns: `checked.built`); its trace columns and record sent to the parent
+    ("columns"), and the trace buffer sized for them in the file the parent opened
+    (`buffer_fd`). A controller that cannot be built raises ControllerError (the run is refused
+    with the reason)."""
+    run, plant = checked.run, checked.plant
     try:
-        controller = controller_for(run, plant.recorded_outputs)
-        diagnostics = check_controller(controller, plant.recorded_outputs)
+        controller = user_controller(run, plant.recorded_outputs)
+        checked = built(checked, controller)
     except ControllerError:
         raise
+    except SystemError_ as error:
+        raise ControllerError(str(error)) from None
     except BaseException as error:  # noqa: BLE001 - the user's code: SystemExit, KeyboardInterrupt included
         raise ControllerError(f"building the controller raised {error_text(error)}") from None
-    if run.system.is_pair:
-        names = master.trace_names(plant, diagnostics, master.other_inputs(run))
-    else:  # a system: its recorded ports (`systems.system_columns`)
-        try:
-            names = system_columns(run, plant, controller)
-        except SystemError_ as error:
-            raise ControllerError(str(error)) from None
+    names = checked.names
     size = (run.steps + 1) * len(names) * 8
     if size > limits.max_output():
         raise ControllerError(
-            f"the controller's {len(diagnostics)} diagnostics make the trace {run.steps + 1} samples x {len(names)}"
-            f" columns, about {size / 1e9:.2f} GB, over the {limits.max_output() / 1e9:.2f} GB output limit"
-            " (record fewer diagnostics, or raise TOGGLE_COSIM_MAX_OUTPUT)"
+            f"the controller's {len(checked.diagnostics)} diagnostics make the trace {run.steps + 1} samples x"
+            f" {len(names)} columns, about {size / 1e9:.2f} GB, over the {limits.max_output() / 1e9:.2f} GB output"
+            " limit (record fewer diagnostics, or raise TOGGLE_COSIM_MAX_OUTPUT)"
         )
     if buffer_fd < 0:  # a probe (`probe_columns`): the columns alone
         _send(write_fd, ("columns", names, controller_record(run, controller)))
-        return controller, None
+        return checked, None
     size = max((run.steps + 1) * len(names) * 8, 8)
     os.ftruncate(buffer_fd, size)
     if hasattr(os, "posix_fallocate"):
@@ -278,24 +275,24 @@ def _build_controller(
     buffer = np.frombuffer(mapped, dtype=np.float64, count=(run.steps + 1) * len(names)).reshape(-1, len(names))
     buffer.fill(np.nan)
     _send(write_fd, ("columns", names, controller_record(run, controller)))
-    return controller, buffer
+    return checked, buffer
 
 
 def _plant_process(
     run: Run,
-    plant: PlantInterface,
+    checked: CheckedRun,
     buffer: np.ndarray | None,
     progress_slot: np.ndarray | None,
     workdir: Path,
     write_fd: int,
-    controller: Controller | None,
     buffer_fd: int,
     count: np.ndarray,
     calling: np.ndarray | None = None,
 ) -> None:
-    """The plant's process: build the user's controller if the parent has none (`_build_controller`),
-    run, send the outcome (no trace) back, exit without cleanup. Its stdout and stderr are the
-    parent's relay (`relay.OutputRelay`)."""
+    """The plant's process: build the user's controller.python where the parent checked the run
+    without it (`_build_controller`), run what the parent checked (`master.simulate(...,
+    checked=)`: nothing is checked again), send the outcome (no trace) back, exit without
+    cleanup. Its stdout and stderr are the parent's relay (`relay.OutputRelay`)."""
     code = 0
     try:
         limit_memory()
@@ -305,9 +302,9 @@ def _plant_process(
         def progress(fraction: float) -> None:
             progress_slot[0] = fraction
 
-        if controller is None:
+        if checked.builds_controller:
             try:
-                controller, buffer = _build_controller(run, plant, buffer_fd, write_fd)
+                checked, buffer = _build_controller(checked, buffer_fd, write_fd)
             except ControllerError as error:
                 _send(write_fd, ("refused", bounded_text(str(error))))
                 os._exit(0)
@@ -315,17 +312,18 @@ def _plant_process(
                 with contextlib.suppress(OSError):
                     os.fchdir(here)  # a module that changed directory at import moves nothing of the run's
             if buffer is None:  # a probe: built and checked, nothing to run
-                master.close_controller(controller)
+                master.close_controller(checked.controller)
                 _send(write_fd, ("probed",))
                 os._exit(0)
         outcome = master.simulate(
             run,
-            plant,
+            checked.plant,
             progress if progress_slot is not None else None,
             buffer=buffer,
-            controller=controller,
+            controller=checked.controller,
             count=count,
             calling=calling,
+            checked=checked,
         )
         if outcome.interrupted:  # SIGINT is ignored here: user code raised KeyboardInterrupt itself
             reason = "the run's code raised KeyboardInterrupt (not an interrupt of the command)"
@@ -415,13 +413,15 @@ class SupervisedRun:
     descriptors and folder; both are safe to call at any moment and more than once. Several
     children may run at once (`supervised_batch`), each under its own deadline.
 
-    The controller given (`controller`), or the scenario's built-in law, is built here, in the
-    parent, and the child inherits it; one that cannot be built fails the run before any child
-    starts. A user's controller (controller.python, controller.fmu) is built in the child alone,
-    under the run's time limit: the parent never runs the user's code. Its diagnostics are
-    columns of the trace, so the child sizes the trace buffer (a file the parent opened before the
-    fork, with no name) and sends the columns first; whatever ends the child before that (an exit,
-    a crash, SystemExit, the time limit) fails the run as the controller's failure.
+    The run is checked here, in the parent, once (`checked.check_run`: the controller given, the
+    scenario's built-in law or its controller FMU's contract, the parts, connections, units,
+    plan and columns; no binary loaded, no code of the user's run), and the child inherits the
+    result and only instantiates and steps it; a run refused there fails before any child starts.
+    A controller.python is built in the child alone, under the run's time limit: the parent never
+    runs the user's code. Its diagnostics are columns of the trace, so the child checks what that
+    instance tells (`checked.built`), sizes the trace buffer (a file the parent opened before the
+    fork, with no name) and sends the columns first; whatever ends the child before that (an
+    exit, a crash, SystemExit, the time limit) fails the run as the controller's failure.
 
     The child's stdout and stderr are pipes the parent reads while it waits and relays, capped,
     once the run is over (`relay`)."""
@@ -436,32 +436,37 @@ class SupervisedRun:
         with_progress: bool = False,
         controller: Controller | None = None,
         probe: bool = False,
+        checked: CheckedRun | None = None,
     ) -> None:
         self._probe = probe  # only build the user's controller and send its columns (`probe_columns`)
         self.run = run
         self.plant = plant
         self.limit = time_limit_of(run, time_limit)
         self.started = clock.perf_counter()
-        self.refused: str | None = None  # why the controller could not be built
-        self.controller: Controller | None = None
-        # a user's controller is built in the child (`_build_controller`): its columns come from there
-        self.deferred = controller is None and (
-            run.controller.python is not None or run.controller.fmu is not None or not run.system.is_pair
+        self.refused: str | None = None  # why the controller or the system was refused
+        self.reason: str | None = None
+        # the one check of the run (`checked.check_run`), here, before the fork: the child inherits it
+        self.checked: CheckedRun | None = checked  # given: checked by the caller, with `controller`
+        try:
+            if checked is None:
+                self.checked = check_run(run, plant, controller)
+        except (ControllerError, SystemError_) as error:
+            self.refused = str(error)
+        except ValueError as error:  # a plant setting the plant does not have: the run cannot start
+            self.reason = f"the plant could not be run: {error_text(error)}"
+        # a controller.python is built in the child (`_build_controller`): its columns come from there
+        self.deferred = self.checked is not None and self.checked.builds_controller
+        complete = self.checked is not None and self.checked.complete
+        self.names = (
+            self.checked.names
+            if complete
+            else master.trace_names(plant, VSCController.diagnostics, master.other_inputs(run))
         )
-        diagnostics = VSCController.diagnostics
-        if not self.deferred:
-            try:
-                self.controller = controller if controller is not None else controller_for(run, plant.recorded_outputs)
-                diagnostics = check_controller(self.controller, plant.recorded_outputs)
-            except ControllerError as error:
-                self.controller, self.refused = None, str(error)
-        self.names = master.trace_names(plant, diagnostics, master.other_inputs(run))
         self._buffer_fd = -1  # deferred: the trace buffer's file, sized by the child
         self._built: tuple | None = None  # deferred: the child's ("columns", names, controller record)
         self.relay: OutputRelay | None = None
         self.pid = -1
         self.status: int | None = None
-        self.reason: str | None = None
         self.interrupted = False
         self.done = False
         self._read_fd = self._pidfd = -1
@@ -481,7 +486,7 @@ class SupervisedRun:
         """Make the run's folder, map the trace buffer and fork the child; its deadline runs from
         here. A run that cannot start (no scratch space, no descriptor left) is done at once and
         fails alone, with the reason."""
-        if self.refused is not None:
+        if self.refused is not None or self.checked is None:
             self.done = True
             return
         try:
@@ -521,12 +526,11 @@ class SupervisedRun:
             plant_process = functools.partial(
                 _plant_process,
                 self.run,
-                self.plant,
+                self.checked,
                 None if self.deferred else self.buffer,
                 self.progress_slot,
                 self._workdir,
                 write_fd,
-                self.controller,
                 self._buffer_fd,
                 self.count,
                 self.calling,
@@ -674,7 +678,7 @@ class SupervisedRun:
             if reason is None:
                 reason = self._exit_reason(answer)
             at = f" at t = {max(rows - 1, 0) * run.T_s:.6g} s" if rows else " before the first sample"
-            users = self.deferred or (self.controller is not None and type(self.controller) is not VSCController)
+            users = self.checked is not None and self.checked.runs_users_code
             in_controller = (
                 users  # the built-in law neither crashes nor hangs: a stop there is the plant's
                 and not self.interrupted
@@ -691,14 +695,15 @@ class SupervisedRun:
                 reason = f"{reason}{at}"
         reason = bounded_text(reason)
         status_word = "interrupted" if self.interrupted else "failed"
+        given = self.checked.controller if self.checked is not None else None
         if self._built is not None:
             controller = self._built[2]
-        elif self.deferred:
+        elif given is None:
             controller = None
         else:
-            controller = controller_record(run, self.controller)
+            controller = controller_record(run, given)
         # the samples recorded before the end: their figures of merit, a partial summary
-        summary, warnings = run_figures(run, trace, self._built[2] if self._built is not None else self.controller)
+        summary, warnings = run_figures(run, trace, self._built[2] if self._built is not None else given)
         record = outcomes.run_record(
             run, plant, status_word, reason, rows, wall, wall, summary, warnings=warnings, controller=controller
         )
@@ -706,8 +711,9 @@ class SupervisedRun:
 
     def _called(self) -> str | None:
         """The component of a system whose call was under way when its process ended, in words
-        (`component_words`); None for the pair, or outside any call."""
-        if self.calling is None or self.run.system.is_pair:
+        (`component_words`); None for a run with the pair's trace (`CheckedRun.pair`), or
+        outside any call."""
+        if self.calling is None or self.checked is None or self.checked.pair:
             return None
         number = int(self.calling[0])
         names = component_names(self.run.system)
@@ -750,11 +756,14 @@ def simulate_supervised(
     progress: Callable[[float], None] | None = None,
     scratch: Path | None = None,
     controller: Controller | None = None,
+    checked: CheckedRun | None = None,
 ) -> outcomes.RunOutcome:
     """`master.simulate` in a supervised child process; never raises for anything the plant or
     the controller does. `controller`: as for `master.simulate` (the child inherits it); None:
-    the run's own, built in the child. What the child prints is written to this process's
-    sys.stdout and sys.stderr once the run is over, capped (`relay`).
+    the run's own, built in the child. `checked`: the run as `checked.check_run` checked it with
+    `controller`, by a caller that checked it before (None: checked here, before the fork).
+    What the child prints is written to this process's sys.stdout and sys.stderr once the run
+    is over, capped (`relay`).
 
     An interrupt (KeyboardInterrupt) during the run kills the child and returns the run as
     interrupted (`outcome.interrupted`); the caller stops after writing it."""
@@ -765,6 +774,7 @@ def simulate_supervised(
         scratch=scratch,
         with_progress=progress is not None,
         controller=controller,
+        checked=checked,
     )
     try:
         child.start()
@@ -781,11 +791,15 @@ def simulate_supervised(
 
 
 def probe_columns(run: Run, plant: PlantInterface, time_limit: float | None = None) -> tuple[str, ...]:
-    """The trace columns of `run` with its user's controller (controller.python or controller.fmu),
-    found by building and checking the controller in a supervised child (under the run's time
-    limit, or `time_limit`), never in this process. Raises ControllerError with the one-line
+    """The trace columns of `run`: the run's check's (`checked.check_run`), or with a
+    controller.python, found by building and checking the controller in a supervised child
+    (under the run's time limit, or `time_limit`), never in this process. Raises ControllerError with the one-line
     reason: the controller's own refusal, or what ended the child (an exit, a crash, the limit)."""
     child = SupervisedRun(run, plant, time_limit=time_limit, probe=True)
+    if child.refused is not None or child.checked is None:
+        raise ControllerError(child.refused or child.reason or "the run could not be checked")
+    if not child.deferred:  # nothing of the user's to build: the parent's check knows the columns
+        return child.names
     try:
         child.start()
         while not child.done:
@@ -796,11 +810,9 @@ def probe_columns(run: Run, plant: PlantInterface, time_limit: float | None = No
         if child.relay is not None:
             child.relay.relay()
     messages = child.messages()
-    built = next((message for message in messages if message[0] == "columns"), None)
-    if built is not None:
-        return tuple(built[1])
-    if child.refused is not None:
-        raise ControllerError(child.refused)
+    columns = next((message for message in messages if message[0] == "columns"), None)
+    if columns is not None:
+        return tuple(columns[1])
     refused = next((message for message in messages if message[0] == "refused"), None)
     if refused is not None:
         raise ControllerError(refused[1])

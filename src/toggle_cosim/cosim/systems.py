@@ -1,28 +1,16 @@
-"""A run as a system (`system.model`), and the run of one (`simulate_system`).
+"""A system's run: the components of a checked run (`checked.CheckedRun`) instantiated and
+stepped by an `Execution` (execution.py), and its outcome.
 
-Every run's system (`Run.system`; the plain pair through `pair_execution`) is stepped by an
-`Execution` (execution.py) over these components:
+Every run's system is stepped here, the plain pair's too (through `pair_execution`).
+What a run is made of (the plant, the controller, the parts, the signals), how its connections,
+units, order and record are checked and its plan built is `checked.check_run`'s, in the process
+that starts the run; here those components become slaves and are stepped:
 
-* the plant (component `plant`, or an SSD's name for it): the run's plant FMU with the values
-  the scenario gives it (`master.plant_settings`);
-* the controller (`controller`): a controller FMU as an FMU component, any other controller (the
-  built-in law, a user's Python controller, a python-control system) natively (`ControllerSlave`);
-* the parts (`Wiring.parts`): FMUs with their values;
-* the signals: the plant inputs the scenario gives as numbers or signals in time (F_E,
-  plant.inputs) that no connection feeds, sampled at every t_k (`master.input_samples`).
-
-Connections are the run's own, or the pair's wiring (each controller input from the plant output
-of its name, the command to the plant's iq_ref). Each is checked before anything is loaded:
-both ends exist, it runs from an output to an input, no input is fed twice, the units match or
-convert (`unit_conversion`: the same dimension, factor and offset from the FMUs' unit
-definitions; anything else refused). The order comes from the connections and the components'
-direct dependencies (`system.graph`): an algebraic loop is refused naming its cycle. The pair's
-own wiring is stepped in the pair's order, the plant then the controller: the plant's outputs
-at t_k are read before the command of sample k is set (a controller that measures an output the
-command feeds directly, such as a_B, reads it with the command of sample k - 1).
-
-The trace records every connector (`component.variable`: outputs, then fed inputs, in stepping
-order) or the run's `record:` list, which may name any variable of an FMU component.
+* an FMU component (the plant, a controller FMU, a part) as an `FmuSlave`, its instance loaded
+  here or taken from a pool (`instance_pool`);
+* any other controller (the built-in law, a user's Python controller, a python-control system)
+  natively (`ControllerSlave`; the built-in law and a python-control system then run in C in the
+  compiled system loop: `system_natives`).
 
 Either loop runs in stretches between checkpoints (`system_retry.SystemCheckpoints`): a
 component's refused step is retried from the last one, and run.json lists each retry
@@ -32,53 +20,54 @@ component's refused step is retried from the last one, and run.json lists each r
 from __future__ import annotations
 
 import dataclasses
-import functools
 import time as clock
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from toggle_cosim.control.protocol import Controller, ControllerError, check_controller
+from toggle_cosim.control.protocol import Controller, ControllerError
 from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
-from toggle_cosim.cosim.controllers import ControllerFmuPart, controller_for
+from toggle_cosim.cosim.checked import (
+    CheckedRun,
+    FmuComponent,
+    SystemError_,
+    built,
+    check_run,
+    component_names,
+    pair_connections,
+    unit_conversion,
+)
+from toggle_cosim.cosim.controllers import user_controller
 from toggle_cosim.cosim.execution import Execution, TraceObserver
 from toggle_cosim.cosim.figures import run_figures
-from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
-from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
 from toggle_cosim.cosim.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
-from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
-from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterface, read_fmu
+from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
-from toggle_cosim.system.graph import AlgebraicLoop, gauss_seidel_order
-from toggle_cosim.system.interfaces import SettableError, check_settable
-from toggle_cosim.system.model import Connection, Interface, Part, Port, Wiring
-from toggle_cosim.system.plan import Plan, build_plan
-from toggle_cosim.system.units import BASE, UnitDefinitionError, conversion, unit_meaning
+from toggle_cosim.system.model import Connection
+from toggle_cosim.system.plan import Plan
 
 __all__ = [
     "SystemError_",
     "Assembly",
     "assemble",
     "component_names",
+    "execute",
+    "instantiate",
+    "pair_connections",
+    "ready",
+    "refused",
     "simulate_system",
     "system_columns",
     "unit_conversion",
 ]
-
-COMMAND = "iq_ref"
-
-
-class SystemError_(ValueError):  # noqa: N801 - `SystemError` is a builtin
-    """A system that cannot run as written; str() is one line naming what and the fix."""
 
 
 @dataclass
@@ -103,97 +92,40 @@ class Assembly:
                 slave.close()
 
 
-def unit_conversion(
-    connection: Connection, start: tuple[str | None, Any], end: tuple[str | None, Any]
-) -> tuple[float, float] | None:
-    """The (factor, offset) that turns the start's unit into the end's (None: the same unit, or
-    either has none: the value is passed as it is). `start`, `end`: (unit, the FMU's model
-    description or None). SystemError_ for units of different dimensions or unknown units."""
-    (unit_s, desc_s), (unit_e, desc_e) = start, end
-    if not unit_s or not unit_e or unit_s == unit_e:
-        return None
-    try:
-        m_s, m_e = unit_meaning(unit_s, desc_s), unit_meaning(unit_e, desc_e)
-    except UnitDefinitionError as error:
-        raise SystemError_(f"the connection {connection}: {error}") from None
-    if m_s is None or m_e is None:
-        unknown = unit_s if m_s is None else unit_e
-        raise SystemError_(
-            f"the connection {connection} joins the units {unit_s!r} and {unit_e!r}, and {unknown!r} is not defined "
-            "(declare it in the FMU's UnitDefinitions or connect variables of the same unit)"
-        )
-    if m_s[: len(BASE)] != m_e[: len(BASE)]:
-        raise SystemError_(
-            f"the connection {connection} joins {unit_s!r} to {unit_e!r}, of different dimensions (connect "
-            "variables of the same quantity)"
-        )
-    if m_s[-2:] == m_e[-2:]:
-        return None
-    return conversion(m_s, m_e)
+def ready(checked: CheckedRun) -> CheckedRun:
+    """`checked` with its controller.python built here, in this process (`controllers.user_controller`:
+    the user's factory runs), and checked (`checked.built`); a checked run that needs no
+    building as it is. A run's supervised child builds it itself (`supervision`). Raises
+    ControllerError or SystemError_."""
+    if not checked.builds_controller:
+        return checked
+    return built(checked, user_controller(checked.run, checked.plant.recorded_outputs))
 
 
-def component_names(wiring: Wiring) -> tuple[str, ...]:
-    """A system's components as a run lists them: the plant, the controller, then the parts in
-    the order written. A component's id while the master calls it is 1 + its place here
-    (`simulate_system`'s `calling`)."""
-    return (wiring.plant, wiring.controller, *(part.name for part in wiring.parts))
-
-
-def pair_connections(wiring: Wiring, controller_inputs: Sequence[str]) -> tuple[Connection, ...]:
-    """The pair's wiring: each controller input from the plant output of its name, the command to the plant."""
-    p, c = wiring.plant, wiring.controller
-    return (
-        *(Connection(Port(p, name), Port(c, name)) for name in controller_inputs),
-        Connection(Port(c, COMMAND), Port(p, COMMAND)),
+def instantiate(checked: CheckedRun, pool: InstancePool | None = None) -> Assembly:
+    """The slaves of a complete checked run, in its stepping order (nothing is loaded until the
+    execution initialises them): an FMU component as an `FmuSlave` (its instance from `pool`
+    when given), a native controller as a `ControllerSlave`."""
+    assert checked.plan is not None and checked.signals is not None
+    slaves: dict[str, Slave] = {}
+    for component in checked.components:
+        assert component is not None
+        if isinstance(component, FmuComponent):
+            slaves[component.name] = FmuSlave(
+                component.name, component.fmu, component.values, pool=pool, interface=component.interface
+            )
+        else:
+            slaves[component.name] = ControllerSlave(
+                component.name, component.controller, component.diagnostics, component.interface
+            )
+    return Assembly(
+        [slaves[name] for name in checked.order],
+        checked.plan,
+        checked.signals,
+        checked.connections,
+        [dict(record) for record in checked.records],
+        dict(checked.units),
     )
-
-
-def _check_connections(connections: Sequence[Connection], interfaces: Mapping[str, Interface], where: str) -> None:
-    fed: dict[Port, Connection] = {}
-    for connection in connections:
-        for side, port in (("start", connection.start), ("end", connection.end)):
-            interface = interfaces.get(port.component)
-            if interface is None:
-                raise SystemError_(
-                    f"{where}: the connection {connection} names the component {port.component!r}, which the system "
-                    f"does not have (its components: {', '.join(interfaces)})"
-                )
-            wanted = (
-                tuple(v for v in interface.outputs if v not in interface.typed) if side == "start" else interface.inputs
-            )
-            if port.variable not in wanted:
-                kind = "output" if side == "start" else "input"
-                known = ", ".join(wanted) or "none"
-                raise SystemError_(
-                    f"{where}: the connection {connection} {'starts' if side == 'start' else 'ends'} at {port}, which "
-                    f"is not a Real {kind} of {port.component!r} (its {kind}s: {known}); a connection runs from an "
-                    "output to an input"
-                )
-        if connection.end in fed:
-            raise SystemError_(
-                f"{where}: the connections {fed[connection.end]} and {connection} both drive {connection.end} "
-                "(an input takes one connection; remove one)"
-            )
-        fed[connection.end] = connection
-
-
-def _controller_slave(
-    run: Run,
-    name: str,
-    controller: Controller | None,
-    outputs: Sequence[str],
-    units: Mapping[str, str | None],
-    pool: InstancePool | None = None,
-) -> Slave:
-    """The run's controller as a component: a controller FMU as an FMU; any other natively (the
-    built-in law and a python-control system then run in C in the compiled system loop:
-    `system_natives`), its connectors in the units of the plant variables of their names (`units`)."""
-    if controller is None:
-        controller = controller_for(run, outputs)
-    if isinstance(controller, ControllerFmuPart):
-        return FmuSlave(name, controller.fmu, controller.settings, pool=pool)
-    diagnostics = check_controller(controller, outputs)
-    return ControllerSlave(name, controller, diagnostics, COMMAND, units, outputs)
 
 
 def assemble(
@@ -203,167 +135,16 @@ def assemble(
     coupling: str | None = None,
     pool: InstancePool | None = None,
 ) -> Assembly:
-    """The run's system, checked and loaded (module docstring). Raises SystemError_ (one line) for
-    a system that cannot run as written, ControllerError for a controller that cannot be built.
-    `pool`: where the FMU components' instances come from and go back to (`instance_pool`)."""
-    wiring, where = run.system, f"scenario {run.scenario}"
-    jacobi = (coupling or run.coupling) == "jacobi"
-    requested: dict[str, list[str]] = {}
-    for port in wiring.record or ():
-        requested.setdefault(port.component, []).append(port.variable)
-    slaves: dict[str, Slave] = {}
-    try:
-        slaves[wiring.plant] = FmuSlave(
-            wiring.plant, plant, plant_settings(run, plant), requested.get(wiring.plant, ()), pool
-        )
-        slaves[wiring.controller] = _controller_slave(
-            run, wiring.controller, controller, plant.recorded_outputs, slaves[wiring.plant].interface.units, pool
-        )
-        for part in wiring.parts:
-            if part.name in slaves:
-                raise SystemError_(f"{where}: two components are named {part.name!r} (give each its own name)")
-            slaves[part.name] = FmuSlave(
-                part.name, _checked_part(part, run.source), part.values, requested.get(part.name, ()), pool
-            )
-        interfaces = {name: slave.interface for name, slave in slaves.items()}
-        plant_outputs = set(interfaces[wiring.plant].outputs)  # a controller FMU's reference inputs stay unfed
-        controller_inputs = [name for name in interfaces[wiring.controller].inputs if name in plant_outputs]
-        connections = (
-            wiring.connections if wiring.connections is not None else pair_connections(wiring, controller_inputs)
-        )
-        _check_connections(connections, interfaces, where)
-        descriptions = {name: getattr(slave, "description", None) for name, slave in slaves.items()}
-        converted = []
-        for connection in connections:
-            conversion = unit_conversion(
-                connection,
-                (
-                    interfaces[connection.start.component].units.get(connection.start.variable),
-                    descriptions[connection.start.component],
-                ),
-                (
-                    interfaces[connection.end.component].units.get(connection.end.variable),
-                    descriptions[connection.end.component],
-                ),
-            )
-            if conversion is not None:
-                factor, offset = conversion
-                connection = Connection(
-                    connection.start,
-                    connection.end,
-                    factor * connection.factor,
-                    factor * connection.offset + offset,
-                )
-            converted.append(connection)
-        connections = tuple(converted)
-        fed = {connection.end for connection in connections}
-        signals = [("F_E", run.plant.F_E), *run.plant.inputs.items()]
-        signal_ports, columns = [], []
-        plant_inputs = interfaces[wiring.plant].inputs
-        for index, (name, _) in enumerate(signals):
-            port = Port(wiring.plant, name)
-            if port in fed or name not in plant_inputs:
-                continue
-            signal_ports.append(port)
-            columns.append(index)
-        for port in wiring.record or ():
-            interface = interfaces.get(port.component)
-            if interface is None or (port.variable not in interface.outputs and port.variable not in interface.inputs):
-                raise SystemError_(
-                    f"{where}: key record: {port} is not a variable of the system (its components: "
-                    f"{', '.join(interfaces)}; an FMU's variables by their names in its modelDescription.xml)"
-                )
-            kind = interface.typed.get(port.variable)
-            if kind is not None and kind not in RECORDED_TYPES:
-                raise SystemError_(
-                    f"{where}: key record: {port} is a {kind} variable; the trace holds numbers (record Real, Integer,"
-                    " Boolean or Enumeration variables)"
-                )
-            if port.variable in interface.inputs and port not in fed and port not in signal_ports:
-                raise SystemError_(
-                    f"{where}: key record: {port} is an input nothing feeds (connect it, or record another variable)"
-                )
-        try:
-            order = (
-                (wiring.plant, wiring.controller)  # the pair's own wiring: the fixed loop's order
-                if wiring.connections is None and not wiring.parts
-                else gauss_seidel_order(list(slaves), connections, interfaces)
-            )
-        except AlgebraicLoop as error:
-            raise SystemError_(f"{where}: {error}") from None
-        plan = build_plan(order, interfaces, connections, signal_ports, wiring.record, jacobi)
-        samples = input_samples(run, run.steps)
-        table = np.ascontiguousarray(samples[:, columns], dtype=np.float64).reshape(run.steps + 1, len(columns))
-        components = [_component_record(name, slaves[name], order) for name in slaves]
-        units = {"time": "s"}
-        for column in plan.names[1:]:
-            port = Port.parse(column)
-            unit = interfaces[port.component].units.get(port.variable)
-            if unit:
-                units[column] = unit
-        return Assembly([slaves[name] for name in order], plan, table, connections, components, units)
-    except BaseException:
-        for slave in slaves.values():
-            slave.close()
-        raise
-
-
-@functools.lru_cache(maxsize=64)
-def _read_part(path: Path, size: int, mtime_ns: int, missing: str) -> FmuArchive:
-    """`read_fmu` of a part's file, kept while the file is unchanged (its size and time): a run's
-    system is checked before the run, and assembled again in the run's process."""
-    return read_fmu(path, missing=missing)
-
-
-def _checked_part(part: Part, source: Path | None) -> FmuArchive:
-    """A part's FMU checked as any FMU the master runs (a zip archive, safe, FMI 2.0 or 3.0,
-    Co-Simulation, a binary for this platform: `plant.contract.read_fmu`) and, being code this
-    command runs, owned by the user (`user_code.check_owned`), its values each a parameter or
-    input of the FMU, of its type (`system.interfaces.check_settable`): the checked archive (path,
-    model description, SHA-256), or SystemError_ naming the key and the fix."""
-    ssp = source is not None and Path(source).suffix.lower() == ".ssp"
-    key = f"component {part.name!r}" if ssp else f"key components.{part.name}.fmu"
-    try:
-        missing = f"build it, or fix {key}"
-        try:
-            status = part.fmu.stat()
-        except OSError:
-            archive = read_fmu(part.fmu, missing=missing)  # its own message for a missing file
-        else:
-            archive = _read_part(part.fmu.resolve(), status.st_size, status.st_mtime_ns, missing)
-            check_owned(part.fmu, key)
-    except ContractError as error:
-        raise SystemError_(f"{key}: {error}") from None
-    except ControllerError as error:
-        raise SystemError_(str(error)) from None
-    try:  # the one check of a component's values (the SSP reader's too), before any run
-        check_settable(archive.model_description, part.values)
-    except SettableError as error:
-        where = f"component {part.name!r}" if ssp else f"key components.{part.name}.parameters"
-        raise SystemError_(
-            f"{where}: {error} ({part.fmu.name}; give a parameter or input of its FMU, or fix the name or the value)"
-        ) from None
-    return archive
-
-
-def _component_record(name: str, slave: Slave, order: Sequence[str]) -> dict[str, Any]:
-    record: dict[str, Any] = {"name": name, "position": order.index(name)}
-    if isinstance(slave, FmuSlave):
-        record.update(fmu=str(slave.path), sha256=slave.sha256, values=dict(slave.values))
-        if slave.origin:
-            record["kind"] = slave.origin
-    else:
-        record.update(kind="native controller", type=type(slave.controller).__qualname__)
-    return record
+    """The run's system checked (`checked.check_run`, its controller.python built here: `ready`)
+    and its slaves made (`instantiate`). Raises SystemError_ (one line) for a system that cannot
+    run as written, ControllerError for a controller that cannot be built."""
+    return instantiate(ready(check_run(run, plant, controller, coupling)), pool)
 
 
 def system_columns(run: Run, plant: PlantInterface, controller: Controller | None = None) -> tuple[str, ...]:
-    """The trace columns of a system run (the plan's recorded ports), without running it."""
-    assembly = assemble(run, plant, controller)
-    for slave in assembly.slaves:  # nothing is loaded yet; the controller stays open for the run
-        if isinstance(slave, FmuSlave):
-            slave.close()
-    return assembly.plan.names
+    """The trace columns of a system run (the plan's recorded ports), without running it (a
+    controller.python is built here: `ready`)."""
+    return ready(check_run(run, plant, controller)).names
 
 
 def _compiled_forward(
@@ -446,6 +227,16 @@ def loop_words(stepping: Stepping, components: int, plan: Plan, T_s: float) -> d
     }
 
 
+def refused(run: Run, plant: PlantInterface, error: ControllerError, started: float) -> RunOutcome:
+    """The outcome of a system run whose controller could not be built or checked: failed with
+    the reason ("controller: ..."), no sample; `started` is the run's perf_counter() start."""
+    reason = bounded_text(str(error) if str(error).startswith("controller: ") else f"controller: {error}")
+    wall = clock.perf_counter() - started
+    loop = {"kind": "none", "reason": "the controller could not be built"}
+    record = run_record(run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None)
+    return RunOutcome(run, Trace(("time",), np.empty((0, 1))), False, reason, wall, 0.0, None, record)
+
+
 def simulate_system(
     run: Run,
     plant: PlantInterface,
@@ -459,26 +250,43 @@ def simulate_system(
     pool: InstancePool | None = None,
     words: FailureWords | None = None,
 ) -> RunOutcome:
-    """Run a system (module docstring); never raises for a component's failure: the outcome is
-    failed with the reason and the trace up to the last complete sample. SystemError_ or
-    ControllerError for a system that cannot be assembled. `calling` (an int64 array, e.g. a
-    word shared with a supervising process): element 0 holds, while a component is called, its
-    id (`component_names`), and 0 outside the run's loop. `checkpoints`: how a refused step is
+    """Check (`checked.check_run`), build a controller.python here (`ready`) and run a system
+    (`execute`); a controller that cannot be built or checked fails the run (`refused`).
+    SystemError_ for a system that cannot run as written."""
+    started = clock.perf_counter()
+    try:
+        checked = ready(check_run(run, plant, controller, coupling))
+    except ControllerError as error:
+        if coupling is not None and coupling != run.coupling:
+            run = dataclasses.replace(run, coupling=coupling)
+        return refused(run, plant, error, started)
+    return execute(checked, progress, buffer, count, calling, checkpoints, pool, words, started)
+
+
+def execute(
+    checked: CheckedRun,
+    progress: Callable[[float], None] | None = None,
+    buffer: np.ndarray | None = None,
+    count: np.ndarray | None = None,
+    calling: np.ndarray | None = None,
+    checkpoints: CheckpointOptions | None = None,
+    pool: InstancePool | None = None,
+    words: FailureWords | None = None,
+    started: float | None = None,
+) -> RunOutcome:
+    """Run a complete checked system (module docstring): instantiate and step its components;
+    never raises for a component's failure: the outcome is failed with the reason and the
+    trace up to the last complete sample. `calling` (an int64 array, e.g. a word shared with a
+    supervising process): element 0 holds, while a component is called, its id
+    (`component_names`), and 0 outside the run's loop. `checkpoints`: how a refused step is
     retried (`system_retry`; default every 200 samples, in 10 substeps), `words` how failures
     are said (`system_retry.FailureWords`; default each names its component). `pool`: the FMU
-    components' instances kept from run to run (`instance_pool`), reset after a complete run."""
-    started = clock.perf_counter()
-    if coupling is not None and coupling != run.coupling:
-        run = dataclasses.replace(run, coupling=coupling)
+    components' instances kept from run to run (`instance_pool`), reset after a complete run.
+    `started`: the run's perf_counter() start (None: now)."""
+    started = clock.perf_counter() if started is None else started
+    run, plant = checked.run, checked.plant
     n = run.steps
-    try:
-        assembly = assemble(run, plant, controller, pool=pool)
-    except ControllerError as error:
-        reason = bounded_text(str(error) if str(error).startswith("controller: ") else f"controller: {error}")
-        wall = clock.perf_counter() - started
-        loop = {"kind": "none", "reason": "the controller could not be built"}
-        record = run_record(run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None)
-        return RunOutcome(run, Trace(("time",), np.empty((0, 1))), False, reason, wall, 0.0, None, record)
+    assembly = instantiate(checked, pool)
     plan = assembly.plan
     data = buffer if buffer is not None else np.full((n + 1, len(plan.names)), np.nan)
     observer = TraceObserver(plan, data, count)
@@ -487,7 +295,7 @@ def simulate_system(
         every = max(n // 100, 1)
         hooks.append(lambda k: progress(k * run.T_s / run.t_end) if k % every == 0 else None)
     calling = calling if calling is not None else np.zeros(1, dtype=np.int64)
-    names = component_names(run.system)
+    names = component_names(checked.wiring)
     ids = [names.index(name) + 1 for name in plan.order]
     execution = Execution(
         plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks, calling, ids
@@ -540,7 +348,7 @@ def simulate_system(
     finally:
         calling[0] = 0
         solver_statistics = plant_statistics(plant_slave)
-        controller_state = _controller_state(assembly.slaves, run.system.controller, controller)
+        controller_state = _controller_state(assembly.slaves, run.system.controller, checked.controller)
         assembly.close(reuse=finished and observer.rows == n + 1)
     rows = observer.rows
     trace = Trace(plan.names, data[:rows])

@@ -139,8 +139,7 @@ def _resolve_plant(
                 " output limit; sweep fewer cases, raise T_s, shorten t_end or raise TOGGLE_COSIM_MAX_OUTPUT"
             )
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import check_user_controller, controller_for
-    from toggle_cosim.cosim.systems import SystemError_
+    from toggle_cosim.cosim.checked import SystemError_, check_run
 
     seen = set()
     # the axes that change the plant (all but F_E and m_B) or the controller: a variant and their
@@ -154,9 +153,9 @@ def _resolve_plant(
         (run,) = runs_from_document(copy.deepcopy(case.document), sweep.base)  # validated by load_sweep already
         try:
             check_settings(run, plant)
-            if run.controller.python is None and run.controller.fmu is None:
-                controller_for(run, plant.recorded_outputs)  # the built-in law's own checks
-            check_user_controller(run, plant.recorded_outputs)  # without running the user's code
+            # the case as the master checks it: its controller without running the user's code, its
+            # parts, connections, units and order; nothing loaded
+            checked = check_run(run, plant)
             # a controller.python's or controller.fmu's: built and checked once in a supervised child
             # (`supervision.probe_columns`), never in this process; its columns kept for the cases
             columns = case_columns(case.payload(), plant, case_timeout)
@@ -166,7 +165,7 @@ def _resolve_plant(
                     f"law's columns, and this case also records the plant inputs {', '.join(run.plant.inputs)} "
                     "(plant.inputs); sweep it without --keep-traces (its table row is kept)"
                 )
-            if not run.system.is_pair:  # a system's kept traces: its recorded ports, the same in every case
+            if not checked.pair:  # a system's kept traces: its recorded ports, the same in every case
                 if keep_traces and columns != case_columns(sweep.cases[0].payload(), plant, case_timeout):
                     raise SweepError(
                         f"{sweep.path}: case {case.index}: --keep-traces stores one trace table, and this case "

@@ -1,11 +1,12 @@
 """An FMU's connectors as a system sees them (`fmu_interface`): read from its model description
-(fmpy's), the one definition that the master's slaves (`cosim.slaves`) and the SSP reader
-(`ssp.fmus`) both use. Nothing is loaded."""
+(fmpy's), the one definition that the master's slaves (`cosim.slaves`), the run's check
+(`cosim.checked`) and the SSP reader (`ssp.fmus`) all use; and a natively run controller's
+(`controller_interface`). Nothing is loaded."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from toggle_cosim.system.model import Interface
@@ -15,6 +16,7 @@ __all__ = [
     "REAL_TYPES",
     "SettableError",
     "check_settable",
+    "controller_interface",
     "fmu_interface",
     "settable_type",
     "variable_unit",
@@ -111,3 +113,17 @@ def fmu_interface(description: Any, observed: Sequence[str] = ()) -> Interface:
     first = tuple(name for name in read if variables[name].type in FLOAT64_TYPES)
     typed = {name: variables[name].type for name in extra if variables[name].type not in REAL_TYPES}
     return Interface(inputs, (*first, *(name for name in read if name not in first)), depends, units, typed)
+
+
+def controller_interface(
+    measured: Sequence[str],
+    diagnostics: Sequence[str],
+    command: str = "iq_ref",
+    units: Mapping[str, str | None] | None = None,
+) -> Interface:
+    """A controller's connectors when the master runs it natively: its inputs what it measures,
+    its outputs the command and its diagnostics, each depending directly on every input; the
+    units those of the plant variables of their names (`units`; None: none declared)."""
+    measured, outputs = tuple(measured), (command, *diagnostics)
+    units = {name: (units or {}).get(name) for name in (*measured, command)}
+    return Interface(measured, outputs, {output: measured for output in outputs}, units)
