@@ -25,7 +25,7 @@ What is measured (benchmarks/README.md says more):
   own cost per sample of a Python controller whose step returns a constant (called back from the
   compiled system loop, which calls the plant from C, minus the plant's share of the same samples
   replayed by the C driver; beside it the same run in the Python execution);
-* systems in the compiled system loop (`cosim.system_loop`): the plant + controller-FMU system,
+* systems in the compiled system loop (`cosim.execution.system_loop`): the plant + controller-FMU system,
   a three-FMU system (a second controller instance reading the plant) and the press example's
   four FMUs per sample, beside the master's Python execution of the same plan, a plain C master
   of the same FMUs (benchmarks/system_master.c) and the sum of each FMU's own calls replayed
@@ -82,7 +82,8 @@ from timing import run_to_last_file  # benchmarks/timing.py, beside this script
 
 from toggle_cosim import native
 from toggle_cosim.control.protocol import ControllerContext, ControlStep
-from toggle_cosim.cosim import master, slaves, system_loop
+from toggle_cosim.cosim import master
+from toggle_cosim.cosim.execution.algorithm import slaves, system_loop
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.fmu_export import build_fmu
 from toggle_cosim.plant.contract import check_plant
@@ -388,7 +389,7 @@ def python_replay(plant, run, commands: np.ndarray) -> float:
     it (the FmuSlave's get, set and do_step with the recorded commands): the loop minus this is
     the execution's own cost, this minus the C driver's replay the cost of calling the FMI
     functions from Python."""
-    from toggle_cosim.cosim.system_retry import CHECKPOINT_SAMPLES
+    from toggle_cosim.cosim.execution.system_retry import CHECKPOINT_SAMPLES
 
     fmu = open_fmu(plant, run, inputs=(0.0, run.plant.F_E))
     saving = fmu.cannot_save_state is None  # as simulate()'s checkpoints: doStep's flag, one every 200 samples
@@ -705,7 +706,7 @@ def press_sweep_file(folder: Path, parts: dict[str, Path], cases: int, t_end: fl
 def press_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", figures: dict) -> None:
     """A sweep of the press system on one worker against simulate() of the same cases in a loop in
     this process (ratio from one run each): the sweep's host keeps the four components loaded
-    from case to case (`cosim.instance_pool`), simulate() alone loads them for every case."""
+    from case to case (`cosim.execution.instance_pool`), simulate() alone loads them for every case."""
     from toggle_cosim.experiments.sweep_spec import load_sweep
 
     cases, t_end = 16, 0.5 if quick else 1.0

@@ -11,7 +11,8 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from toggle_cosim.cosim import master, slaves, system_loop
+from toggle_cosim.cosim import master
+from toggle_cosim.cosim.execution.algorithm import slaves, system_loop
 from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,10 +1,10 @@
-"""Systems in the compiled system loop (`cosim.system_loop`) against a plain C master.
+"""Systems in the compiled system loop (`cosim.execution.system_loop`) against a plain C master.
 
     .venv/bin/python benchmarks/system_bench.py [--quick] [--fmu PLANT.fmu]   # this section alone
 
 bench.py prints the same rows in its table (`section`); both take the table, the paper runs and
 the built-in pair's loop cost from bench_parts.py. Two systems, each assembled and
-initialised by the master (`cosim.systems.assemble`, `cosim.execution.Execution.initialize`: the
+initialised by the master (`cosim.systems.assemble`, `cosim.execution.algorithm.Execution.initialize`: the
 FMUs loaded, their values set, one initialisation pass) and stepped over fig4_nominal/friction
 (3000 samples of 0.5 ms):
 
@@ -26,7 +26,7 @@ the run recorded, summed over the FMUs (its outputs compared with the recorded o
 A user's Python controller (examples/controllers/my_controllers.py's PD law) in the pair (on
 the press example's plant and stroke) and in the four-part press system (`python_controller`),
 each by `master.simulate`, interleaved: the compiled loop calls the controller back into Python
-at its turns (`cosim.system_python`), beside the master's Python execution of the press system
+at its turns (`cosim.execution.system_python`), beside the master's Python execution of the press system
 (TOGGLE_COSIM_KERNEL=0); the system's trace must have the Python execution's bits, and both stay
 within 1.2 x the 5.7 us per sample the same controller cost in the pair's own loop before the
 pair ran in the execution (`PAIR_PYTHON_SAMPLE_S`).
@@ -52,9 +52,15 @@ import numpy as np
 from bench_parts import ROOT, Table, full_loop, paper_runs, us  # benchmarks/bench_parts.py, beside this script
 
 from toggle_cosim.cosim.controllers import controller_for
-from toggle_cosim.cosim.execution import Execution, TraceObserver
+from toggle_cosim.cosim.execution.algorithm import Execution, TraceObserver
+from toggle_cosim.cosim.execution.system_loop import (
+    DONE,
+    SystemLoop,
+    compiled_system,
+    system_library,
+    system_library_reason,
+)
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.cosim.system_loop import DONE, SystemLoop, compiled_system, system_library, system_library_reason
 from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.system.model import Connection, Part, Port, Wiring
@@ -80,7 +86,7 @@ def fig4_with(controller: Path, plant, monitor: bool):  # noqa: ANN001, ANN201 -
 
 def _assembled(run, plant):  # noqa: ANN001, ANN202 - (Assembly, Execution, trace)
     """The run's system assembled and initialised by the master (each FMU logging only its
-    non-OK statuses, as `cosim.slaves.FmuSlave` sets it)."""
+    non-OK statuses, as `cosim.execution.slaves.FmuSlave` sets it)."""
     assembly = assemble(run, plant)
     n = run.steps
     trace = np.full((n + 1, len(assembly.plan.names)), np.nan)
@@ -423,7 +429,9 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
             us(r["compiled"]),
             f"{r['columns']} columns recorded; FMUs log non-OK statuses only",
         )
-        table.add(f"{what}: Python execution of the same plan", us(r["python"]), "cosim.execution; same bits as C")
+        table.add(
+            f"{what}: Python execution of the same plan", us(r["python"]), "cosim.execution.algorithm; same bits as C"
+        )
         if "c_master" in r:
             bits = "same bits" if r["bit_for_bit"] else "NOT the same bits"
             table.add(f"{what}: plain C master (system_master.c)", us(r["c_master"]), f"the FMUs' own calls; {bits}")
@@ -435,7 +443,9 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
         f"{press['samples']} samples; its parts built in {build_s:.2f} s"
     )
     table.add(f"{what}: compiled system loop", us(press["compiled"]), "FMUs log non-OK statuses only")
-    table.add(f"{what}: Python execution of the same plan", us(press["python"]), "cosim.execution; same bits as C")
+    table.add(
+        f"{what}: Python execution of the same plan", us(press["python"]), "cosim.execution.algorithm; same bits as C"
+    )
     if "replay" in press:
         bits = "same bits" if press["bit_for_bit"] else "NOT the same bits"
         table.add(

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from toggle_cosim.cosim.system_loop import system_library
+from toggle_cosim.cosim.execution.system_loop import system_library
 
 pytestmark = pytest.mark.slow  # the whole benchmark, --quick (about 1-2 min)
 

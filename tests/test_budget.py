@@ -17,7 +17,7 @@ import yaml
 
 import toggle_cosim as tc
 from toggle_cosim.cosim import master
-from toggle_cosim.cosim.budget import DEFAULT_EVENTS_PER_SAMPLE
+from toggle_cosim.cosim.execution.budget import DEFAULT_EVENTS_PER_SAMPLE
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 from toggle_cosim.experiments.tune_spec import TuneError, load_tuning
 from toggle_cosim.plant.contract import check_plant

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from toggle_cosim.cosim import controllers
-from toggle_cosim.cosim.supervised_batch import run_supervised
-from toggle_cosim.cosim.supervision import probe_columns, simulate_supervised
+from toggle_cosim.cosim.isolation.supervised_batch import run_supervised
+from toggle_cosim.cosim.isolation.supervision import probe_columns, simulate_supervised
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.system.model import Port, Wiring

@@ -23,8 +23,8 @@ import pytest
 from python_fmus import build_python_fmu
 
 from toggle_cosim.controller_fmu import build_controller_fmu
+from toggle_cosim.cosim.execution.system_loop import system_library, system_library_reason
 from toggle_cosim.cosim.master import RunOutcome, simulate
-from toggle_cosim.cosim.system_loop import system_library, system_library_reason
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 

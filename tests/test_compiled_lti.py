@@ -23,8 +23,8 @@ import pytest
 
 from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.control.protocol import ControllerContext
+from toggle_cosim.cosim.execution.system_loop import system_library
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.cosim.system_loop import system_library
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 

@@ -18,7 +18,7 @@ from fault_plants import fault_environment
 from process_events import wait_until
 
 from toggle_cosim.cosim import master
-from toggle_cosim.cosim.slaves import FmuSlave
+from toggle_cosim.cosim.execution.slaves import FmuSlave
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.files.traces import read_csv
 from toggle_cosim.fmu_export import build_fmu
@@ -232,7 +232,7 @@ def test_a_run_failing_after_retries_is_reported_at_the_step_that_failed_for_goo
     assert any(w.startswith("100 of the plant's steps from t = 0.2 s") for w in outcome.record["warnings"])
     clean = master.simulate(_nominal(), check_plant(plant_fmu))  # before the first retry: the undisturbed run
     assert np.array_equal(outcome.trace.data[:401], clean.trace.data[:401])
-    from toggle_cosim.cosim.supervision import simulate_supervised
+    from toggle_cosim.cosim.isolation.supervision import simulate_supervised
 
     supervised = simulate_supervised(_nominal(), faulty)  # the parent counts the rows the child left set
     assert supervised.reason == outcome.reason and np.array_equal(supervised.trace.data, outcome.trace.data)

@@ -184,7 +184,7 @@ def test_the_fmu_is_freed_after_complete_failed_and_interrupted_runs(
 def test_a_supervised_run_leaves_nothing_behind(tmp_path: Path, scratch: Path, plant_fmu: Path, pd_fmu: Path) -> None:
     """The FMU is loaded in the supervised run's child, not in the parent, and the run's folder
     (with both unzipped copies) is gone after it; the trace is the in-process run's, bit for bit."""
-    from toggle_cosim.cosim.supervision import simulate_supervised
+    from toggle_cosim.cosim.isolation.supervision import simulate_supervised
 
     run, plant, controller = _in_process(tmp_path, plant_fmu, pd_fmu)
     outcome = simulate_supervised(run, plant, controller=controller)

@@ -147,7 +147,7 @@ def test_the_cosim_parts_import_each_other_one_way_only() -> None:
         if name.startswith("toggle_cosim.cosim")
     }
     assert cycles(graph) == []
-    assert graph["toggle_cosim.cosim.fmi_pointers"] == set()
+    assert graph["toggle_cosim.cosim.execution.fmi_pointers"] == set()
     full = import_graph(SRC / "toggle_cosim", lazy=True)
     for name in graph:
         assert not full[name] & {"toggle_cosim.cli", "toggle_cosim.experiments.sweep"}, name
@@ -257,3 +257,72 @@ def test_no_module_imports_a_private_name_of_another() -> None:
                 if private:
                     found.append(f"{path.relative_to(SRC)}:{node.lineno} {node.module}: {', '.join(private)}")
     assert found == []
+
+
+# Inside cosim/, lowest first: the execution and its kinds (`cosim/execution/`: slaves, the plan
+# stepped in Python and in C, checkpoints, the instance pool) know no run, scenario or process;
+# the master's modules (`cosim/*.py`: a run as a system, its controller, outcome and figures) use
+# the execution; the process isolation of runs (`cosim/isolation/`: supervision, the plant host,
+# batches, exit reasons) runs the master in children and is used by nothing below it.
+COSIM_TIERS: tuple[str, ...] = ("execution", "", "isolation")
+
+
+def _cosim_tier(module: str) -> str | None:
+    """The tier of a module of toggle_cosim.cosim (its subpackage, "" for the master's modules),
+    None outside cosim/."""
+    parts = module.split(".")
+    if parts[:2] != ["toggle_cosim", "cosim"]:
+        return None
+    return parts[2] if len(parts) > 3 else ""
+
+
+def cosim_upward(graph: dict[str, set[str]]) -> list[str]:
+    """The imports inside cosim/ that go to a tier above the importer's (`COSIM_TIERS`)."""
+    rank = {tier: i for i, tier in enumerate(COSIM_TIERS)}
+    found = []
+    for module, imports in graph.items():
+        own = _cosim_tier(module)
+        if own is None:
+            continue
+        for imported in imports:
+            theirs = _cosim_tier(imported)
+            if theirs is not None and rank[theirs] > rank[own]:
+                found.append(f"{module} -> {imported}")
+    return sorted(found)
+
+
+def test_the_cosim_tiers_import_downward_only() -> None:
+    """Every module of cosim/ is in a tier, and no import (in functions too) climbs a tier: the
+    execution imports neither the master's modules nor the isolation, and the master's modules
+    do not import the isolation. The execution also knows no run, scenario or experiment."""
+    graph = import_graph(SRC / "toggle_cosim", lazy=True)
+    tiers = {_cosim_tier(module) for module in graph} - {None}
+    assert tiers == set(COSIM_TIERS), tiers
+    assert cosim_upward(graph) == []
+    execution = {m: imports for m, imports in graph.items() if _cosim_tier(m) == "execution"}
+    assert len(execution) > 5
+    above = {"toggle_cosim.runs", "toggle_cosim.experiments", "toggle_cosim.cli", "toggle_cosim.api"}
+    reaching = sorted(
+        f"{m} -> {i}"
+        for m, imports in execution.items()
+        for i in imports
+        if any(i == a or i.startswith(f"{a}.") for a in above)
+    )
+    assert reaching == []
+
+
+def test_the_tier_check_sees_an_import_that_climbs(tmp_path: Path) -> None:
+    """An execution module importing the supervision is an upward import."""
+    package = tmp_path / "toggle_cosim"
+    for sub in ("cosim", "cosim/execution", "cosim/isolation"):
+        (package / sub).mkdir(parents=True)
+        (package / sub / "__init__.py").write_text("")
+    (package / "__init__.py").write_text("")
+    (package / "cosim" / "execution" / "slaves.py").write_text(
+        "def f():\n    from toggle_cosim.cosim.isolation import supervision\n"
+    )
+    (package / "cosim" / "isolation" / "supervision.py").write_text("from toggle_cosim.cosim import master\n")
+    (package / "cosim" / "master.py").write_text("from toggle_cosim.cosim.execution import slaves\n")
+    assert cosim_upward(import_graph(package, lazy=True)) == [
+        "toggle_cosim.cosim.execution.slaves -> toggle_cosim.cosim.isolation.supervision"
+    ]

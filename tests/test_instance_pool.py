@@ -1,4 +1,4 @@
-"""A system's FMU components kept loaded from run to run (`cosim.instance_pool`): a sweep's or a
+"""A system's FMU components kept loaded from run to run (`cosim.execution.instance_pool`): a sweep's or a
 tuning's host takes each component's instance from its pool and gives it back reset after a
 complete case, freed after a failed one, so a case never sees what another left.
 
@@ -20,7 +20,7 @@ import yaml
 from fault_plants import fault_environment
 
 from toggle_cosim.cosim import master
-from toggle_cosim.cosim.instance_pool import InstancePool
+from toggle_cosim.cosim.execution.instance_pool import InstancePool
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.plant.contract import check_plant
 
@@ -173,7 +173,7 @@ def test_a_pool_in_a_forked_child_does_not_use_its_parents_instances(tmp_path: P
     empty there: the parent's instances are neither used nor freed by the child."""
     import os
 
-    from toggle_cosim.cosim.instance_pool import Kept
+    from toggle_cosim.cosim.execution.instance_pool import Kept
 
     pool = InstancePool()
     pool.kept[("sha", "plant")] = Kept(object(), tmp_path, True)
@@ -187,7 +187,7 @@ def test_a_sweep_over_a_components_parameter_finds_its_columns_once(
     """A system case's trace columns depend on its FMUs, connections and record list, not on its
     components' values: the cases of a sweep over the die's k_c share one probe of the columns
     (a supervised child per probe), the case with another sensor FMU gets its own."""
-    from toggle_cosim.cosim import supervision
+    from toggle_cosim.cosim.isolation import supervision
     from toggle_cosim.experiments import sweep_worker
 
     probed = []
@@ -210,7 +210,7 @@ def test_a_press_case_whose_plant_crashes_its_host_leaves_the_next_case_clean(
     """In a sweep's plant hosts (forked children): a press case whose plant segfaults ends its
     host, a failed row naming the plant; the next case runs in a new host and gives the trace
     of the same case run before, in the first host, after a complete case."""
-    from toggle_cosim.cosim.plant_host import wait_for_hosts
+    from toggle_cosim.cosim.isolation.plant_host import wait_for_hosts
     from toggle_cosim.experiments.sweep_worker import CaseRunner
 
     plant = check_plant(shim_fmu)

@@ -144,7 +144,7 @@ def test_a_run_ended_after_a_recorded_nan_keeps_every_sample_before_its_end(plan
     before, NaN included (not the 20 before the first NaN)."""
     from nan_values import FINITE, nan_controller_scenario
 
-    from toggle_cosim.cosim.supervision import simulate_supervised
+    from toggle_cosim.cosim.isolation.supervision import simulate_supervised
 
     run = load_scenario(nan_controller_scenario(tmp_path, 1, exit_at=0.03))[0]
     outcome = simulate_supervised(run, check_plant(plant_fmu))

@@ -1,4 +1,4 @@
-"""Several supervised runs at once (cosim/supervised_batch.py): the outcomes come back in the
+"""Several supervised runs at once (cosim/isolation/supervised_batch.py): the outcomes come back in the
 order of the runs, with the bits of the in-process loop whatever the number of jobs; closing
 the batch early kills the children still running and leaves no folder behind."""
 
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from process_events import wait_gone, wait_until
 
+from toggle_cosim.cosim.isolation.supervised_batch import default_jobs, run_supervised
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.cosim.supervised_batch import default_jobs, run_supervised
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 
@@ -67,7 +67,7 @@ def test_an_interrupt_after_a_run_ended_hands_it_back_and_still_stops_the_batch(
     ended runs come back whole, in order, and then the batch raises KeyboardInterrupt (or hands
     back the first unfinished run as interrupted). Before, the ended run came back complete and
     the batch stopped quietly: `run` with several scenarios exited 0 with later runs never run."""
-    from toggle_cosim.cosim import supervised_batch
+    from toggle_cosim.cosim.isolation import supervised_batch
 
     real = supervised_batch.wait_for
     calls = {"n": 0}

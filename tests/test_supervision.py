@@ -105,8 +105,8 @@ def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tm
 
 def test_the_paper_runs_stay_bit_identical_under_supervision(plant_fmu: Path, tmp_path: Path) -> None:
     """The supervised child writes the same numbers the unsupervised loop does."""
+    from toggle_cosim.cosim.isolation.supervision import simulate_supervised
     from toggle_cosim.cosim.master import simulate
-    from toggle_cosim.cosim.supervision import simulate_supervised
     from toggle_cosim.experiments.scenario import load_scenario
 
     plant = check_plant(plant_fmu)

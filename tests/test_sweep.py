@@ -286,7 +286,7 @@ def test_the_same_case_gives_the_same_bits_alone_first_and_after_others(tmp_path
     """A host keeps the plant loaded and resets its instance between cases: a case run alone,
     first in a host, after a complete case (a reset instance) and after a failed one (a new
     instance) gives the same trace, bit for bit."""
-    from toggle_cosim.cosim.plant_host import wait_for_hosts
+    from toggle_cosim.cosim.isolation.plant_host import wait_for_hosts
     from toggle_cosim.experiments.sweep_worker import CaseRunner
     from toggle_cosim.plant.contract import check_plant
 

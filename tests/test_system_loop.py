@@ -1,4 +1,4 @@
-"""The compiled system loop (`cosim.system_loop`): a system's stepping plan run in C over a
+"""The compiled system loop (`cosim.execution.system_loop`): a system's stepping plan run in C over a
 component table and a connection table.
 
 Behaviour checked: the plant FMU and the controller FMU ToggleVSC (FMI 2.0 and 3.0), wired as
@@ -32,11 +32,9 @@ from fmpy.fmi3 import FMU3Slave
 
 from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.cosim.controllers import controller_for
-from toggle_cosim.cosim.execution import Execution, TraceObserver
-from toggle_cosim.cosim.fmi_pointers import fmu_functions
-from toggle_cosim.cosim.master import simulate
-from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
-from toggle_cosim.cosim.system_loop import (
+from toggle_cosim.cosim.execution.algorithm import Execution, TraceObserver
+from toggle_cosim.cosim.execution.fmi_pointers import fmu_functions
+from toggle_cosim.cosim.execution.system_loop import (
     DONE,
     FMI_FAILED,
     SystemLoop,
@@ -44,6 +42,8 @@ from toggle_cosim.cosim.system_loop import (
     system_library,
     system_library_reason,
 )
+from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant

@@ -1,5 +1,5 @@
 """The built-in law and python-control systems as native kinds of a system's compiled loop
-(`cosim.system_natives`, cosim/system_skeleton.c).
+(`cosim.execution.system_natives`, cosim/execution/system_skeleton.c).
 
 Behaviour checked: a system whose controller is the built-in law (either law, tracking a sampled
 trajectory or a constant target) or a python-control system runs entirely in C, and run.json's
@@ -24,8 +24,8 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.cosim import systems
 from toggle_cosim.cosim.controllers import controller_for
+from toggle_cosim.cosim.execution.system_loop import system_library, system_library_reason
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.cosim.system_loop import system_library, system_library_reason
 from toggle_cosim.cosim.systems import pair_connections, simulate_system
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant

@@ -1,4 +1,4 @@
-"""A user's Python controller in a system's compiled loop (`cosim.system_python`): every FMU call
+"""A user's Python controller in a system's compiled loop (`cosim.execution.system_python`): every FMU call
 stays in C, and the C calls the controller back into Python at its turns of each sample.
 
 Behaviour checked: the press example's four components with the examples' Python controllers (a
@@ -27,8 +27,8 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim import systems
 from toggle_cosim.cosim.controllers import controller_for
-from toggle_cosim.cosim.system_loop import system_library, system_library_reason
-from toggle_cosim.cosim.system_retry import CheckpointOptions
+from toggle_cosim.cosim.execution.system_loop import system_library, system_library_reason
+from toggle_cosim.cosim.execution.system_retry import CheckpointOptions
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.runs.definition import Run
@@ -226,7 +226,7 @@ def test_an_exception_escaping_the_callback_is_kept_by_its_loop_and_the_hook_put
     import sys
     from types import SimpleNamespace
 
-    from toggle_cosim.cosim.system_python import Callbacks
+    from toggle_cosim.cosim.execution.system_python import Callbacks
 
     first, second = Callbacks({}, 0.001), Callbacks({}, 0.001)
     before, other = sys.unraisablehook, []

@@ -1,4 +1,4 @@
-"""Checkpoint retries of a system's run (`cosim.system_retry`), the pair's for every component:
+"""Checkpoint retries of a system's run (`cosim.execution.system_retry`), the pair's for every component:
 a part FMU that refuses a few steps (fmi2Discard) is retried from a checkpoint and its run
 completes; one that refuses every step ends the run with its retry listed; one that cannot save
 its state is not retried, and run.json says so; the compiled system loop and the Python
@@ -85,7 +85,7 @@ def _simulate(
     (and a controller of the protocol in place of the scenario's)."""
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1" if engine == "compiled" else "0")
     if options:
-        from toggle_cosim.cosim.system_retry import CheckpointOptions
+        from toggle_cosim.cosim.execution.system_retry import CheckpointOptions
 
         outcome = systems.simulate_system(
             run, plant, coupling=coupling, checkpoints=CheckpointOptions(**options), controller=controller
@@ -319,7 +319,7 @@ def test_an_fmu_component_is_put_back_to_its_checkpoint(
     same 5 again, it gives the same outputs bit for bit; the saved state is freed with it."""
     import ctypes
 
-    from toggle_cosim.cosim.slaves import FmuSlave
+    from toggle_cosim.cosim.execution.slaves import FmuSlave
     from toggle_cosim.fmu_export import build_fmu
     from toggle_cosim.plant.contract import read_fmu
 

@@ -639,7 +639,7 @@ def test_one_fmu_used_by_many_components_is_unzipped_once(
     import tempfile
     import zipfile
 
-    from toggle_cosim.cosim.slaves import FmuSlave
+    from toggle_cosim.cosim.execution.slaves import FmuSlave
 
     parts = tmp_path / "parts"
     parts.mkdir(mode=0o755)

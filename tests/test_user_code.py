@@ -416,7 +416,7 @@ import os
 import signal
 import time
 
-import toggle_cosim.cosim.supervision as supervision
+import toggle_cosim.cosim.isolation.supervision as supervision
 from toggle_cosim.control.protocol import ControlStep
 
 _send = supervision._send
@@ -518,7 +518,7 @@ def test_a_plant_that_answers_fatal_to_reset_is_never_called_again(
 def test_simulate_in_process_unzips_into_a_run_folder_it_removes(plant_fmu: Path) -> None:
     import toggle_cosim as tc
     from toggle_cosim.control.protocol import ControlStep
-    from toggle_cosim.cosim.supervision import FOLDER_PREFIX
+    from toggle_cosim.cosim.isolation.supervision import FOLDER_PREFIX
     from toggle_cosim.experiments.scenario import runs_from_document
 
     seen: list[str] = []
@@ -548,7 +548,7 @@ def test_an_in_process_run_that_crashes_leaves_a_folder_the_next_command_removes
     FMU's unzipped copy it leaves is in a run folder named by its process id, which
     `remove_stale_folders` (every command's first step) then removes."""
     import toggle_cosim as tc
-    from toggle_cosim.cosim.supervision import FOLDER_PREFIX, remove_stale_folders
+    from toggle_cosim.cosim.isolation.supervision import FOLDER_PREFIX, remove_stale_folders
     from toggle_cosim.experiments.scenario import runs_from_document
     from toggle_cosim.plant.contract import check_plant
 

@@ -29,8 +29,8 @@ from toggle_cosim.cli import main
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim.controllers import builtin_controller
+from toggle_cosim.cosim.isolation.supervision import simulate_supervised
 from toggle_cosim.cosim.master import simulate
-from toggle_cosim.cosim.supervision import simulate_supervised
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.experiments.sweep import read_results, run_sweep
 from toggle_cosim.files.traces import read_csv

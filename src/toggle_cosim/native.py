@@ -1,5 +1,5 @@
 """Small C libraries compiled on the user's machine, kept in a private cache and loaded only
-after their content is checked: the loop that steps a system (`cosim.system_loop`), generated
+after their content is checked: the loop that steps a system (`cosim.execution.system_loop`), generated
 behind the control law, compiled with `KERNEL_FLAGS` (strict IEEE arithmetic: no contraction into
 fused multiply-adds, no fast math, no built-in substitutions, so C and Python agree bit for bit).
 

@@ -4,7 +4,7 @@ checks and its crash guard.
     result = tc.simulate(tc.load_scenario("scenarios/fig4_nominal.yaml")["friction"], "fmus/ToggleLSM.fmu")
 
 Supervised (the default), the run happens in a forked child process, as every run of
-`toggle-cosim run` does (`cosim.supervision`): a plant that crashes (segfault, abort), hangs past
+`toggle-cosim run` does (`cosim.isolation.supervision`): a plant that crashes (segfault, abort), hangs past
 the time limit or allocates without end fails the run, with the reason, and the Python process
 (a notebook's kernel) goes on. `supervised=False` runs it in this process: no fork, no time limit
 and no crash guard. Both give the same trace, bit for bit.
@@ -74,7 +74,7 @@ def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> Che
     the size of the trace buffer (ScenarioError, one line). The checked run, which the run then
     uses as it is (None: a controller given, checked with it as the run starts)."""
     from toggle_cosim.cosim.checked import SystemError_, check_run
-    from toggle_cosim.cosim.supervision import probe_columns
+    from toggle_cosim.cosim.isolation.supervision import probe_columns
     from toggle_cosim.experiments.resources import ResourceError, check_runs
     from toggle_cosim.plant.settings import SettingError, check_settings
 
@@ -120,11 +120,11 @@ def _outcome(
     """The one place a run starts, supervised or in this process; `checked`: the run as
     `_checks` checked it (None: checked as it starts)."""
     if not supervised:
-        from toggle_cosim.cosim.supervision import in_process_folder
+        from toggle_cosim.cosim.isolation.supervision import in_process_folder
 
         with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
             return master.simulate(run, plant, progress, controller=controller, checked=checked)
-    from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
+    from toggle_cosim.cosim.isolation.supervision import remove_stale_folders, simulate_supervised
 
     remove_stale_folders()
     return simulate_supervised(

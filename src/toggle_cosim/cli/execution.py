@@ -1,5 +1,5 @@
 """What the run commands share: loading and checking runs before any starts, running them
-supervised (several at once, `cosim.supervised_batch`) or in-process, writing each run's files
+supervised (several at once, `cosim.isolation.supervised_batch`) or in-process, writing each run's files
 in order, the per-run line, and the --jobs and --time-limit options."""
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
     pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.checked import SystemError_, check_run
-    from toggle_cosim.cosim.supervision import probe_columns
+    from toggle_cosim.cosim.isolation.supervision import probe_columns
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     noted: set[str] = set()
@@ -167,8 +167,8 @@ def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN
     instead (for the benchmark's comparison and for debugging: no time limit, no crash guard;
     the working directory is restored after it, whatever the plant did with it)."""
     if not _supervised():
+        from toggle_cosim.cosim.isolation.supervision import in_process_folder
         from toggle_cosim.cosim.master import simulate
-        from toggle_cosim.cosim.supervision import in_process_folder
 
         here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         try:
@@ -178,7 +178,7 @@ def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN
             with contextlib.suppress(OSError):
                 os.fchdir(here)
             os.close(here)
-    from toggle_cosim.cosim.supervision import simulate_supervised
+    from toggle_cosim.cosim.isolation.supervision import simulate_supervised
 
     return simulate_supervised(run, plant, time_limit=time_limit, progress=progress)
 
@@ -193,7 +193,7 @@ def _jobs_for(jobs: int | None, runs: int) -> int:
         return 1
     if jobs is not None:
         return max(1, min(jobs, runs))
-    from toggle_cosim.cosim.supervised_batch import default_jobs
+    from toggle_cosim.cosim.isolation.supervised_batch import default_jobs
 
     return default_jobs(runs)
 
@@ -203,14 +203,14 @@ def outcomes_of(pairs, out: Path | None, quiet: bool, time_limit: float | None, 
     the sizes, the output folder `out` if files are written there, the scratch space). Several
     at once (`supervised_batch`) with more than one job (--jobs, else one per core); one by one
     otherwise, with a progress bar per run on a terminal unless quiet."""
-    from toggle_cosim.cosim.supervision import remove_stale_folders
+    from toggle_cosim.cosim.isolation.supervision import remove_stale_folders
     from toggle_cosim.experiments.resources import check_runs
 
     jobs = _jobs_for(jobs, len(pairs))
     remove_stale_folders()  # what commands killed by SIGKILL left, before the scratch space is counted
     check_runs(pairs, out, jobs)
     if jobs > 1:
-        from toggle_cosim.cosim.supervised_batch import run_supervised
+        from toggle_cosim.cosim.isolation.supervised_batch import run_supervised
 
         yield from run_supervised(pairs, jobs=jobs, time_limit=time_limit)
         return

@@ -183,7 +183,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
 
     # matplotlib loads and each figure is drawn beside the runs, two figures at a time where
     # there are two cores
-    from toggle_cosim.cosim.supervised_batch import default_jobs
+    from toggle_cosim.cosim.isolation.supervised_batch import default_jobs
 
     figures = FigureWorkers(min(2, default_jobs(len(PAPER_SCENARIOS))))
     try:

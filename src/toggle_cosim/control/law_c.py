@@ -1,5 +1,5 @@
 """The built-in law and a discrete LTI system as C: the one source every C loop that runs them
-compiles (the system loop, `cosim.system_loop`; the controller FMU, `controller_fmu`).
+compiles (the system loop, `cosim.execution.system_loop`; the controller FMU, `controller_fmu`).
 
 * `LAW_FUNCTIONS`: the functions of `control.nominal` and `control.laws` that `control.translate`
   turns into C (the same operations in the same order as their Python, so the same bits when

@@ -18,7 +18,7 @@ realisation python-control gives)::
 
 The products are evaluated by `lti_step` as explicit sums in a fixed order (row by row, column 0
 first, then the input terms, input 0 first) rather than by numpy's matmul, whose BLAS may sum in
-another order: the compiled system loop (`cosim.system_loop`, lti_sums.c) runs the same sums in C,
+another order: the compiled system loop (`cosim.execution.system_loop`, lti_sums.c) runs the same sums in C,
 so both forms give the same bits. The command is not clipped or saturated. The diagnostic recorded in the trace
 is e = r − y for either form; the state is an `LtiState` (x and y0).
 

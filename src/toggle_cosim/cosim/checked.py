@@ -47,7 +47,7 @@ import numpy as np
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
 from toggle_cosim.cosim.controllers import ControllerFmuPart, check_user_controller, own_controller
-from toggle_cosim.cosim.fmi_pointers import RECORDED_TYPES
+from toggle_cosim.cosim.execution.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterface, read_fmu

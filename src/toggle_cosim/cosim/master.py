@@ -22,7 +22,7 @@ import numpy as np
 
 from toggle_cosim.control.protocol import Controller, ControllerError
 from toggle_cosim.cosim.checked import CheckedRun, check_run
-from toggle_cosim.cosim.instance_pool import InstancePool
+from toggle_cosim.cosim.execution.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.cosim.pair_execution import close_controller, refused_outcome, simulate_pair_as_system, trace_names
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings

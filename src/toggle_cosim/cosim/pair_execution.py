@@ -42,11 +42,11 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS
 from toggle_cosim.cosim.checked import CheckedRun, pair_ports
 from toggle_cosim.cosim.controllers import controller_record
-from toggle_cosim.cosim.instance_pool import InstancePool
+from toggle_cosim.cosim.execution.instance_pool import InstancePool
+from toggle_cosim.cosim.execution.slaves import SlaveError
+from toggle_cosim.cosim.execution.system_retry import CheckpointOptions, ComponentWords, failure_text
 from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
 from toggle_cosim.cosim.plant_inputs import other_inputs
-from toggle_cosim.cosim.slaves import SlaveError
-from toggle_cosim.cosim.system_retry import CheckpointOptions, ComponentWords, failure_text
 from toggle_cosim.cosim.systems import execute
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, said_in

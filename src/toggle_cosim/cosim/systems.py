@@ -28,7 +28,6 @@ from typing import Any
 import numpy as np
 
 from toggle_cosim.control.protocol import Controller, ControllerError
-from toggle_cosim.cosim.budget import BudgetExceeded, WorkBudget
 from toggle_cosim.cosim.checked import (
     CheckedRun,
     FmuComponent,
@@ -40,13 +39,14 @@ from toggle_cosim.cosim.checked import (
     unit_conversion,
 )
 from toggle_cosim.cosim.controllers import user_controller
-from toggle_cosim.cosim.execution import Execution, TraceObserver
+from toggle_cosim.cosim.execution.algorithm import Execution, TraceObserver
+from toggle_cosim.cosim.execution.budget import BudgetExceeded, WorkBudget
+from toggle_cosim.cosim.execution.instance_pool import InstancePool
+from toggle_cosim.cosim.execution.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
+from toggle_cosim.cosim.execution.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
+from toggle_cosim.cosim.execution.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
 from toggle_cosim.cosim.figures import run_figures
-from toggle_cosim.cosim.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
-from toggle_cosim.cosim.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
-from toggle_cosim.cosim.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
-from toggle_cosim.cosim.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import PlantInterface

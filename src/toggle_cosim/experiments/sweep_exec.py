@@ -52,7 +52,7 @@ def _run_pool(
     keep_traces: bool = False,
 ) -> None:
     """Local plant hosts, `workers` of them, each fed the next case as soon as it is free."""
-    from toggle_cosim.cosim.plant_host import wait_for_hosts
+    from toggle_cosim.cosim.isolation.plant_host import wait_for_hosts
 
     rows = max((case_samples(c.payload()) for c in cases), default=1)
     runners = [

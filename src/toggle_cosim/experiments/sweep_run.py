@@ -217,7 +217,7 @@ def execute_sweep(
     except ValueError as error:
         raise SweepError(str(error)) from error
     fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces, case_timeout)
-    from toggle_cosim.cosim.supervision import remove_stale_folders
+    from toggle_cosim.cosim.isolation.supervision import remove_stale_folders
 
     remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
     client = connect(scheduler) if scheduler else None  # before anything is written

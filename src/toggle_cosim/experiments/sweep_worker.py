@@ -1,8 +1,8 @@
 """Sweep cases in a worker that keeps the plant loaded: a `CaseRunner` (in the sweep's process, or
-in a Dask worker) drives a plant host (`cosim.plant_host`), a child process that unzips each FMU
+in a Dask worker) drives a plant host (`cosim.isolation.plant_host`), a child process that unzips each FMU
 and loads its binary once, then runs case after case on one instance of each component (the
 plant, a controller FMU, a system's parts), kept by its FMU's SHA-256 and its name in the host's
-pool (`cosim.instance_pool`, `master.simulate(..., pool=)`) and reset between cases; after a
+pool (`cosim.execution.instance_pool`, `master.simulate(..., pool=)`) and reset between cases; after a
 failed case the instances are freed and the next one gets new ones.
 A case that crashes, aborts or hangs the host is a failed row with the reason (and how far it
 got); the runner starts a new host for the next case. A case never sees what another left: the
@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.cosim.instance_pool import InstancePool
+from toggle_cosim.cosim.execution.instance_pool import InstancePool
 from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
 from toggle_cosim.messages import bounded_text, error_text, said_in
@@ -90,7 +90,7 @@ def case_samples(payload: Mapping[str, Any]) -> int:
 
 def case_time_limit(payload: Mapping[str, Any], override: float | None = None) -> float:
     """--case-timeout, else the case's time_limit key, else the default from t_end (`supervision`)."""
-    from toggle_cosim.cosim.supervision import default_time_limit
+    from toggle_cosim.cosim.isolation.supervision import default_time_limit
 
     if override is not None:
         return float(override)
@@ -122,7 +122,7 @@ def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | Non
     source = payload.get("source")  # a system's columns are its recorded ports (`systems.system_columns`)
     key = (repr(controller_doc), repr(_system_shape(system)), source, plant.sha256, inputs)
     if key not in _columns:
-        from toggle_cosim.cosim.supervision import probe_columns
+        from toggle_cosim.cosim.isolation.supervision import probe_columns
 
         (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
         _columns[key] = probe_columns(run, plant, case_time_limit(payload, time_limit))
@@ -186,7 +186,7 @@ def _private_folder() -> Path:
         import atexit
         import shutil
 
-        from toggle_cosim.cosim.supervision import FOLDER_PREFIX
+        from toggle_cosim.cosim.isolation.supervision import FOLDER_PREFIX
 
         folder = Path(tempfile.mkdtemp(prefix=f"{FOLDER_PREFIX}{os.getpid()}-"))
         atexit.register(shutil.rmtree, folder, True)
@@ -288,7 +288,7 @@ class CaseServer:
             if outcome is not None:
                 _fill_row(row, outcome)
                 if view is not None:  # the samples written, as a supervised run counts them
-                    from toggle_cosim.cosim.supervision import rows_recorded
+                    from toggle_cosim.cosim.isolation.supervision import rows_recorded
 
                     row["samples"] = rows_recorded(count, view)
             if row["status"] == "failed" and row["reason"]:  # what the reason says already is not said twice
@@ -361,8 +361,8 @@ class CaseRunner:
 
     def _new_host(self, rows: int) -> Any:
         from toggle_cosim import interrupts
-        from toggle_cosim.cosim.plant_host import PlantHost
-        from toggle_cosim.cosim.supervision import shared_word
+        from toggle_cosim.cosim.isolation.plant_host import PlantHost
+        from toggle_cosim.cosim.isolation.supervision import shared_word
 
         self.close()
         self.calling = shared_word()  # shared with the host's child
@@ -394,7 +394,11 @@ class CaseRunner:
 
     def service(self, answer: Any) -> tuple[dict[str, Any], np.ndarray | None]:
         """The row (and, with keep_traces, the trace) of the case this slot ran, from the host's answer."""
-        from toggle_cosim.cosim.exit_reasons import controller_words, in_controller_reason, stopped_in_controller
+        from toggle_cosim.cosim.isolation.exit_reasons import (
+            controller_words,
+            in_controller_reason,
+            stopped_in_controller,
+        )
 
         payload, self.payload = self.payload, None
         view = case_view(self.host.buffer, case_samples(payload), len(case_columns(payload, self.plant)))
@@ -412,7 +416,7 @@ class CaseRunner:
         T_s = payload["parameters"]["T_s"]
         at = f" at t = {max(rows - 1, 0) * T_s:.6g} s" if rows else " before the first sample"
         if called is not None:  # a system's component was being called
-            from toggle_cosim.cosim.exit_reasons import component_reason
+            from toggle_cosim.cosim.isolation.exit_reasons import component_reason
 
             limited = answer.failure.startswith("time limit")
             return crash_row(payload, self.sha256, component_reason(answer.failure, called, at, limited), rows), None
@@ -437,7 +441,7 @@ class CaseRunner:
         number = int(self.calling[0]) if self.calling is not None else 0
         if number <= 0:
             return None
-        from toggle_cosim.cosim.exit_reasons import component_words
+        from toggle_cosim.cosim.isolation.exit_reasons import component_words
         from toggle_cosim.cosim.systems import component_names
 
         source = payload.get("source")
@@ -471,7 +475,7 @@ def run_cases(
 ) -> list[tuple[dict[str, Any], np.ndarray | None]]:
     """Run cases one after the other on this thread's plant host (kept from call to call: a Dask
     worker thread loads the plant once), each under its time limit; their rows (and traces)."""
-    from toggle_cosim.cosim.plant_host import wait_for_hosts
+    from toggle_cosim.cosim.isolation.plant_host import wait_for_hosts
 
     try:
         plant = resolve_plant(fmu, fmu_sha256, fmu_data)

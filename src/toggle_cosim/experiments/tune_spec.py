@@ -24,7 +24,7 @@ built-in gains (controller.gains.C, controller.C_I), a Python factory's paramete
 (controller.parameters.NAME), a controller FMU's parameters (controller.parameters.NAME), the
 plant's parameters. Both bounds are checked as values of the key before anything runs.
 
-Every case runs under a work budget (`cosim.budget`): a case that chatters ends at the same
+Every case runs under a work budget (`cosim.execution.budget`): a case that chatters ends at the same
 sample, failed, on a quiet and on a busy machine, so the same file gives the same trials.
 `case_budget`'s keys (by default `budget.DEFAULT_BUDGET`, 4 plant events per sample) are fixed
 keys like `fix`'s (budget.events_per_sample: 4), set in every case and in the sweep files and
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.cosim.budget import DEFAULT_BUDGET
+from toggle_cosim.cosim.execution.budget import DEFAULT_BUDGET
 from toggle_cosim.experiments.scenario import SCHEMA as SCENARIO_SCHEMA
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 from toggle_cosim.experiments.sweep_spec import (

@@ -166,7 +166,7 @@ def run_with_master(fmu: Path, scenario: Path, variant: str | None, name: str) -
     a file it does not carry."""
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.controllers import controller_for
-    from toggle_cosim.cosim.supervision import remove_stale_folders, simulate_supervised
+    from toggle_cosim.cosim.isolation.supervision import remove_stale_folders, simulate_supervised
     from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.probe import ProbeError, probe_binary

@@ -4,7 +4,7 @@
   Warning; a value the standard does not define (a negative one, or 5 from an FMI 3.0 FMU or a
   Co-Simulation FMU that was not asked to run asynchronously) would pass as success. Here it
   fails, in the hot calls (`failed`), in every other call fmpy makes (`FMU2SlaveChecked`,
-  `FMU3SlaveChecked`) and in the compiled system loop (`cosim/system_skeleton.c`, the same rule in C).
+  `FMU3SlaveChecked`) and in the compiled system loop (`cosim/execution/system_skeleton.c`, the same rule in C).
 * An FMU's log message is printed `[LABEL] message` as fmpy prints it, but decoded with
   replacement (a message that is not UTF-8 is still shown) and with a label for any status
   (`[STATUS 7]`): fmpy's own logger raises inside the callback for both, and the message is lost.

@@ -1,5 +1,5 @@
 """An FMU's connectors as a system sees them (`fmu_interface`): read from its model description
-(fmpy's), the one definition that the master's slaves (`cosim.slaves`), the run's check
+(fmpy's), the one definition that the master's slaves (`cosim.execution.slaves`), the run's check
 (`cosim.checked`) and the SSP reader (`ssp.fmus`) all use; and a natively run controller's
 (`controller_interface`). Nothing is loaded."""
 

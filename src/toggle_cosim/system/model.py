@@ -1,10 +1,10 @@
 """What a system is: components (FMUs, the controller, signal sources), their connections, and
 the variables a run records. A scenario file (`experiments.scenario`) and an SSD (`ssp.reader`)
-are two ways to write one; the master (`cosim.execution`) steps it.
+are two ways to write one; the master (`cosim.execution.algorithm`) steps it.
 
 These are plain data: nothing here opens an FMU. What a component's connectors are (their
 causality, unit and direct dependencies) is read when the system is built for a run
-(`Interface`, `cosim.slaves`); the order the master steps the components in follows from the
+(`Interface`, `cosim.execution.slaves`); the order the master steps the components in follows from the
 connections and those dependencies (`system.graph`).
 """
 

@@ -1,6 +1,6 @@
 """A system's stepping plan: every value of a sample in one flat buffer, and the tables that say
-which slot feeds which (`build_plan`). The Python execution (`cosim.execution`) and the C loop
-(`cosim.system_loop`) both run a plan, so they make the same calls with the same values.
+which slot feeds which (`build_plan`). The Python execution (`cosim.execution.algorithm`) and the C loop
+(`cosim.execution.system_loop`) both run a plan, so they make the same calls with the same values.
 
 The buffer holds, per component in stepping order, its outputs and then its inputs. Each fed
 input slot has one feed: another slot (an output, times `factor` plus `offset`, or copied when

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from toggle_cosim.cosim.unzipped import release
+from toggle_cosim.cosim.execution.unzipped import release
 
 __all__ = ["InstancePool", "Kept", "PoolCounts"]
 

@@ -41,8 +41,8 @@ from typing import Any
 import numpy as np
 
 from toggle_cosim import interrupts, process_tree
-from toggle_cosim.cosim.exit_reasons import exit_reason
-from toggle_cosim.cosim.supervision import (
+from toggle_cosim.cosim.isolation.exit_reasons import exit_reason
+from toggle_cosim.cosim.isolation.supervision import (
     FOLDER_PREFIX,
     fork_child,
     limit_memory,

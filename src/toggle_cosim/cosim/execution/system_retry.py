@@ -31,7 +31,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from toggle_cosim.cosim.slaves import Slave, SlaveError
+from toggle_cosim.cosim.execution.slaves import Slave, SlaveError
 
 __all__ = [
     "CHECKPOINT_SAMPLES",

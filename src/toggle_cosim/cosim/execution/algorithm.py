@@ -11,7 +11,7 @@ execution, algorithm and observers).
   k with component c stepping in m substeps of T_s / m (a checkpoint retry, `system_retry`).
 * The algorithm is the plan's: Gauss-Seidel (its order, early and late inputs) or Jacobi (every
   input late). Both are the sample procedure of `system.plan`, which the C loop
-  (`cosim.system_loop`) runs too.
+  (`cosim.execution.system_loop`) runs too.
 * Observers see every sample after it is complete: `TraceObserver` writes row k of the trace
   (the plan's recorded slots), a progress hook reports.
 
@@ -30,7 +30,7 @@ from typing import Protocol
 
 import numpy as np
 
-from toggle_cosim.cosim.slaves import Slave, SlaveError
+from toggle_cosim.cosim.execution.slaves import Slave, SlaveError
 from toggle_cosim.system.plan import SIGNAL, Plan
 
 __all__ = ["Execution", "Observer", "TraceObserver", "row_count"]

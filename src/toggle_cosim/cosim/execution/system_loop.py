@@ -5,13 +5,13 @@ connection table, for any number of FMUs (FMI 2.0 and 3.0 Co-Simulation) and nat
 `SystemLoop` makes the tables from the plan and each component's C calls (`CFunctions`, e.g.
 `fmi_pointers.fmu_functions` of an fmpy slave: its outputs' value references in the plan's
 `output_names[c]` order, its fed inputs' in `input_names[c]` order) and runs samples k0 .. k_end - 1
-as the plan's docstring says (cosim/system_skeleton.c): per component one setReal for its early
+as the plan's docstring says (cosim/execution/system_skeleton.c): per component one setReal for its early
 inputs and one getReal for its outputs (then one getter call per recorded output of another type,
 `CFunctions.reads`), then one setReal for its late inputs and a doStep each.
 Each sample's row goes into the caller's preallocated trace: column 0 t_k = k T_s, column 1 + i
 the value of the slot plan.record[i]. An input fed through a unit conversion gets factor · value
 + offset with Python's bits (compiled without contraction); an identity connection copies.
-Instantiation, parameters and initialisation are the caller's (`cosim.execution`): the loop only
+Instantiation, parameters and initialisation are the caller's (`cosim.execution.algorithm`): the loop only
 steps instances that are ready.
 
 A native controller's entry holds the law's parameters or the system's matrices and what its
@@ -27,7 +27,7 @@ A component run in Python (a user's Python controller, any slave without C calls
 order and with the same values, so only that component costs Python time. What it raises stops the loop at that sample
 (RAISED) and `run` raises it, as the Python execution would.
 
-`compiled_system` makes the loop for a plan's slaves (`cosim.slaves`): an FMU's `c_functions()`,
+`compiled_system` makes the loop for a plan's slaves (`cosim.execution.slaves`): an FMU's `c_functions()`,
 a native controller, and every other component run in Python through the callback; or says in a
 line why there is none (no compiled library).
 
@@ -52,10 +52,10 @@ from typing import NamedTuple
 import numpy as np
 
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.cosim.fmi_pointers import CFunctions
-from toggle_cosim.cosim.slaves import ControllerSlave, SlaveError
-from toggle_cosim.cosim.system_natives import NativeController, native_controller
-from toggle_cosim.cosim.system_python import Callbacks, PythonComponent, Turns, turns_of
+from toggle_cosim.cosim.execution.fmi_pointers import CFunctions
+from toggle_cosim.cosim.execution.slaves import ControllerSlave, SlaveError
+from toggle_cosim.cosim.execution.system_natives import NativeController, native_controller
+from toggle_cosim.cosim.execution.system_python import Callbacks, PythonComponent, Turns, turns_of
 from toggle_cosim.native import KERNEL_FLAGS, load_library_from
 from toggle_cosim.system.plan import Plan
 
@@ -143,7 +143,7 @@ def _system_struct() -> type[ctypes.Structure]:
 
 
 def _skeleton() -> Path:
-    return Path(str(resources.files("toggle_cosim.cosim").joinpath("system_skeleton.c")))
+    return Path(str(resources.files("toggle_cosim.cosim.execution").joinpath("system_skeleton.c")))
 
 
 @functools.cache
@@ -514,7 +514,7 @@ def compiled_system(
     ids: Sequence[int] | None = None,
 ) -> SystemLoop | str:
     """The compiled loop over `slaves` (in plan.order, instantiated and initialised): each with a
-    `c_functions()` in the plan's order (as `cosim.slaves.FmuSlave` has) called from C, a
+    `c_functions()` in the plan's order (as `cosim.execution.slaves.FmuSlave` has) called from C, a
     `ControllerSlave` whose controller runs natively in C (`system_natives`), every other one
     called back into Python (`system_python.PythonComponent`, its `why` the line saying why it
     is not in C); or why there is none (the library is missing). `rows`, `calling`, `ids`: as

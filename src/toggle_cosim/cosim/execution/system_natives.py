@@ -1,4 +1,4 @@
-"""The controllers a system's compiled loop (`cosim.system_loop`) runs natively in C, beside its
+"""The controllers a system's compiled loop (`cosim.execution.system_loop`) runs natively in C, beside its
 FMUs: the built-in law (`VSCController`, either law, tracking its sampled reference or its
 constant target) and a python-control system (`control.lti.DiscreteSystemController`).
 
@@ -20,7 +20,7 @@ import numpy as np
 from toggle_cosim.control.controller import ControllerState, VSCController
 from toggle_cosim.control.lti import DiscreteSystemController, LtiMatrices, LtiState
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.cosim.slaves import ControllerSlave, SampleState
+from toggle_cosim.cosim.execution.slaves import ControllerSlave, SampleState
 
 __all__ = [
     "NATIVE_LAW",

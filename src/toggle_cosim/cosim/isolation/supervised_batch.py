@@ -16,8 +16,8 @@ import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from toggle_cosim.cosim.isolation.supervision import SupervisedRun, wait_for
 from toggle_cosim.cosim.outcome import RunOutcome
-from toggle_cosim.cosim.supervision import SupervisedRun, wait_for
 
 
 def default_jobs(runs: int) -> int:

@@ -1,4 +1,4 @@
-/* toggle-cosim: a system's stepping plan run in C (cosim/system_loop.py builds the tables from a
+/* toggle-cosim: a system's stepping plan run in C (cosim/execution/system_loop.py builds the tables from a
    system.plan.Plan and calls system_run). No physics, no law: FMUs called through their function
    pointers, values moved between their slots in one flat buffer.
 
@@ -14,15 +14,15 @@
 
    A component is an FMU (its function pointers) or a native controller (native_t, NULL for an
    FMU): the built-in law (NATIVE_LAW: law_step, generated from control/laws.py in front of this
-   skeleton by cosim/system_loop.py) or a discrete LTI system (NATIVE_LTI: lti_sums, the sums of
-   control/lti.py's lti_step). A native controller samples as cosim/slaves.py's ControllerSlave
+   skeleton by cosim/execution/system_loop.py) or a discrete LTI system (NATIVE_LTI: lti_sums, the sums of
+   control/lti.py's lti_step). A native controller samples as cosim/execution/slaves.py's ControllerSlave
    does: a set stores its inputs and marks it dirty; its outputs are computed from the inputs as
    set, at the time of the first get or doStep after the set, and held; a doStep commits the state
    that computation gave. Where the Python might raise or a value is not finite, the loop stops
    with HAND_BACK at that sample before any doStep of it, and the saved copy (`saved`: what the
    controller held at the sample's start) lets the Python execution take the sample from its start.
 
-   A component run in Python (a user's Python controller: cosim/system_python.py's callback) is
+   A component run in Python (a user's Python controller: cosim/execution/system_python.py's callback) is
    called back once a sample, at its early turn, its early inputs computed into its scratch as for
    an FMU: the callback sets its early inputs and gets its outputs into their buffer slots. Its
    late inputs and its doStep of sample k are its own calls too, in the same order, made by the
@@ -63,7 +63,7 @@ typedef struct {
     law_t law;                  /* NATIVE_LAW: its parameters, with its start's t0 and T_h */
 } native_t;
 
-/* One component of the table. Its ctypes mirror is built in cosim/system_loop.py from the same
+/* One component of the table. Its ctypes mirror is built in cosim/execution/system_loop.py from the same
    field lists. */
 typedef struct {
     void *get, *set, *step, *component;
@@ -117,7 +117,7 @@ static int get_outputs(const component_t *c, double *values) {
 }
 
 /* One value of another type than Real, by its getter, as a double (the kind codes of
-   cosim/fmi_pointers.py's KINDS: 0 an FMI 2.0 Integer, Enumeration or Boolean, all ints; then FMI
+   cosim/execution/fmi_pointers.py's KINDS: 0 an FMI 2.0 Integer, Enumeration or Boolean, all ints; then FMI
    3.0's Int8, UInt8, Int16, UInt16, Int32, UInt32, Int64 (and Enumeration), UInt64, Boolean, Float32). */
 #define GET3(type) { type v = 0; status = ((int (*)(void *, const unsigned int *, size_t, type *, size_t))f)( \
                          c->component, vr, 1, &v, 1); *value = (double)v; return status; }

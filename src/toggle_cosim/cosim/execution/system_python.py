@@ -1,4 +1,4 @@
-"""Components of a system's compiled loop (`cosim.system_loop`) that run in Python: a user's
+"""Components of a system's compiled loop (`cosim.execution.system_loop`) that run in Python: a user's
 Python controller (a `ControllerSlave` whose controller is not a native kind, `system_natives`),
 or any slave without C calls. Every FMU call of the run stays in C; at such a component's early
 turn of each sample k the C calls back into Python once (system_skeleton.c's `call_python`),
@@ -12,7 +12,7 @@ and the callback makes the slave's own calls with the values the C computed:
 Where the loop returns between samples (a stretch's end, a sample handed back), the last
 sample's late inputs and doStep are made from Python (`Turns.finish`) before anything else runs.
 So the slave is given the calls, in the order and with the values, that the Python execution
-(`cosim.execution.Execution`) gives it: the trace has its bits, and the slave holds its own
+(`cosim.execution.algorithm.Execution`) gives it: the trace has its bits, and the slave holds its own
 state (a checkpoint saves and restores it as ever).
 
 What the slave's code raises (an error, SystemExit, an interrupt landing in the callback) is not
@@ -35,7 +35,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from toggle_cosim.cosim.slaves import SlaveError
+from toggle_cosim.cosim.execution.slaves import SlaveError
 
 __all__ = ["CALLBACK", "Callbacks", "PythonComponent"]
 
@@ -46,7 +46,7 @@ CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_long, ctypes.c_long, ctypes.c_long)  
 
 @dataclass(frozen=True)
 class PythonComponent:
-    """A component the compiled loop calls back into Python for: its slave (`cosim.slaves.Slave`),
+    """A component the compiled loop calls back into Python for: its slave (`cosim.execution.slaves.Slave`),
     and why it is not run in C (run.json's loop reason)."""
 
     slave: Any

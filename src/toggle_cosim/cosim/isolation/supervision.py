@@ -58,7 +58,8 @@ from toggle_cosim.cosim import master
 from toggle_cosim.cosim import outcome as outcomes
 from toggle_cosim.cosim.checked import CheckedRun, SystemError_, built, check_run, component_names
 from toggle_cosim.cosim.controllers import controller_record, user_controller
-from toggle_cosim.cosim.exit_reasons import (
+from toggle_cosim.cosim.figures import run_figures
+from toggle_cosim.cosim.isolation.exit_reasons import (
     building_reason,
     component_reason,
     component_words,
@@ -68,7 +69,6 @@ from toggle_cosim.cosim.exit_reasons import (
     in_controller_reason,
     stopped_in_controller,
 )
-from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text, error_text
 from toggle_cosim.plant.contract import PlantInterface
@@ -172,7 +172,7 @@ def warm_up() -> None:
 
     outcomes.installed_versions()
     with contextlib.suppress(Exception):
-        from toggle_cosim.cosim.system_loop import system_library as kernel_library
+        from toggle_cosim.cosim.execution.system_loop import system_library as kernel_library
 
         kernel_library()
 

@@ -28,7 +28,7 @@ from typing import Any, NoReturn, Protocol
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
-from toggle_cosim.cosim.fmi_pointers import (
+from toggle_cosim.cosim.execution.fmi_pointers import (
     FMI2_NAMES,
     FMI3_NAMES,
     CFunctions,
@@ -37,8 +37,8 @@ from toggle_cosim.cosim.fmi_pointers import (
     read_typed,
     typed_reads,
 )
-from toggle_cosim.cosim.instance_pool import InstancePool, Kept
-from toggle_cosim.cosim.unzipped import release, unzipped
+from toggle_cosim.cosim.execution.instance_pool import InstancePool, Kept
+from toggle_cosim.cosim.execution.unzipped import release, unzipped
 from toggle_cosim.messages import error_text
 from toggle_cosim.plant.fmi_calls import (
     FATAL,
@@ -467,7 +467,7 @@ class SampleState:
     last computation gave (`next`, committed by the next doStep), its outputs held (the command,
     then the diagnostics), its fed inputs as set (`row`, in the plan's order), whether they were
     set since that computation (`dirty`) and whether its start has run. The compiled system loop
-    (`cosim.system_natives`) takes it over to run the controller natively in C and gives it back."""
+    (`cosim.execution.system_natives`) takes it over to run the controller natively in C and gives it back."""
 
     state: Any
     next: Any
