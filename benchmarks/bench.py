@@ -83,7 +83,7 @@ from timing import run_to_last_file  # benchmarks/timing.py, beside this script
 from toggle_cosim import native
 from toggle_cosim.control.protocol import ControllerContext, ControlStep
 from toggle_cosim.cosim import master
-from toggle_cosim.cosim.execution.algorithm import slaves, system_loop
+from toggle_cosim.cosim.execution import slaves, system_loop
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.fmu_export import build_fmu
 from toggle_cosim.plant.contract import check_plant

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from toggle_cosim.cosim import master
-from toggle_cosim.cosim.execution.algorithm import slaves, system_loop
+from toggle_cosim.cosim.execution import slaves, system_loop
 from toggle_cosim.experiments.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -21,7 +21,7 @@ from toggle_cosim import native
 from toggle_cosim.control import law_c, laws, nominal, translate
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import LawParameters
-from toggle_cosim.cosim.execution.algorithm import system_loop
+from toggle_cosim.cosim.execution import system_loop
 from toggle_cosim.cosim.master import simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters

@@ -237,7 +237,7 @@ def plant_kernel_payload(folder: Path, flag: Path, shared: Path) -> None:
     """As the attacker, make `folder` with a payload named by every system-loop marker the
     victim could look for (the marker's name is public: it hashes public inputs), with a
     matching SHA-256 record: only the folder's owner tells it is not the victim's."""
-    from toggle_cosim.cosim.execution.algorithm import system_loop
+    from toggle_cosim.cosim.execution import system_loop
 
     payload = compile_payload(shared, flag, "system-loop-0000000000000000.so")
     digest = native.hashlib.sha256()
