@@ -185,7 +185,7 @@ def test_translator_rejects_what_it_cannot_translate_exactly() -> None:
 def test_the_generated_source_has_the_law_once_and_no_hand_written_physics() -> None:
     """The system loop's skeleton holds no law (no mass-matrix term, no gain); the generated source
     holds the mass terms exactly once, and the struct has the dataclass's fields in order."""
-    skeleton = (ROOT / "src" / "toggle_cosim" / "cosim" / "system_skeleton.c").read_text()
+    skeleton = (ROOT / "src" / "toggle_cosim" / "cosim" / "execution" / "system_skeleton.c").read_text()
     for word in ("M11", "beta", "delta", "sin(", "K_f"):
         assert word not in skeleton
     source = system_loop.system_source()

@@ -228,7 +228,7 @@ def test_a_marker_naming_a_library_outside_the_cache_is_ignored(caches: tuple[Pa
 
 
 KERNEL_PROBE = (
-    "from toggle_cosim.cosim import system_loop\n"
+    "from toggle_cosim.cosim.execution import system_loop\n"
     "print(system_loop.system_library() is not None); print(system_loop.system_library_reason())\n"
 )
 
