@@ -246,3 +246,78 @@ def test_an_exception_escaping_the_callback_is_kept_by_its_loop_and_the_hook_put
         assert sys.unraisablehook == other.append
     finally:
         sys.unraisablehook = before
+
+
+class _Recording:
+    """A controller that keeps each measurement it is given and what it held then; its command
+    is its input c."""
+
+    diagnostics = ()
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[object, dict[str, float]]] = []
+
+    def start(self, t0, measurement):  # noqa: ANN001, ANN201
+        return None
+
+    def step(self, state, t, measurement):  # noqa: ANN001, ANN201
+        self.seen.append((measurement, dict(measurement)))
+        return ControlStep(measurement["c"], (), state)
+
+
+def _controller_slave(controller: object) -> object:
+    """A native controller component measuring a, b and c, each fed by the plant's output of its name."""
+    from toggle_cosim.cosim.execution.slaves import ControllerSlave
+    from toggle_cosim.system.model import Interface
+
+    slave = ControllerSlave("controller", controller, (), Interface(("a", "b", "c"), ("iq_ref",)))
+    slave.fed_from(tuple(f"component 'plant': its output {name}" for name in "abc"))
+    return slave
+
+
+def test_a_controller_is_given_one_view_of_its_inputs_holding_each_sample_s_values() -> None:
+    """At each sample the controller's measurement holds the inputs as set for that sample; it
+    is the same read-only view every sample (no new object per sample), so a value is read
+    during the call and a copy (dict(measurement)) is what keeps one."""
+    import ctypes
+
+    controller = _Recording()
+    slave = _controller_slave(controller)
+    out = (ctypes.c_double * 1)()
+    for k, values in enumerate([(1.0, 2.0, 3.0), (4.0, 5.0, 6.5)]):
+        slave.set((0, 1, 2), values, k * 0.5)
+        slave.get(out, k * 0.5)
+        slave.do_step(k * 0.5, 0.5)
+        assert out[0] == values[2]
+    (first, held_first), (second, held_second) = controller.seen
+    assert first is second
+    assert held_first == {"a": 1.0, "b": 2.0, "c": 3.0} and held_second == {"a": 4.0, "b": 5.0, "c": 6.5}
+
+
+@pytest.mark.parametrize(
+    ("values", "refused"),
+    [
+        ((1.0, float("nan"), 2.0), "component 'plant': its output b is nan at t = 0.25 s"),
+        ((float("inf"), float("-inf"), 0.0), "component 'plant': its output a is inf at t = 0.25 s"),
+        ((0.0, 1.0, float("-inf")), "component 'plant': its output c is -inf at t = 0.25 s"),
+    ],
+)
+def test_every_input_set_at_once_is_refused_only_for_a_value_that_is_not_finite(values: tuple, refused: str) -> None:
+    """A sample of every input at once is checked in one go: finite values whose sum overflows
+    to infinity are taken as they are, a NaN or an infinity (infinities of both signs too, whose
+    sum is NaN) is refused naming the first such input, its value and the time."""
+    import ctypes
+
+    from toggle_cosim.cosim.execution.slaves import SlaveError
+
+    controller = _Recording()
+    slave = _controller_slave(controller)
+    slave.set((0, 1, 2), (1e308, 1e308, -1.0), 0.0)
+    slave.get((ctypes.c_double * 1)(), 0.0)
+    assert controller.seen[-1][1] == {"a": 1e308, "b": 1e308, "c": -1.0}
+    with pytest.raises(SlaveError) as caught:
+        slave.set((0, 1, 2), values, 0.25)
+    assert str(caught.value) == (
+        f"{refused}, measured by the native controller 'controller', which takes finite values only"
+    )
+    assert caught.value.not_finite

@@ -526,6 +526,7 @@ class ControllerSlave:
         self._index = {name: i for i, name in enumerate(fed)}
         self._row = [0.0] * len(fed)
         self._every = tuple(range(len(fed)))  # positions that set every fed input, in order
+        self._measurement = Measurement(self._index, self._row)  # the view the controller is given, over `_row`
         self._sources = tuple(f"input {name}" for name in fed)
         self._changes = getattr(self, "_changes", 0) + 1
 
@@ -546,10 +547,13 @@ class ControllerSlave:
     def set(self, positions: Sequence[int], values: Sequence[float], t: float) -> None:
         """Set the fed inputs at `positions` to `values`; a value that is not finite is refused
         (SlaveError naming its source, `not_finite`), the first in the positions' order. Every
-        input at once (a Python controller's sample) is one check and one copy."""
+        input at once (a Python controller's sample) is one check and one copy: their sum is
+        finite only when every one is (a NaN or an infinity makes it NaN or infinite), and only a
+        sum that is not (one of them is not finite, or finite ones overflowed) looks at each."""
         row, isfinite = self._row, math.isfinite
         if len(values) == len(row) and positions == self._every:
-            if not all(map(isfinite, values)):
+            total = sum(values)
+            if total - total != 0.0 and not all(map(isfinite, values)):
                 self._refuse(positions, values, t)
             row[:] = values
         else:
@@ -608,7 +612,7 @@ class ControllerSlave:
     def _compute(self, t: float) -> None:
         """The step at t from the inputs as set: the held outputs and the pending state."""
         self._changes += 1
-        measurement = Measurement(self._index, self._row)
+        measurement = self._measurement
         if not self._started:
             try:
                 self._state = self.controller.start(t, measurement)
@@ -640,8 +644,8 @@ class ControllerSlave:
     def get(self, values: Any, t: float) -> None:
         if self._dirty:
             self._compute(t)
-        for j, value in enumerate(self._held):
-            values[j] = value
+        held = self._held
+        values[: len(held)] = held
 
     def do_step(self, t: float, h: float) -> None:
         if self._dirty:

@@ -58,7 +58,8 @@ class Turns:
     """What the callback needs of one component run in Python: its slave, the positions among its
     fed inputs of its early and late inputs, the buffer slots of its late inputs, and as ctypes
     arrays over the C's memory its scratch (the early values the C gathered), its outputs' slots
-    and the whole buffer (`memory`); T_s the communication step."""
+    and the whole buffer (`memory`); T_s the communication step. `gathered`: the scratch's early
+    values as a memoryview of doubles, read as a list of floats in one call (`tolist`)."""
 
     slave: Any
     early: tuple[int, ...]
@@ -68,6 +69,7 @@ class Turns:
     outputs: ctypes.Array
     memory: ctypes.Array
     T_s: float
+    gathered: memoryview
 
     def finish(self, k: int) -> None:
         """Its late inputs and doStep of sample k, as the Python execution makes them."""
@@ -104,7 +106,7 @@ class Callbacks:
                 t = k * T_s
                 early = turn.early
                 if early:
-                    turn.slave.set(early, turn.scratch[: len(early)], t)
+                    turn.slave.set(early, turn.gathered.tolist(), t)
                 turn.slave.get(turn.outputs, t)
                 answered[0] = 1
             except BaseException as error:  # noqa: BLE001 - kept, and raised by `reraise` once the C has returned
@@ -185,4 +187,5 @@ def turns_of(
     buffer, so `get` writes where the C reads, and the late values read are Python floats)."""
     memory = (ctypes.c_double * buffer.size).from_address(buffer.ctypes.data)
     outputs = (ctypes.c_double * max(n, 1)).from_address(buffer.ctypes.data + out0 * buffer.itemsize)
-    return Turns(slave, tuple(early), tuple(late), tuple(late_slots), scratch, outputs, memory, float(T_s))
+    gathered = memoryview(scratch).cast("B").cast("d")[: len(early)]
+    return Turns(slave, tuple(early), tuple(late), tuple(late_slots), scratch, outputs, memory, float(T_s), gathered)
