@@ -278,16 +278,19 @@ def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu", "2.0").path
 
 
-@pytest.mark.parametrize("law", ["paper", "integral"])
+@pytest.mark.parametrize(
+    ("law", "coupling"), [("paper", "gauss-seidel"), ("integral", "gauss-seidel"), ("integral", "jacobi")]
+)
 def test_the_controller_fmu_tracks_the_trajectory_with_the_built_in_laws_bits_in_both_loops(
-    toggle_vsc: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, law: str
+    toggle_vsc: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, law: str, coupling: str
 ) -> None:
-    """controller.fmu: ToggleVSC.fmu on a trajectory run: the master feeds its inputs x_ref,
-    v_ref, a_ref from the run's sampled reference (the compiled loop from C, the Python loop from
-    `FmuController.step`); iq_ref, S, phase, e and x_B are the built-in law's bits."""
+    """controller.fmu: ToggleVSC.fmu on a trajectory run: the execution feeds its inputs x_ref,
+    v_ref, a_ref from the run's sampled reference (signal columns, set with its measurements: the
+    compiled loop from C, the Python execution from Python); iq_ref, S, phase, e and x_B are the
+    built-in law's bits, under either coupling."""
     plant = check_plant(plant_fmu)
     spec = {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0}
-    document = {**_document(spec, law=law), "t_end": 0.7}
+    document = {**_document(spec, law=law), "t_end": 0.7, "coupling": coupling}
     builtin = simulate(runs_from_document(document)[0], plant)
     with_fmu = {**document, "controller": {"law": law, "fmu": str(toggle_vsc)}}
     compiled = simulate(runs_from_document(with_fmu)[0], plant)
