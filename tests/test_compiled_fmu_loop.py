@@ -145,14 +145,7 @@ def test_the_controller_fmu_runs_in_c_with_the_python_loops_bits(
         (1, "FlakyLaw.fmu: fmi2DoStep at t = 0.05 s returned status 4; it logged [FATAL] "),
         (2, "FlakyLaw.fmu: fmi2SetReal at t = 0.05 s returned status 4; it logged [FATAL] "),
         (3, "FlakyLaw.fmu: fmi2GetReal at t = 0.05 s returned status 4; it logged [FATAL] "),
-        pytest.param(
-            4,
-            "the controller's command at t = 0.05 s is nan, not a finite float",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the execution sends a controller FMU's NaN command on: the plant refuses it, one sample later",
-            ),
-        ),
+        (4, "the controller's command at t = 0.05 s is nan, not a finite float"),
     ],
     ids=["doStep", "set", "get", "nan"],
 )
@@ -197,17 +190,7 @@ def test_the_generated_fmus_error_for_an_x_B_out_of_reach(
 
 @pytest.mark.parametrize(
     "kind",
-    [
-        "chatter",
-        pytest.param(
-            "nan",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the execution guards the measurements of native controllers only: a controller FMU reads the"
-                " plant's NaN and its own failure is the reason",
-            ),
-        ),
-    ],
+    ["chatter", "nan"],
 )
 def test_a_failing_plant_with_a_controller_fmu_gives_the_python_loops_outcome(
     kind: str, toggle_vsc: dict[str, Path], plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
@@ -233,6 +216,59 @@ def test_a_failing_plant_with_a_controller_fmu_gives_the_python_loops_outcome(
     else:
         assert compiled.record["loop"]["kind"] == "compiled"
         assert compiled.reason == "plant outputs became non-finite at t = 0.1005 s"  # the first sample read past 0.1 s
+
+
+@pytest.mark.parametrize(
+    ("coupling", "record", "rows", "reason"),
+    [
+        ("jacobi", False, 202, "plant outputs became non-finite at t = 0.1005 s"),
+        (
+            "gauss-seidel",
+            True,
+            201,
+            "component 'plant': its output x_B is nan at t = 0.1005 s, measured by the controller FMU 'controller',"
+            " which takes finite values only",
+        ),
+    ],
+    ids=["jacobi", "system"],
+)
+def test_a_controller_fmus_measurement_that_is_not_finite_ends_the_run_before_it_is_set(
+    coupling: str,
+    record: bool,
+    rows: int,
+    reason: str,
+    toggle_vsc: dict[str, Path],
+    plant_fmu: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The plant's outputs NaN from 0.1 s: under Jacobi the controller FMU's inputs are set late,
+    after row 0.1005 s is recorded, and the guard refuses them there; in a system (a `record:`
+    list) the reason names the output and the controller. Both loops end at the same row with
+    the same reason, and the controller FMU never sees the NaN."""
+    from fault_plants import fault_environment, make_faulty_fmu
+
+    from toggle_cosim.system.model import Port
+
+    faulty = check_plant(make_faulty_fmu(plant_fmu, tmp_path / "Faulty.fmu"))
+    environment = fault_environment("nan", 0.1, faulty.references)
+    for name in ("TOGGLE_FAULT_KIND", "TOGGLE_FAULT_TIME", "TOGGLE_FAULT_MIN_FE", "TOGGLE_FAULT_FE_VR"):
+        monkeypatch.setenv(name, environment[name])
+    run = dataclasses.replace(load_scenario(SCENARIOS / "fig4_nominal.yaml")[0], t_end=0.3, coupling=coupling)
+    if record:
+        ports = (Port("plant", "x_B"), Port("controller", "iq_ref"))
+        run = dataclasses.replace(run, system=dataclasses.replace(run.system, record=ports))
+    run = _with_fmu(run, toggle_vsc["2.0"])
+    monkeypatch.delenv("TOGGLE_COSIM_KERNEL", raising=False)
+    compiled = simulate(run, faulty)
+    monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
+    python = simulate(run, faulty)
+    assert compiled.record["loop"]["kind"].endswith("compiled") and python.record["loop"]["kind"].endswith("python")
+    _same_outcome(compiled, python)
+    assert compiled.reason == reason
+    assert len(compiled.trace.time) == rows and np.isnan(compiled.trace.column(compiled.trace.names[1])[-1]) == (
+        rows == 202
+    )
 
 
 def test_progress_and_interrupts_as_for_the_builtin_law(

@@ -19,7 +19,7 @@ from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim import master
 from toggle_cosim.cosim.outcome import Stepping
 from toggle_cosim.cosim.pair_execution import pair_loop
-from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
+from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.system.model import Port, Wiring
 
@@ -186,23 +186,3 @@ def test_a_controller_that_raises_fails_the_run_in_the_pair_s_words(plants) -> N
     assert outcome.reason.startswith("controller failed: the controller's step raised at t = 0.005 s"), outcome.reason
     assert outcome.record["loop"]["kind"] == "python"
     assert len(outcome.trace.data) == 10
-
-
-def test_a_controller_fmu_on_a_trajectory_run_is_refused_not_run_against_its_target(plants, vsc_fmu: Path) -> None:
-    """The execution does not feed a controller FMU's reference inputs (x_ref, v_ref, a_ref): the
-    run fails before its first sample with one line naming controller.fmu and the fix."""
-    document = {
-        "name": "tracking",
-        "t_end": 0.7,
-        "T_s": 0.0005,
-        "stroke": {
-            "x_start": 0.2329,
-            "x_target": 0.3199,
-            "trajectory": {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0},
-        },
-        "controller": {"fmu": str(vsc_fmu)},
-    }
-    outcome = master.simulate(runs_from_document(document)[0], plants["plant"])
-    assert not outcome.complete and len(outcome.trace.data) == 0
-    assert outcome.reason.startswith("controller: key controller.fmu: ToggleVSC.fmu would track stroke.trajectory")
-    assert outcome.reason.endswith("(run the trajectory with the built-in law, or remove stroke.trajectory)")

@@ -93,6 +93,22 @@ def test_the_plan_sets_inputs_from_later_components_after_every_output() -> None
     assert plan.names == ("time", "plant.x_B", "plant.v_B", "plant.P", "plant.iq_ref", "plant.F_E", "ctrl.u", "ctrl.x")
 
 
+def test_a_reference_signal_is_set_with_the_measurements_it_goes_with() -> None:
+    """A tracking controller's reference (a signal in `references`) is set early, with what it
+    measures, when every input a connection feeds it is early: its outputs at t_k are computed
+    from the measurement and the reference at t_k. Read before its source, or under Jacobi, its
+    measurement is late, and so is the reference."""
+    tracking = Interface(("x", "x_ref"), ("u",))
+    interfaces = {"plant": PLANT, "ctrl": tracking}
+    wires = [_c("plant.x_B -> ctrl.x"), _c("ctrl.u -> plant.iq_ref")]
+    signals, reference = [Port("plant", "F_E"), Port("ctrl", "x_ref")], [Port("ctrl", "x_ref")]
+    plan = build_plan(("plant", "ctrl"), interfaces, wires, signals, None, False, reference)
+    assert plan.early == ((), (0, 1)) and plan.init_early == ((1,), (0, 1))
+    assert build_plan(("plant", "ctrl"), interfaces, wires, signals, None, False).early == ((), (0,))
+    assert build_plan(("plant", "ctrl"), interfaces, wires, signals, None, True, reference).early == ((), ())
+    assert build_plan(("ctrl", "plant"), interfaces, wires, signals, None, False, reference).early[0] == ()
+
+
 def test_unit_conversions_come_from_the_units_and_refuse_other_dimensions() -> None:
     wire = _c("a.y -> b.u")
     assert systems.unit_conversion(wire, ("m", None), ("m", None)) is None

@@ -278,19 +278,19 @@ def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu", "2.0").path
 
 
-@pytest.mark.xfail(
-    strict=True, reason="the execution does not feed a controller FMU's reference inputs: such a run is refused"
+@pytest.mark.parametrize(
+    ("law", "coupling"), [("paper", "gauss-seidel"), ("integral", "gauss-seidel"), ("integral", "jacobi")]
 )
-@pytest.mark.parametrize("law", ["paper", "integral"])
 def test_the_controller_fmu_tracks_the_trajectory_with_the_built_in_laws_bits_in_both_loops(
-    toggle_vsc: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, law: str
+    toggle_vsc: Path, plant_fmu: Path, monkeypatch: pytest.MonkeyPatch, law: str, coupling: str
 ) -> None:
-    """controller.fmu: ToggleVSC.fmu on a trajectory run: the master feeds its inputs x_ref,
-    v_ref, a_ref from the run's sampled reference (the compiled loop from C, the Python loop from
-    `FmuController.step`); iq_ref, S, phase, e and x_B are the built-in law's bits."""
+    """controller.fmu: ToggleVSC.fmu on a trajectory run: the execution feeds its inputs x_ref,
+    v_ref, a_ref from the run's sampled reference (signal columns, set with its measurements: the
+    compiled loop from C, the Python execution from Python); iq_ref, S, phase, e and x_B are the
+    built-in law's bits, under either coupling."""
     plant = check_plant(plant_fmu)
     spec = {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0}
-    document = {**_document(spec, law=law), "t_end": 0.7}
+    document = {**_document(spec, law=law), "t_end": 0.7, "coupling": coupling}
     builtin = simulate(runs_from_document(document)[0], plant)
     with_fmu = {**document, "controller": {"law": law, "fmu": str(toggle_vsc)}}
     compiled = simulate(runs_from_document(with_fmu)[0], plant)
@@ -322,3 +322,19 @@ def test_a_controller_fmu_without_the_reference_inputs_is_refused(tmp_path: Path
         patch.setattr(controllers, "_checked_fmu", lambda run, outputs: old)
         with pytest.raises(ControllerError, match=r"^key controller\.fmu: Old\.fmu has no inputs x_ref, v_ref, a_ref"):
             controller_for(run, ("x_B", "v_B"))
+
+
+def test_a_connection_to_a_tracking_controller_fmus_reference_is_refused(toggle_vsc: Path, plant_fmu: Path) -> None:
+    """A system whose controller FMU tracks stroke.trajectory takes x_ref, v_ref, a_ref from the
+    run's reference: a connection to one is refused in one line naming it and the fix."""
+    from toggle_cosim.cosim.checked import SystemError_, check_run
+
+    connections = ["plant.x_B -> controller.x_B", "plant.v_B -> controller.v_B", "plant.x_B -> controller.x_ref"]
+    document = {
+        **_document(TRAPEZOID),
+        "t_end": 0.7,
+        "controller": {"fmu": str(toggle_vsc)},
+        "connections": [*connections, "controller.iq_ref -> plant.iq_ref"],
+    }
+    with pytest.raises(SystemError_, match=r"^scenario tracking: a connection feeds controller\.x_ref, which the"):
+        check_run(runs_from_document(document)[0], check_plant(plant_fmu))

@@ -46,6 +46,7 @@ __all__ = [
     "Measurement",
     "check_controller",
     "checked_command",
+    "command_not_finite",
 ]
 
 COMMAND_COLUMNS = ("iq_ref", "F_E")  # the plant's inputs, recorded before the diagnostics
@@ -177,6 +178,14 @@ def check_controller(controller: object, reserved: Sequence[str] = ()) -> tuple[
     return names
 
 
+def command_not_finite(u: object, t: float) -> ControllerError:
+    """The error of a command `u` at t that is not a finite float (a step's result, or what a
+    controller FMU gave: `cosim.execution.guard`)."""
+    return ControllerError(
+        f"the controller's command at t = {t:.6g} s is {short_repr(u)}, not a finite float (i_q* in A)"
+    )
+
+
 def checked_command(result: object, diagnostics: int, t: float) -> tuple[float, tuple[float, ...], Any]:
     """(command, diagnostics, state) of a step's result, or ControllerError saying what is wrong
     with it: not a ControlStep, a command that is not a finite float, the wrong number of
@@ -197,9 +206,7 @@ def checked_command(result: object, diagnostics: int, t: float) -> tuple[float, 
         )
     u = result.command
     if type(u) is not float and (isinstance(u, bool) or not isinstance(u, numbers.Real)) or not math.isfinite(u):
-        raise ControllerError(
-            f"the controller's command at t = {t:.6g} s is {short_repr(u)}, not a finite float (i_q* in A)"
-        )
+        raise command_not_finite(u, t)
     values = result.diagnostics
     try:
         values = tuple(map(float, values))

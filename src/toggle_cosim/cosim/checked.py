@@ -17,7 +17,9 @@ What it holds:
   FMUs' unit definitions; anything else refused), or the pair's wiring (`pair_connections`);
 * the stepping order (`system.graph`: an algebraic loop is refused naming its cycle; the
   pair's own wiring steps the plant then the controller), the plan (`system.plan`), the signal
-  table (`plant_inputs.input_samples`: the plant inputs no connection feeds, at every t_k);
+  table (`plant_inputs.input_samples`: the plant inputs no connection feeds, at every t_k; and
+  for a controller FMU that tracks stroke.trajectory its x_ref, v_ref, a_ref, the sampled
+  reference's rows, which the plan sets with its measurements);
 * the trace's columns (`names`) and units, and run.json's static parts (its components).
 
 The trace of the plain pair (`Wiring.is_pair`: no parts, connections or `record:` list) has
@@ -46,6 +48,7 @@ import numpy as np
 
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
+from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.cosim.controllers import ControllerFmuPart, check_user_controller, own_controller
 from toggle_cosim.cosim.execution.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
@@ -287,12 +290,6 @@ def _controller_component(
     other natively, its connectors in the units of the plant variables of their names."""
     name = wiring.controller
     if isinstance(controller, ControllerFmuPart):
-        if controller.reference is not None:
-            raise ControllerError(
-                f"key controller.fmu: {controller.fmu.path.name} would track stroke.trajectory, but the execution does"
-                " not feed a controller FMU's reference inputs yet (run the trajectory with the built-in law, or"
-                " remove stroke.trajectory)"
-            )
         fmu = controller.fmu
         return FmuComponent(name, fmu, tuple(controller.settings), fmu_interface(fmu.model_description))
     diagnostics = tuple(check_controller(controller, outputs))
@@ -371,7 +368,7 @@ def _wired(checked: CheckedRun) -> CheckedRun:
             wiring, record=pair_ports(wiring, checked.plant, checked.diagnostics, other_inputs(run))
         )
     interfaces = {name: component.interface for name, component in components.items()}
-    plant_outputs = set(interfaces[wiring.plant].outputs)  # a controller FMU's reference inputs stay unfed
+    plant_outputs = set(interfaces[wiring.plant].outputs)  # a controller FMU's reference inputs: not the plant's
     controller_inputs = [name for name in interfaces[wiring.controller].inputs if name in plant_outputs]
     connections = wiring.connections if wiring.connections is not None else pair_connections(wiring, controller_inputs)
     _check_connections(connections, interfaces, where)
@@ -402,6 +399,8 @@ def _wired(checked: CheckedRun) -> CheckedRun:
             continue
         signal_ports.append(port)
         columns.append(index)
+    tracked = _reference_ports(checked.controller, wiring.controller, fed, where)
+    signal_ports += tracked
     for port in wiring.record or ():
         interface = interfaces.get(port.component)
         if interface is None or (port.variable not in interface.outputs and port.variable not in interface.inputs):
@@ -427,9 +426,12 @@ def _wired(checked: CheckedRun) -> CheckedRun:
         )
     except AlgebraicLoop as error:
         raise SystemError_(f"{where}: {error}") from None
-    plan = build_plan(order, interfaces, connections, signal_ports, wiring.record, run.coupling == "jacobi")
-    samples = input_samples(run, run.steps)
-    table = np.ascontiguousarray(samples[:, columns], dtype=np.float64).reshape(run.steps + 1, len(columns))
+    plan = build_plan(order, interfaces, connections, signal_ports, wiring.record, run.coupling == "jacobi", tracked)
+    samples = input_samples(run, run.steps)[:, columns].reshape(run.steps + 1, len(columns))
+    if tracked:  # the very rows the built-in law reads at each sample: (q*, q̇*, q̈*)
+        assert isinstance(checked.controller, ControllerFmuPart) and checked.controller.reference is not None
+        samples = np.column_stack([samples, checked.controller.reference.values[:, : len(tracked)]])
+    table = np.ascontiguousarray(samples, dtype=np.float64)
     units = {"time": "s"}
     for column in plan.names[1:]:
         port = Port.parse(column)
@@ -449,6 +451,22 @@ def _wired(checked: CheckedRun) -> CheckedRun:
         units=units,
         records=records,
     )
+
+
+def _reference_ports(controller: Controller | None, name: str, fed: set[Port], where: str) -> list[Port]:
+    """The inputs x_ref, v_ref, a_ref (`controllers.REFERENCE_INPUTS`) of a controller FMU that
+    tracks the run's trajectory, fed by the signal table from its sampled reference; none when
+    it regulates to its target. A connection that feeds one is refused: the reference is the run's."""
+    if not isinstance(controller, ControllerFmuPart) or controller.reference is None:
+        return []
+    ports = [Port(name, variable) for variable in REFERENCE_INPUTS]
+    for port in ports:
+        if port in fed:
+            raise SystemError_(
+                f"{where}: a connection feeds {port}, which the controller FMU reads from stroke.trajectory (remove the"
+                " connection, or remove stroke.trajectory)"
+            )
+    return ports
 
 
 def _component_record(component: Component, order: Sequence[str]) -> dict[str, Any]:

@@ -15,6 +15,10 @@ that starts the run; here those components become slaves and are stepped:
 Either loop runs in stretches between checkpoints (`system_retry.SystemCheckpoints`): a
 component's refused step is retried from the last one, and run.json lists each retry
 (`retries`) and says whether retries are on (`system.checkpoints`).
+
+A controller FMU runs with the execution's finiteness guard (`guard.controller_guard`): a value
+it would measure that is not finite, or a command it gives that is not, ends the run at that
+sample, in both loops, as a native controller's own check does.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ import numpy as np
 
 from toggle_cosim.control.protocol import Controller, ControllerError
 from toggle_cosim.cosim.checked import (
+    COMMAND,
     CheckedRun,
     FmuComponent,
     SystemError_,
@@ -41,9 +46,10 @@ from toggle_cosim.cosim.checked import (
 from toggle_cosim.cosim.controllers import user_controller
 from toggle_cosim.cosim.execution.algorithm import Execution, TraceObserver
 from toggle_cosim.cosim.execution.budget import BudgetExceeded, WorkBudget
+from toggle_cosim.cosim.execution.guard import controller_guard
 from toggle_cosim.cosim.execution.instance_pool import InstancePool
 from toggle_cosim.cosim.execution.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
-from toggle_cosim.cosim.execution.system_loop import FMI_FAILED, HAND_BACK, SystemLoop, compiled_system
+from toggle_cosim.cosim.execution.system_loop import FMI_FAILED, HAND_BACK, NOT_FINITE, SystemLoop, compiled_system
 from toggle_cosim.cosim.execution.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
 from toggle_cosim.cosim.figures import run_figures
 from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
@@ -180,6 +186,8 @@ def _compiled_forward(
                 raised = failure(error.function, error.t, error.status) if callable(failure) else SlaveError(str(error))
                 raised.k = k_next
                 raise raised
+            if code == NOT_FINITE:
+                raise loop.refusal()
             if code == HAND_BACK:
                 loop.give_back()
                 handed.append(k_next)
@@ -297,8 +305,10 @@ def execute(
     calling = calling if calling is not None else np.zeros(1, dtype=np.int64)
     names = component_names(checked.wiring)
     ids = [names.index(name) + 1 for name in plan.order]
+    control = next(c for c in checked.components if c is not None and c.name == run.system.controller)
+    guard = controller_guard(plan, control.name, COMMAND) if isinstance(control, FmuComponent) else None
     execution = Execution(
-        plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks, calling, ids
+        plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks, calling, ids, guard
     )
     reason, interrupted = None, False
     loop_started = loop_finished = clock.perf_counter()
@@ -324,7 +334,7 @@ def execute(
         execution.initialize()
         loop_started = clock.perf_counter()
         compiled = compiled_system(
-            plan, assembly.slaves, assembly.signals, data, n, run.T_s, observer.count, calling, ids
+            plan, assembly.slaves, assembly.signals, data, n, run.T_s, observer.count, calling, ids, guard
         )
         if isinstance(compiled, SystemLoop):
             policy.configure(compiled)

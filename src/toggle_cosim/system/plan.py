@@ -14,7 +14,11 @@ One sample k under Gauss-Seidel (`coupling: gauss-seidel`):
 
 An input is early when its feed is an output of a component before c in the order, late
 otherwise: fed by a later component (its component reads its outputs before that value exists;
-it has no direct feedthrough, `system.graph`) or by a signal. A signal's sample at t_k is sent
+it has no direct feedthrough, `system.graph`) or by a signal. A reference signal (`references`:
+a tracking controller FMU's x_ref, v_ref, a_ref) goes with the component's measurements: early
+when every input a connection feeds it is early, so the outputs read at t_k are computed from
+the measurements and the reference at t_k, as the built-in law computes them; late otherwise
+(and under Jacobi), beside the measurements it steps with. Any other signal's sample at t_k is sent
 after the component's outputs at t_k are read, with the values it steps with, as FMPy and
 libcosim send theirs: the outputs at t_k are those of the inputs
 the component stepped with, so a step in a load shows in the outputs one sample later. Under
@@ -27,7 +31,7 @@ outputs at t = 0 are read, as the pair initialises its plant with sample 0's inp
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,7 +48,7 @@ class Plan:
     """The tables of one system's run (module docstring). Per component, in stepping order:
     `outputs[c]` and `inputs[c]` the buffer slots of its outputs and of its fed inputs (their
     names in `output_names[c]`, `input_names[c]`), `early[c]` the positions in inputs[c] set
-    before its outputs are read (never a signal's, module docstring). `feed_source[s]`,
+    before its outputs are read (a signal's only for a reference, module docstring). `feed_source[s]`,
     `feed_factor[s]`, `feed_offset[s]` feed the input slot s (an output slot, or SIGNAL - j for
     signal column j; factor 1 and offset 0: a copy). `record` are the slots recorded in trace
     columns 1 .., named `names[1:]`."""
@@ -89,11 +93,15 @@ def build_plan(
     signals: Sequence[Port],
     record: Sequence[Port] | None,
     jacobi: bool,
+    references: Collection[Port] = (),
 ) -> Plan:
     """The plan of a system stepped in `order` (`system.graph.gauss_seidel_order`, for Jacobi too:
     its initialisation pass follows it). `signals` are the inputs fed by the signal table's columns, in its column order;
     `record` the ports recorded (None: every output and fed input of every component, in
-    stepping order). Raises ValueError for an input fed twice (the caller has checked names)."""
+    stepping order). `references`: signals a component reads with what it measures (a tracking
+    controller's x_ref, v_ref, a_ref), set with its measurements: early when every input a
+    connection feeds it is early (module docstring). Raises ValueError for an input fed twice
+    (the caller has checked names)."""
     fed: dict[Port, object] = {}
     for connection in connections:
         if connection.end in fed:
@@ -125,19 +133,24 @@ def build_plan(
     offset = np.zeros(size, dtype=np.float64)
     early, init_early = [], []
     for c, name in enumerate(order):
-        own_early, own_init = [], []
+        own_early, own_init, measured, paced = [], [], [], []
         for i, variable in enumerate(input_names[c]):
             port = Port(name, variable)
             feed, slot = fed[port], slots[port]
             if isinstance(feed, Connection):
                 source[slot] = slots[feed.start]
                 factor[slot], offset[slot] = feed.factor, feed.offset
-                if position[feed.start.component] < c:
+                measured.append(position[feed.start.component] < c)
+                if measured[-1]:
                     own_early.append(i)
                     own_init.append(i)
             else:
                 source[slot] = SIGNAL - feed
                 own_init.append(i)  # a signal: set early only in the initialisation pass
+                if port in references:
+                    paced.append(i)
+        if paced and measured and all(measured):  # a reference goes with the measurements
+            own_early = sorted(own_early + paced)
         init_early.append(tuple(own_init))
         early.append(() if jacobi else tuple(own_early))
     if record is None:

@@ -16,20 +16,24 @@ execution, algorithm and observers).
   (the plan's recorded slots), a progress hook reports.
 
 A failed call raises `SlaveError` (the component, the call, the time; its `k` the sample); the
-samples before it are in the trace. A native controller is told which outputs feed what it
-measures (`ControllerSlave.fed_from`), to name one that is not finite. Before each call of a
-slave its id goes into `calling[0]` (the compiled loop does the same), so a supervising process
-that shares that word knows whose call ended the process.
+samples before it are in the trace. The finiteness guard (`guard`, an option) checks its slots
+as they are set and read, and raises its `refusal` before the call that would pass the value
+on. A native controller is told which outputs feed what it measures (`ControllerSlave.fed_from`),
+to name one that is not finite. Before each call of a slave its id goes into `calling[0]` (the
+compiled loop does the same), so a supervising process that shares that word knows whose call
+ended the process.
 """
 
 from __future__ import annotations
 
 import ctypes
+import math
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
 
+from toggle_cosim.cosim.execution.guard import FiniteGuard, feed_words, refusal
 from toggle_cosim.cosim.execution.slaves import Slave, SlaveError
 from toggle_cosim.system.plan import SIGNAL, Plan
 
@@ -90,9 +94,11 @@ class Execution:
         hooks: Sequence[Callable[[int], None]] = (),
         calling: np.ndarray | None = None,
         ids: Sequence[int] | None = None,
+        guard: FiniteGuard | None = None,
     ) -> None:
         """`calling`: an int64 array whose element 0 gets, before each call of a slave, its entry
-        of `ids` (per slave, in plan order; default 1, 2, ...)."""
+        of `ids` (per slave, in plan order; default 1, 2, ...). `guard`: the slots whose values
+        must be finite (`guard`; None: none)."""
         self.plan, self.slaves, self.signals = plan, tuple(slaves), signals
         self.calling = calling if calling is not None else np.zeros(1, dtype=np.int64)
         self.ids = tuple(ids) if ids is not None else tuple(range(1, len(self.slaves) + 1))
@@ -103,7 +109,7 @@ class Execution:
             slave.bind(plan.input_names[c], plan.output_names[c])
             fed_from = getattr(slave, "fed_from", None)
             if callable(fed_from):
-                fed_from([_source(plan, slot) for slot in plan.inputs[c]])
+                fed_from([feed_words(plan, slot) for slot in plan.inputs[c]])
         self._out = [(ctypes.c_double * max(len(slots), 1))() for slots in plan.outputs]
         source = plan.feed_source
         self._feeds = [
@@ -112,6 +118,16 @@ class Execution:
         ]
         self._early = plan.early
         self._late = tuple(plan.late(c) for c in range(len(self.slaves)))
+        guarded = [guard.component(plan, c) for c in range(len(self.slaves))] if guard is not None else []
+        self._guard_in = tuple(frozenset(inputs) for inputs, _ in guarded) or (frozenset(),) * len(self.slaves)
+        self._guard_out = tuple(outputs for _, outputs in guarded) or ((),) * len(self.slaves)
+
+    def _check(self, c: int, positions: Sequence[int], values: Sequence[float], t: float) -> None:
+        """The guard (`guard`) on the inputs `positions` of component c about to be set to `values`."""
+        guarded = self._guard_in[c]
+        for i, value in zip(positions, values, strict=True):
+            if i in guarded and not math.isfinite(value):
+                raise refusal(self.plan, c, self.plan.inputs[c][i], value, t)
 
     def _feed(self, c: int, positions: Sequence[int], k: int) -> list[float]:
         """Compute the inputs `positions` of component c at sample k into the buffer; their values."""
@@ -133,17 +149,23 @@ class Execution:
         self.slaves[c].get(out, t)
         if slots:
             self.values[slots[0] : slots[0] + len(slots)] = out[: len(slots)]
+        for j in self._guard_out[c]:
+            if not math.isfinite(out[j]):
+                raise refusal(self.plan, c, slots[j], out[j], t)
 
     def _pass(
         self, k: int, t: float, early: Sequence[tuple[int, ...]], late: Sequence[tuple[int, ...]]
     ) -> list[list[float]]:
         """Every component in order: its early inputs set, its outputs read; then the values of
         the late inputs, per component (computed into the buffer, not yet set)."""
-        calling, ids = self.calling, self.ids
+        calling, ids, guard_in = self.calling, self.ids, self._guard_in
         for c, slave in enumerate(self.slaves):
             calling[0] = ids[c]
             if early[c]:
-                slave.set(early[c], self._feed(c, early[c], k), t)
+                values = self._feed(c, early[c], k)
+                if guard_in[c]:
+                    self._check(c, early[c], values, t)
+                slave.set(early[c], values, t)
             self._read(c, t)
         return [self._feed(c, late[c], k) for c in range(len(self.slaves))]
 
@@ -151,6 +173,8 @@ class Execution:
         for c, slave in enumerate(self.slaves):
             if late[c]:
                 self.calling[0] = self.ids[c]
+                if self._guard_in[c]:
+                    self._check(c, late[c], values[c], t)
                 slave.set(late[c], values[c], t)
 
     def initialize(self) -> None:
@@ -199,14 +223,3 @@ class Execution:
             error.k = k
             raise
         return k
-
-
-def _source(plan: Plan, slot: int) -> str:
-    """What feeds the input slot, in words: "component 'plant': its output x_B", or a signal."""
-    source = int(plan.feed_source[slot])
-    if source <= SIGNAL:
-        return f"the signal fed to {plan.signals[SIGNAL - source]}"
-    for c, outputs in enumerate(plan.outputs):
-        if source in outputs:
-            return f"component {plan.order[c]!r}: its output {plan.output_names[c][outputs.index(source)]}"
-    return f"buffer slot {source}"

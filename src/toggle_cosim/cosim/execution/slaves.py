@@ -54,7 +54,7 @@ from toggle_cosim.plant.fmi_calls import (
 from toggle_cosim.system.interfaces import FLOAT64_TYPES, fmu_interface
 from toggle_cosim.system.model import Interface, Value
 
-__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError"]
+__all__ = ["ControllerSlave", "FmuSlave", "SampleState", "Slave", "SlaveError", "measured_not_finite"]
 
 
 class SlaveError(Exception):
@@ -62,8 +62,8 @@ class SlaveError(Exception):
     `component` (its name), `function` (the FMI call), `status` (what it returned) and `k` (the
     sample, set by the execution), which the checkpoint retries read (`system_retry`); `logged`
     what an FMU logged with a failing status about it (no label, one line), `retried` that it is
-    a retry's failure, its message telling both, `not_finite` that a native controller refused a
-    value it measures that is not finite."""
+    a retry's failure, its message telling both, `not_finite` that a controller was refused a
+    value it measures that is not finite (`measured_not_finite`)."""
 
     def __init__(
         self, message: str, component: str | None = None, function: str | None = None, status: object = None
@@ -74,6 +74,17 @@ class SlaveError(Exception):
         self.logged: str | None = None
         self.retried = False
         self.not_finite = False
+
+
+def measured_not_finite(source: str, value: float, t: float, name: str, kind: str) -> SlaveError:
+    """The error of a value that is not finite, from `source` (in words), which the controller
+    `name` (a "native controller", a "controller FMU") would measure at t: it takes finite
+    values only, so the run ends before it sees it (`not_finite`)."""
+    error = SlaveError(
+        f"{source} is {value} at t = {t:.6g} s, measured by the {kind} {name!r}, which takes finite values only", name
+    )
+    error.not_finite = True
+    return error
 
 
 class Slave(Protocol):
@@ -567,13 +578,7 @@ class ControllerSlave:
     def _refuse(self, positions: Sequence[int], values: Sequence[float], t: float) -> NoReturn:
         """Raise the error of the first value that is not finite, naming its source."""
         i, value = next((i, v) for i, v in zip(positions, values, strict=True) if not math.isfinite(v))
-        error = SlaveError(
-            f"{self._sources[i]} is {value} at t = {t:.6g} s, measured by the native controller"
-            f" {self.name!r}, which takes finite values only",
-            self.name,
-        )
-        error.not_finite = True
-        raise error
+        raise measured_not_finite(self._sources[i], value, t, self.name, "native controller")
 
     @property
     def cannot_save_state(self) -> str | None:

@@ -53,6 +53,7 @@ import numpy as np
 
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.cosim.execution.fmi_pointers import CFunctions
+from toggle_cosim.cosim.execution.guard import FiniteGuard, refusal
 from toggle_cosim.cosim.execution.slaves import ControllerSlave, SlaveError
 from toggle_cosim.cosim.execution.system_natives import NativeController, native_controller
 from toggle_cosim.cosim.execution.system_python import Callbacks, PythonComponent, Turns, turns_of
@@ -64,6 +65,7 @@ __all__ = [
     "DONE",
     "FMI_FAILED",
     "HAND_BACK",
+    "NOT_FINITE",
     "RAISED",
     "SystemLoop",
     "compiled_system",
@@ -71,7 +73,7 @@ __all__ = [
     "system_library_reason",
 ]
 
-DONE, HAND_BACK, FMI_FAILED, RAISED = 0, 1, 2, 3  # system_run's return codes (system_skeleton.c)
+DONE, HAND_BACK, FMI_FAILED, RAISED, NOT_FINITE = 0, 1, 2, 3, 4  # system_run's return codes (system_skeleton.c)
 _CALLS = {1: "get", 2: "set", 3: "step"}
 _CALLS_STEP = 3  # _CALLS's doStep: system_t's fault of a failed doStep
 _TYPED = 4  # fault 4 + i: the component's typed read i (`fmi_pointers.TypedRead`)
@@ -95,14 +97,14 @@ _COMPONENT_POINTERS = (
 )
 _COMPONENT_LONGS = ("fmi3", "n_out", "out0", "n_early", "n_late", "id", "n_typed")
 _COMPONENT_AFTER = ("native", "python")  # pointers after the longs
-_COMPONENT_LAST = ("pending",)  # a long after them
+_COMPONENT_LAST = ("pending", "guard")  # longs after them
 _NATIVE_LONGS = ("kind", "n_in", "n_held", "n_state", "i_q", "i_qd", "m")
 _NATIVE_POINTERS = ("early_pos", "late_pos", "mem", "saved", "state", "ref", "a", "b", "c", "d")
 _NATIVE_DOUBLES = ("target", "origin")
 _SYSTEM_POINTERS = ("components", "buffer", "source", "factor", "offset", "signals", "trace", "record", "rows")
 _SYSTEM_LONGS = ("n_components", "n_signals", "n_record", "n", "k", "failed", "fault", "status", "no_prior")
 _SYSTEM_DOUBLES = ("T_s",)
-_SYSTEM_AFTER = ("calling", "answered")  # pointers after T_s
+_SYSTEM_AFTER = ("calling", "answered", "guarded")  # pointers after T_s
 
 
 class ComponentCallError(RuntimeError):
@@ -272,6 +274,8 @@ class SystemLoop:
         calling: an int64 array whose element 0 the loop sets, before each call of a component,
             to that component's entry of `ids` (per component in plan.order; default 1, 2, ...):
             a supervising process that shares it knows whose call ended the process.
+        guard: the slots whose values must be finite (`guard`; None: none): a value that is not
+            stops the loop with NOT_FINITE at that sample (`refusal()`).
     """
 
     def __init__(
@@ -286,6 +290,7 @@ class SystemLoop:
         rows: np.ndarray | None = None,
         calling: np.ndarray | None = None,
         ids: Sequence[int] | None = None,
+        guard: FiniteGuard | None = None,
     ) -> None:
         library = library if library is not None else system_library()
         if library is None:
@@ -309,6 +314,9 @@ class SystemLoop:
         keep: list[object] = [functions, signals, trace, rows]
         natives: list[_NativeSlot] = []
         buffer = np.zeros(max(plan.size, 1), dtype=np.float64)
+        guarded = np.zeros(max(plan.size, 1), dtype=np.int64 if ctypes.sizeof(ctypes.c_long) == 8 else np.int32)
+        if guard is not None:
+            guarded[sorted(guard.slots)] = 1
         turns: dict[int, Turns] = {}
         for c, (entry, calls) in enumerate(zip(table, functions, strict=True)):
             inputs, outputs = plan.inputs[c], plan.outputs[c]
@@ -357,6 +365,7 @@ class SystemLoop:
             entry.n_typed = len(reads)
             entry.n_early, entry.n_late = len(early), len(late)
             entry.id = ids[c] if ids is not None else c + 1
+            entry.guard = 1 if any(guarded[slot] for slot in (*inputs, *outputs)) else 0
             if isinstance(calls, PythonComponent):
                 late_slots = [inputs[i] for i in late]
                 turns[c] = turns_of(
@@ -380,7 +389,7 @@ class SystemLoop:
             calling = np.zeros(1, dtype=np.int64)
         if calling.dtype != np.int64 or calling.size < 1:
             raise ValueError("calling must be an int64 array of at least one element")
-        keep += [table, buffer, source, factor, offset, record, calling]
+        keep += [table, buffer, source, factor, offset, record, calling, guarded]
         s = _system_struct()()
         s.components, s.buffer = ctypes.addressof(table), buffer.ctypes.data
         s.source, s.factor, s.offset = source.ctypes.data, factor.ctypes.data, offset.ctypes.data
@@ -389,6 +398,7 @@ class SystemLoop:
         s.n_components, s.n_signals, s.n_record, s.n = count, m, len(plan.record), n
         s.T_s = self.T_s
         s.calling = calling.ctypes.data
+        s.guarded = guarded.ctypes.data
         if self._callbacks is not None:
             s.answered = self._callbacks.answered.ctypes.data
         self._keep = keep  # everything the C side points into stays alive with the loop
@@ -409,7 +419,8 @@ class SystemLoop:
 
     def run(self, k0: int, k_end: int) -> tuple[int, int]:
         """Samples k0 .. k_end - 1 (k_end <= n + 1): (DONE, k_end), (FMI_FAILED, k) with k the
-        sample whose call failed (`failure()` names it), or (HAND_BACK, k) with k the sample a
+        sample whose call failed (`failure()` names it), (NOT_FINITE, k) with k the sample whose
+        guarded value was not finite (`refusal()`), or (HAND_BACK, k) with k the sample a
         native controller hands to the Python execution (`give_back()`; no doStep of it made).
         What a component run in Python raised at sample k is raised here (a SlaveError with its
         `k`), as the Python execution raises it."""
@@ -490,6 +501,15 @@ class SystemLoop:
             committed = native.state_values(held.state)
             state[: len(committed)] = committed
 
+    def refusal(self) -> SlaveError:
+        """The guard's error of the last `run` that returned NOT_FINITE (`guard.refusal`): the
+        Python execution's, word for word."""
+        s = self._state
+        slot, k = int(s.fault), int(s.k)
+        error = refusal(self.plan, int(s.failed), slot, float(self.buffer[slot]), k * self.T_s)
+        error.k = k
+        return error
+
     def failure(self) -> ComponentCallError:
         """The error of the failed call of the last `run` that returned FMI_FAILED."""
         s = self._state
@@ -512,13 +532,14 @@ def compiled_system(
     rows: np.ndarray | None = None,
     calling: np.ndarray | None = None,
     ids: Sequence[int] | None = None,
+    guard: FiniteGuard | None = None,
 ) -> SystemLoop | str:
     """The compiled loop over `slaves` (in plan.order, instantiated and initialised): each with a
     `c_functions()` in the plan's order (as `cosim.execution.slaves.FmuSlave` has) called from C, a
     `ControllerSlave` whose controller runs natively in C (`system_natives`), every other one
     called back into Python (`system_python.PythonComponent`, its `why` the line saying why it
-    is not in C); or why there is none (the library is missing). `rows`, `calling`, `ids`: as
-    for `SystemLoop`."""
+    is not in C); or why there is none (the library is missing). `rows`, `calling`, `ids`,
+    `guard`: as for `SystemLoop`."""
     library = system_library()
     if library is None:
         return f"no compiled system loop: {system_library_reason()}"
@@ -535,4 +556,4 @@ def compiled_system(
         if not isinstance(calls, CFunctions):
             calls = PythonComponent(slave, f"{type(slave).__name__}: it has no C calls")
         functions.append(calls)
-    return SystemLoop(plan, functions, signals, trace, n, T_s, library, rows, calling, ids)
+    return SystemLoop(plan, functions, signals, trace, n, T_s, library, rows, calling, ids, guard)

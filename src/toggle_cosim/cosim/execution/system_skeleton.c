@@ -31,7 +31,12 @@
    sees the calls and values the Python execution makes, one callback a sample. The callback sets
    *s->answered to 1 when the call is done; anything else (the Python raised, or an interrupt
    landed in the callback) stops the loop with RAISED at that sample, and the Python raises what
-   it caught. */
+   it caught.
+
+   The finiteness guard (cosim/execution/guard.py): a component with guarded slots has its
+   computed inputs checked before they are set (early and late) and its outputs after they are
+   read; the first guarded value that is not finite stops the loop with NOT_FINITE at that
+   sample, before the call that would pass it on, as the Python execution checks it. */
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -80,6 +85,7 @@ typedef struct {
     native_t *native;                           /* NULL: an FMU */
     void *python;                               /* a python_t: the component runs in Python (NULL: not) */
     long pending;                               /* its late inputs and doStep of the last sample are still to make */
+    long guard;                                 /* 1: some of its slots are guarded (system_t's guarded) */
 } component_t;
 
 typedef struct {
@@ -100,9 +106,10 @@ typedef struct {
     long long *calling;         /* the id of the component being called, written before each call: a
                                    supervising process reads it when a call ends the process */
     long long *answered;        /* set to 0 before a callback of a component run in Python, to 1 by it when done */
+    const long *guarded;        /* per slot, 1: its value must be finite (cosim/execution/guard.py) */
 } system_t;
 
-enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2, RAISED = 3 };
+enum { DONE = 0, HAND_BACK = 1, FMI_FAILED = 2, RAISED = 3, NOT_FINITE = 4 };
 enum { CALL_GET = 1, CALL_SET = 2, CALL_STEP = 3, CALL_TYPED = 4 };
 enum { CALL_EARLY = 1, CALL_AFTER_STEP = 2 }; /* a component run in Python: its callback's call */
 
@@ -241,6 +248,27 @@ static int call_python(system_t *s, component_t *p, long c, long k) {
     return RAISED;
 }
 
+/* The finiteness guard (cosim/execution/guard.py): the first of `count` slots from `first` (or,
+   `slots` not NULL, of slots[0 .. count - 1]) that is guarded and holds a value that is not
+   finite, or -1. */
+static long unguarded(const system_t *s, const long *slots, long first, long count) {
+    long i;
+    for (i = 0; i < count; i++) {
+        long slot = slots ? slots[i] : first + i;
+        if (s->guarded[slot] && !isfinite(s->buffer[slot])) { return slot; }
+    }
+    return -1;
+}
+
+/* The guard refused the value of `slot`, set on or read from component c at sample k: NOT_FINITE,
+   s->k, s->failed and s->fault (the slot) naming it. */
+static int refuse(system_t *s, long k, long c, long slot) {
+    s->k = k;
+    s->failed = c;
+    s->fault = slot;
+    return NOT_FINITE;
+}
+
 static int hand_back(system_t *s, long k, long component) {
     s->k = k;
     s->failed = component;
@@ -252,9 +280,11 @@ static int hand_back(system_t *s, long k, long component) {
    and s->failed, s->fault, s->status naming it (nothing after a failed call is made), or HAND_BACK
    with s->k the sample a native controller s->failed hands to the Python (no doStep of it made;
    each native controller's `saved` is what it held at that sample's start), or RAISED with s->k the
-   sample at which a component run in Python s->failed raised (call_python). */
+   sample at which a component run in Python s->failed raised (call_python), or NOT_FINITE with s->k
+   the sample at which the guard refused the value of the slot s->fault of component s->failed,
+   before it was set or, an output, passed on (refuse). */
 int system_run(system_t *s, long k_end) {
-    long k, i, c;
+    long k, i, c, bad;
     int status;
     for (k = s->k; k < k_end; k++) {
         const double *row = s->signals + k * s->n_signals;
@@ -268,9 +298,12 @@ int system_run(system_t *s, long k_end) {
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
             *s->calling = p->id;
+            if (p->n_early) {
+                compute(s, p, p->early_slot, p->n_early, row);
+                if (p->guard && (bad = unguarded(s, p->early_slot, 0, p->n_early)) >= 0) { return refuse(s, k, c, bad); }
+            }
             if (p->native) {
                 if (p->n_early) {
-                    compute(s, p, p->early_slot, p->n_early, row);
                     native_set(p->native, p->native->early_pos, p->n_early, p->scratch);
                 }
                 if (p->native->mem[0] != 0.0 && native_compute(p->native, k, t) != DONE) { return hand_back(s, k, c); }
@@ -278,12 +311,11 @@ int system_run(system_t *s, long k_end) {
                 continue;
             }
             if (p->python) {
-                if (p->n_early) { compute(s, p, p->early_slot, p->n_early, row); }
                 if (call_python(s, p, c, k) != DONE) { return RAISED; }
+                if (p->guard && (bad = unguarded(s, NULL, p->out0, p->n_out)) >= 0) { return refuse(s, k, c, bad); }
                 continue;
             }
             if (p->n_early) {
-                compute(s, p, p->early_slot, p->n_early, row);
                 status = set_inputs(p, p->early_vr, p->n_early, p->scratch);
                 if (FAILED(status)) { return fail(s, k, c, CALL_SET, status); }
             }
@@ -295,6 +327,7 @@ int system_run(system_t *s, long k_end) {
                 status = get_typed(p, i, s->buffer + p->typed_slot[i]);
                 if (FAILED(status)) { return fail(s, k, c, CALL_TYPED + i, status); }
             }
+            if (p->guard && (bad = unguarded(s, NULL, p->out0, p->n_out)) >= 0) { return refuse(s, k, c, bad); }
         }
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
@@ -306,6 +339,7 @@ int system_run(system_t *s, long k_end) {
         if (k == s->n) { s->k = k + 1; return DONE; }
         for (c = 0; c < s->n_components; c++) {
             component_t *p = &s->components[c];
+            if (p->guard && (bad = unguarded(s, p->late_slot, 0, p->n_late)) >= 0) { return refuse(s, k, c, bad); }
             if (p->n_late && !p->python) { /* a component run in Python: set with its doStep (pending) */
                 *s->calling = p->id;
                 for (i = 0; i < p->n_late; i++) { p->scratch[i] = s->buffer[p->late_slot[i]]; }
