@@ -90,7 +90,7 @@ def load_runs(  # noqa: ANN201
                 # a python-control system: built and checked in a supervised child, as a sweep's
                 # controllers are, so a system the run cannot take (continuous-time, another dt,
                 # other inputs) is refused before any run
-                probe_columns(run, plant)
+                probe_columns(run, plant, checked=checked)
         except (SettingError, ControllerError, SystemError_) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
         fmu = getattr(checked.controller, "fmu", None)  # a controller FMU's contract, as checked
