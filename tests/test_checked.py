@@ -121,3 +121,67 @@ def test_the_check_leaves_a_controller_python_unimported(plant, tmp_path: Path) 
     checked = check_run(run, plant)
     assert checked.builds_controller and not checked.complete and checked.names == ()
     assert "never_imported_law" not in sys.modules
+
+
+def _fmu_scenario(folder: Path, vsc_fmu: Path, variants: int = 1) -> Path:
+    """A short scenario with the built-in law's controller FMU, `variants` variants of it."""
+    import yaml
+
+    document = {
+        "name": "fmu_law",
+        "t_end": 0.02,
+        "T_s": 0.0005,
+        "stroke": {"x_start": 0.2329, "x_target": 0.3199},
+        "plant": {"F_E": 0.0, "m_B": 4.43, "mu": 0.2},
+        "controller": {"fmu": str(vsc_fmu)},
+    }
+    if variants > 1:
+        document["variants"] = {f"v{k}": {"plant": {"F_E": 10.0 * k}} for k in range(variants)}
+    path = folder / "fmu_law.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def test_a_sweep_checks_each_case_once_in_its_process_and_its_host_never(
+    plant_fmu: Path, vsc_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sweep of four cases with a controller FMU: four contract reads, one per case, all by
+    the sweep's process (before the cases start, or as each is handed to its plant host); the
+    host that runs them reads none, and every case is ok."""
+    import yaml
+
+    from toggle_cosim.experiments.sweep import execute_sweep, load_sweep, read_results
+
+    _fmu_scenario(tmp_path, vsc_fmu)
+    sweep_file = tmp_path / "sweep.yaml"
+    sweep_file.write_text(
+        yaml.safe_dump({"base": "fmu_law.yaml", "axes": {"plant.F_E": {"values": [0, 10, 20, 30]}}, "output": "out"}),
+        encoding="utf-8",
+    )
+    log = tmp_path / "reads.txt"
+    _reads(monkeypatch, log)
+    sweep = load_sweep(sweep_file)
+    result = execute_sweep(sweep, fmu=plant_fmu, workers=1, progress=False)
+    table = read_results(sweep.output)
+    assert (result.ran, result.failed) == (4, 0) and (table["status"] == "ok").all(), list(table["reason"])
+    assert log.read_text(encoding="utf-8").split() == [str(os.getpid())] * 4
+
+
+def test_the_run_command_checks_each_run_once_in_its_process(
+    plant_fmu: Path, vsc_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`toggle-cosim run` of a scenario with three variants and a controller FMU, two at a
+    time: three contract reads, one per run, all by the command's process (the check before any
+    run starts is the one the run uses); the runs' children read none, and all complete."""
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import main
+
+    scenario = _fmu_scenario(tmp_path, vsc_fmu, variants=3)
+    log = tmp_path / "reads.txt"
+    _reads(monkeypatch, log)
+    out = tmp_path / "out"
+    args = ["run", str(scenario), "--fmu", str(plant_fmu), "--out", str(out), "-q", "--jobs", "2"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert log.read_text(encoding="utf-8").split() == [str(os.getpid())] * 3

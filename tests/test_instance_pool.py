@@ -192,7 +192,9 @@ def test_a_sweep_over_a_components_parameter_finds_its_columns_once(
 
     probed = []
     monkeypatch.setattr(sweep_worker, "_columns", {})
-    monkeypatch.setattr(supervision, "probe_columns", lambda run, plant, limit: probed.append(run) or ("time",))
+    monkeypatch.setattr(
+        supervision, "probe_columns", lambda run, plant, limit, checked=None: probed.append(run) or ("time",)
+    )
     plant = check_plant(plant_fmu)
     documents = [press_document(plant_fmu, press_parts, (0.28, k_c)) for k_c in (1e3, 2e3, 4e3)]
     other = copy.deepcopy(documents[0])

@@ -5,6 +5,7 @@ in order, the per-run line, and the --jobs and --time-limit options."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -16,9 +17,16 @@ from toggle_cosim import interrupts
 from toggle_cosim.cli.app import InputError, RunFailed
 
 
-def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ()):  # noqa: ANN001, ANN202
-    """The (run, plant) pairs of the scenario files and of the runs `built` already (an SSP's,
-    with their own plant), each checked before any run starts."""
+def load_runs(  # noqa: ANN201
+    scenarios: Sequence[Path],
+    fmu: Path | None,
+    built: Sequence = (),  # noqa: ANN001
+    coupling: str | None = None,
+):
+    """The (run, plant, checked) triples of the scenario files and of the runs `built` already
+    (an SSP's, with their own plant), each checked before any run starts (`checked`: the check,
+    `cosim.checked.check_run`, that the run then uses: a run is checked once); `coupling`: each
+    run's coupling instead of its own (--coupling)."""
     from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
     from toggle_cosim.plant.contract import ContractError, check_plant
     from toggle_cosim.plant.probe import ProbeError, probe_binary
@@ -58,13 +66,20 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 raise InputError(str(error)) from error
             for note in plants[chosen].contract_notes():  # absent optional outputs, missing units
                 click.echo(note, err=True)
-    pairs = [(run, plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()]) for run in runs]
+    pairs = [
+        (
+            run if coupling is None else dataclasses.replace(run, coupling=coupling),
+            plants[(fmu if fmu is not None and id(run) not in own else run.fmu).resolve()],
+        )
+        for run in runs
+    ]
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.checked import SystemError_, check_run
     from toggle_cosim.cosim.isolation.supervision import probe_columns
     from toggle_cosim.plant.settings import SettingError, check_settings
 
     noted: set[str] = set()
+    triples = []
     for run, plant in pairs:  # every name and value the run sets, and its controller, before any run starts
         try:
             check_settings(run, plant)
@@ -75,7 +90,7 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
                 # a python-control system: built and checked in a supervised child, as a sweep's
                 # controllers are, so a system the run cannot take (continuous-time, another dt,
                 # other inputs) is refused before any run
-                probe_columns(run, plant)
+                probe_columns(run, plant, checked=checked)
         except (SettingError, ControllerError, SystemError_) as error:
             raise InputError(f"{run.source or run.label}: {error}") from error
         fmu = getattr(checked.controller, "fmu", None)  # a controller FMU's contract, as checked
@@ -83,7 +98,8 @@ def load_runs(scenarios: Sequence[Path], fmu: Path | None, built: Sequence = ())
             if f"{fmu.path}: {warning}" not in noted:
                 noted.add(f"{fmu.path}: {warning}")
                 click.echo(f"{fmu.path}: warning: {warning}", err=True)
-    return pairs
+        triples.append((run, plant, checked))
+    return triples
 
 
 def _write_outcome(outcome, out: Path, plant=None) -> tuple[Path, bool]:  # noqa: ANN001
@@ -136,7 +152,7 @@ def check_folders(pairs, out: Path) -> None:  # noqa: ANN001
     from toggle_cosim.provenance.srmd import SRMD
 
     seen: dict = {}
-    for run, _ in pairs:
+    for run, *_ in pairs:
         if run.folder in seen:
             other = seen[run.folder]
             raise InputError(
@@ -162,10 +178,11 @@ def _status_text(outcome) -> str:  # noqa: ANN001
     return f"{'INTERRUPTED' if outcome.interrupted else 'FAILED'} ({outcome.reason})"
 
 
-def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN001, ANN202
+def _simulate(run, plant, time_limit: float | None, progress=None, checked=None):  # noqa: ANN001, ANN202
     """One run, supervised (`supervision`); TOGGLE_COSIM_SUPERVISE=0 runs it in this process
     instead (for the benchmark's comparison and for debugging: no time limit, no crash guard;
-    the working directory is restored after it, whatever the plant did with it)."""
+    the working directory is restored after it, whatever the plant did with it). `checked`: the
+    run as `load_runs` checked it (None: checked now)."""
     if not _supervised():
         from toggle_cosim.cosim.isolation.supervision import in_process_folder
         from toggle_cosim.cosim.master import simulate
@@ -173,14 +190,14 @@ def _simulate(run, plant, time_limit: float | None, progress=None):  # noqa: ANN
         here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         try:
             with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
-                return simulate(run, plant, progress)
+                return simulate(run, plant, progress, checked=checked)
         finally:  # a plant that changed directory must not move the relative paths that follow
             with contextlib.suppress(OSError):
                 os.fchdir(here)
             os.close(here)
     from toggle_cosim.cosim.isolation.supervision import simulate_supervised
 
-    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress)
+    return simulate_supervised(run, plant, time_limit=time_limit, progress=progress, checked=checked)
 
 
 def _supervised() -> bool:
@@ -199,8 +216,9 @@ def _jobs_for(jobs: int | None, runs: int) -> int:
 
 
 def outcomes_of(pairs, out: Path | None, quiet: bool, time_limit: float | None, jobs: int | None):  # noqa: ANN001, ANN202
-    """Each pair's outcome, in order, once the checks before any run have passed (`check_runs`:
-    the sizes, the output folder `out` if files are written there, the scratch space). Several
+    """Each pair's outcome (a (run, plant) pair, or a triple of `load_runs` with its check), in
+    order, once the checks before any run have passed (`check_runs`: the sizes, the output
+    folder `out` if files are written there, the scratch space). Several
     at once (`supervised_batch`) with more than one job (--jobs, else one per core); one by one
     otherwise, with a progress bar per run on a terminal unless quiet."""
     from toggle_cosim.cosim.isolation.supervision import remove_stale_folders
@@ -214,9 +232,9 @@ def outcomes_of(pairs, out: Path | None, quiet: bool, time_limit: float | None, 
 
         yield from run_supervised(pairs, jobs=jobs, time_limit=time_limit)
         return
-    for number, (run, plant) in enumerate(pairs, start=1):
+    for number, (run, plant, *checked) in enumerate(pairs, start=1):
         if quiet or not sys.stderr.isatty():
-            yield _simulate(run, plant, time_limit)
+            yield _simulate(run, plant, time_limit, checked=next(iter(checked), None))
             continue
         with click.progressbar(length=1000, label=f"[{number}/{len(pairs)}] {run.label}", file=sys.stderr) as bar:
             done = [0]
@@ -227,7 +245,7 @@ def outcomes_of(pairs, out: Path | None, quiet: bool, time_limit: float | None, 
                     bar.update(step)
                     done[0] += step
 
-            outcome = _simulate(run, plant, time_limit, progress)
+            outcome = _simulate(run, plant, time_limit, progress, next(iter(checked), None))
         yield outcome
 
 
@@ -247,7 +265,7 @@ def execute_runs(  # noqa: ANN201
     scratch space once written."""
     target = Path(out).absolute()  # before any plant runs: one that changes directory must not move it
     check_folders(pairs, out)
-    plants = {run.folder: plant for run, plant in pairs}
+    plants = {run.folder: plant for run, plant, *_ in pairs}
     outcomes = []
     with contextlib.closing(outcomes_of(pairs, out, quiet, time_limit, jobs)) as results:
         for number, outcome in enumerate(results, start=1):

@@ -11,7 +11,7 @@ from toggle_cosim.cli.app import InputError, check_output, main, require
 
 
 def _variant(pairs: list, variant: str | None, scenario: Path):  # noqa: ANN202 - a (Run, PlantInterface)
-    names = [run.variant for run, _ in pairs]
+    names = [run.variant for run, *_ in pairs]
     if variant is None:  # the first variant, as an SSP's default SSD; the result line names it
         return pairs[0]
     for pair in pairs:
@@ -60,7 +60,7 @@ def linearize(
     if output.suffix == ".mat":
         require("scipy")
     check_output(output, "linear model (--out)", KINDS[output.suffix])
-    run, plant = _variant(load_runs([scenario], fmu), variant, scenario)
+    run, plant, _ = _variant(load_runs([scenario], fmu), variant, scenario)
     try:
         point = trim(run, x_B, plant)
         model = linearize_plant(run, point, plant, outputs=outputs, coordinates=coordinates)  # type: ignore[arg-type]

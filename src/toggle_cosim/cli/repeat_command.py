@@ -28,8 +28,9 @@ def _real(path: Path) -> str:
 
 
 def _rebuilt(record_path: Path, record, stack: contextlib.ExitStack) -> tuple:  # noqa: ANN001
-    """The (run, plant) pair the record describes, built again from its recorded files; InputError
-    if the record's settings or files do not make one."""
+    """The (run, plant, checked) triple the record describes, built again from its recorded files
+    (`checked`: its check before the run, None when the recorded coupling changes it, then
+    checked as it starts); InputError if the record's settings or files do not make one."""
     from toggle_cosim.cli.ssp_command import ssp_runs
     from toggle_cosim.cosim import run_provenance as rp
     from toggle_cosim.provenance.srmd import located
@@ -47,18 +48,20 @@ def _rebuilt(record_path: Path, record, stack: contextlib.ExitStack) -> tuple:  
     else:
         pairs = load_runs([by_role["scenario"]], by_role["plant"])
     chosen = [
-        (run, plant) for run, plant in pairs if run.variant == variant and run.scenario == record.setting(rp.SCENARIO)
+        (run, plant, checked)
+        for run, plant, checked in pairs
+        if run.variant == variant and run.scenario == record.setting(rp.SCENARIO)
     ]
     if len(chosen) != 1:
         raise InputError(
             f"{record_path}: the recorded {wanted} has no run {record.name!r} (scenario and variant) to repeat"
         )
-    run, plant = chosen[0]
+    run, plant, checked = chosen[0]
     coupling = record.setting(rp.COUPLING)
     if coupling and coupling != run.coupling:
-        run = dataclasses.replace(run, coupling=coupling)
+        run, checked = dataclasses.replace(run, coupling=coupling), None
     _check_same_files(record_path, record, run, plant.path)
-    return run, plant
+    return run, plant, checked
 
 
 def _check_same_files(record_path: Path, record, run, plant: Path) -> None:  # noqa: ANN001
@@ -114,13 +117,13 @@ def repeat(run_folder: Path, out: Path, quiet: bool, time_limit: float | None) -
     if record.data is None:
         raise InputError(f"{record_path}: the record names no trace to compare with; write the record again")
     with contextlib.ExitStack() as stack:  # an SSP's FMUs live in a folder removed after the run
-        run, plant = _rebuilt(record_path, record, stack)
+        run, plant, checked = _rebuilt(record_path, record, stack)
         target = out / run.folder
         if _real(target) == _real(run_folder):
             raise InputError(
                 f"--out {out}: the repeated run would write {target}, the recorded run's folder; give another --out"
             )
-        outcomes = execute_runs([(run, plant)], out, quiet, time_limit, jobs=1)
+        outcomes = execute_runs([(run, plant, checked)], out, quiet, time_limit, jobs=1)
     trace = target / "trace.csv"
     raise_if_failed(outcomes)
     if file_sha3_256(trace) != record.data.checksum:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import time
 from pathlib import Path
 
@@ -77,9 +76,7 @@ def run(
         raise InputError(f"{ssps[0]}: --fmu does not apply to an SSP (its plant is inside it); run it without --fmu")
     with contextlib.ExitStack() as stack:  # an SSP's FMUs live in a folder removed after the runs
         built = ssp_runs(ssps, variants, stack)
-        pairs = load_runs([path for path in scenarios if not is_ssp(path)], fmu, built)
-        if coupling is not None:
-            pairs = [(dataclasses.replace(one, coupling=coupling), plant) for one, plant in pairs]
+        pairs = load_runs([path for path in scenarios if not is_ssp(path)], fmu, built, coupling)
         raise_if_failed(execute_runs(pairs, out, quiet, time_limit, jobs=jobs))
 
 
@@ -188,7 +185,7 @@ def paper(scenarios: Path, out: Path, fmu: Path, skip_build: bool, time_limit: f
     figures = FigureWorkers(min(2, default_jobs(len(PAPER_SCENARIOS))))
     try:
         left: dict = {}
-        for run, _ in pairs:
+        for run, *_ in pairs:
             left[run.folder.parent] = left.get(run.folder.parent, 0) + 1
 
         def written(outcome) -> None:  # noqa: ANN001 - a scenario's figure once all its runs are written

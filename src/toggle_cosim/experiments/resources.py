@@ -140,7 +140,7 @@ def check_runs(pairs: Sequence[tuple], out: Path | None, jobs: int = 1) -> None:
         limits.check_environment()
     except limits.LimitError as error:
         raise ResourceError(str(error)) from None
-    sizes = [check_size(run, plant) for run, plant in pairs]
+    sizes = [check_size(run, plant) for run, plant, *_ in pairs]
     if out is not None:
         check_output_folder(out, sum(s.csv_bytes for s in sizes))
     at_once = sorted((s.buffer_bytes for s in sizes), reverse=True)[: max(1, jobs)]

@@ -16,7 +16,7 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,7 +25,7 @@ import numpy as np
 
 from toggle_cosim import interrupts
 from toggle_cosim.experiments.sweep_spec import Case, SweepError
-from toggle_cosim.experiments.sweep_worker import CaseRunner, case_samples, crash_row, run_cases
+from toggle_cosim.experiments.sweep_worker import CaseRunner, CheckedCase, case_samples, crash_row, run_cases
 
 OnRow = Callable[[dict[str, Any], "np.ndarray | None"], None]
 CONNECT_TIMEOUT_S = 20.0  # a scheduler that does not answer as Dask within this is not one
@@ -50,8 +50,10 @@ def _run_pool(
     on_row: OnRow,
     time_limit: float | None = None,
     keep_traces: bool = False,
+    checked: Mapping[str, CheckedCase] | None = None,
 ) -> None:
-    """Local plant hosts, `workers` of them, each fed the next case as soon as it is free."""
+    """Local plant hosts, `workers` of them, each fed the next case as soon as it is free, the
+    case as the sweep checked it before (`checked`, by case id) or as its runner checks it."""
     from toggle_cosim.cosim.isolation.plant_host import wait_for_hosts
 
     rows = max((case_samples(c.payload()) for c in cases), default=1)
@@ -64,7 +66,7 @@ def _run_pool(
         while True:
             for runner in runners:
                 if not runner.busy and (case := next(queue, None)) is not None:
-                    runner.submit(case.payload())
+                    runner.submit(case.payload(), (checked or {}).get(case.case_id))
             busy = {runner.host: runner for runner in runners if runner.busy}
             if not busy:
                 return
@@ -259,10 +261,13 @@ def execute(
     time_limit: float | None = None,
     keep_traces: bool = False,
     plant: Any = None,
+    checked: Mapping[str, CheckedCase] | None = None,
 ) -> DaskLoss:
     """Run `cases` on the chosen backend and call `on_row(row, trace)` in this process as each
     finishes: the Dask cluster at `scheduler` (or an open `client` of one), else `workers` local
-    plant hosts (default: all cores). The cases a Dask cluster lost (not run) come back."""
+    plant hosts (default: all cores). Each case is checked once, by the process that drives its
+    host (here, or a Dask worker), or given checked (`checked`, by case id: local hosts only).
+    The cases a Dask cluster lost (not run) come back."""
     if not cases:
         return DaskLoss()
     fmu = Path(fmu).resolve()
@@ -280,5 +285,5 @@ def execute(
         finally:
             with contextlib.suppress(Exception):
                 own.close()
-    _run_pool(cases, plant, sha, workers or os.cpu_count() or 1, on_row, time_limit, keep_traces)
+    _run_pool(cases, plant, sha, workers or os.cpu_count() or 1, on_row, time_limit, keep_traces, checked)
     return DaskLoss()

@@ -29,10 +29,11 @@ from toggle_cosim.experiments.study_provenance import write_study_record
 from toggle_cosim.experiments.sweep_exec import connect, execute
 from toggle_cosim.experiments.sweep_spec import Sweep, SweepError, load_sweep, split_key
 from toggle_cosim.experiments.sweep_store import RESULTS_FILE, TRACES_DIR, ResultStore, batch_rows
-from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, case_columns, peak_rss_mb
+from toggle_cosim.experiments.sweep_worker import PEAK_RSS_KEY, CheckedCase, case_columns, checked_case, peak_rss_mb
 from toggle_cosim.files.outputs import folder_lock
 
 MANIFEST_FILE = "sweep.json"
+KEPT_CHECKS_BYTES = 64 << 20  # the cases checked before the sweep starts, kept for their hosts (pickled), at most
 MIN_ADDRESS_SPACE = 2 << 30  # bytes: pandas, pyarrow and matplotlib with their threads map about 1.6 GB
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -87,7 +88,10 @@ def check_address_space() -> None:
 
 def _resolve_plant(
     sweep: Sweep, fmu: Path | None, keep_traces: bool = False, case_timeout: float | None = None
-) -> tuple[Path, Any]:
+) -> tuple[Path, Any, dict[str, CheckedCase]]:
+    """The sweep's plant FMU, checked with its axes and cases before any case runs: its path, the
+    checked plant, and the cases checked here (one per setting, `KEPT_CHECKS_BYTES` of them at
+    most), by case id, for their hosts."""
     from toggle_cosim.plant.contract import ContractError, check_plant
 
     chosen = fmu if fmu is not None else sweep.fmu
@@ -142,6 +146,8 @@ def _resolve_plant(
     from toggle_cosim.cosim.checked import SystemError_, check_run
 
     seen = set()
+    kept: dict[str, CheckedCase] = {}  # case id -> the case checked, for its host
+    kept_bytes = 0
     # the axes that change the plant (all but F_E and m_B) or the controller: a variant and their
     # values make one setting, checked before any case runs
     setting = [key for key in sweep.axes if _sets_plant_or_controller(key)]
@@ -154,11 +160,16 @@ def _resolve_plant(
         try:
             check_settings(run, plant)
             # the case as the master checks it: its controller without running the user's code, its
-            # parts, connections, units and order; nothing loaded
+            # parts, connections, units and order; nothing loaded. Kept for its host, which then
+            # checks it no more (`execute`), within KEPT_CHECKS_BYTES
             checked = check_run(run, plant)
-            # a controller.python's or controller.fmu's: built and checked once in a supervised child
-            # (`supervision.probe_columns`), never in this process; its columns kept for the cases
-            columns = case_columns(case.payload(), plant, case_timeout)
+            # a controller.python's columns: built and checked once in a supervised child
+            # (`supervision.probe_columns`), never in this process; kept for the cases
+            prepared = checked_case(case.payload(), plant, case_timeout, checked)
+            columns = prepared.names
+            if kept_bytes + len(prepared.packed or b"") <= KEPT_CHECKS_BYTES:
+                kept[case.case_id] = prepared
+                kept_bytes += len(prepared.packed or b"")
             if keep_traces and run.plant.inputs:
                 raise SweepError(
                     f"{sweep.path}: case {case.index}: --keep-traces stores one trace table with the built-in "
@@ -180,7 +191,7 @@ def _resolve_plant(
                 )
         except (SettingError, ControllerError, SystemError_) as error:
             raise SweepError(f"{sweep.path}: case {case.index}: {error}") from error
-    return chosen, plant
+    return chosen, plant, kept
 
 
 def execute_sweep(
@@ -216,7 +227,7 @@ def execute_sweep(
         rows_per_batch = batch_rows()
     except ValueError as error:
         raise SweepError(str(error)) from error
-    fmu_path, plant = _resolve_plant(sweep, fmu, keep_traces, case_timeout)
+    fmu_path, plant, checked = _resolve_plant(sweep, fmu, keep_traces, case_timeout)
     from toggle_cosim.cosim.isolation.supervision import remove_stale_folders
 
     remove_stale_folders()  # the run folders commands killed by SIGKILL left in the temporary directory
@@ -235,6 +246,7 @@ def execute_sweep(
             case_timeout,
             keep_traces,
             rows_per_batch,
+            checked,
         )
     finally:
         if client is not None:
@@ -255,6 +267,7 @@ def _execute_sweep(
     case_timeout: float | None = None,
     keep_traces: bool = False,
     rows_per_batch: int | None = None,
+    checked: dict[str, CheckedCase] | None = None,
 ) -> SweepResult:
     from toggle_cosim.cosim.master import trace_names
 
@@ -320,7 +333,9 @@ def _execute_sweep(
                 bar.update(1)
 
         try:
-            loss = execute(todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout, keep_traces, plant)
+            loss = execute(
+                todo, fmu_path, scheduler, workers, on_row, sha, client, case_timeout, keep_traces, plant, checked
+            )
             result.lost = loss.cases
             if loss.cases:
                 result.lost_reason = loss.reasons[0] if loss.reasons else "unknown"

@@ -9,6 +9,11 @@ got); the runner starts a new host for the next case. A case never sees what ano
 same case gives the same numbers alone, first in a host, after a failed case or after a
 complete one.
 
+Each case is checked once, in the process that drives the host (`checked.check_run`, the
+same check `master.simulate` makes: `check_case`), and sent to the host with the request,
+pickled with its plant left out (`pack_checked`: the host has it); the host only instantiates
+(from its pool) and steps what was checked (`simulate(..., checked=)`).
+
 The host loads the FMU from a private copy (in its own folder, created 0700) of bytes whose
 SHA-256 it has checked against the sweep's: a file changed, or swapped, after the sweep checked
 it is never loaded. Every answer is a plain table row; nothing the case does raises here."""
@@ -19,7 +24,9 @@ import contextlib
 import copy
 import dataclasses
 import hashlib
+import io
 import os
+import pickle
 import socket
 import sys
 import tempfile
@@ -27,7 +34,7 @@ import threading
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,9 +43,13 @@ from toggle_cosim.experiments.scenario import runs_from_document
 from toggle_cosim.experiments.sweep_spec import METRICS, Case
 from toggle_cosim.messages import bounded_text, error_text, said_in
 
+if TYPE_CHECKING:
+    from toggle_cosim.cosim.checked import CheckedRun
+
 PEAK_RSS_KEY = "_peak_rss_mb"  # in a row from a worker: its peak RSS (not stored in the table)
 RETIRED_KEY = "_host_retired"  # in a row from a plant host: its plant answered Fatal, the host has ended
 COLUMNS_KEY = "_columns"  # in a request to a plant host: the case's trace columns, known to the runner
+CHECKED_KEY = "_checked"  # in a request to a plant host: the case as the runner checked it (`pack_checked`)
 LOG_LINES_KEPT, LOG_CHARS_KEPT = 2000, 2000  # what a case's captured FMU log keeps, at most
 _capture = threading.local()
 _workers = threading.local()  # a Dask worker thread's CaseRunner, kept from task to task
@@ -104,12 +115,16 @@ _columns: dict[tuple[str, str | None, str, tuple[str, ...]], tuple[str, ...]] = 
 SYSTEM_KEYS = ("components", "connections", "record")  # a scenario with any of them is a system
 
 
-def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | None = None) -> tuple[str, ...]:
+def case_columns(
+    payload: Mapping[str, Any], plant: Any, time_limit: float | None = None, checked: CheckedRun | None = None
+) -> tuple[str, ...]:
     """The trace columns of a case: time, the plant's outputs, the inputs and its controller's
     diagnostics (the built-in law's, or those a controller.python factory's controller or a
     controller FMU declares: that controller built and checked in a supervised child,
     `supervision.probe_columns`, once per controller setting in this process, which never runs
-    the user's code itself). Raises ControllerError when the controller cannot be built."""
+    the user's code itself). `checked`: the case as `check_case` checked it (its columns, when
+    the check knows them; else handed to the probe, which then checks nothing again). Raises
+    ControllerError when the controller cannot be built."""
     from toggle_cosim.cosim.master import trace_names
 
     if COLUMNS_KEY in payload:
@@ -122,11 +137,94 @@ def case_columns(payload: Mapping[str, Any], plant: Any, time_limit: float | Non
     source = payload.get("source")  # a system's columns are its recorded ports (`systems.system_columns`)
     key = (repr(controller_doc), repr(_system_shape(system)), source, plant.sha256, inputs)
     if key not in _columns:
-        from toggle_cosim.cosim.isolation.supervision import probe_columns
+        if checked is not None and checked.complete:
+            _columns[key] = checked.names
+        else:
+            from toggle_cosim.cosim.isolation.supervision import probe_columns
 
-        (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
-        _columns[key] = probe_columns(run, plant, case_time_limit(payload, time_limit))
+            run = checked.run if checked is not None else _case_run(payload)
+            _columns[key] = probe_columns(run, plant, case_time_limit(payload, time_limit), checked=checked)
     return _columns[key]
+
+
+def _case_run(payload: Mapping[str, Any]) -> Any:
+    """The case's run, read from its document (the base scenario's folder: where its
+    controller.python and FMUs are found)."""
+    source = payload.get("source")
+    (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
+    return run
+
+
+def check_case(payload: Mapping[str, Any], plant: Any) -> CheckedRun:
+    """The case checked as `master.simulate` checks a run (`checked.check_run`: its controller,
+    without running the user's code, its parts, connections, units, plan and signal table;
+    nothing loaded), in the process that drives its host. Raises what `check_run` raises."""
+    from toggle_cosim.cosim.checked import check_run
+
+    return check_run(_case_run(payload), plant)
+
+
+@dataclasses.dataclass(frozen=True)
+class CheckedCase:
+    """A case checked for its plant host (`checked_case`): its trace columns and its check,
+    pickled for the host (`pack_checked`; None: the check refused the case, and the host, checking
+    it as `simulate` does, fails it with that refusal)."""
+
+    names: tuple[str, ...]
+    packed: bytes | None
+
+
+def checked_case(
+    payload: Mapping[str, Any], plant: Any, time_limit: float | None = None, checked: CheckedRun | None = None
+) -> CheckedCase:
+    """The case checked once (`check_case`, unless `checked` is given), its columns and the check
+    packed for its host. Raises ControllerError when a controller.python cannot be built to tell
+    its columns (`case_columns`)."""
+    if checked is None:
+        try:
+            checked = check_case(payload, plant)
+        except Exception:  # noqa: BLE001 - the case's refusal: its host reports it as the case's row
+            checked = None
+    names = case_columns(payload, plant, time_limit, checked)
+    return CheckedCase(names, None if checked is None else pack_checked(checked, plant))
+
+
+class _PlantOut(pickle.Pickler):
+    """A pickler that writes the plant (`plant`, by identity) as a reference, not its contents."""
+
+    def __init__(self, stream: io.BytesIO, plant: Any) -> None:
+        super().__init__(stream, protocol=pickle.HIGHEST_PROTOCOL)
+        self.plant = plant
+
+    def persistent_id(self, obj: Any) -> str | None:
+        return "plant" if obj is self.plant else None
+
+
+class _PlantIn(pickle.Unpickler):
+    """An unpickler that puts `plant` where `_PlantOut` wrote the reference."""
+
+    def __init__(self, stream: io.BytesIO, plant: Any) -> None:
+        super().__init__(stream)
+        self.plant = plant
+
+    def persistent_load(self, pid: Any) -> Any:
+        if pid != "plant":
+            raise pickle.UnpicklingError(f"unknown reference {pid!r}")
+        return self.plant
+
+
+def pack_checked(checked: CheckedRun, plant: Any) -> bytes:
+    """`checked` pickled for the plant host, with `plant` (the checked plant both sides hold) left
+    out: its model description would cost more to send than the rest of the run."""
+    stream = io.BytesIO()
+    _PlantOut(stream, plant).dump(checked)
+    return stream.getvalue()
+
+
+def unpack_checked(data: bytes, plant: Any) -> CheckedRun:
+    """The checked run `pack_checked` wrote, on `plant` (the host's: its private copy of the same
+    FMU, by SHA-256), both as the run's plant and as its plant component's FMU."""
+    return _PlantIn(io.BytesIO(data), plant).load()
 
 
 def _system_shape(system: Mapping[str, Any]) -> dict[str, Any]:
@@ -275,11 +373,14 @@ class CaseServer:
             with _captured_fmu_log() as log:
                 view = None
                 try:
-                    source = payload.get("source")  # the base scenario: controller.python is imported from its folder
-                    (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
+                    plant = self._loaded_plant()
+                    packed = payload.get(CHECKED_KEY)  # checked by the runner: nothing is checked here
+                    checked = None if packed is None else unpack_checked(packed, plant)
+                    # without it (a case its runner's check refused), the case as simulate checks it: the same refusal
+                    run = checked.run if checked is not None else _case_run(payload)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
                     outcome = simulate(
-                        run, self._loaded_plant(), buffer=view, count=count, calling=self.calling, pool=self.pool
+                        run, plant, buffer=view, count=count, calling=self.calling, pool=self.pool, checked=checked
                     )
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result
                     outcome = None
@@ -374,14 +475,18 @@ class CaseRunner:
         self.cases_run = 0
         return self.host
 
-    def submit(self, payload: Mapping[str, Any]) -> None:
+    def submit(self, payload: Mapping[str, Any], case: CheckedCase | None = None) -> None:
         """Start the case on this slot's host (a new one if there is none, it died idle, or its
-        trace buffer is too small for this case)."""
+        trace buffer is too small for this case); `case`: the case as the sweep checked it before
+        (`checked_case`), else checked here, once."""
         rows = case_samples(payload)
-        names = case_columns(payload, self.plant, self.time_limit)
+        case = case if case is not None else checked_case(payload, self.plant, self.time_limit)
+        names = case.names
         columns = len(names)
         limit = case_time_limit(payload, self.time_limit)
         request = {**payload, COLUMNS_KEY: names}  # the host never builds a controller to learn them
+        if case.packed is not None:
+            request[CHECKED_KEY] = case.packed  # nor checks the case again
         host = self.host
         small = host is not None and host.buffer.size < rows * columns
         if host is None or not host.alive or small or not host.submit(request, limit):

@@ -165,7 +165,7 @@ def run_with_master(fmu: Path, scenario: Path, variant: str | None, name: str) -
     (controller.python, controller.fmu, components) is refused, so an FMU cannot make verify run
     a file it does not carry."""
     from toggle_cosim.control.protocol import ControllerError
-    from toggle_cosim.cosim.controllers import controller_for
+    from toggle_cosim.cosim.checked import SystemError_, check_run
     from toggle_cosim.cosim.isolation.supervision import remove_stale_folders, simulate_supervised
     from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
     from toggle_cosim.plant.contract import ContractError, check_plant
@@ -192,11 +192,11 @@ def run_with_master(fmu: Path, scenario: Path, variant: str | None, name: str) -
     try:
         probe_binary(plant)
         check_settings(run, plant)
-        controller_for(run, plant.recorded_outputs)
-    except (ProbeError, SettingError, ControllerError) as error:
+        checked = check_run(run, plant)  # the run's one check: the supervised run uses it
+    except (ProbeError, SettingError, ControllerError, SystemError_) as error:
         raise LsRefError(f"{fmu}: experiment {name!r}: {error}") from None
     remove_stale_folders()
-    outcome = simulate_supervised(run, plant)
+    outcome = simulate_supervised(run, plant, checked=checked)
     if not outcome.complete:
         raise LsRefError(f"{fmu}: experiment {name!r} failed to run: {outcome.reason}")
     return outcome.trace

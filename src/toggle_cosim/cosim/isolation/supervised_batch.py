@@ -37,7 +37,8 @@ def run_supervised(
     scratch: Path | None = None,
 ) -> Iterator[RunOutcome]:
     """Run each (run, plant) pair in a supervised child, at most `jobs` at a time, and yield the
-    outcomes in the order of `pairs`.
+    outcomes in the order of `pairs`. A (run, plant, checked) triple gives the run as the caller
+    checked it (`checked.check_run`), which the run then uses, checking nothing again.
 
     Close the generator (or exhaust it) to release the children: closing it early, or an
     interrupt while it waits, kills the ones still running and removes their folders."""
@@ -48,8 +49,10 @@ def run_supervised(
     def fill() -> None:  # start runs until `jobs` are under way past the first not handed back
         nonlocal started
         while started < len(pairs) and started - handed < max(1, jobs):
-            run, plant = pairs[started]
-            children[started] = SupervisedRun(run, plant, time_limit=time_limit, scratch=scratch)
+            run, plant, *checked = pairs[started]
+            children[started] = SupervisedRun(
+                run, plant, time_limit=time_limit, scratch=scratch, checked=next(iter(checked), None)
+            )
             started += 1
             children[started - 1].start()
 

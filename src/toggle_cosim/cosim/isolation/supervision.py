@@ -790,12 +790,15 @@ def simulate_supervised(
     return child.outcome()
 
 
-def probe_columns(run: Run, plant: PlantInterface, time_limit: float | None = None) -> tuple[str, ...]:
+def probe_columns(
+    run: Run, plant: PlantInterface, time_limit: float | None = None, checked: CheckedRun | None = None
+) -> tuple[str, ...]:
     """The trace columns of `run`: the run's check's (`checked.check_run`), or with a
     controller.python, found by building and checking the controller in a supervised child
-    (under the run's time limit, or `time_limit`), never in this process. Raises ControllerError with the one-line
+    (under the run's time limit, or `time_limit`), never in this process. `checked`: the run as a
+    caller checked it before (None: checked here). Raises ControllerError with the one-line
     reason: the controller's own refusal, or what ended the child (an exit, a crash, the limit)."""
-    child = SupervisedRun(run, plant, time_limit=time_limit, probe=True)
+    child = SupervisedRun(run, plant, time_limit=time_limit, probe=True, checked=checked)
     if child.refused is not None or child.checked is None:
         raise ControllerError(child.refused or child.reason or "the run could not be checked")
     if not child.deferred:  # nothing of the user's to build: the parent's check knows the columns
