@@ -22,9 +22,8 @@ import copy
 import ctypes
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn, Protocol
+from typing import Any, NamedTuple, NoReturn, Protocol
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.protocol import Controller, ControllerError, Measurement, checked_command
@@ -472,13 +471,13 @@ class FmuSlave:
         )
 
 
-@dataclass(frozen=True)
-class SampleState:
+class SampleState(NamedTuple):
     """What a `ControllerSlave` holds between two calls: the controller's state and the state its
     last computation gave (`next`, committed by the next doStep), its outputs held (the command,
     then the diagnostics), its fed inputs as set (`row`, in the plan's order), whether they were
     set since that computation (`dirty`) and whether its start has run. The compiled system loop
-    (`cosim.execution.system_natives`) takes it over to run the controller natively in C and gives it back."""
+    (`cosim.execution.system_natives`) takes it over to run the controller natively in C and gives
+    it back, at every checkpoint: a named tuple, the cheapest immutable record to make."""
 
     state: Any
     next: Any

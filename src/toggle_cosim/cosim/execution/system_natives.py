@@ -127,9 +127,10 @@ class NativeController:
         """What the slave holds again: the committed `state` and the C's memory `saved` (dirty,
         held, row, next; system_skeleton.c's native_t)."""
         n_held, n_in = len(self.start.held), len(self.start.row)
-        held = tuple(float(v) for v in saved[1 : 1 + n_held])
-        row = tuple(float(v) for v in saved[1 + n_held : 1 + n_held + n_in])
-        following = saved[1 + n_held + n_in : 1 + n_held + n_in + self.n_state]
+        values = [float(v) for v in saved]  # Python floats, whatever sequence of numbers `saved` is
+        held = tuple(values[1 : 1 + n_held])
+        row = tuple(values[1 + n_held : 1 + n_held + n_in])
+        following = values[1 + n_held + n_in : 1 + n_held + n_in + self.n_state]
         return SampleState(self._state(state), self._state(following), held, row, saved[0] != 0.0, True)
 
 
