@@ -18,6 +18,7 @@ given as numbers (`fmi_pointers.typed_reads`).
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import ctypes
 import math
@@ -133,6 +134,7 @@ class FmuSlave:
         self._fatal = False
         self._stepping = False
         self._reads: tuple = ()
+        self._calls: CFunctions | None = None  # `c_functions`, bound once per instance
         self._instance = f"{name}"
         self._saved: Any = None  # the checkpoint: an fmi2FMUstate / fmi3FMUState (`save_state`)
         self.no_set_state_prior_to_current_point = False  # doStep's flag (`system_retry`)
@@ -310,13 +312,16 @@ class FmuSlave:
     def exit_initialization(self) -> None:
         self._call(f"{'fmi3' if self.fmi3 else 'fmi2'}ExitInitializationMode", self._slave.exitInitializationMode)
         self._stepping = True
+        self._calls = None
+        with contextlib.suppress(ValueError):  # a library that lacks one: said when a C loop asks
+            self.c_functions()
 
     def close(self, reuse: bool = False) -> None:
         """Terminate and free the instance (not after a fatal status), give back the unzipped
         copy (removed with its last user). With a pool: the instance goes back to it, reset
         when `reuse` (a complete run) and the FMU accepts terminate and reset, else freed with
         its binary kept loaded (`instance_pool`)."""
-        slave, self._slave = self._slave, None
+        slave, self._slave, self._calls = self._slave, None, None
         folder, self._unzipped = self._unzipped, None
         try:
             if slave is not None and not self._fatal and self.pool is not None and folder is not None:
@@ -465,10 +470,14 @@ class FmuSlave:
 
     def c_functions(self) -> CFunctions:
         """What a C loop calls (`fmi_pointers.fmu_functions`): the three functions, the instance,
-        the value references of its outputs and fed inputs, in the plan's order."""
-        return fmu_functions(
-            self._slave, self._out_refs, self._in_refs, self._reads, (self._get, self._set, self._step)
-        )
+        the value references of its outputs and fed inputs, in the plan's order; bound once per
+        instance (as it leaves initialisation, `exit_initialization`), so a C loop that runs
+        it finds them ready."""
+        if self._calls is None:
+            self._calls = fmu_functions(
+                self._slave, self._out_refs, self._in_refs, self._reads, (self._get, self._set, self._step)
+            )
+        return self._calls
 
 
 class SampleState(NamedTuple):
