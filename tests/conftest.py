@@ -39,6 +39,25 @@ def plant_fmu(plant_build) -> Path:
 
 
 @pytest.fixture(scope="session")
+def plant_model():
+    """ToggleLSM.Plant compiled from modelica/ToggleLSM once per session (the Modelica compile is
+    most of a build): the tests that package it in other forms share it."""
+    from toggle_cosim.fmu_export.compile import compile_model
+
+    return compile_model(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant")
+
+
+@pytest.fixture(scope="session")
+def plant3_fmu(plant_model, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The plant as FMI 3.0 (Co-Simulation and Model Exchange), packaged from `plant_model`."""
+    from toggle_cosim import __version__
+    from toggle_cosim.fmu_export.package import write_fmu
+
+    output = tmp_path_factory.mktemp("fmu3") / "ToggleLSM3.fmu"
+    return write_fmu(plant_model, output, f"toggle-cosim {__version__} (tests)", fmi_version="3.0").path
+
+
+@pytest.fixture(scope="session")
 def no_gravity_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The second plant, built from the variant ToggleLSM.PlantNoGravity of the same source."""
     from toggle_cosim.fmu_export import build_fmu

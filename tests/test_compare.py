@@ -477,9 +477,17 @@ def test_a_tolerance_file_found_by_place_that_is_not_a_regular_file_is_bad_input
 
 
 SHIPPED = sorted((Path(__file__).resolve().parent.parent / "scenarios" / "references").glob("*/*_ref.csv"))
+# the fast set compares each scenario's first reference; the full suite every reference
+FIRST_OF_SCENARIO = {min(p for p in SHIPPED if p.parent == folder) for folder in {p.parent for p in SHIPPED}}
 
 
-@pytest.mark.parametrize("reference", SHIPPED, ids=[f"{p.parent.name}/{p.stem}" for p in SHIPPED])
+@pytest.mark.parametrize(
+    "reference",
+    [
+        pytest.param(p, id=f"{p.parent.name}/{p.stem}", marks=() if p in FIRST_OF_SCENARIO else pytest.mark.slow)
+        for p in SHIPPED
+    ],
+)
 def test_compare_of_a_shipped_reference_with_itself_passes(reference: Path, capsys):
     """Issue 37, item 11: a stored reference is decimated, its invariants were measured at every
     sample (T_s, its .opt StepSize): they are reported unchecked on it, not failed."""

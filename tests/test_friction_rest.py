@@ -355,6 +355,7 @@ def test_a_reversal_through_the_fold_iterates_its_events_to_convergence(plant_fm
     assert outcome.record["retries"] == []
 
 
+@pytest.mark.slow  # about 15 s: the reference integrates the reversal from the equations
 def test_the_theta1_reversal_agrees_with_the_independent_filippov_reference(plant_fmu: Path) -> None:
     """friction_models.yaml's theta1 variant (stick_slip, mu = mu_s = 0.2: in slip and at rest the
     rules of `dissipative` with the Filippov cone) to t = 0.55 s: the lever reverses at

@@ -67,7 +67,7 @@ def press_parts_3(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     }
 
 
-@pytest.mark.parametrize("version", ["2.0", "3.0"])
+@pytest.mark.parametrize("version", ["2.0", pytest.param("3.0", marks=pytest.mark.slow)])  # FMI 3.0: the full suite
 def test_a_press_case_gives_the_same_bits_alone_first_after_a_complete_and_after_a_failed_case(
     armed_shim, shim_fmu: Path, version: str, request: pytest.FixtureRequest
 ) -> None:

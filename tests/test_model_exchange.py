@@ -26,7 +26,6 @@ from scipy.integrate import solve_ivp
 
 from toggle_cosim import __version__
 from toggle_cosim.fmu_export import build_fmu
-from toggle_cosim.fmu_export.compile import compile_model
 from toggle_cosim.fmu_export.package import write_fmu
 
 pytestmark = pytest.mark.slow  # builds the plant for Model Exchange and FMI 3.0, runs the FMI checkers
@@ -34,11 +33,6 @@ pytestmark = pytest.mark.slow  # builds the plant for Model Exchange and FMI 3.0
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = ROOT / "tests" / "models" / "ExchangeModels.mo"
 TOOL = f"toggle-cosim {__version__} (tests)"
-
-
-@pytest.fixture(scope="session")
-def plant_model():
-    return compile_model(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant")
 
 
 @pytest.fixture(scope="session")

@@ -86,7 +86,13 @@ HELPER_SECONDS = "600"  # the helpers' own life: only a kill ends them within th
 
 @pytest.mark.parametrize(
     ("kind", "limit"),
-    [("fork", None), ("daemon", None), ("fork", "0.3"), ("daemon", "0.3"), ("orphan", None)],
+    [  # each kind once in the fast set, the other pairings in the full suite
+        ("fork", None),
+        pytest.param("daemon", None, marks=pytest.mark.slow),
+        pytest.param("fork", "0.3", marks=pytest.mark.slow),
+        ("daemon", "0.3"),
+        ("orphan", None),
+    ],
 )
 def test_a_plants_helper_process_ends_with_its_run(
     shim_fmu: Path, tmp_path: Path, kind: str, limit: str | None

@@ -68,14 +68,6 @@ def test_statistics_are_cumulative_integers_and_do_not_change_the_trace(plant_fm
     assert events > 0  # the friction sign events of the stroke
 
 
-@pytest.fixture(scope="module")
-def plant3_fmu(tmp_path_factory):
-    from toggle_cosim.fmu_export import build_fmu
-
-    output = tmp_path_factory.mktemp("fmu3-stats") / "ToggleLSM3.fmu"
-    return build_fmu(ROOT / "modelica" / "ToggleLSM", "ToggleLSM.Plant", output, fmi_version="3.0").fmu.path
-
-
 @pytest.mark.slow
 def test_fmi3_statistics_are_int64_and_count_as_fmi2(plant_fmu, plant3_fmu):
     """FMI 3.0 serves them through fmi3GetInt64; the solver core is the one FMI 2.0 uses, so

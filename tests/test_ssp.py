@@ -29,7 +29,6 @@ from click.testing import CliRunner
 from lxml import etree
 
 from toggle_cosim.cli import main
-from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.master import plant_settings, simulate
 from toggle_cosim.experiments.scenario import load_scenario
@@ -849,16 +848,10 @@ def test_run_options_that_do_not_fit_an_ssp_are_refused(fig5_ssp: Path, plant_fm
 # -- end to end: the controller FMU in our master --------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The real controller FMU (FMI 2.0), built once."""
-    return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu").path
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("scenario", SCENARIOS, ids=lambda p: p.stem)
 def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
-    scenario: Path, request: pytest.FixtureRequest, toggle_vsc: Path, tmp_path: Path
+    scenario: Path, request: pytest.FixtureRequest, vsc_fmu: Path, tmp_path: Path
 ) -> None:
     """Every shipped scenario file but the sweeps, written as an SSP and run in our master with the
     controller FMU, every variant named with --variant: each gives its variant's trace bit for bit
@@ -870,7 +863,7 @@ def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
     from toggle_cosim.files.traces import read_csv as read_trace_csv
 
     plant = request.getfixturevalue("no_gravity_fmu" if scenario.stem == "swap_no_gravity" else "plant_fmu")
-    study = write_ssp(scenario, tmp_path / f"{scenario.stem}.ssp", plant, toggle_vsc)
+    study = write_ssp(scenario, tmp_path / f"{scenario.stem}.ssp", plant, vsc_fmu)
     runs = load_scenario(scenario)
     named = [arg for run in runs for arg in ("--variant", layout.set_name(run.variant))]
     yaml_out, ssp_out, default_out = tmp_path / "yaml", tmp_path / "ssp", tmp_path / "default"
@@ -897,10 +890,10 @@ def test_running_the_ssp_gives_the_yaml_runs_trace_bit_for_bit(
 
 
 @pytest.mark.slow
-def test_a_named_variant_runs_that_variant_only(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+def test_a_named_variant_runs_that_variant_only(plant_fmu: Path, vsc_fmu: Path, tmp_path: Path) -> None:
     """--variant NAME runs that root SSD alone, with its values (no_friction: mu = 0); the old
     option --parameter-set NAME is the same (a variant is named after its parameter set)."""
-    study = write_ssp(ROOT / "scenarios" / "fig4_nominal.yaml", tmp_path / "fig4.ssp", plant_fmu, toggle_vsc)
+    study = write_ssp(ROOT / "scenarios" / "fig4_nominal.yaml", tmp_path / "fig4.ssp", plant_fmu, vsc_fmu)
     for option, out in (("--variant", tmp_path / "a"), ("--parameter-set", tmp_path / "b")):
         ran = CliRunner().invoke(main, ["run", str(study), option, "no_friction", "--out", str(out), "-q"])
         assert ran.exit_code == 0, ran.output
@@ -920,7 +913,7 @@ def _inline(values: list[tuple[str, str, str]], name: str) -> str:
 
 
 @pytest.mark.slow
-def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, vsc_fmu: Path, tmp_path: Path) -> None:
     """An SSP this project did not write: components named vsc and mechanism (the controller
     first), connections in another order, no Units, no annotations, parameter values inline. The
     mechanism's first binding sets mu = 0.5 and m_B = 9 kg, its second the variant's values: the
@@ -932,7 +925,7 @@ def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, toggl
     from toggle_cosim.files.traces import read_csv as read_trace_csv
 
     scenario = ROOT / "scenarios" / "fig4_nominal.yaml"
-    ours = _members(write_ssp(scenario, tmp_path / "ours.ssp", plant_fmu, toggle_vsc))
+    ours = _members(write_ssp(scenario, tmp_path / "ours.ssp", plant_fmu, vsc_fmu))
     plant_values = [v for v in _values(ours[layout.ssv_member("friction", "plant")]) if v[0] != "m_B"]
     m_B = next(v for v in _values(ours[layout.ssv_member("friction", "plant")]) if v[0] == "m_B")
     controller_values_ = _values(ours[layout.ssv_member("friction", "controller")])
@@ -985,7 +978,7 @@ def test_a_hand_written_ssp_runs_as_the_standard_reads_it(plant_fmu: Path, toggl
     with zipfile.ZipFile(handmade, "w") as archive:
         archive.writestr("SystemStructure.ssd", ssd)
         archive.write(plant_fmu, "resources/plant.fmu")
-        archive.write(toggle_vsc, "resources/vsc.fmu")
+        archive.write(vsc_fmu, "resources/vsc.fmu")
     for args, out in (
         ([str(scenario), "--fmu", str(plant_fmu)], tmp_path / "yaml"),
         ([str(handmade)], tmp_path / "ssp"),

@@ -25,7 +25,6 @@ from click.testing import CliRunner
 from lxml import etree
 
 from toggle_cosim.cli import main
-from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.files.traces import read_csv as read_trace_csv
 from toggle_cosim.ssp import layout
@@ -42,12 +41,6 @@ SCENARIOS = sorted(
     for p in (ROOT / "scenarios").glob("*.yaml")
     if not p.name.startswith(("sweep_", "tune_")) and p.stem not in VARYING_OR_TRACKING
 )
-
-
-@pytest.fixture(scope="module")
-def toggle_vsc(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The real controller FMU (FMI 2.0), built once."""
-    return build_controller_fmu(tmp_path_factory.mktemp("vsc") / "ToggleVSC.fmu").path
 
 
 def _members(path: Path) -> dict[str, bytes]:
@@ -75,9 +68,16 @@ def _same_traces(first: Path, second: Path) -> None:
         assert np.array_equal(a.column(column), b.column(column)), column
 
 
-@pytest.mark.parametrize("scenario", SCENARIOS, ids=lambda p: p.stem)
+# fig4_nominal in the fast set; every other shipped scenario is in the slow set (-m "not slow" leaves it out)
+FAST_SCENARIO = "fig4_nominal"
+
+
+@pytest.mark.parametrize(
+    "scenario",
+    [pytest.param(p, id=p.stem, marks=() if p.stem == FAST_SCENARIO else pytest.mark.slow) for p in SCENARIOS],
+)
 def test_both_versions_of_every_shipped_scenario_validate_and_run_bit_for_bit(
-    scenario: Path, request: pytest.FixtureRequest, toggle_vsc: Path, tmp_path: Path
+    scenario: Path, request: pytest.FixtureRequest, vsc_fmu: Path, tmp_path: Path
 ) -> None:
     """`ssp` writes SSP 1.0 by default and SSP 2.0 with --ssp-version 2.0: the same members, each
     SSD and .ssv saying its version and valid against that version's schemas (a 2.0 SSD, with its
@@ -88,7 +88,7 @@ def test_both_versions_of_every_shipped_scenario_validate_and_run_bit_for_bit(
     for version, extra in (("1.0", []), ("2.0", ["--ssp-version", "2.0"])):
         out = tmp_path / f"v{version}" / "study.ssp"
         out.parent.mkdir()
-        args = ["ssp", str(scenario), "--plant", str(plant), "--controller", str(toggle_vsc), "--out", str(out)]
+        args = ["ssp", str(scenario), "--plant", str(plant), "--controller", str(vsc_fmu), "--out", str(out)]
         ran = CliRunner().invoke(main, [*args, *extra])
         assert ran.exit_code == 0, ran.output
         written[version] = _members(out)
@@ -114,7 +114,7 @@ def test_both_versions_of_every_shipped_scenario_validate_and_run_bit_for_bit(
         assert record["version"] == "2.0"
 
 
-def _handmade(plant_fmu: Path, toggle_vsc: Path, edit=None) -> dict[str, bytes]:  # noqa: ANN001
+def _handmade(plant_fmu: Path, vsc_fmu: Path, edit=None) -> dict[str, bytes]:  # noqa: ANN001
     """The hand-written OMSimulator-style SSP 2.0 (its SSD and .ssv from the test documents, the
     two FMUs where its SSD says), with `edit(text) -> text` applied to every XML member."""
     members = {
@@ -124,7 +124,7 @@ def _handmade(plant_fmu: Path, toggle_vsc: Path, edit=None) -> dict[str, bytes]:
     if edit is not None:
         members = {name: edit(data.decode()).encode() for name, data in members.items()}
     members["resources/0001_mechanism.fmu"] = plant_fmu.read_bytes()
-    members["resources/0002_vsc.fmu"] = toggle_vsc.read_bytes()
+    members["resources/0002_vsc.fmu"] = vsc_fmu.read_bytes()
     return members
 
 
@@ -135,16 +135,16 @@ def _as_1_0(text: str) -> str:
 
 
 def test_a_hand_written_omsimulator_style_2_0_ssd_runs_as_its_1_0_twin(
-    plant_fmu: Path, toggle_vsc: Path, tmp_path: Path
+    plant_fmu: Path, vsc_fmu: Path, tmp_path: Path
 ) -> None:
     """The SSD in OMSimulator's style (version 2.0, Float64 connectors with geometry, a system
     -level binding of element.variable values, OMSimulator's annotations), written by hand,
     reads and runs; its 1.0 twin (version 1.0, Real) is valid SSP 1.0 and gives the same trace
     arrays bit for bit, and both runs set the same values."""
-    twin = _handmade(plant_fmu, toggle_vsc, _as_1_0)
+    twin = _handmade(plant_fmu, vsc_fmu, _as_1_0)
     assert schema("ssd", "1.0").validate(etree.fromstring(twin["SystemStructure.ssd"]))
     assert schema("ssv", "1.0").validate(etree.fromstring(twin["resources/toggle.ssv"]))
-    _zip(tmp_path / "oms.ssp", _handmade(plant_fmu, toggle_vsc))
+    _zip(tmp_path / "oms.ssp", _handmade(plant_fmu, vsc_fmu))
     _zip(tmp_path / "twin.ssp", twin)
     _run(tmp_path / "oms.ssp", tmp_path / "a")
     _run(tmp_path / "twin.ssp", tmp_path / "b")
@@ -256,12 +256,12 @@ REFUSED = {
 
 @pytest.mark.parametrize("case", REFUSED, ids=list(REFUSED))
 def test_what_our_master_cannot_run_is_refused_in_one_line(
-    case: str, plant_fmu: Path, toggle_vsc: Path, tmp_path: Path
+    case: str, plant_fmu: Path, vsc_fmu: Path, tmp_path: Path
 ) -> None:
     """Each case: exit 2, one line naming the SSP, the member, the element and the construct, no
     traceback, nothing written under --out; the reader raises the same line."""
     edit, expected = REFUSED[case]
-    bad = _zip(tmp_path / "bad.ssp", _handmade(plant_fmu, toggle_vsc, edit))
+    bad = _zip(tmp_path / "bad.ssp", _handmade(plant_fmu, vsc_fmu, edit))
     out = tmp_path / "out"
     result = CliRunner().invoke(main, ["run", str(bad), "--out", str(out), "-q"])
     assert result.exit_code == 2, result.output
@@ -283,12 +283,12 @@ METADATA = (
 )
 
 
-def test_metadata_and_signatures_are_passed_through(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+def test_metadata_and_signatures_are_passed_through(plant_fmu: Path, vsc_fmu: Path, tmp_path: Path) -> None:
     """A root SSD's MetaData (inline content or a source) and Signature elements are kept as
     written, readable from Python and recorded in run.json (the content's size, not the content);
     their sources need not be in the archive (nothing reads them) and they change nothing that runs."""
     edit = _replace("</ssd:DefaultExperiment>", "</ssd:DefaultExperiment>" + METADATA)
-    with_metadata = _zip(tmp_path / "meta.ssp", _handmade(plant_fmu, toggle_vsc, edit))
+    with_metadata = _zip(tmp_path / "meta.ssp", _handmade(plant_fmu, vsc_fmu, edit))
     with open_ssp(with_metadata) as study:
         assert study.version == "2.0"
         general, quality = study.metadata
@@ -298,7 +298,7 @@ def test_metadata_and_signatures_are_passed_through(plant_fmu: Path, toggle_vsc:
         assert (quality.kind, quality.source, quality.content) == ("quality", "resources/quality.txt", None)
         assert [(s.role, s.content) for s in study.signatures] == [("suitability", "checked")]
     _run(with_metadata, tmp_path / "a")
-    _run(_zip(tmp_path / "plain.ssp", _handmade(plant_fmu, toggle_vsc)), tmp_path / "b")
+    _run(_zip(tmp_path / "plain.ssp", _handmade(plant_fmu, vsc_fmu)), tmp_path / "b")
     record = json.loads((tmp_path / "a" / "meta_ssp" / "toggle" / "run.json").read_text())["resolved"]["ssp"]
     assert [entry["kind"] for entry in record["metadata"]] == ["general", "quality"]
     assert record["metadata"][0]["signatures"][0]["role"] == "authenticity"
@@ -309,14 +309,14 @@ def test_metadata_and_signatures_are_passed_through(plant_fmu: Path, toggle_vsc:
     )
 
 
-def test_pyssp_standard_reads_our_2_0_ssp(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+def test_pyssp_standard_reads_our_2_0_ssp(plant_fmu: Path, vsc_fmu: Path, tmp_path: Path) -> None:
     """pyssp-standard, an SSP library of its own (its schema copies, validated as XML Schema 1.1
     by xmlschema), reads the 2.0 SSD and .ssv files we write: version 2.0, the components, the
     connections, the stop time, every parameter with its Float64/Boolean type; both comply."""
     ssd_module = pytest.importorskip("pyssp_standard.ssd")
     ssv_module = pytest.importorskip("pyssp_standard.ssv")
     scenario = ROOT / "scenarios" / "fig5_external_force.yaml"
-    path = write_ssp(scenario, tmp_path / "fig5.ssp", plant_fmu, toggle_vsc, version="2.0")
+    path = write_ssp(scenario, tmp_path / "fig5.ssp", plant_fmu, vsc_fmu, version="2.0")
     with zipfile.ZipFile(path) as archive:
         archive.extractall(tmp_path / "unpacked")
     run = load_scenario(scenario)[0]
@@ -341,11 +341,11 @@ def test_pyssp_standard_reads_our_2_0_ssp(plant_fmu: Path, toggle_vsc: Path, tmp
         assert theirs == expected and {kind for _, kind in theirs} <= {"Float64", "Boolean", "Int32"}
 
 
-def test_ssp_version_is_checked_in_one_line(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+def test_ssp_version_is_checked_in_one_line(plant_fmu: Path, vsc_fmu: Path, tmp_path: Path) -> None:
     """--ssp-version takes 1.0 or 2.0; anything else is one line, exit 2, and no file."""
     out = tmp_path / "study.ssp"
     scenario = ROOT / "scenarios" / "fig5_external_force.yaml"
-    args = ["ssp", str(scenario), "--plant", str(plant_fmu), "--controller", str(toggle_vsc), "--out", str(out)]
+    args = ["ssp", str(scenario), "--plant", str(plant_fmu), "--controller", str(vsc_fmu), "--out", str(out)]
     result = CliRunner().invoke(main, [*args, "--ssp-version", "2.1"])
     assert result.exit_code == 2, result.output
     assert result.output.strip() == (
@@ -354,7 +354,7 @@ def test_ssp_version_is_checked_in_one_line(plant_fmu: Path, toggle_vsc: Path, t
     assert not out.exists()
 
 
-def test_a_2_0_ssd_carries_the_studys_srmd_in_its_metadata(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+def test_a_2_0_ssd_carries_the_studys_srmd_in_its_metadata(plant_fmu: Path, vsc_fmu: Path, tmp_path: Path) -> None:
     """Each 2.0 root SSD holds one MetaData (kind general, type application/x-srmd) whose inline
     content is a valid SRMD record naming, by archive path and SHA3-256, the FMUs and the
     variant's .ssv files it uses, with the scenario and the variant as settings; the reader keeps
@@ -364,7 +364,7 @@ def test_a_2_0_ssd_carries_the_studys_srmd_in_its_metadata(plant_fmu: Path, togg
     from toggle_cosim.provenance import srmd
 
     scenario = ROOT / "scenarios" / "fig5_external_force.yaml"
-    path = write_ssp(scenario, tmp_path / "fig5.ssp", plant_fmu, toggle_vsc, version="2.0")
+    path = write_ssp(scenario, tmp_path / "fig5.ssp", plant_fmu, vsc_fmu, version="2.0")
     members = _members(path)
     for member, variant in ((layout.SSD_MEMBER, "friction"), ("no_friction.ssd", "no_friction")):
         ssd = etree.fromstring(members[member])
@@ -391,11 +391,11 @@ def test_a_2_0_ssd_carries_the_studys_srmd_in_its_metadata(plant_fmu: Path, togg
     with open_ssp(path) as study:
         assert [m.type for m in study.metadata] == ["application/x-srmd"]
         assert "SimulationResourceMetaData" in study.metadata[0].content
-    old = _members(write_ssp(scenario, tmp_path / "fig5-1.0.ssp", plant_fmu, toggle_vsc))
+    old = _members(write_ssp(scenario, tmp_path / "fig5-1.0.ssp", plant_fmu, vsc_fmu))
     assert etree.fromstring(old[layout.SSD_MEMBER]).find("ssc:MetaData", NS) is None
 
 
-def test_fmi3_number_types_are_read_as_real_and_integer(plant_fmu: Path, toggle_vsc: Path, tmp_path: Path) -> None:
+def test_fmi3_number_types_are_read_as_real_and_integer(plant_fmu: Path, vsc_fmu: Path, tmp_path: Path) -> None:
     """A Float32 value is the single-precision number it writes (mu = float32(0.2)); an Int8 value
     is an Integer, set on the Real variable frictionModel as any Integer value is (2 -> 2.0)."""
     edit = _both(
@@ -405,7 +405,7 @@ def test_fmi3_number_types_are_read_as_real_and_integer(plant_fmu: Path, toggle_
             '<ssv:Parameter name="mechanism.frictionModel"><ssv:Int8 value="2" /></ssv:Parameter></ssv:Parameters>',
         ),
     )
-    with open_ssp(_zip(tmp_path / "types.ssp", _handmade(plant_fmu, toggle_vsc, edit))) as study:
+    with open_ssp(_zip(tmp_path / "types.ssp", _handmade(plant_fmu, vsc_fmu, edit))) as study:
         values = dict(study.plant_values)
     assert values["mu"] == float(np.float32(0.2)) != 0.2
     assert values["frictionModel"] == 2.0 and isinstance(values["frictionModel"], float)

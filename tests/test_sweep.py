@@ -572,7 +572,7 @@ def test_a_scheduler_that_is_not_dask_is_one_line_within_the_timeout(tmp_path, p
     try:
         for port in (http_port, silent.getsockname()[1]):
             started = time.monotonic()
-            with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):
+            with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
                 assert run_sweep(path, f"tcp://127.0.0.1:{port}", None, plant_fmu, progress=False) == 2
             assert time.monotonic() - started < 8
             err = capsys.readouterr().err.strip().splitlines()
