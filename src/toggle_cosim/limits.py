@@ -20,7 +20,12 @@ SIZE_SUFFIXES = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 DEFAULT_MAX_OUTPUT = 2_000_000_000  # bytes a run's trace buffer or CSV may take
 DEFAULT_PLANT_MEMORY = 4 << 30  # bytes a plant may allocate beyond the process as forked
 DEFAULT_MAX_LOG = 64 << 10  # bytes of a run's own printing (plant, controller) relayed to the console
-FLAGS = ("TOGGLE_COSIM_KERNEL", "TOGGLE_COSIM_FAST_CSV", "TOGGLE_COSIM_SUPERVISE")  # "0" or "1"
+FLAGS = (
+    "TOGGLE_COSIM_KERNEL",
+    "TOGGLE_COSIM_FAST_CSV",
+    "TOGGLE_COSIM_SUPERVISE",
+    "TOGGLE_COSIM_BUILD_CACHE",
+)  # "0" or "1"
 
 
 class LimitError(ValueError):

@@ -215,6 +215,31 @@ def _verified(folder: Path, name: str) -> CachedLibrary | None:
     return CachedLibrary(folder / name, actual) if actual == expected else None
 
 
+def cached_bytes(folder: Path, name: str, what: str) -> bytes | None:
+    """The bytes of the file `name` in the cache `folder` when it is there, private and has the
+    SHA-256 recorded when it was stored (`store`), else None. The bytes returned are the bytes
+    hashed (read once, from one descriptor), so a caller writes exactly what was checked."""
+    try:
+        expected = _read_private_text(folder / _record_name(name), f"{what} record")
+        data = read_private(folder / name, what)
+    except (OSError, CacheError, UnicodeDecodeError):
+        return None
+    return data if hashlib.sha256(data).hexdigest() == expected else None
+
+
+def read_private(path: Path, what: str) -> bytes:
+    """The bytes of `path`, a regular file of this user's that no one else may write (not
+    followed if it is a symbolic link); OSError if it is missing, CacheError if it is not private."""
+    fd = _open_private(path, what)
+    try:
+        chunks = []
+        while chunk := os.read(fd, 1 << 20):
+            chunks.append(chunk)
+        return b"".join(chunks)
+    finally:
+        os.close(fd)
+
+
 def _suffix() -> str:
     return {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
 
@@ -245,10 +270,10 @@ def cached_library(source: str, stem: str, flags: Sequence[str], libraries: Sequ
         if result.returncode != 0:
             raise RuntimeError(f"the C compiler failed: {result.stderr.strip()[:500]}")
 
-    return _store(folder, name, compile_into, 0o700)
+    return store(folder, name, compile_into, 0o700)
 
 
-def _store(folder: Path, name: str, build: Callable[[Path], None], mode: int) -> CachedLibrary:
+def store(folder: Path, name: str, build: Callable[[Path], None], mode: int) -> CachedLibrary:
     """`build(path)` writes the file `name` in a private temporary folder inside the cache
     `folder`; it is given `mode`, moved into place (atomically: concurrent builds only race to the
     same file) and its SHA-256 recorded beside it."""

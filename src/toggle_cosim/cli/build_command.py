@@ -4,9 +4,11 @@ and the controller FMU ToggleVSC (`controller_fmu`), which needs only a C compil
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
+from toggle_cosim import limits
 from toggle_cosim.cli.app import (
     CONTROLLER_MODEL,
     DEFAULT_BUILDS,
@@ -22,6 +24,9 @@ from toggle_cosim.cli.app import (
     require,
 )
 from toggle_cosim.files.outputs import FMU
+
+if TYPE_CHECKING:
+    from toggle_cosim.fmu_export import BuildReport
 
 CONTROLLER = CONTROLLER_MODEL  # --model of the controller FMU (no Modelica source)
 
@@ -50,6 +55,10 @@ def build_plant(
     from toggle_cosim.fmu_export import FMUBuildError, ModelCompileError, build_fmu
 
     require("modelica")
+    try:
+        limits.check_environment()  # TOGGLE_COSIM_BUILD_CACHE among the on/off variables
+    except limits.LimitError as error:
+        raise InputError(str(error)) from None
     if not source.exists():
         raise InputError(f"{source}: no such Modelica package folder or .mo file (fix --source)")
     _check_fmu_output(output)
@@ -65,9 +74,16 @@ def build_plant(
         f"built {report.fmu.path} (FMI {report.fmu.fmi_version} {' + '.join(sorted(report.fmu.interfaces))}, "
         f"{report.fmu.size_bytes / 1024:.0f} KiB, GUID {report.fmu.guid}): "
         f"{report.variables} variables, {report.states} states, {report.event_indicators} event indicators; "
-        f"compile {report.compile_seconds:.1f} s, C build and zip {report.package_seconds:.1f} s; "
+        f"{_timing(report)}; "
         f"carries {carried}"
     )
+
+
+def _timing(report: BuildReport) -> str:
+    """Where the FMU came from: compiled (and how long each step took) or copied from the build cache."""
+    if report.from_cache:
+        return "from the build cache"
+    return f"compile {report.compile_seconds:.1f} s, C build and zip {report.package_seconds:.1f} s"
 
 
 def _shipped_plant(source: Path, model: str) -> str | None:
