@@ -94,7 +94,13 @@ def test_build_without_options_builds_the_shipped_plants_into_fmus_here(
         calls.append((source, model, output, interfaces))
         fmu = SimpleNamespace(path=output, fmi_version=fmi_version, interfaces={"CoSimulation"}, size_bytes=1, guid="g")
         return SimpleNamespace(
-            fmu=fmu, variables=1, states=1, event_indicators=0, compile_seconds=0.0, package_seconds=0.0
+            fmu=fmu,
+            variables=1,
+            states=1,
+            event_indicators=0,
+            compile_seconds=0.0,
+            package_seconds=0.0,
+            from_cache=False,
         )
 
     monkeypatch.setattr("toggle_cosim.fmu_export.build_fmu", recorder)
