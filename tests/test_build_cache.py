@@ -195,3 +195,12 @@ def test_build_says_the_fmu_came_from_the_build_cache(
     assert "from the build cache" in result.output and "compile " not in result.output
     assert no_compiler == []
     assert any(name.startswith("extra/") for name in zipfile.ZipFile(output).namelist())
+
+
+def test_a_missing_source_gets_the_builds_own_error_with_the_cache_on(cache: Path, tmp_path: Path) -> None:
+    """A source that is not there: the build's one-line ModelCompileError naming it, not an
+    OSError from reading the source for the cache's key."""
+    from toggle_cosim.fmu_export import ModelCompileError
+
+    with pytest.raises(ModelCompileError, match="expected a Modelica package directory or a .mo file"):
+        build_fmu(tmp_path / "Missing.mo", "Missing", tmp_path / "Missing.fmu")

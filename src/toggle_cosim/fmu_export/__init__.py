@@ -18,6 +18,7 @@ from toggle_cosim.fmu_export.interfaces import DEFAULT as INTERFACES_DEFAULT
 from toggle_cosim.fmu_export.packaging import FMUBuildError, model_identifier_for
 
 if TYPE_CHECKING:
+    from toggle_cosim.fmu_export.build_cache import CachedBuild
     from toggle_cosim.fmu_export.package import BuiltFMU
 
 __all__ = [
@@ -58,8 +59,12 @@ def build_fmu(
     output = Path(output)
     offered = _offered(interfaces)
     key = None
-    if build_cache.enabled() and fmi_version in ("2.0", "3.0") and offered is not None:
-        key = build_cache.build_key(Path(source), model, model_identifier_for(output), fmi_version, offered)
+    if build_cache.enabled() and offered is not None:
+        try:
+            key = build_cache.build_key(Path(source), model, model_identifier_for(output), fmi_version, offered)
+        except OSError:
+            key = None  # a source that cannot be read: the build says so, as without the cache
+    if key is not None:
         found = build_cache.lookup(key)
         if found is not None:
             return _copied(found, output, fmi_version, offered)
@@ -80,7 +85,7 @@ def _offered(interfaces: str | frozenset[str]) -> frozenset[str] | None:
         return None
 
 
-def _copied(found: tuple[bytes, Any], output: Path, fmi_version: str, offered: frozenset[str]) -> BuildReport:
+def _copied(found: tuple[bytes, CachedBuild], output: Path, fmi_version: str, offered: frozenset[str]) -> BuildReport:
     """The report of a build taken from the cache: its checked bytes written to `output` as every
     output is written (whole or not at all)."""
     from toggle_cosim.files.outputs import FMU, write_file
