@@ -1,12 +1,11 @@
 """The plain pair, a plant FMU and its controller (`Run.system.is_pair`: a scenario without
 `components:`, `connections:` or `record:`), run as the two-part system it is: the plant and its
-controller stepped by the execution (`systems.simulate_system`), with the pair's trace and
-run.json.
+controller stepped by the execution (`systems.execute`), with the pair's trace and run.json.
 
-`master.simulate` sends every plain pair here. The run is the pair's wiring (each controller
+`master.simulate` sends every plain pair here, checked (`checked.check_run`). The run is the pair's wiring (each controller
 input from the plant output of its name, the command to the plant's iq_ref, the load and the
 plant's other inputs fed by their signals) with a `record:` list of the pair's columns
-(`pair_ports`), so that:
+(`checked.pair_ports`, set by the check), so that:
 
 * the trace has the pair's columns in the pair's order and names (`trace_names`: time, the
   plant's recorded outputs, iq_ref, F_E, the controller's diagnostics, the other inputs), the
@@ -18,9 +17,7 @@ plant's other inputs fed by their signals) with a `record:` list of the pair's c
   "python"; `loop.reason` says what the execution did;
 * a plant's failures and retries are said in the pair's words (`PlantWords`);
 * checkpoints and the work budget fall at the pair's samples: its first sample runs alone, then
-  stretches of `system_retry.CHECKPOINT_SAMPLES` (`CheckpointOptions.lead`);
-* a controller FMU on a trajectory run is refused (the execution does not feed its reference
-  inputs x_ref, v_ref, a_ref), rather than run against its constant target.
+  stretches of `system_retry.CHECKPOINT_SAMPLES` (`CheckpointOptions.lead`).
 
 The summary (with T_h and S0), the plausibility warnings and the solver statistics are the
 execution's own, as for every system run (`figures.run_figures`).
