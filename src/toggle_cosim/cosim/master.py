@@ -26,7 +26,7 @@ from toggle_cosim.cosim.execution.instance_pool import InstancePool
 from toggle_cosim.cosim.outcome import RunOutcome
 from toggle_cosim.cosim.pair_execution import close_controller, refused_outcome, simulate_pair_as_system, trace_names
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
-from toggle_cosim.cosim.systems import execute, ready, refused
+from toggle_cosim.cosim.systems import execute, ready
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import COUPLINGS, Run
 
@@ -77,11 +77,7 @@ def simulate(
         checked = ready(checked)  # a controller.python built here, in this process
     except ControllerError as error:
         close_controller(controller)
-        if run.system.is_pair:
-            return refused_outcome(
-                dataclasses.replace(run, coupling=coupling or run.coupling), plant, str(error), started
-            )
-        return refused(dataclasses.replace(run, coupling=coupling or run.coupling), plant, error, started)
+        return refused_outcome(dataclasses.replace(run, coupling=coupling or run.coupling), plant, str(error), started)
     if checked.pair:
         return simulate_pair_as_system(checked, progress, buffer, count, calling, pool=pool, started=started)
     return execute(checked, progress, buffer, count, calling, pool=pool, started=started)

@@ -6,6 +6,7 @@ import functools
 import os
 import platform
 import sys
+import time as clock
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from toggle_cosim.cosim.summary import RunSummary
 from toggle_cosim.files.traces import Trace
+from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
 from toggle_cosim.signals.definitions import as_signal, describe
@@ -146,3 +148,16 @@ def run_record(
         "solver_statistics": solver_statistics,
         "versions": dict(installed_versions()),  # a fresh dict for every record
     }
+
+
+def refused_outcome(
+    run: Run, plant: PlantInterface, reason: str, started: float, names: tuple[str, ...] = ("time",)
+) -> RunOutcome:
+    """The outcome of a run whose controller could not be built or checked (`reason`, the
+    ControllerError's message): failed with "controller: ...", no sample, an empty trace of
+    `names`; `started` is the run's perf_counter() start."""
+    reason = bounded_text(reason if reason.startswith("controller: ") else f"controller: {reason}")
+    loop = {"kind": "none", "reason": "the controller could not be built"}
+    wall = clock.perf_counter() - started
+    record = run_record(run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None)
+    return RunOutcome(run, Trace(names, np.empty((0, len(names)))), False, reason, wall, 0.0, None, record)

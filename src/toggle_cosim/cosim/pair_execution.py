@@ -26,7 +26,6 @@ execution's own, as for every system run (`figures.run_figures`).
 from __future__ import annotations
 
 import dataclasses
-import time as clock
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -42,11 +41,12 @@ from toggle_cosim.cosim.controllers import controller_record
 from toggle_cosim.cosim.execution.instance_pool import InstancePool
 from toggle_cosim.cosim.execution.slaves import SlaveError
 from toggle_cosim.cosim.execution.system_retry import CheckpointOptions, ComponentWords, failure_text
-from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
+from toggle_cosim.cosim.outcome import RunOutcome, Stepping
+from toggle_cosim.cosim.outcome import refused_outcome as refused
 from toggle_cosim.cosim.plant_inputs import other_inputs
 from toggle_cosim.cosim.systems import execute
 from toggle_cosim.files.traces import Trace
-from toggle_cosim.messages import bounded_text, said_in
+from toggle_cosim.messages import said_in
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
 
@@ -85,17 +85,10 @@ def close_controller(controller: object) -> None:
 
 
 def refused_outcome(run: Run, plant: PlantInterface, reason: str, started: float) -> RunOutcome:
-    """The outcome of a run whose controller could not be built (`reason`, a ControllerError's
-    message): failed, no sample; `started` is the run's perf_counter() start."""
-    names = trace_names(plant, inputs=other_inputs(run))
-    trace = Trace(names, np.empty((0, len(names))))
-    reason = bounded_text(reason if reason.startswith("controller: ") else f"controller: {reason}")
-    loop = {"kind": "none", "reason": "the controller could not be built"}
-    wall = clock.perf_counter() - started
-    record = run_record(
-        run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None, warnings=None, controller=None
-    )
-    return RunOutcome(run, trace, False, reason, wall, 0.0, None, record)
+    """The outcome of a run whose controller could not be built or checked (`outcome.refused_outcome`):
+    the plain pair's trace has the pair's columns (`trace_names`), any other system's only time."""
+    names = trace_names(plant, inputs=other_inputs(run)) if run.system.is_pair else ("time",)
+    return refused(run, plant, reason, started, names)
 
 
 def pair_loop(loop: dict[str, Any], stepping: Stepping | None) -> dict[str, Any]:

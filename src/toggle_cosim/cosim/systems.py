@@ -52,7 +52,7 @@ from toggle_cosim.cosim.execution.slaves import ControllerSlave, FmuSlave, Slave
 from toggle_cosim.cosim.execution.system_loop import FMI_FAILED, HAND_BACK, NOT_FINITE, SystemLoop, compiled_system
 from toggle_cosim.cosim.execution.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
 from toggle_cosim.cosim.figures import run_figures
-from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
+from toggle_cosim.cosim.outcome import RunOutcome, Stepping, refused_outcome, run_record
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import PlantInterface
@@ -69,7 +69,6 @@ __all__ = [
     "instantiate",
     "pair_connections",
     "ready",
-    "refused",
     "simulate_system",
     "system_columns",
     "unit_conversion",
@@ -235,16 +234,6 @@ def loop_words(stepping: Stepping, components: int, plan: Plan, T_s: float) -> d
     }
 
 
-def refused(run: Run, plant: PlantInterface, error: ControllerError, started: float) -> RunOutcome:
-    """The outcome of a system run whose controller could not be built or checked: failed with
-    the reason ("controller: ..."), no sample; `started` is the run's perf_counter() start."""
-    reason = bounded_text(str(error) if str(error).startswith("controller: ") else f"controller: {error}")
-    wall = clock.perf_counter() - started
-    loop = {"kind": "none", "reason": "the controller could not be built"}
-    record = run_record(run, plant, "failed", reason, 0, wall, 0.0, None, [], loop, None)
-    return RunOutcome(run, Trace(("time",), np.empty((0, 1))), False, reason, wall, 0.0, None, record)
-
-
 def simulate_system(
     run: Run,
     plant: PlantInterface,
@@ -259,7 +248,7 @@ def simulate_system(
     words: FailureWords | None = None,
 ) -> RunOutcome:
     """Check (`checked.check_run`), build a controller.python here (`ready`) and run a system
-    (`execute`); a controller that cannot be built or checked fails the run (`refused`).
+    (`execute`); a controller that cannot be built or checked fails the run (`outcome.refused_outcome`).
     SystemError_ for a system that cannot run as written."""
     started = clock.perf_counter()
     try:
@@ -267,7 +256,7 @@ def simulate_system(
     except ControllerError as error:
         if coupling is not None and coupling != run.coupling:
             run = dataclasses.replace(run, coupling=coupling)
-        return refused(run, plant, error, started)
+        return refused_outcome(run, plant, str(error), started)
     return execute(checked, progress, buffer, count, calling, checkpoints, pool, words, started)
 
 
