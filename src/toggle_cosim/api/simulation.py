@@ -84,7 +84,7 @@ def _checks(run: Run, plant: PlantInterface, own_controller: bool = True) -> Che
         if own_controller:  # the scenario's, not one given to simulate
             checked = check_run(run, plant)
             if checked.builds_controller and run.controller.error is not None:
-                probe_columns(run, plant)  # a python-control system: built in a supervised child, checked
+                probe_columns(run, plant, checked=checked)  # a python-control system: built in a supervised child
         check_runs([(run, plant)], None)
     except (SettingError, ControllerError, SystemError_) as error:
         raise ScenarioError(f"{run.source or run.label}: {error}") from None
