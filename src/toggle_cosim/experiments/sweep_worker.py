@@ -134,7 +134,7 @@ def case_columns(
     system = {key: payload["document"][key] for key in SYSTEM_KEYS if key in payload["document"]}
     if "python" not in controller_doc and "fmu" not in controller_doc and not system:
         return trace_names(plant, inputs=inputs)
-    source = payload.get("source")  # a system's columns are its recorded ports (`systems.system_columns`)
+    source = payload.get("source")  # a system's columns are its recorded ports (`CheckedRun.names`)
     key = (repr(controller_doc), repr(_system_shape(system)), source, plant.sha256, inputs)
     if key not in _columns:
         if checked is not None and checked.complete:
@@ -549,9 +549,8 @@ class CaseRunner:
         from toggle_cosim.cosim.isolation.exit_reasons import component_words
         from toggle_cosim.cosim.systems import component_names
 
-        source = payload.get("source")
         try:
-            (run,) = runs_from_document(copy.deepcopy(payload["document"]), Path(source) if source else None)
+            run = _case_run(payload)
         except Exception:  # noqa: BLE001 - a case that ran was read before: no words, the plain reason
             return None
         if run.system.is_pair:
