@@ -11,7 +11,6 @@ compared byte for byte (by SHA3-256) with the recorded one: equal, or exit 1.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import os
 from pathlib import Path
 
@@ -29,8 +28,8 @@ def _real(path: Path) -> str:
 
 def _rebuilt(record_path: Path, record, stack: contextlib.ExitStack) -> tuple:  # noqa: ANN001
     """The (run, plant, checked) triple the record describes, built again from its recorded files
-    (`checked`: its check before the run, None when the recorded coupling changes it, then
-    checked as it starts); InputError if the record's settings or files do not make one."""
+    with its recorded coupling (`checked`: its check before the run); InputError if the record's
+    settings or files do not make one."""
     from toggle_cosim.cli.ssp_command import ssp_runs
     from toggle_cosim.cosim import run_provenance as rp
     from toggle_cosim.provenance.srmd import located
@@ -43,10 +42,11 @@ def _rebuilt(record_path: Path, record, stack: contextlib.ExitStack) -> tuple:  
             f"{record_path}: the record names no {wanted} file and plant to repeat the run from; "
             "give the folder of a run that toggle-cosim run wrote"
         )
+    coupling = record.setting(rp.COUPLING) or None
     if wanted == "ssp":
-        pairs = load_runs([], None, ssp_runs([by_role["ssp"]], [variant], stack))
+        pairs = load_runs([], None, ssp_runs([by_role["ssp"]], [variant], stack), coupling=coupling)
     else:
-        pairs = load_runs([by_role["scenario"]], by_role["plant"])
+        pairs = load_runs([by_role["scenario"]], by_role["plant"], coupling=coupling)
     chosen = [
         (run, plant, checked)
         for run, plant, checked in pairs
@@ -57,9 +57,6 @@ def _rebuilt(record_path: Path, record, stack: contextlib.ExitStack) -> tuple:  
             f"{record_path}: the recorded {wanted} has no run {record.name!r} (scenario and variant) to repeat"
         )
     run, plant, checked = chosen[0]
-    coupling = record.setting(rp.COUPLING)
-    if coupling and coupling != run.coupling:
-        run, checked = dataclasses.replace(run, coupling=coupling), None
     _check_same_files(record_path, record, run, plant.path)
     return run, plant, checked
 
