@@ -35,7 +35,6 @@ from fmpy.fmi1 import FMICallException
 
 from toggle_cosim import interrupts
 from toggle_cosim.control.controller import VSCController
-from toggle_cosim.control.protocol import COMMAND_COLUMNS
 from toggle_cosim.cosim.checked import CheckedRun, pair_ports
 from toggle_cosim.cosim.controllers import controller_record
 from toggle_cosim.cosim.execution.instance_pool import InstancePool
@@ -49,9 +48,9 @@ from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import said_in
 from toggle_cosim.plant.contract import PlantInterface
 from toggle_cosim.runs.definition import Run
+from toggle_cosim.system.model import Wiring
 
 __all__ = [
-    "INPUTS",
     "close_controller",
     "pair_loop",
     "pair_ports",
@@ -60,16 +59,15 @@ __all__ = [
     "trace_names",
 ]
 
-INPUTS = COMMAND_COLUMNS  # iq_ref (the controller's output), F_E (the plant's input)
-
 
 def trace_names(
     plant: PlantInterface, diagnostics: tuple[str, ...] = VSCController.diagnostics, inputs: tuple[str, ...] = ()
 ) -> tuple[str, ...]:
-    """The columns of a run's trace: time, the plant's recorded outputs, the inputs (iq_ref,
-    F_E), the controller's diagnostics (the built-in law's by default), then the plant's other
-    inputs the run sets (`inputs`: `other_inputs(run)`)."""
-    return ("time", *plant.recorded_outputs, *INPUTS, *diagnostics, *inputs)
+    """The columns of the plain pair's trace: time, then the variables of its recorded ports
+    (`checked.pair_ports`, the one definition: the plant's recorded outputs, the inputs iq_ref and
+    F_E, the controller's diagnostics (the built-in law's by default), then the plant's other
+    inputs the run sets, `inputs`: `other_inputs(run)`)."""
+    return ("time", *(port.variable for port in pair_ports(Wiring(), plant, tuple(diagnostics), tuple(inputs))))
 
 
 def close_controller(controller: object) -> None:
