@@ -310,6 +310,7 @@ def verify_fmu(fmu: Path, progress: Callable[[str], None] | None = None) -> Veri
         experiments, skipped = carried(archive, fmu)
         folder = Path(scratch)
 
+        @functools.cache  # a member shared by several experiments (a scenario, its tolerances) is extracted once
         def file(source: str | None) -> Path | None:
             return None if source is None else _extract(archive, member_of(source), folder, str(fmu))
 
