@@ -21,6 +21,7 @@ from toggle_cosim.files.bounded import MiB
 from toggle_cosim.fmi_ls_ref.experiments import MIME, Experiment, experiments_xml
 from toggle_cosim.fmi_ls_ref.manifest import LsRefError, Related
 from toggle_cosim.fmi_ls_ref.pack import Attachment
+from toggle_cosim.fmu_export.build_cache import source_files
 
 SOURCE_LIMIT = 16 * MiB  # one Modelica file
 SCENARIO_FOLDER = "scenarios"
@@ -31,14 +32,10 @@ def model_attachments(source: Path) -> list[Attachment]:
     """The Modelica source (a .mo file, or a package folder's .mo files and package.order files),
     under `model/`, role `model`."""
     source = Path(source)
-    if source.is_file():
-        files = [(source, source.name)]
-    else:
-        files = [
-            (path, f"{source.name}/{path.relative_to(source).as_posix()}")
-            for path in sorted(source.rglob("*"))
-            if path.is_file() and (path.suffix == ".mo" or path.name == "package.order")
-        ]
+    files = [  # the files a build of `source` reads (`build_cache.source_files`), named as in the source
+        (path, path.name if path == source else f"{source.name}/{path.relative_to(source).as_posix()}")
+        for path in source_files(source)
+    ]
     attachments = []
     for path, name in files:
         if path.stat().st_size > SOURCE_LIMIT:
