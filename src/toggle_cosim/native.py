@@ -203,28 +203,28 @@ def _record_name(library: str) -> str:
 
 def _verified(folder: Path, name: str) -> CachedLibrary | None:
     """The library `name` in `folder` if it is there, private and has the bytes its record names."""
-    try:
-        expected = _read_private_text(folder / _record_name(name), "library record")
-        fd = _open_private(folder / name, "library")
-    except (OSError, CacheError, UnicodeDecodeError):
-        return None
-    try:
-        actual = _fd_sha256(fd)
-    finally:
-        os.close(fd)
-    return CachedLibrary(folder / name, actual) if actual == expected else None
+    found = _checked_bytes(folder, name, "library")
+    return None if found is None else CachedLibrary(folder / name, found[1])
 
 
 def cached_bytes(folder: Path, name: str, what: str) -> bytes | None:
     """The bytes of the file `name` in the cache `folder` when it is there, private and has the
     SHA-256 recorded when it was stored (`store`), else None. The bytes returned are the bytes
     hashed (read once, from one descriptor), so a caller writes exactly what was checked."""
+    found = _checked_bytes(folder, name, what)
+    return None if found is None else found[0]
+
+
+def _checked_bytes(folder: Path, name: str, what: str) -> tuple[bytes, str] | None:
+    """The bytes of `name` in `folder` and their SHA-256, when the file is private and has the
+    SHA-256 its record (`store`) names; None otherwise (missing, not private, another hash)."""
     try:
         expected = _read_private_text(folder / _record_name(name), f"{what} record")
         data = read_private(folder / name, what)
     except (OSError, CacheError, UnicodeDecodeError):
         return None
-    return data if hashlib.sha256(data).hexdigest() == expected else None
+    actual = hashlib.sha256(data).hexdigest()
+    return (data, actual) if actual == expected else None
 
 
 def read_private(path: Path, what: str) -> bytes:
