@@ -18,8 +18,15 @@ from toggle_cosim.cli.app import (
     main,
     require,
 )
-from toggle_cosim.cli.execution import JOBS_OPTION, TIME_LIMIT_OPTION, load_runs, outcomes_of, report_options
-from toggle_cosim.files.outputs import HTML, JUNIT, MARKDOWN
+from toggle_cosim.cli.execution import (
+    JOBS_OPTION,
+    TIME_LIMIT_OPTION,
+    check_report_outputs,
+    load_runs,
+    outcomes_of,
+    report_options,
+)
+from toggle_cosim.files.outputs import HTML
 
 
 @main.command()
@@ -111,10 +118,7 @@ def references(
     from toggle_cosim.analysis.reference_reports import write_reference_reports
     from toggle_cosim.experiments import references as refs
 
-    check_output(junit, "JUnit report", JUNIT)
-    check_output(summary, "Markdown summary", MARKDOWN)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
+    check_report_outputs(out, junit, summary)
     if not update:
         require("junitparser", "matplotlib", *(("plotly",) if html else ()))
     if html and update:

@@ -395,3 +395,15 @@ CASE_TIMEOUT_OPTION = click.option(
     help="Wall-clock limit per case (default: the time_limit key, else max(30 s, 20 x t_end)).",
 )
 QUIET_OPTION = click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+
+
+def check_report_outputs(out: Path, junit: Path | None, summary: Path | None) -> None:
+    """The reports' destinations (`report_options`) checked before any work: InputError (one line)
+    for a JUnit or Markdown file that may not be written, or an --out that is not a folder."""
+    from toggle_cosim.cli.app import check_output
+    from toggle_cosim.files.outputs import JUNIT, MARKDOWN
+
+    check_output(junit, "JUnit report", JUNIT)
+    check_output(summary, "Markdown summary", MARKDOWN)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")

@@ -18,8 +18,9 @@ from toggle_cosim.cli.app import (
     out_file_option,
     require,
 )
-from toggle_cosim.cli.execution import report_options
-from toggle_cosim.files.outputs import FMU, HTML, JUNIT, MARKDOWN
+from toggle_cosim.cli.execution import check_report_outputs, report_options
+from toggle_cosim.cli.report_command import REPORT_FILE
+from toggle_cosim.files.outputs import FMU, HTML
 
 NAME = re.compile(r"[A-Za-z0-9_.-]{1,100}")
 EXPERIMENT_FOLDER = "experiments"
@@ -207,12 +208,9 @@ def verify(fmu: Path, out: Path, junit: Path | None, summary: Path | None, html:
     from toggle_cosim.fmi_ls_ref.verify import verify_fmu
 
     require("fmpy", "junitparser", "matplotlib", *(("plotly",) if html else ()))
-    check_output(junit, "JUnit report", JUNIT)
-    check_output(summary, "Markdown summary", MARKDOWN)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a directory; give a folder for the reports (--out)")
+    check_report_outputs(out, junit, summary)
     if html:
-        check_output(out / "report.html", "HTML report", HTML)
+        check_output(out / REPORT_FILE, "HTML report", HTML)
     try:
         verification = verify_fmu(fmu)
     except LsRefError as error:
@@ -225,7 +223,7 @@ def verify(fmu: Path, out: Path, junit: Path | None, summary: Path | None, html:
             click.echo(format_table(check.comparison))
     written = write_verification_reports(verification, out, junit or out / "junit.xml", summary or out / "summary.md")
     if html:
-        written.append(write_verification_html(verification, out / "report.html"))
+        written.append(write_verification_html(verification, out / REPORT_FILE))
     click.echo(f"reports: {', '.join(str(path) for path in written)}")
     if not verification.passed:
         raise RunFailed("; ".join(verification.failures))
