@@ -123,9 +123,10 @@ def repeat(run_folder: Path, out: Path, quiet: bool, time_limit: float | None) -
         outcomes = execute_runs([(run, plant, checked)], out, quiet, time_limit, jobs=1)
     trace = target / "trace.csv"
     raise_if_failed(outcomes)
-    if file_sha3_256(trace) != record.data.checksum:
+    digest = file_sha3_256(trace)
+    if digest != record.data.checksum:
         raise RunFailed(
-            f"{trace}: differs from the recorded trace {run_folder / 'trace.csv'} (SHA3-256 {file_sha3_256(trace)} "
+            f"{trace}: differs from the recorded trace {run_folder / 'trace.csv'} (SHA3-256 {digest} "
             f"against the record's {record.data.checksum})"
         )
     click.echo(f"{trace}: bit-identical to the recorded trace (SHA3-256 {record.data.checksum})")
