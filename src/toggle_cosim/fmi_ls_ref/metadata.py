@@ -11,11 +11,9 @@ import zipfile
 from collections.abc import Mapping
 from urllib.parse import quote, unquote
 
-from lxml import etree
-
 from toggle_cosim import __version__
 from toggle_cosim.fmi_ls_ref.manifest import FOLDER, MANIFEST, LsRefError, Related, read_member, sha3_256
-from toggle_cosim.provenance.srmd import Record, RecordError, Resource, from_xml, now, schema_problem, to_xml
+from toggle_cosim.provenance.srmd import Record, RecordError, Resource, from_xml, now, valid_xml
 
 RECORD = "metadata/fmu.srmd"  # its source, relative to the manifest's folder
 RECORD_MEMBER = f"{FOLDER}/{RECORD}"
@@ -73,11 +71,7 @@ def fmu_record(name: str, members: Mapping[str, bytes], carried: Mapping[str, st
         created=now(),
         generation_tool=f"toggle-cosim {__version__}",
     )
-    data = to_xml(record)
-    problem = schema_problem(etree.fromstring(data))
-    if problem is not None:
-        raise AssertionError(f"the FMU's SRMD we wrote is not valid ({problem})")
-    return data
+    return valid_xml(record)
 
 
 def check_record(archive: zipfile.ZipFile, where: str) -> None:

@@ -307,11 +307,18 @@ def write_record(path: Path | str, record: Record) -> Path:
     """Write `record` to `path` (`files.outputs`: whole or not at all; an existing file replaced
     only if it is a record); the record is checked against the schema first (ValueError if not
     valid: a bug, not the user's)."""
+    data = valid_xml(record)
+    return write_file(path, lambda stream: stream.write(data), binary=True, what="provenance record", kind=SRMD)
+
+
+def valid_xml(record: Record) -> bytes:
+    """`record` as XML (`to_xml`), checked against the schema first: ValueError if it is not
+    valid (a bug of the writer, not the user's)."""
     data = to_xml(record)
     problem = schema_problem(etree.fromstring(data))
     if problem is not None:
         raise ValueError(f"the record of {record.name!r} is not valid SRMD: {problem}")
-    return write_file(path, lambda stream: stream.write(data), binary=True, what="provenance record", kind=SRMD)
+    return data
 
 
 def read_record(path: Path | str) -> Record:
@@ -373,6 +380,7 @@ __all__ = [
     "schema_problem",
     "to_xml",
     "uri_of",
+    "valid_xml",
     "verify_record",
     "write_record",
 ]
