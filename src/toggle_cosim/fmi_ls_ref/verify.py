@@ -158,23 +158,55 @@ def run_with_fmpy(
     return Trace(names, np.column_stack([np.asarray(result[name], dtype=np.float64) for name in names]))
 
 
-def run_with_master(fmu: Path, scenario: Path, variant: str | None, name: str) -> Trace | None:
+@dataclass
+class OurPlant:
+    """The FMU under verification as our plant, checked against the contract and its binary
+    probed once for all its experiments (`check_plant`, `probe_binary`: both read the whole FMU)."""
+
+    fmu: Path
+    _plant: object = None
+    _checked: bool = False
+    _probed: bool = False
+
+    def checked(self) -> object:
+        """The checked `PlantInterface`, or None if the FMU does not meet our plant contract."""
+        from toggle_cosim.plant.contract import ContractError, check_plant
+
+        if not self._checked:
+            try:
+                self._plant = check_plant(self.fmu)
+            except ContractError:
+                self._plant = None
+            self._checked = True
+        return self._plant
+
+    def probe(self) -> None:
+        """Probe its binary (once: ProbeError as `probe_binary` raises it)."""
+        from toggle_cosim.plant.probe import probe_binary
+
+        if not self._probed:
+            probe_binary(self._plant)
+            self._probed = True
+
+
+def run_with_master(
+    fmu: Path, scenario: Path, variant: str | None, name: str, plant_of: OurPlant | None = None
+) -> Trace | None:
     """The experiment's scenario run through our master on `fmu` (in a supervised child, as
     `toggle-cosim run` runs it), if `fmu` meets our plant contract; None if it does not (then
     FMPy runs the experiment). A carried scenario is data only: one that names code or FMUs
     (controller.python, controller.fmu, components) is refused, so an FMU cannot make verify run
-    a file it does not carry."""
+    a file it does not carry. `plant_of`: the FMU as our plant, kept for all its experiments."""
     from toggle_cosim.control.protocol import ControllerError
     from toggle_cosim.cosim.checked import SystemError_, check_run
     from toggle_cosim.cosim.isolation.supervision import remove_stale_folders, simulate_supervised
     from toggle_cosim.experiments.scenario import ScenarioError, load_scenario
-    from toggle_cosim.plant.contract import ContractError, check_plant
-    from toggle_cosim.plant.probe import ProbeError, probe_binary
+    from toggle_cosim.plant.probe import ProbeError
     from toggle_cosim.plant.settings import SettingError, check_settings
 
-    try:
-        plant = check_plant(fmu)
-    except ContractError:
+    plant_of = plant_of if plant_of is not None else OurPlant(fmu)
+    plant = plant_of.checked()
+    if plant is None:
         return None
     try:
         runs = load_scenario(scenario)
@@ -190,7 +222,7 @@ def run_with_master(fmu: Path, scenario: Path, variant: str | None, name: str) -
             f"controller.fmu or components), which verify does not run (refused)"
         )
     try:
-        probe_binary(plant)
+        plant_of.probe()
         check_settings(run, plant)
         checked = check_run(run, plant)  # the run's one check: the supervised run uses it
     except (ProbeError, SettingError, ControllerError, SystemError_) as error:
@@ -310,6 +342,8 @@ def verify_fmu(fmu: Path, progress: Callable[[str], None] | None = None) -> Veri
         experiments, skipped = carried(archive, fmu)
         folder = Path(scratch)
 
+        ours = OurPlant(fmu)  # checked and probed once, for every experiment run by our master
+
         @functools.cache  # a member shared by several experiments (a scenario, its tolerances) is extracted once
         def file(source: str | None) -> Path | None:
             return None if source is None else _extract(archive, member_of(source), folder, str(fmu))
@@ -321,7 +355,7 @@ def verify_fmu(fmu: Path, progress: Callable[[str], None] | None = None) -> Veri
             default, per_variable = _tolerances(file(experiment.tolerances))
             trace, runner = None, "fmpy"
             if experiment.scenario is not None:
-                trace = run_with_master(fmu, file(experiment.scenario), experiment.variant, experiment.name)
+                trace = run_with_master(fmu, file(experiment.scenario), experiment.variant, experiment.name, ours)
                 runner = "master"
             if trace is None:
                 runner = "fmpy"
