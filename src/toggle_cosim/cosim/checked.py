@@ -49,7 +49,7 @@ import numpy as np
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, ControllerError, check_controller
 from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
-from toggle_cosim.cosim.controllers import ControllerFmuPart, check_user_controller, own_controller
+from toggle_cosim.cosim.controllers import ControllerFmuPart, builds_in_child, check_user_controller, own_controller
 from toggle_cosim.cosim.execution.fmi_pointers import RECORDED_TYPES
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
 from toggle_cosim.cosim.user_code import check_owned
@@ -321,7 +321,7 @@ def check_run(
         tuple(plant_settings(run, plant)),
         fmu_interface(plant.model_description, observed.get(wiring.plant, ())),
     )
-    if controller is None and (run.controller.python is None or run.controller.fmu is not None):
+    if controller is None and not builds_in_child(run):
         controller = own_controller(run, outputs)  # the built-in law or controller.fmu: no code of the user's runs
     elif controller is None:
         check_user_controller(run, outputs)  # controller.python's module found and owned, not imported

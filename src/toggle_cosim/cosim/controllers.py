@@ -60,6 +60,7 @@ from toggle_cosim.runs.definition import Run
 
 __all__ = [
     "ControllerFmuPart",
+    "builds_in_child",
     "builtin_controller",
     "check_user_controller",
     "controller_for",
@@ -339,14 +340,19 @@ def _fmu_controller(run: Run, outputs: Sequence[str]) -> ControllerFmuPart:
     return ControllerFmuPart(fmu, tuple(fmu_settings(run, fmu)), reference)
 
 
+def builds_in_child(run: Run) -> bool:
+    """Whether the run's controller is built by calling the user's code (controller.python,
+    without a controller.fmu, which wins): then it is built in the run's child, never where the
+    run is checked."""
+    return run.controller.python is not None and run.controller.fmu is None
+
+
 def controller_for(run: Run, outputs: Sequence[str] = ()) -> Controller:
     """The controller of `run`: the built-in VSC or its controller FMU (`own_controller`), or what
     controller.python's factory returns (`user_controller`, a python-control system adapted),
     checked against the protocol; `outputs` are the plant's recorded outputs (the measurement's
     names, which diagnostics may not reuse). Raises ControllerError with the one-line reason."""
-    if run.controller.python is None or run.controller.fmu is not None:
-        return own_controller(run, outputs)
-    return user_controller(run, outputs)
+    return user_controller(run, outputs) if builds_in_child(run) else own_controller(run, outputs)
 
 
 def own_controller(run: Run, outputs: Sequence[str] = ()) -> Controller:
