@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -155,6 +156,33 @@ def test_a_helper_in_its_own_session_is_ended_with_the_tree() -> None:
     wait_until(lambda: daemon in process_tree.descendants(pid), "the daemon adopted by the child")
     process_tree.finish(pid)
     wait_until(lambda: _ended(daemon), "the daemon killed with the tree")
+
+
+def test_the_tree_is_walked_until_it_is_frozen(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A helper that forked a daemon and is exiting hands the daemon to the subreaper while a
+    walk reads the lists (/proc/<pid>/task/*/children, read without the kernel's lock), so one
+    walk can find nothing new and still miss the daemon. The walk goes on while a process
+    found still runs (the exiting helper, state R): the daemon, found on the next walk once the
+    helper is a zombie, is stopped and killed with the tree. (/proc is simulated: the race
+    itself cannot be timed from a test.)"""
+    keeper, helper, daemon = 10**9, 10**9 + 1, 10**9 + 2
+    lists = [{helper}, {helper}]  # two walks with the daemon in flight, on neither list
+    walked = []
+    signals: dict[int, set[int]] = {}
+
+    def walk(pid: int) -> set[int]:
+        walked.append(pid)
+        return lists[len(walked) - 1] if len(walked) <= len(lists) else {helper, daemon}
+
+    def state(pid: int) -> str:  # the helper exits (R) until the daemon is moved; then a zombie
+        return ("R" if len(walked) <= len(lists) else "Z") if pid == helper else "T"
+
+    monkeypatch.setattr(process_tree, "descendants", walk)
+    monkeypatch.setattr(process_tree, "_state", state)
+    monkeypatch.setattr(process_tree, "_signal", lambda pids, number: signals.setdefault(number, set()).update(pids))
+    process_tree.end_tree(keeper)
+    assert signals[signal.SIGSTOP] == {helper, daemon}
+    assert signals[signal.SIGKILL] == {keeper, helper, daemon}
 
 
 def _ended(pid: int) -> bool:

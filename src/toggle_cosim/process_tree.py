@@ -11,13 +11,16 @@ own life. So a child made with `fork_child`
   double fork, `setsid` included) becomes the child's own, so it stays in the child's tree;
 
 and `end_tree(pid)` ends the child's whole tree: it stops what it finds (a stopped process
-cannot fork), looks again until nothing new appears, then kills the process group and every
-process found with SIGKILL. The child calls `end_descendants()` before it exits; the parent
-calls `end_tree` when the child has ended or must end (its time limit, an interrupt). A
-process that crashes cannot end what it started, and its orphans would go to init: so the
-child does its work in a grandchild (`run_kept`) and stays as the keeper, which adopts those
-orphans, ends them when the grandchild has ended, and then ends as the grandchild did (the
-same exit status, or the same signal).
+cannot fork) and looks again until the tree is frozen, then kills the process group and every
+process found with SIGKILL. Frozen means a walk found nothing new while every process found was
+stopped or a zombie: a process still running may be forking, or exiting, and an exiting
+process hands its children to the subreaper while the walk reads the lists, so one walk that
+finds nothing new proves nothing (a daemon would slip through to init). The child calls
+`end_descendants()` before it exits; the parent calls `end_tree` when the child has ended or
+must end (its time limit, an interrupt). A process that crashes cannot end what it started,
+and its orphans would go to init: so the child does its work in a grandchild (`run_kept`)
+and stays as the keeper, which adopts those orphans, ends them when the grandchild has ended,
+and then ends as the grandchild did (the same exit status, or the same signal).
 """
 
 from __future__ import annotations
@@ -26,13 +29,16 @@ import contextlib
 import ctypes
 import os
 import signal
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
 _PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
-ROUNDS = 8  # tree walks at most: each finds what the processes found before forked meanwhile
+FREEZE_S = 5.0  # the longest a tree may take to freeze (a process in uninterruptible sleep, a core dump)
+_PAUSE_S = 0.001  # between walks while a process found has not stopped yet
+_FROZEN = frozenset("TtZX")  # /proc states: stopped, traced, zombie, dead
 
 
 def become_leader() -> None:
@@ -80,16 +86,30 @@ def _signal(pids: set[int], number: int) -> None:
             os.kill(pid, number)
 
 
+def _state(pid: int) -> str:
+    """The process's state letter in /proc (R, S, D, T, Z, ...); "X" once it is gone."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return "X"
+
+
 def _stop_tree(pid: int) -> set[int]:
-    """Stop every descendant of `pid`, walking again until a walk finds nothing new; those found."""
+    """Stop every descendant of `pid` and walk again until the tree is frozen (module doc), or
+    FREEZE_S has passed; the processes found."""
     seen: set[int] = set()
-    for _ in range(ROUNDS):
-        new = descendants(pid) - seen
-        if not new:
-            break
+    deadline = time.monotonic() + FREEZE_S
+    while True:
+        now = descendants(pid)
+        new = now - seen
         _signal(new, signal.SIGSTOP)
         seen |= new
-    return seen
+        if not new and all(_state(each) in _FROZEN for each in now):
+            return seen
+        if time.monotonic() > deadline:
+            return seen
+        if not new:
+            time.sleep(_PAUSE_S)
 
 
 def end_tree(pid: int) -> None:
