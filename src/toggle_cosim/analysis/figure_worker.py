@@ -10,6 +10,8 @@ the end. The protocol: one folder a line on the child's stdin; on its stdout "wr
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -88,11 +90,15 @@ class FigureWorkers:
 
 
 def _serve() -> int:
-    # an interrupt is the parent's; end of input ends us. SIGTERM comes from stop(): exiting by
-    # SystemExit removes a partial PNG on the way out
-    interrupts.as_child(lambda *_: sys.exit(130))
+    # an interrupt is the parent's; end of input ends us. SIGTERM comes from stop(): while the
+    # imports run there is nothing of ours to remove, and an exception raised inside an extension
+    # module's initialisation (matplotlib's ft2font) ends in a traceback, so it ends the process
+    # at once; after them, exiting by SystemExit removes a partial PNG on the way out
+    interrupts.as_child(lambda *_: os._exit(130))
     from toggle_cosim.analysis import plots  # noqa: F401 - matplotlib's import, while the parent runs
     from toggle_cosim.analysis.results_figure import ResultsError, plot_results
+
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(130))
 
     for line in sys.stdin:
         folder = Path(line.rstrip("\n"))
