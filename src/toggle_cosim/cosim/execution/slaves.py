@@ -138,7 +138,6 @@ class FmuSlave:
         self._instance = f"{name}"
         self._saved: Any = None  # the checkpoint: an fmi2FMUstate / fmi3FMUState (`save_state`)
         self.no_set_state_prior_to_current_point = False  # doStep's flag (`system_retry`)
-        self.origin = ""  # what the FMU stands for, when not a file the user named (run.json)
         self.pool = pool
         self.bind(self.interface.inputs, self.interface.outputs)
 
