@@ -52,6 +52,7 @@ from typing import NamedTuple
 import numpy as np
 
 from toggle_cosim.control.parameters import LawParameters
+from toggle_cosim.control.translate import ctypes_struct
 from toggle_cosim.cosim.execution.fmi_pointers import CFunctions
 from toggle_cosim.cosim.execution.guard import FiniteGuard, refusal
 from toggle_cosim.cosim.execution.slaves import ControllerSlave, SlaveError
@@ -116,32 +117,43 @@ class ComponentCallError(RuntimeError):
         self.component, self.function, self.status, self.t = component, function, status, t
 
 
+def _struct(name: str, *groups: tuple[Sequence[str], type]) -> type[ctypes.Structure]:
+    """The ctypes mirror of one of system_skeleton.c's structs: its groups of fields in order,
+    each (names, ctypes type)."""
+    return type(name, (ctypes.Structure,), {"_fields_": [(field, kind) for names, kind in groups for field in names]})
+
+
 @functools.cache
 def _component_struct() -> type[ctypes.Structure]:
-    fields = [*((name, ctypes.c_void_p) for name in _COMPONENT_POINTERS)]
-    fields += [(name, ctypes.c_long) for name in _COMPONENT_LONGS]
-    fields += [(name, ctypes.c_void_p) for name in _COMPONENT_AFTER]
-    fields += [(name, ctypes.c_long) for name in _COMPONENT_LAST]
-    return type("_Component", (ctypes.Structure,), {"_fields_": fields})
+    return _struct(
+        "_Component",
+        (_COMPONENT_POINTERS, ctypes.c_void_p),
+        (_COMPONENT_LONGS, ctypes.c_long),
+        (_COMPONENT_AFTER, ctypes.c_void_p),
+        (_COMPONENT_LAST, ctypes.c_long),
+    )
 
 
 @functools.cache
 def _native_struct() -> type[ctypes.Structure]:
-    fields = [(name, ctypes.c_long) for name in _NATIVE_LONGS]
-    fields += [(name, ctypes.c_void_p) for name in _NATIVE_POINTERS]
-    fields += [(name, ctypes.c_double) for name in _NATIVE_DOUBLES]
-    law = [(name, ctypes.c_double) for name in LawParameters.__dataclass_fields__]
-    fields.append(("law", type("_Law", (ctypes.Structure,), {"_fields_": law})))
-    return type("_Native", (ctypes.Structure,), {"_fields_": fields})
+    return _struct(
+        "_Native",
+        (_NATIVE_LONGS, ctypes.c_long),
+        (_NATIVE_POINTERS, ctypes.c_void_p),
+        (_NATIVE_DOUBLES, ctypes.c_double),
+        (("law",), ctypes_struct(LawParameters)),  # law_t, as control/law_c.py writes it (`translate.c_struct`)
+    )
 
 
 @functools.cache
 def _system_struct() -> type[ctypes.Structure]:
-    fields = [*((name, ctypes.c_void_p) for name in _SYSTEM_POINTERS)]
-    fields += [(name, ctypes.c_long) for name in _SYSTEM_LONGS]
-    fields += [(name, ctypes.c_double) for name in _SYSTEM_DOUBLES]
-    fields += [(name, ctypes.c_void_p) for name in _SYSTEM_AFTER]
-    return type("_System", (ctypes.Structure,), {"_fields_": fields})
+    return _struct(
+        "_System",
+        (_SYSTEM_POINTERS, ctypes.c_void_p),
+        (_SYSTEM_LONGS, ctypes.c_long),
+        (_SYSTEM_DOUBLES, ctypes.c_double),
+        (_SYSTEM_AFTER, ctypes.c_void_p),
+    )
 
 
 def _skeleton() -> Path:
