@@ -247,8 +247,8 @@ def _check_connections(connections: Sequence[Connection], interfaces: Mapping[st
 
 @functools.lru_cache(maxsize=64)
 def _read_part(path: Path, size: int, mtime_ns: int, missing: str) -> FmuArchive:
-    """`read_fmu` of a part's file, kept while the file is unchanged (its size and time): a
-    command checks its runs before it starts them, and each run is checked again as it starts."""
+    """`read_fmu` of a part's file, kept while the file is unchanged (its size and time): the runs
+    of one command (a scenario's variants, a sweep's cases) each check the parts they share."""
     return read_fmu(path, missing=missing)
 
 
