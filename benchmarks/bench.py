@@ -342,7 +342,9 @@ def lti_loop(plant, run, system, python_loop: bool = False) -> float:
     from toggle_cosim.control.lti import DiscreteSystemController
 
     with loop_switch(python_loop) as expected:
-        outcome = master.simulate(run, plant, controller=DiscreteSystemController(system, "x_B", run.x_target, run.T_s))
+        outcome = master.check_and_simulate(
+            run, plant, controller=DiscreteSystemController(system, "x_B", run.x_target, run.T_s)
+        )
     if not outcome.complete or outcome.record["loop"]["kind"] != expected:
         raise RuntimeError(f"{run.label}: {outcome.reason or outcome.record['loop']}")
     return outcome.loop_seconds / run.steps
@@ -352,7 +354,7 @@ def builtin_loop(plant, run) -> float:
     """Seconds per step of simulate() with the run's built-in law (compiled loop where there is one)."""
     from toggle_cosim.cosim.controllers import builtin_controller
 
-    outcome = master.simulate(run, plant, controller=builtin_controller(run))
+    outcome = master.check_and_simulate(run, plant, controller=builtin_controller(run))
     if not outcome.complete:
         raise RuntimeError(f"{run.label}: {outcome.reason}")
     return outcome.loop_seconds / run.steps
@@ -368,7 +370,7 @@ def python_loop_overhead(plant, run, driver) -> dict:
     per_sample = {}
     for three_calls in (False, True):
         with loop_switch(three_calls):
-            outcome = master.simulate(run, plant, controller=ConstantController(FIXED_INPUTS[0]))
+            outcome = master.check_and_simulate(run, plant, controller=ConstantController(FIXED_INPUTS[0]))
         if not outcome.complete or outcome.record["loop"]["kind"] != "python":
             raise RuntimeError(f"{run.label}: {outcome.reason or outcome.record['loop']}")
         per_sample[three_calls] = outcome.loop_seconds / run.steps
@@ -467,7 +469,7 @@ def fmu_controller_loop(plant, run, fmu: Path, coupling: str = "gauss-seidel", p
 
     settings = dataclasses.replace(run.controller, fmu=fmu, python=None)
     with loop_switch(python_loop) as expected:
-        outcome = master.simulate(dataclasses.replace(run, controller=settings), plant, coupling=coupling)
+        outcome = master.check_and_simulate(dataclasses.replace(run, controller=settings), plant, coupling=coupling)
     if not outcome.complete:
         raise RuntimeError(f"{run.label} with the controller FMU {fmu.name}: {outcome.reason}")
     if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop
@@ -529,7 +531,7 @@ def _worker_run(index: int) -> float:
     """One paper run (simulate(), no files); returns the CPU seconds it took in this worker."""
     runs = _WORKER["runs"]
     cpu = time.process_time()
-    master.simulate(runs[index % len(runs)], _WORKER["plant"])
+    master.check_and_simulate(runs[index % len(runs)], _WORKER["plant"])
     return time.process_time() - cpu
 
 
@@ -574,7 +576,7 @@ def _simulate_case(document: dict) -> float:
     """One sweep case by simulate() alone in a pool worker (no supervision, no files); its CPU s."""
     cpu = time.process_time()
     (run,) = runs_from_document(document)
-    master.simulate(run, _WORKER["plant"])
+    master.check_and_simulate(run, _WORKER["plant"])
     return time.process_time() - cpu
 
 
@@ -715,9 +717,9 @@ def press_sweep_figures(fmu: Path, folder: Path, quick: bool, table: "Table", fi
     sweep = load_sweep(path)
     runs = [runs_from_document(case.document, path.parent / "base.yaml")[0] for case in sweep.cases]
     plant = check_plant(fmu)
-    master.simulate(runs[0], plant)  # the compiled system loop built and loaded, as the sweep's first case
+    master.check_and_simulate(runs[0], plant)  # the compiled system loop built and loaded, as the sweep's first case
     started = time.perf_counter()
-    outcomes = [master.simulate(run, plant) for run in runs]
+    outcomes = [master.check_and_simulate(run, plant) for run in runs]
     simulate_rate_ = cases / (time.perf_counter() - started)
     result = sweep_rate(path, fmu, folder / "press_sweep" / "out", workers=1)
     table.section(f"A sweep of the press system: {cases} cases over the die's k_c, t_end = {t_end:g} s, 1 worker")

@@ -71,7 +71,7 @@ def full_loop(plant, run, python_loop: bool = False) -> dict:
     """One simulate() (the pair in the execution): per-step loop cost and three real-time
     factors. python_loop: with the compiled loop switched off (TOGGLE_COSIM_KERNEL=0)."""
     with instance_spans(run.system.plant) as spans, loop_switch(python_loop) as expected:
-        outcome = master.simulate(run, plant)
+        outcome = master.check_and_simulate(run, plant)
     if not outcome.complete:
         raise RuntimeError(f"{run.label}: {outcome.reason}")
     if outcome.record["loop"]["kind"] != expected:  # measure the loop we say we measure, or stop

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 
@@ -45,7 +45,7 @@ def main() -> int:
                     plant=dataclasses.replace(base.plant, F_E=float(F_E), m_B=float(m_B)),
                     controller=dataclasses.replace(base.controller, law=law),
                 )
-                outcome = simulate(run, plant)
+                outcome = check_and_simulate(run, plant)
                 tv = total_variation_per_second(outcome.trace.column("iq_ref"), outcome.trace.time)
                 if tv > worst:
                     worst, where = tv, (float(F_E), float(m_B))

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from toggle_cosim.analysis.compare import compare_traces
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.references import tolerances_for
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.files.traces import Trace
@@ -67,8 +67,11 @@ def main() -> None:
 def table(fmu: Path, ratios: tuple[int, ...]) -> None:
     plant = check_plant(fmu)
     run = nominal_run()
-    nominal = simulate(run, plant).trace
-    cases = {"unchanged": nominal, **{name: simulate(r, plant).trace for name, r in perturbations(run).items()}}
+    nominal = check_and_simulate(run, plant).trace
+    cases = {
+        "unchanged": nominal,
+        **{name: check_and_simulate(r, plant).trace for name, r in perturbations(run).items()},
+    }
     header = ["model"] + [f"result ×{k}" for k in ratios] + [f"reference ×{k}" for k in ratios if k > 1]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))

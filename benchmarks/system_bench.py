@@ -25,7 +25,7 @@ the run recorded, summed over the FMUs (its outputs compared with the recorded o
 
 A user's Python controller (examples/controllers/my_controllers.py's PD law) in the pair (on
 the press example's plant and stroke) and in the four-part press system (`python_controller`),
-each by `master.simulate`, interleaved: the compiled loop calls the controller back into Python
+each by `master.check_and_simulate`, interleaved: the compiled loop calls the controller back into Python
 at its turns (`cosim.execution.system_python`), beside the master's Python execution of the press system
 (TOGGLE_COSIM_KERNEL=0); the system's trace must have the Python execution's bits, and both stay
 within 1.2 x the 5.7 us per sample the same controller cost in the pair's own loop before the
@@ -60,7 +60,7 @@ from toggle_cosim.cosim.execution.system_loop import (
     system_library,
     system_library_reason,
 )
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.system.model import Connection, Part, Port, Wiring
@@ -145,7 +145,7 @@ def _pd_controller(run):  # noqa: ANN001, ANN202 - the examples' PDController
 def python_controller(plant, parts: dict[str, Path], controller: Path, repetitions: int) -> dict:  # noqa: ANN001
     """The examples' PD law in the pair (the press example's plant and stroke, a two-part system
     in the execution) and in the press system (the compiled system loop calling it back; the Python execution
-    with TOGGLE_COSIM_KERNEL=0), by `master.simulate`, interleaved: the best loop seconds per
+    with TOGGLE_COSIM_KERNEL=0), by `master.check_and_simulate`, interleaved: the best loop seconds per
     sample of each, and whether the compiled loop's trace has the Python execution's bits."""
     import os
 
@@ -155,12 +155,12 @@ def python_controller(plant, parts: dict[str, Path], controller: Path, repetitio
     times: dict[str, list[float]] = {"pair": [], "system": [], "python": []}
     same = True
     for _ in range(repetitions):
-        pair = simulate(pair_run, plant, controller=_pd_controller(run))
-        system = simulate(run, plant, controller=_pd_controller(run))
+        pair = check_and_simulate(pair_run, plant, controller=_pd_controller(run))
+        system = check_and_simulate(run, plant, controller=_pd_controller(run))
         previous = os.environ.get("TOGGLE_COSIM_KERNEL")
         os.environ["TOGGLE_COSIM_KERNEL"] = "0"
         try:
-            python = simulate(run, plant, controller=_pd_controller(run))
+            python = check_and_simulate(run, plant, controller=_pd_controller(run))
         finally:
             if previous is None:
                 os.environ.pop("TOGGLE_COSIM_KERNEL")
@@ -239,7 +239,7 @@ def replayed(run, plant, library: ctypes.CDLL, trace: np.ndarray, names: tuple[s
                 raise ValueError("the replay driver calls FMI 2.0 FMUs only")
             component, inputs = plan.order[c], plan.input_names[c]
             in_vr = (ctypes.c_uint32 * max(len(inputs), 1)).from_address(calls.in_vr)
-            late = plan.late(c)
+            late = plan.late[c]
             tables, vrs = [], []
             for positions in (plan.early[c], late):
                 columns = [names.index(f"{component}.{inputs[i]}") for i in positions]

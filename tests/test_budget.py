@@ -40,17 +40,17 @@ def test_a_run_past_its_budget_ends_where_the_count_passed_it_and_within_it_is_u
     (free,) = runs_from_document(_document())
     (tight,) = runs_from_document(_document(budget={"events": 3}))
     (loose,) = runs_from_document(_document(budget={"events": 10_000, "steps": 100_000}))
-    whole = master.simulate(free, plant)
+    whole = master.check_and_simulate(free, plant)
     assert whole.complete and whole.record["solver_statistics"]["solver.events"] > 3
-    limited = master.simulate(tight, plant)
+    limited = master.check_and_simulate(tight, plant)
     found = re.fullmatch(r"budget exceeded \((\d+) events > 3, budget\.events\) by t = ([\d.]+) s", limited.reason)
     assert found and int(found[1]) > 3 and not limited.complete and limited.record["status"] == "failed"
     rows = limited.record["samples"]
     assert (rows - 1) % 200 == 0 and float(found[2]) == pytest.approx((rows - 1) * free.T_s)
     assert (whole.trace.data[:rows] == limited.trace.data).all()
-    again = master.simulate(tight, plant)
+    again = master.check_and_simulate(tight, plant)
     assert again.reason == limited.reason and again.record["samples"] == rows
-    within = master.simulate(loose, plant)
+    within = master.check_and_simulate(loose, plant)
     assert within.complete and (within.trace.data == whole.trace.data).all()
 
 
@@ -71,11 +71,11 @@ def test_a_budget_on_a_system_holds_for_its_plant(plant_fmu: Path) -> None:
     record = ["plant.x_B", "controller.iq_ref"]
     (tight,) = runs_from_document(_document(budget={"events": 3}, record=record))
     (loose,) = runs_from_document(_document(budget={"events": 10_000}, record=record))
-    limited = master.simulate(tight, plant)
+    limited = master.check_and_simulate(tight, plant)
     assert not limited.complete and limited.record["status"] == "failed", limited.reason
     assert re.fullmatch(r"budget exceeded \(\d+ events > 3, budget\.events\) by t = 0\.0995 s", limited.reason)
     assert limited.record["samples"] == 200 and len(limited.trace.time) == 200
-    within = master.simulate(loose, plant)
+    within = master.check_and_simulate(loose, plant)
     assert within.complete and (within.trace.data[:200] == limited.trace.data).all()
 
 
@@ -100,13 +100,13 @@ def test_events_per_sample_is_a_budget_of_the_runs_samples(plant_fmu: Path) -> N
     """events_per_sample 0.002 over 1000 samples: 2 events, said so in the reason; with a lower
     events key beside it, that one holds."""
     (rate,) = runs_from_document(_document(budget={"events_per_sample": 0.002}))
-    limited = master.simulate(rate, check_plant(plant_fmu))
+    limited = master.check_and_simulate(rate, check_plant(plant_fmu))
     assert re.fullmatch(
         r"budget exceeded \(\d+ events > 2, budget\.events_per_sample 0\.002 x 1000 samples\) by t = [\d.]+ s",
         limited.reason,
     )
     (both,) = runs_from_document(_document(budget={"events_per_sample": 0.002, "events": 1}))
-    assert ", budget.events) by" in master.simulate(both, check_plant(plant_fmu)).reason
+    assert ", budget.events) by" in master.check_and_simulate(both, check_plant(plant_fmu)).reason
 
 
 @pytest.mark.slow

@@ -69,14 +69,14 @@ def cached_fmu(folder: Path) -> Path:
 
 
 def short_trace(fmu: Path):
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import runs_from_document
     from toggle_cosim.plant.contract import check_plant
 
     document = yaml.safe_load((ROOT / "scenarios" / "fig4_nominal.yaml").read_text(encoding="utf-8"))
     document.pop("variants")
     document["t_end"] = 0.02
-    return simulate(runs_from_document(document)[0], check_plant(fmu)).trace
+    return check_and_simulate(runs_from_document(document)[0], check_plant(fmu)).trace
 
 
 def test_a_second_identical_build_is_a_copy_from_the_cache_with_the_same_bytes_and_trace(

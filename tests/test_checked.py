@@ -52,9 +52,8 @@ def test_a_supervised_run_is_checked_once_in_its_parent_and_never_in_its_child(
     plant, vsc_fmu: Path, system: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The controller FMU's contract is read once, by the supervising process, for the plain
-    pair run as a system (TOGGLE_COSIM_MASTER=execution) and for a system with a `record:`
-    list; the child that runs it reads it no more, and the run completes."""
-    monkeypatch.setenv("TOGGLE_COSIM_MASTER", "execution")
+    pair and for a system with a `record:` list; the child that runs it reads it no more, and
+    the run completes."""
     run = _fmu_run(vsc_fmu)
     if system == "record":
         run = dataclasses.replace(run, system=Wiring(record=(Port("plant", "x_B"), Port("controller", "iq_ref"))))
@@ -63,6 +62,48 @@ def test_a_supervised_run_is_checked_once_in_its_parent_and_never_in_its_child(
     outcome = simulate_supervised(run, plant, scratch=tmp_path)
     assert outcome.complete, outcome.reason
     assert log.read_text(encoding="utf-8").split() == [str(os.getpid())]
+
+
+@pytest.mark.parametrize("system", ["pair", "record"])
+@pytest.mark.parametrize("law", ["built-in", "fmu"])
+def test_simulate_steps_what_was_checked_and_checks_nothing(
+    plant, vsc_fmu: Path, system: str, law: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`master.simulate` takes a checked run and only instantiates and steps it: with the check,
+    the controller's resolution, the contract reads and the controller.python build all made to
+    fail, a run checked before runs to the end, twice, with the trace bit for bit that of
+    `check_and_simulate` (which checks it itself)."""
+    from toggle_cosim.cosim import checked as checked_module
+    from toggle_cosim.cosim import master, systems
+    from toggle_cosim.plant import contract
+
+    run = _fmu_run(vsc_fmu)
+    if law == "built-in":
+        run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=None))
+    if system == "record":
+        run = dataclasses.replace(run, system=Wiring(record=(Port("plant", "x_B"), Port("controller", "iq_ref"))))
+    whole = master.check_and_simulate(run, plant)
+    checked = master.check(run, plant)
+    assert not isinstance(checked, master.RunOutcome) and checked.complete
+
+    def checks_again(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise AssertionError("simulate checked the run again")
+
+    for owner, name in (
+        (checked_module, "check_run"),
+        (checked_module, "built"),
+        (master, "check_run"),
+        (systems, "ready"),
+        (controllers, "own_controller"),
+        (controllers, "check_controller_fmu"),
+        (contract, "read_fmu"),
+    ):
+        monkeypatch.setattr(owner, name, checks_again)
+    for _ in range(2):
+        outcome = master.simulate(checked)
+        assert outcome.complete, outcome.reason
+        assert outcome.trace.names == whole.trace.names
+        assert outcome.trace.data.tobytes() == whole.trace.data.tobytes()
 
 
 def test_simulate_checks_a_run_once_for_its_refusals_and_its_run(

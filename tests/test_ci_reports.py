@@ -204,14 +204,14 @@ def test_statistics_are_read_by_name_when_the_model_description_declares_them(ve
 
 
 def test_the_plant_fmu_statistics_reach_the_run_record(plant_fmu):
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.plant.contract import check_plant
 
     plant = check_plant(plant_fmu)
     names = {v.name for v in plant.model_description.modelVariables}
     run = load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0]
-    record = simulate(run, plant).record
+    record = check_and_simulate(run, plant).record
     if not set(STATISTICS) & names:
         assert record["solver_statistics"] == NOT_EXPOSED
         pytest.skip("this plant FMU does not expose solver.steps/rejectedSteps/events (added by the export branch)")

@@ -503,13 +503,13 @@ def test_compare_of_a_shipped_reference_with_itself_passes(reference: Path, caps
 @pytest.fixture(scope="module")
 def fig4_friction(plant_fmu: Path):
     """The run behind scenarios/references/fig4_nominal/friction_ref.csv, at every sample."""
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.plant.contract import check_plant
 
     root = Path(__file__).resolve().parent.parent
     run = next(r for r in load_scenario(root / "scenarios" / "fig4_nominal.yaml") if r.variant == "friction")
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete
     return outcome.trace
 

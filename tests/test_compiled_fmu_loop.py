@@ -24,7 +24,7 @@ from python_fmus import build_python_fmu
 
 from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.cosim.execution.system_loop import system_library, system_library_reason
-from toggle_cosim.cosim.master import RunOutcome, simulate
+from toggle_cosim.cosim.master import RunOutcome, check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 
@@ -102,9 +102,9 @@ def _with_fmu(run, fmu: Path, **parameters: float):  # noqa: ANN001, ANN202 - a 
 def _both_loops(monkeypatch: pytest.MonkeyPatch, run, plant, **options) -> tuple[RunOutcome, RunOutcome]:  # noqa: ANN001
     """The run in the compiled loop, then in the Python execution (TOGGLE_COSIM_KERNEL=0)."""
     monkeypatch.delenv("TOGGLE_COSIM_KERNEL", raising=False)
-    compiled = simulate(run, plant, **options)
+    compiled = check_and_simulate(run, plant, **options)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    python = simulate(run, plant, **options)
+    python = check_and_simulate(run, plant, **options)
     monkeypatch.delenv("TOGGLE_COSIM_KERNEL")
     assert python.record["loop"]["kind"] == "python"
     return compiled, python
@@ -132,7 +132,7 @@ def test_the_controller_fmu_runs_in_c_with_the_python_loops_bits(
             loop = compiled.record["loop"]
             assert loop["kind"] == "compiled" and loop["reason"].endswith("in the compiled system loop"), loop
             _same_outcome(compiled, python)
-            builtin = simulate(run, plant)
+            builtin = check_and_simulate(run, plant)
             assert builtin.record["loop"]["kind"] == "compiled"
             for column in builtin.trace.names:
                 assert np.array_equal(builtin.trace.column(column), compiled.trace.column(column)), (run.label, column)
@@ -260,9 +260,9 @@ def test_a_controller_fmus_measurement_that_is_not_finite_ends_the_run_before_it
         run = dataclasses.replace(run, system=dataclasses.replace(run.system, record=ports))
     run = _with_fmu(run, toggle_vsc["2.0"])
     monkeypatch.delenv("TOGGLE_COSIM_KERNEL", raising=False)
-    compiled = simulate(run, faulty)
+    compiled = check_and_simulate(run, faulty)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    python = simulate(run, faulty)
+    python = check_and_simulate(run, faulty)
     assert compiled.record["loop"]["kind"].endswith("compiled") and python.record["loop"]["kind"].endswith("python")
     _same_outcome(compiled, python)
     assert compiled.reason == reason
@@ -285,7 +285,7 @@ def test_progress_and_interrupts_as_for_the_builtin_law(
     seen: dict[str, list[float]] = {"compiled": [], "python": []}
     for loop in seen:
         monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1" if loop == "compiled" else "0")
-        outcome = simulate(run, plant, progress=seen[loop].append)
+        outcome = check_and_simulate(run, plant, progress=seen[loop].append)
         assert outcome.complete and outcome.record["loop"]["kind"] == loop
     for fractions in seen.values():
         assert len(fractions) > 5 and fractions == sorted(fractions) and fractions[-1] >= 0.99
@@ -307,6 +307,6 @@ def test_jacobi_coupling_runs_compiled_too(toggle_vsc: dict[str, Path], plant_fm
     run = _with_fmu(
         dataclasses.replace(load_scenario(SCENARIOS / "fig4_nominal.yaml")[0], t_end=0.05), toggle_vsc["2.0"]
     )
-    outcome = simulate(run, check_plant(plant_fmu), coupling="jacobi")
+    outcome = check_and_simulate(run, check_plant(plant_fmu), coupling="jacobi")
     assert outcome.complete and outcome.record["loop"]["kind"] == "compiled"
     assert ", jacobi, " in outcome.record["loop"]["reason"]

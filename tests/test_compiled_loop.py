@@ -22,7 +22,7 @@ from toggle_cosim.control import law_c, laws, nominal, translate
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.parameters import LawParameters
 from toggle_cosim.cosim.execution import system_loop
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.physics.parameters import ControllerGains, MechanismParameters
 from toggle_cosim.plant.contract import check_plant
@@ -52,9 +52,9 @@ def test_compiled_and_python_loops_agree_bit_for_bit(
     run, plant_fmu: Path, no_gravity_fmu: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     plant = check_plant(no_gravity_fmu if "NoGravity" in str(run.fmu) else plant_fmu)
-    compiled = simulate(run, plant)
+    compiled = check_and_simulate(run, plant)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    python = simulate(run, plant)
+    python = check_and_simulate(run, plant)
     assert compiled.record["loop"]["kind"] == "compiled", compiled.record["loop"]
     assert python.record["loop"]["kind"] == "python"
     assert python.record["loop"]["reason"].endswith(

@@ -24,7 +24,7 @@ import pytest
 from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.control.protocol import ControllerContext
 from toggle_cosim.cosim.execution.system_loop import system_library
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 
@@ -62,10 +62,10 @@ def _fourth_order(run) -> control.StateSpace:  # noqa: ANN001
 
 def _both(run, plant, make, monkeypatch):  # noqa: ANN001, ANN202
     """(the outcome with the compiled loop, the outcome with the Python execution alone)."""
-    compiled = simulate(run, plant, controller=make())
+    compiled = check_and_simulate(run, plant, controller=make())
     with monkeypatch.context() as patch:
         patch.setenv("TOGGLE_COSIM_KERNEL", "0")
-        python = simulate(run, plant, controller=make())
+        python = check_and_simulate(run, plant, controller=make())
     return compiled, python
 
 
@@ -106,12 +106,14 @@ def test_a_subclass_that_overrides_step_runs_in_python_and_jacobi_in_c(pid_run, 
             result = super().step(state, t, measurement)
             return dataclasses.replace(result, command=2.0 * result.command)
 
-    doubled = simulate(pid_run, plant, controller=Doubled(system, "x_B", pid_run.x_target, pid_run.T_s))
+    doubled = check_and_simulate(pid_run, plant, controller=Doubled(system, "x_B", pid_run.x_target, pid_run.T_s))
     assert doubled.record["loop"]["kind"] == "python"
     assert "Doubled.step" in doubled.record["loop"]["reason"]
-    plain = simulate(pid_run, plant, controller=DiscreteSystemController(system, "x_B", pid_run.x_target, pid_run.T_s))
+    plain = check_and_simulate(
+        pid_run, plant, controller=DiscreteSystemController(system, "x_B", pid_run.x_target, pid_run.T_s)
+    )
     assert doubled.trace.column("iq_ref")[0] == 2.0 * plain.trace.column("iq_ref")[0] != 0.0
-    jacobi = simulate(
+    jacobi = check_and_simulate(
         pid_run,
         plant,
         controller=DiscreteSystemController(system, "x_B", pid_run.x_target, pid_run.T_s),

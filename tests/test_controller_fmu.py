@@ -185,7 +185,7 @@ def test_the_fmu_tracks_a_trajectory_with_the_python_laws_bits(
     with tracking = 1: its inputs x_B, v_B from the run's trace and x_ref, v_ref, a_ref from the
     run's sampled reference; every sample's iq_ref, S, phase and e are the Python law's bits."""
     from toggle_cosim.cosim.controllers import builtin_controller
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import runs_from_document
     from toggle_cosim.plant.contract import check_plant
 
@@ -203,7 +203,7 @@ def test_the_fmu_tracks_a_trajectory_with_the_python_laws_bits(
     }
     run = runs_from_document(document)[0]
     controller = builtin_controller(run)
-    outcome = simulate(run, check_plant(plant_fmu), controller=controller)
+    outcome = check_and_simulate(run, check_plant(plant_fmu), controller=controller)
     assert outcome.complete
     trace = outcome.trace
     columns = [trace.column(name) for name in ("x_B", "v_B", "iq_ref", "S", "phase", "e")]

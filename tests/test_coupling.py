@@ -33,7 +33,7 @@ from toggle_cosim.cli import main
 from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.controller_fmu import build_controller_fmu
 from toggle_cosim.cosim.controllers import builtin_controller
-from toggle_cosim.cosim.master import plant_settings, simulate
+from toggle_cosim.cosim.master import check_and_simulate, plant_settings
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 
@@ -115,7 +115,7 @@ def test_jacobi_records_and_applies_the_previous_samples_command(which: str, pla
     plant = check_plant(plant_fmu)
     run = _short("fig4_nominal", "friction")
     controller = PDLaw() if which == "python" else None
-    outcome = simulate(run, plant, controller=controller, coupling="jacobi")
+    outcome = check_and_simulate(run, plant, controller=controller, coupling="jacobi")
     assert outcome.complete and outcome.record["coupling"] == "jacobi"
     assert outcome.record["loop"]["kind"] == ("python" if which == "python" else "compiled")
     assert ", jacobi, " in outcome.record["loop"]["reason"]
@@ -139,13 +139,13 @@ def test_gauss_seidel_named_is_the_default_run_bit_for_bit(plant_fmu: Path) -> N
     and its command is the law evaluated on the same row (no delay); jacobi differs."""
     plant = check_plant(plant_fmu)
     run = _short("fig5_external_force", "friction")
-    default = simulate(run, plant)
-    named = simulate(run, plant, coupling="gauss-seidel")
+    default = check_and_simulate(run, plant)
+    named = check_and_simulate(run, plant, coupling="gauss-seidel")
     assert default.record["loop"]["kind"] == "compiled" and default.record["coupling"] == "gauss-seidel"
     assert np.array_equal(default.trace.data, named.trace.data)
     u, _ = _replayed(builtin_controller(run), default.trace, run.T_s)
     assert np.array_equal(default.trace.column("iq_ref"), u)
-    jacobi = simulate(run, plant, coupling="jacobi")
+    jacobi = check_and_simulate(run, plant, coupling="jacobi")
     assert np.max(np.abs(jacobi.trace.column("x_B") - default.trace.column("x_B"))) > 1e-6
 
 
@@ -204,9 +204,9 @@ def test_the_generated_controller_fmu_is_the_builtin_law_bit_for_bit(
     plant = check_plant(plant_fmu)
     for name in BIT_FOR_BIT:
         for run in load_scenario(SCENARIOS / f"{name}.yaml"):
-            builtin = simulate(run, plant, coupling=coupling)
+            builtin = check_and_simulate(run, plant, coupling=coupling)
             with_fmu = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=Path(fmu)))
-            outcome = simulate(with_fmu, plant, coupling=coupling)
+            outcome = check_and_simulate(with_fmu, plant, coupling=coupling)
             assert builtin.complete and outcome.complete, (run.label, outcome.reason)
             assert outcome.record["controller"]["fmu"]["law_parameters"] is True
             for column in builtin.trace.names:

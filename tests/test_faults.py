@@ -71,7 +71,7 @@ def test_an_fmu_fault_ends_the_run_cleanly_after_a_retry(fault_fmu: Path, monkey
     """The Modelica fault at t = 0.2 s: doStep returns an error, the master retries the step from
     its checkpoint in smaller steps (in vain), frees the FMU and keeps the trace up to 0.2 s."""
     freed = _count_frees(monkeypatch)
-    outcome = master.simulate(_nominal(), check_plant(fault_fmu))
+    outcome = master.check_and_simulate(_nominal(), check_plant(fault_fmu))
     assert not outcome.complete and freed == [1]
     assert "fmi2DoStep failed with status 3" in outcome.reason
     assert "Retried from the checkpoint" in outcome.reason
@@ -90,7 +90,7 @@ def test_each_error_status_of_a_step(
     undisturbed run; Fatal is not retried and ends the run, trace kept up to the fault."""
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")  # the Python execution, whose do_step we can intercept
     plant = check_plant(plant_fmu)
-    clean = master.simulate(_nominal(), plant)
+    clean = master.check_and_simulate(_nominal(), plant)
     freed = _count_frees(monkeypatch)
     original = FmuSlave.do_step
     failed: list[float] = []
@@ -102,7 +102,7 @@ def test_each_error_status_of_a_step(
         original(self, t, h)
 
     monkeypatch.setattr(FmuSlave, "do_step", do_step)
-    outcome = master.simulate(_nominal(), plant)
+    outcome = master.check_and_simulate(_nominal(), plant)
     assert failed == [pytest.approx(0.1)] and freed == [1]
     if retried:
         assert outcome.complete, outcome.reason
@@ -134,7 +134,7 @@ def test_non_finite_outputs_end_the_run(plant_fmu: Path, monkeypatch: pytest.Mon
 
     monkeypatch.setattr(FmuSlave, "get", get)
     freed = _count_frees(monkeypatch)
-    outcome = master.simulate(_nominal(), check_plant(plant_fmu))
+    outcome = master.check_and_simulate(_nominal(), check_plant(plant_fmu))
     assert not outcome.complete and freed == [1]
     assert outcome.reason == "plant outputs became non-finite at t = 0.15 s"
     assert len(outcome.trace.time) == 300 and np.all(np.isfinite(outcome.trace.data))
@@ -218,7 +218,7 @@ def test_a_run_failing_after_retries_is_reported_at_the_step_that_failed_for_goo
     earlier retries noted, and keeps its trace up to that step's sample; the samples before the
     first retried step are the undisturbed run's."""
     faulty = _faulty(plant_fmu, tmp_path, monkeypatch, "chatter", 0.2, 0.25)
-    outcome = master.simulate(_nominal(), faulty)
+    outcome = master.check_and_simulate(_nominal(), faulty)
     retries = outcome.record["retries"]
     assert [entry["outcome"] for entry in retries] == ["passed"] * 100 + ["failed"]
     assert retries[0]["t"] == pytest.approx(0.2) and retries[-1]["t"] == pytest.approx(0.25)
@@ -230,7 +230,7 @@ def test_a_run_failing_after_retries_is_reported_at_the_step_that_failed_for_goo
     assert outcome.trace.time[-1] == pytest.approx(0.25, abs=1e-12) and len(outcome.trace.time) == 501
     assert outcome.record["samples"] == 501 and np.all(np.isfinite(outcome.trace.data))
     assert any(w.startswith("100 of the plant's steps from t = 0.2 s") for w in outcome.record["warnings"])
-    clean = master.simulate(_nominal(), check_plant(plant_fmu))  # before the first retry: the undisturbed run
+    clean = master.check_and_simulate(_nominal(), check_plant(plant_fmu))  # before the first retry: the undisturbed run
     assert np.array_equal(outcome.trace.data[:401], clean.trace.data[:401])
     from toggle_cosim.cosim.isolation.supervision import simulate_supervised
 
@@ -248,7 +248,7 @@ def test_a_plant_failure_says_what_the_fmu_logged_and_a_retry_that_passed_is_rep
     from fault_plants import ZENO_LATER, ZENO_ONCE
 
     faulty = _faulty(plant_fmu, tmp_path, monkeypatch, "zeno", 0.1, 0.2)
-    outcome = master.simulate(_nominal(), faulty)
+    outcome = master.check_and_simulate(_nominal(), faulty)
     first = f"fmi2DoStep failed with status 3 (error): {ZENO_ONCE.format(0.1)}"
     assert outcome.record["retries"][0] == {"t": pytest.approx(0.1), "error": first, "outcome": "passed"}
     assert [entry["outcome"] for entry in outcome.record["retries"]] == ["passed", "failed"]
@@ -264,6 +264,23 @@ def test_a_plant_failure_says_what_the_fmu_logged_and_a_retry_that_passed_is_rep
     )
     assert outcome.trace.time[-1] == pytest.approx(0.2, abs=1e-12) and outcome.record["samples"] == 401
     monkeypatch.setenv("TOGGLE_FAULT_END", "1e300")  # the one failure only: the run completes, its retry noted
-    passed = master.simulate(_nominal(), faulty)
+    passed = master.check_and_simulate(_nominal(), faulty)
     assert passed.complete and passed.record["retries"] == [outcome.record["retries"][0]]
     assert passed.record["warnings"][-1] == outcome.record["warnings"][-1]
+
+
+def test_the_pair_takes_the_callers_checkpoint_options(
+    plant_fmu: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`check_and_simulate(..., checkpoints=)` holds for the plain pair too: with checkpoints off,
+    the one refused step at t = 0.1 s ends the run there (no retry), where the default retries
+    it and completes."""
+    from toggle_cosim.cosim.execution.system_retry import CheckpointOptions
+
+    faulty = _faulty(plant_fmu, tmp_path, monkeypatch, "zeno", 0.1, 1e300)
+    retried = master.check_and_simulate(_nominal(), faulty)
+    assert retried.complete and [entry["outcome"] for entry in retried.record["retries"]] == ["passed"]
+    off = master.check_and_simulate(_nominal(), faulty, checkpoints=CheckpointOptions(enabled=False))
+    assert not off.complete and off.record["retries"] == []
+    assert off.reason.startswith("plant FMU failed at t = 0.1 s: fmi2DoStep failed with status 3 (error)")
+    assert off.trace.time[-1] == pytest.approx(0.1, abs=1e-12)

@@ -578,13 +578,13 @@ def test_simulate_fmu_runs_it_like_the_fmi2_build(plant3_fmu: Path, plant_fmu: P
 def test_fmi3_plant_under_the_master_matches_the_stored_reference(plant3_fmu: Path) -> None:
     """The FMI 3.0 build, run by the same master and controller as the FMI 2.0 one, stays in
     the funnel of the reference trace recorded with the FMI 2.0 build."""
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments import references
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.plant.contract import check_plant
 
     for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):
-        outcome = simulate(run, check_plant(plant3_fmu))
+        outcome = check_and_simulate(run, check_plant(plant3_fmu))
         assert outcome.complete, outcome.reason
         assert outcome.record["fmu"]["fmi_version"] == "3.0"
         checked = references.check(outcome, ROOT / "scenarios" / "references")
@@ -600,7 +600,7 @@ def test_record_reads_an_fmi3_plants_int64_and_boolean_with_their_getters(
     read by fmi2GetInteger and fmi2GetBoolean, the same solver's counts."""
     import dataclasses
 
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.plant.contract import check_plant
     from toggle_cosim.system.model import Port, Wiring
@@ -611,7 +611,7 @@ def test_record_reads_an_fmi3_plants_int64_and_boolean_with_their_getters(
     run = dataclasses.replace(run, system=Wiring(record=chosen))
     traces = []
     for fmu in (plant3_fmu, plant_fmu):
-        outcome = simulate(run, check_plant(fmu))
+        outcome = check_and_simulate(run, check_plant(fmu))
         assert outcome.complete, outcome.reason
         assert outcome.record["loop"]["kind"] == f"system, {'compiled' if kernel == '1' else 'python'}"
         traces.append(outcome.trace)

@@ -27,7 +27,7 @@ from python_fmus import build_python_fmu
 
 from toggle_cosim.cli import main
 from toggle_cosim.cosim.controllers import controller_for
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.files.traces import read_csv
 from toggle_cosim.plant.contract import ContractError, check_plant
@@ -159,11 +159,11 @@ def test_the_fmu_is_freed_after_complete_failed_and_interrupted_runs(
     temporary directory (neither its unzipped copy nor the plant's); the failed run's reason
     holds the FMU's log line; the interrupted run stops where it was interrupted."""
     run, plant, controller = _in_process(tmp_path, plant_fmu, pd_fmu)
-    outcome = simulate(run, plant, controller=controller)
+    outcome = check_and_simulate(run, plant, controller=controller)
     assert outcome.complete and os.listdir(scratch) == []
 
     run, plant, controller = _in_process(tmp_path, plant_fmu, pd_fmu, fail_at=0.05)
-    outcome = simulate(run, plant, controller=controller)
+    outcome = check_and_simulate(run, plant, controller=controller)
     assert not outcome.complete and outcome.record["status"] == "failed"
     assert outcome.reason.startswith("controller failed: ") and "fmi2DoStep at t = 0.05 s" in outcome.reason
     assert "the PD law gave up at t = 0.0500 s" in outcome.reason  # the FMU's own log line
@@ -175,7 +175,7 @@ def test_the_fmu_is_freed_after_complete_failed_and_interrupted_runs(
             raise KeyboardInterrupt
 
     run, plant, controller = _in_process(tmp_path, plant_fmu, pd_fmu)
-    outcome = simulate(run, plant, progress=interrupt, controller=controller)
+    outcome = check_and_simulate(run, plant, progress=interrupt, controller=controller)
     assert outcome.interrupted and outcome.record["status"] == "interrupted"
     assert 100 <= len(outcome.trace.time) < 201
     assert os.listdir(scratch) == []
@@ -189,7 +189,7 @@ def test_a_supervised_run_leaves_nothing_behind(tmp_path: Path, scratch: Path, p
     run, plant, controller = _in_process(tmp_path, plant_fmu, pd_fmu)
     outcome = simulate_supervised(run, plant, controller=controller)
     assert outcome.complete and os.listdir(scratch) == []
-    again = simulate(run, plant)
+    again = check_and_simulate(run, plant)
     assert np.array_equal(outcome.trace.data, again.trace.data)
 
 
@@ -340,9 +340,9 @@ def test_the_same_law_as_an_fmi3_fmu_gives_the_same_trace(tmp_path: Path, plant_
     plant = check_plant(plant_fmu)
     assert check_controller_fmu(fmi3, plant.recorded_outputs).warnings == ()
     for run in load_scenario(_scenario(tmp_path, plant_fmu, pd_fmu, t_end=0.1)):
-        two = simulate(run, plant)
+        two = check_and_simulate(run, plant)
         settings = dataclasses.replace(run.controller, fmu=fmi3)
-        three = simulate(dataclasses.replace(run, controller=settings), plant)
+        three = check_and_simulate(dataclasses.replace(run, controller=settings), plant)
         assert two.complete and three.complete, three.reason
         assert three.record["controller"]["fmu"]["fmi_version"] == "3.0"
         assert np.array_equal(two.trace.data, three.trace.data), run.label

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from toggle_cosim.analysis.friction_claims import friction_claims
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 
@@ -23,7 +23,7 @@ def test_claims_table_under_the_friction_models(plant_fmu: Path) -> None:
         for run in load_scenario(ROOT / "scenarios" / f"{name}.yaml")
         if not run.variant.startswith("theta1")
     ]
-    text = friction_claims([simulate(run, plant) for run in runs])
+    text = friction_claims([check_and_simulate(run, plant) for run in runs])
     lines = text.splitlines()
     assert lines[2] == "| claim | paper | dissipative | stick_slip |"
     rows = {line.split(" | ")[0].lstrip("| "): line.split(" | ")[1:] for line in lines[4:]}

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 from reference_dynamics import _closed_angles, _model
 
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.physics.parameters import MechanismParameters
 from toggle_cosim.plant.contract import check_plant
@@ -103,7 +103,7 @@ def test_the_fmu_fails_in_one_line_where_no_friction_mode_is_consistent(plant_fm
     )
     (run,) = load_scenario(scenario)
     run = dataclasses.replace(run, plant=dataclasses.replace(run.plant, mu=2.0))
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert not outcome.complete
     assert "\n" not in outcome.reason
     assert "Painleve-type case" in outcome.reason and "joints theta1, theta2, theta5" in outcome.reason

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 
@@ -213,7 +213,7 @@ def run_case(fmu: Path, case: Case, folder: Path, mu: float):
     scenario = folder / f"{case.name}_{mu}.yaml"
     scenario.write_text(text)
     (run,) = load_scenario(scenario)
-    return simulate(run, check_plant(fmu))
+    return check_and_simulate(run, check_plant(fmu))
 
 
 @pytest.mark.parametrize("case", _family(), ids=lambda c: f"{c.name}_{c.model}")
@@ -297,7 +297,7 @@ def test_the_documented_pid_examples_complete_under_the_papers_friction(
     at their mu = 0.2: each completes, at a few events per step."""
     run = next(r for r in load_scenario(scenario) if r.variant == variant)
     run = dataclasses.replace(run, plant=dataclasses.replace(run.plant, friction_model="paper"))
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     events = outcome.record["solver_statistics"]["solver.events"]
     assert events <= MAX_EVENTS_PER_STEP * (len(outcome.trace.time) - 1)
@@ -316,7 +316,7 @@ def test_the_documented_lqr_completes_under_the_papers_friction(plant_fmu: Path,
         f'controller: {{python: "rest_lqr:make_lqr", parameters: {lqr_design(plant_fmu)}}}\n'
     )
     (run,) = load_scenario(scenario)
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     steps = len(outcome.trace.time) - 1
     assert outcome.record["solver_statistics"]["solver.events"] <= MAX_EVENTS_PER_STEP * steps
@@ -331,7 +331,7 @@ def test_the_measured_load_completes_with_friction(plant_fmu: Path, variant: str
     target) with mu = mu_s = 0.2 in place of its mu = 0: each variant completes under each model."""
     run = next(r for r in load_scenario(TABLE.parent / "measured_load.yaml") if r.variant == variant)
     run = dataclasses.replace(run, plant=dataclasses.replace(run.plant, mu=0.2, mu_s=0.2, friction_model=model))
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     events = outcome.record["solver_statistics"]["solver.events"]
     assert events <= MAX_EVENTS_PER_STEP * (len(outcome.trace.time) - 1)
@@ -350,7 +350,7 @@ def test_a_reversal_through_the_fold_iterates_its_events_to_convergence(plant_fm
         if r.variant == "theta1_external_force_stick_slip"
     )
     run = dataclasses.replace(run, plant=dataclasses.replace(run.plant, friction_model=model))
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     assert outcome.record["retries"] == []
 
@@ -374,7 +374,7 @@ def test_the_theta1_reversal_agrees_with_the_independent_filippov_reference(plan
         if r.variant == "theta1_external_force_stick_slip"
     )
     run = dataclasses.replace(run, t_end=0.55)
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     column = {name: outcome.trace.data[:, i] for i, name in enumerate(outcome.trace.names)}
     params = MechanismParameters(mB=run.plant.m_B, mu=run.plant.mu).as_dict()

@@ -43,7 +43,7 @@ import numpy as np
 import pytest
 
 from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, compare_traces, format_table
-from toggle_cosim.cosim.master import RunOutcome, plant_settings, simulate
+from toggle_cosim.cosim.master import RunOutcome, check_and_simulate, plant_settings
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import PlantInterface, check_plant
@@ -112,7 +112,7 @@ def closed_loop(plant: PlantInterface) -> dict[str, RunOutcome]:
     for label in RUNS:
         scenario, variant = label.split("/")
         run = next(r for r in load_scenario(ROOT / "scenarios" / f"{scenario}.yaml") if r.variant == variant)
-        outcome = simulate(run, plant)
+        outcome = check_and_simulate(run, plant)
         assert outcome.complete, (label, outcome.reason)
         found[label] = outcome
     return found

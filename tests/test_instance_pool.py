@@ -78,17 +78,17 @@ def test_a_press_case_gives_the_same_bits_alone_first_after_a_complete_and_after
     press_parts = request.getfixturevalue("press_parts" if version == "2.0" else "press_parts_3")
     (case,) = runs_from_document(press_document(shim_fmu, press_parts, CLEAN), PRESS)
     (hard,) = runs_from_document(press_document(shim_fmu, press_parts, HARD), PRESS)
-    alone = master.simulate(case, armed_shim)
+    alone = master.check_and_simulate(case, armed_shim)
     assert alone.complete and alone.trace.data.shape == (case.steps + 1, len(alone.trace.names))
     pool = InstancePool()
     try:
-        first = master.simulate(case, armed_shim, pool=pool)
+        first = master.check_and_simulate(case, armed_shim, pool=pool)
         assert (pool.counts.loaded, pool.counts.reset, pool.counts.renewed) == (COMPONENTS, 0, 0)
-        after_complete = master.simulate(case, armed_shim, pool=pool)
+        after_complete = master.check_and_simulate(case, armed_shim, pool=pool)
         assert (pool.counts.loaded, pool.counts.reset, pool.counts.renewed) == (COMPONENTS, COMPONENTS, 0)
-        failed = master.simulate(hard, armed_shim, pool=pool)
+        failed = master.check_and_simulate(hard, armed_shim, pool=pool)
         assert not failed.complete and "fmi2DoStep" in failed.reason
-        after_failed = master.simulate(case, armed_shim, pool=pool)
+        after_failed = master.check_and_simulate(case, armed_shim, pool=pool)
         assert pool.counts.loaded == COMPONENTS and pool.counts.renewed == COMPONENTS
         assert not pool.fatal
     finally:

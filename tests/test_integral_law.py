@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import ScenarioError, load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 
@@ -44,7 +44,7 @@ def _total_variation_per_second(outcome) -> float:
 
 def test_on_the_nominal_plant_the_error_follows_the_designed_dynamics(plant_fmu: Path) -> None:
     run = _run("no_friction", F_E=0.0, current_loop="ideal")
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete
     lam = 8.0
     assert (run.controller.C_I, run.controller.K_I) == (2 * lam, lam * lam)
@@ -60,7 +60,7 @@ def test_on_the_nominal_plant_the_error_follows_the_designed_dynamics(plant_fmu:
 def test_targets_over_the_map_with_friction(plant_fmu: Path, F_E: float, m_B: float) -> None:
     run = _run("friction", F_E=F_E, m_B=m_B)
     assert run.plant.mu == 0.2 and run.controller.nominal_m_B == 4.43
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     s = outcome.summary
     assert abs(s.final_error_m) < 1e-4
@@ -73,7 +73,7 @@ def test_targets_over_the_map_with_friction(plant_fmu: Path, F_E: float, m_B: fl
 def test_anti_windup_arrives_without_overshoot_when_the_current_limit_binds(plant_fmu: Path) -> None:
     run = _run("heavy_150N")
     run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, i_max=3.0))
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete
     u = outcome.trace.column("iq_ref")
     assert np.max(np.abs(u)) == 3.0

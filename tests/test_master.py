@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from toggle_cosim.control.controller import hitting_time
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.physics.parameters import ControllerGains
 from toggle_cosim.plant.contract import check_plant
@@ -26,7 +26,7 @@ def outcomes(plant_fmu: Path) -> dict[str, object]:
     found = {}
     for name in PAPER:
         for run in load_scenario(ROOT / "scenarios" / f"{name}.yaml"):
-            found[run.label] = simulate(run, plant)
+            found[run.label] = check_and_simulate(run, plant)
     return found
 
 
@@ -75,7 +75,7 @@ def test_reaching_phase_follows_the_reaching_law_on_the_nominal_plant_fmu(plant_
     P, Q, C, T_s = 50.0, 4.0, 5.0, 0.0005
 
     def deviation(doc: dict) -> tuple[float, float]:
-        trace = simulate(runs_from_document(doc)[0], plant).trace
+        trace = check_and_simulate(runs_from_document(doc)[0], plant).trace
         S0 = trace.column("S")[0]
         reaching = trace.column("phase") == 0.0
         t = trace.time[reaching]
@@ -134,7 +134,7 @@ def test_a_diagnostic_that_turns_nan_is_written_in_every_row_of_the_trace(
     assert np.all(np.isfinite(np.delete(trace.data, len(trace.names) - 2 + which, axis=1)))
     # the same run in this process: the same rows, NaN for NaN
     run = load_scenario(scenario)[0]
-    in_process = simulate(run, check_plant(plant_fmu))
+    in_process = check_and_simulate(run, check_plant(plant_fmu))
     assert in_process.complete and np.array_equal(in_process.trace.data, trace.data, equal_nan=True)
 
 

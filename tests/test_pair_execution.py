@@ -75,7 +75,7 @@ def test_user_controllers_and_a_controller_fmu_run_with_the_pair_s_columns(
     runs.append(dataclasses.replace(fig5, t_end=0.2, controller=dataclasses.replace(fig5.controller, fmu=vsc_fmu)))
     runs.append(dataclasses.replace(fig5, t_end=0.2))  # the built-in law, natively in C
     for run in runs:
-        outcome = master.simulate(dataclasses.replace(run, coupling=coupling), plants["plant"])
+        outcome = master.check_and_simulate(dataclasses.replace(run, coupling=coupling), plants["plant"])
         assert outcome.complete, (run.label, outcome.reason)
         diagnostics = tuple(outcome.record["controller"]["diagnostics"])
         assert outcome.trace.names == master.trace_names(plants["plant"], diagnostics, master.other_inputs(run))
@@ -112,8 +112,8 @@ def test_a_system_run_has_the_pair_s_summary_warnings_and_solver_statistics(plan
     exceeds it), the plant's solver counts."""
     run = load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0]
     run = dataclasses.replace(run, t_end=0.2, plant=dataclasses.replace(run.plant, rated_current=2.0))
-    fixed = master.simulate(run, plants["plant"])
-    system = master.simulate(_recorded(run), plants["plant"])
+    fixed = master.check_and_simulate(run, plants["plant"])
+    system = master.check_and_simulate(_recorded(run), plants["plant"])
     assert system.complete, system.reason
     assert system.summary == fixed.summary and system.summary.hitting_time_s is not None
     assert system.warnings == fixed.warnings and system.warnings[0].startswith("|i_q*| exceeds the rated current 2 A")
@@ -126,7 +126,7 @@ def test_the_pair_s_budget_ends_the_run_at_the_pair_s_sample(plants) -> None:
     (t = 0.1 s at 0.5 ms): the run ends there, failed, its trace kept up to that sample."""
     run = load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0]
     run = dataclasses.replace(run, t_end=0.3, resolved={**run.resolved, "budget": {"steps": 50}})
-    outcome = master.simulate(run, plants["plant"])
+    outcome = master.check_and_simulate(run, plants["plant"])
     assert outcome.reason is not None and "budget.steps) by t = 0.1 s" in outcome.reason
     assert len(outcome.trace.data) == BUDGET_ROWS
 
@@ -155,7 +155,7 @@ def test_a_plant_s_retries_and_failure_are_said_in_the_pair_s_words(
         monkeypatch.setenv(name, environment[name])
     monkeypatch.setenv("TOGGLE_FAULT_END", repr(end))
     run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.3)
-    outcome = master.simulate(run, faulty)
+    outcome = master.check_and_simulate(run, faulty)
     assert not outcome.complete and outcome.reason.startswith(reason), outcome.reason
     assert bool(outcome.record["retries"]) == (kind != "nan")
     assert all(set(entry) == {"t", "error", "outcome"} for entry in outcome.record["retries"])  # no component
@@ -182,7 +182,7 @@ def test_a_controller_that_raises_fails_the_run_in_the_pair_s_words(plants) -> N
     """ "controller failed: the controller's step raised at t = 0.005 s: ...", the trace up to
     the sample before (t = 0.0045 s)."""
     run = dataclasses.replace(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0], t_end=0.02)
-    outcome = master.simulate(run, plants["plant"], controller=_RaisesAt())
+    outcome = master.check_and_simulate(run, plants["plant"], controller=_RaisesAt())
     assert outcome.reason.startswith("controller failed: the controller's step raised at t = 0.005 s"), outcome.reason
     assert outcome.record["loop"]["kind"] == "python"
     assert len(outcome.trace.data) == 10

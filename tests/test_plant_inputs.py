@@ -15,7 +15,7 @@ import yaml
 from click.testing import CliRunner
 
 from toggle_cosim.cli import main
-from toggle_cosim.cosim.master import simulate, trace_names
+from toggle_cosim.cosim.master import check_and_simulate, trace_names
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.signals.definitions import Step, sample
@@ -63,9 +63,9 @@ def test_an_input_of_the_users_plant_is_sent_and_recorded_at_every_sample(
 ) -> None:
     plant = check_plant(disturbed_fmu)
     run = _run(disturbed_fmu, {"inputs": {"F_D": STEP}})
-    compiled = simulate(run, plant)
+    compiled = check_and_simulate(run, plant)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    python = simulate(run, plant)
+    python = check_and_simulate(run, plant)
     assert compiled.complete and compiled.record["loop"]["kind"] == "compiled"
     assert compiled.trace.names == (*trace_names(plant), "F_D")  # after the diagnostics
     assert np.array_equal(compiled.trace.data, python.trace.data)
@@ -73,18 +73,18 @@ def test_an_input_of_the_users_plant_is_sent_and_recorded_at_every_sample(
     assert np.array_equal(compiled.trace.column("F_E"), np.zeros(run.steps + 1))
     assert compiled.record["inputs"]["F_D"] == {"kind": "step", "height": 20.0, "start_time": 0.05, "offset": 0.0}
     # the plant feels it: the same load on F_E gives the same motion, bit for bit
-    on_F_E = simulate(_run(disturbed_fmu, {"F_E": STEP}), plant)
+    on_F_E = check_and_simulate(_run(disturbed_fmu, {"F_E": STEP}), plant)
     for name in ("x_B", "v_B", "iq_ref", "S"):
         assert np.array_equal(compiled.trace.column(name), on_F_E.trace.column(name)), name
     assert not np.array_equal(
-        compiled.trace.column("x_B"), simulate(_run(disturbed_fmu, {}), plant).trace.column("x_B")
+        compiled.trace.column("x_B"), check_and_simulate(_run(disturbed_fmu, {}), plant).trace.column("x_B")
     )
 
 
 def test_jacobi_sends_the_other_inputs_of_the_sample(disturbed_fmu: Path) -> None:
     plant = check_plant(disturbed_fmu)
-    outcome = simulate(_run(disturbed_fmu, {"inputs": {"F_D": STEP}}), plant, coupling="jacobi")
-    on_F_E = simulate(_run(disturbed_fmu, {"F_E": STEP}), plant, coupling="jacobi")
+    outcome = check_and_simulate(_run(disturbed_fmu, {"inputs": {"F_D": STEP}}), plant, coupling="jacobi")
+    on_F_E = check_and_simulate(_run(disturbed_fmu, {"F_E": STEP}), plant, coupling="jacobi")
     assert outcome.complete and np.array_equal(outcome.trace.column("x_B"), on_F_E.trace.column("x_B"))
 
 

@@ -145,7 +145,7 @@ def test_a_different_unit_is_still_refused(pythonfmu_template: Path, tmp_path: P
 def test_plots_summaries_and_sweeps_cope_with_absent_outputs(modelica_template: Path, tmp_path: Path) -> None:
     """Everything downstream that reads optional columns, on a plant that has none of them."""
     from toggle_cosim.analysis.report import summary_table, write_summary
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.experiments.sweep import read_results, run_sweep
 
@@ -158,7 +158,7 @@ def test_plots_summaries_and_sweeps_cope_with_absent_outputs(modelica_template: 
     paper = [
         ROOT / "scenarios" / f"{name}.yaml" for name in ("fig4_nominal", "fig5_external_force", "fig6_mass_variation")
     ]
-    outcomes = [simulate(run, plant) for path in paper for run in load_scenario(path)]
+    outcomes = [check_and_simulate(run, plant) for path in paper for run in load_scenario(path)]
     assert all(o.complete for o in outcomes)
     table = summary_table(outcomes)
     assert "| fig4_nominal/friction | complete | " in table and "| — | — | — | — |" in table

@@ -72,11 +72,11 @@ class _Resonating:
 
 
 def test_a_resonating_run_stays_complete_and_is_flagged(plant_fmu: Path) -> None:
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.plant.contract import check_plant
 
     (run,) = runs_from_document({**_fig4(), "t_end": 0.5})
-    outcome = simulate(run, check_plant(plant_fmu), controller=_Resonating())
+    outcome = check_and_simulate(run, check_plant(plant_fmu), controller=_Resonating())
     assert outcome.complete
     (flag,) = outcome.warnings
     assert flag.startswith("the command chatters: i_q* varies by ") and outcome.record["warnings"] == [flag]
@@ -103,12 +103,12 @@ def test_a_flagged_run_stays_complete_and_says_so_everywhere(plant_fmu: Path, tm
     """Fig. 4 (peak |i_q*| 3.17 A, x_B within 0.2329-0.3199 m) is plausible by default; with a
     3 A rating and a range that ends at 0.3 m it is flagged twice, and still complete."""
     from toggle_cosim.analysis.report import summary_table
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.plant.contract import check_plant
 
     plant = check_plant(plant_fmu)
     (plain,) = runs_from_document({**_fig4(), "t_end": 1.0})
-    assert simulate(plain, plant).warnings == ()
+    assert check_and_simulate(plain, plant).warnings == ()
     document = {**_fig4(rated_current=3.0, working_range=[0.2, 0.3]), "t_end": 1.0}
     scenario = tmp_path / "flagged.yaml"
     scenario.write_text(yaml.safe_dump(document))
@@ -123,7 +123,7 @@ def test_a_flagged_run_stays_complete_and_says_so_everywhere(plant_fmu: Path, tm
     assert "fig4_nominal: complete with 2 warnings;" in lines[0]
     assert lines[1:] == [f"[1/1] fig4_nominal: warning: {rated}", f"[1/1] fig4_nominal: warning: {position}"]
     (run,) = runs_from_document(document)
-    table = summary_table([simulate(run, plant)])
+    table = summary_table([check_and_simulate(run, plant)])
     cell = f"{rated}; {position}".replace("|", "\\|")  # the table escapes the pipes of |i_q*|
     assert table.splitlines()[0].endswith("| warnings |") and f"| {cell} |" in table
 
@@ -131,12 +131,12 @@ def test_a_flagged_run_stays_complete_and_says_so_everywhere(plant_fmu: Path, tm
 def test_the_theta1_run_that_ends_past_the_fold_is_flagged(plant_fmu: Path) -> None:
     """friction_models/theta1_external_force_stick_slip: the load pushes slider B back through the
     folded position (x_B = 0.170 m), outside the working range: complete, and flagged."""
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.plant.contract import check_plant
 
     (run,) = [r for r in load_scenario(ROOT / "scenarios" / "friction_models.yaml") if r.variant.startswith("theta1")]
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete
     assert any("slider B leaves its working range 0.1800 m to 0.3600 m" in w for w in outcome.warnings)
     assert outcome.record["warnings"] == list(outcome.warnings)

@@ -26,7 +26,7 @@ from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.control.protocol import ControllerContext
 from toggle_cosim.control.trajectory import SampledReference, build
 from toggle_cosim.cosim.execution.system_loop import system_library
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 
@@ -116,7 +116,7 @@ def test_a_two_input_system_runs_in_c_with_the_python_loops_bits(variant: str, p
     with monkeypatch.context() as patch:
         patch.setenv("TOGGLE_COSIM_KERNEL", "0")
         adapter = DiscreteSystemController(system, "x_B", run.x_target, run.T_s, reference=_reference(run))
-        python = simulate(run, plant, controller=adapter)
+        python = check_and_simulate(run, plant, controller=adapter)
     assert (
         compiled.record["loop"]["kind"] == "compiled"
         and "(controller natively in C)" in compiled.record["loop"]["reason"]

@@ -10,7 +10,7 @@ import pytest
 from junitparser import JUnitXml
 
 from toggle_cosim.analysis.reference_reports import write_reference_reports
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments import references
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
@@ -36,7 +36,7 @@ def _runs():
 @pytest.mark.parametrize("run", list(_runs()))
 def test_shipped_run_matches_its_reference(run, plant_fmu: Path, no_gravity_fmu: Path) -> None:
     fmu = no_gravity_fmu if run.scenario == "swap_no_gravity" else plant_fmu
-    outcome = simulate(run, check_plant(fmu))
+    outcome = check_and_simulate(run, check_plant(fmu))
     assert outcome.complete, outcome.reason
     checked = references.check(outcome, FOLDER)
     assert checked.passed, "moved beyond tolerance: " + "; ".join(checked.failures)  # funnel and invariants
@@ -49,7 +49,7 @@ def test_a_perturbed_model_parameter_fails_the_check_and_names_the_variables(pla
     of `toggle-cosim references` say so, one JUnit test case per variable."""
     run = next(r for r in load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml") if r.variant == "friction")
     perturbed = dataclasses.replace(run, plant=dataclasses.replace(run.plant, mu=0.25))
-    outcome = simulate(perturbed, check_plant(plant_fmu))
+    outcome = check_and_simulate(perturbed, check_plant(plant_fmu))
     checked = references.check(outcome, FOLDER)
     assert not checked.comparison.passed
     failed = {v.name for v in checked.comparison.variables if not v.passed}
@@ -82,6 +82,6 @@ def test_the_swapped_plant_differs_from_the_original(plant_fmu: Path, no_gravity
     the nominal run's funnel (lambda1 carries the links' weight in the original)."""
     run = load_scenario(ROOT / "scenarios" / "swap_no_gravity.yaml")[0]
     nominal_reference = dataclasses.replace(run, scenario="fig4_nominal", variant="friction")
-    checked = references.check(simulate(nominal_reference, check_plant(no_gravity_fmu)), FOLDER)
+    checked = references.check(check_and_simulate(nominal_reference, check_plant(no_gravity_fmu)), FOLDER)
     assert not checked.comparison.passed
     assert "lambda1" in {v.name for v in checked.comparison.variables if not v.passed}

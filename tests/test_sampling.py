@@ -19,7 +19,7 @@ import pytest
 from toggle_cosim.analysis.compare import DEFAULT_TOLERANCE, Tolerance, compare_traces
 from toggle_cosim.analysis.csv_traces import CompareInputError
 from toggle_cosim.analysis.sampling import REFERENCE_GRID, RESULT_GRID, SpanMismatch, check_points
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.references import tolerances_for
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.plant.contract import check_plant
@@ -114,9 +114,9 @@ def test_a_time_span_beyond_the_time_tolerance_is_bad_input(start, stop):
 def runs(plant_fmu: Path) -> dict[str, Trace]:
     plant = check_plant(plant_fmu)
     run = sampling_table.nominal_run()
-    traces = {"unchanged": simulate(run, plant).trace}
+    traces = {"unchanged": check_and_simulate(run, plant).trace}
     for name, changed in sampling_table.perturbations(run).items():
-        traces[name] = simulate(changed, plant).trace
+        traces[name] = check_and_simulate(changed, plant).trace
     return traces
 
 

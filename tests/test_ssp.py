@@ -30,7 +30,7 @@ from lxml import etree
 
 from toggle_cosim.cli import main
 from toggle_cosim.cosim.controllers import builtin_controller
-from toggle_cosim.cosim.master import plant_settings, simulate
+from toggle_cosim.cosim.master import check_and_simulate, plant_settings
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.ssp import layout
@@ -227,8 +227,8 @@ def test_an_ssp_run_sets_the_plant_as_the_scenario_does_bit_for_bit(fig5_ssp: Pa
     plant = check_plant(plant_fmu)
     run = next(r for r in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml") if r.variant == "friction")
     with open_ssp(fig5_ssp, "friction") as study:
-        from_ssp = simulate(study.run, check_plant(study.plant_fmu), controller=builtin_controller(study.run))
-    from_yaml = simulate(run, plant)
+        from_ssp = check_and_simulate(study.run, check_plant(study.plant_fmu), controller=builtin_controller(study.run))
+    from_yaml = check_and_simulate(run, plant)
     assert from_ssp.trace.names == from_yaml.trace.names
     assert np.array_equal(_trace(from_ssp), _trace(from_yaml))
     assert from_ssp.record["resolved"]["ssp"]["variant"] == "friction"
@@ -252,8 +252,8 @@ def test_the_plant_values_come_from_the_ssv(fig5_ssp: Path, plant_fmu: Path, tmp
         assert dict(study.plant_values)["mu"] == 0.0
         assert study.run.plant.mu == 0.0  # the record says what ran
         assert study.run.resolved["ssp"]["components"]["plant"]["values"]["mu"] == 0.0
-        outcome = simulate(study.run, check_plant(study.plant_fmu), controller=builtin_controller(study.run))
-    expected = simulate(no_friction, check_plant(plant_fmu))
+        outcome = check_and_simulate(study.run, check_plant(study.plant_fmu), controller=builtin_controller(study.run))
+    expected = check_and_simulate(no_friction, check_plant(plant_fmu))
     assert np.array_equal(_trace(outcome), _trace(expected))
 
 

@@ -228,7 +228,7 @@ def test_the_issue_pid_with_integral_action_completes(plant_fmu: Path, tmp_path:
     communication step"). Now the run completes, the slider sticks (v_B = 0 to 1e-12 m/s) and
     moves again at least once after 1 s, and the plant reports no more than 12 events a step."""
     pytest.importorskip("control")
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import load_scenario
     from toggle_cosim.plant.contract import check_plant
 
@@ -236,7 +236,7 @@ def test_the_issue_pid_with_integral_action_completes(plant_fmu: Path, tmp_path:
     scenario = tmp_path / "pid_stick.yaml"
     scenario.write_text(PID_SCENARIO)
     (run,) = load_scenario(scenario)
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     t, v_B, x_B = outcome.trace.time, outcome.trace.column("v_B"), outcome.trace.column("x_B")
     late = t > 1.0

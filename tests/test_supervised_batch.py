@@ -14,7 +14,7 @@ import pytest
 from process_events import wait_gone, wait_until
 
 from toggle_cosim.cosim.isolation.supervised_batch import default_jobs, run_supervised
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 
@@ -34,7 +34,7 @@ def test_the_outcomes_are_in_order_and_bit_identical(plant_fmu: Path, jobs: int)
     outcomes = list(run_supervised(pairs, jobs=jobs))
     assert [o.run.label for o in outcomes] == [run.label for run, _ in pairs]
     for outcome, (run, plant) in zip(outcomes, pairs, strict=True):
-        plain = simulate(run, plant)
+        plain = check_and_simulate(run, plant)
         assert outcome.complete and outcome.record["status"] == "complete"
         assert np.array_equal(outcome.trace.data, plain.trace.data)
         assert outcome.summary == plain.summary

@@ -106,12 +106,12 @@ def test_run_survives_a_misbehaving_plant(kind: str, fault, faulty_fmu: Path, tm
 def test_the_paper_runs_stay_bit_identical_under_supervision(plant_fmu: Path, tmp_path: Path) -> None:
     """The supervised child writes the same numbers the unsupervised loop does."""
     from toggle_cosim.cosim.isolation.supervision import simulate_supervised
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import load_scenario
 
     plant = check_plant(plant_fmu)
     for run in load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml"):
-        plain, supervised = simulate(run, plant), simulate_supervised(run, plant)
+        plain, supervised = check_and_simulate(run, plant), simulate_supervised(run, plant)
         assert supervised.complete and supervised.record["status"] == "complete"
         assert np.array_equal(plain.trace.data, supervised.trace.data)
         assert plain.summary == supervised.summary

@@ -461,8 +461,8 @@ def test_a_worker_without_the_fmu_file_uses_the_bytes_sent_along(tmp_path, plant
 
 def test_keep_traces_stores_every_case_readable_by_id(tmp_path, plant_fmu):
     """--keep-traces: one compressed Parquet dataset of every case's whole trace; the trace of a
-    case read back by its id is the one a plain simulate() of that case records, bit for bit."""
-    from toggle_cosim.cosim.master import simulate
+    case read back by its id is the one a plain check_and_simulate() of that case records, bit for bit."""
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments.scenario import runs_from_document
     from toggle_cosim.experiments.sweep_store import read_trace
     from toggle_cosim.plant.contract import check_plant
@@ -477,7 +477,7 @@ def test_keep_traces_stores_every_case_readable_by_id(tmp_path, plant_fmu):
     plant = check_plant(plant_fmu)
     for case in (sweep.cases[0], sweep.cases[-1]):
         (run,) = runs_from_document(case.document)
-        expected = simulate(run, plant).trace
+        expected = check_and_simulate(run, plant).trace
         stored = read_trace(sweep.output, case.case_id)
         assert list(stored.columns) == list(expected.names)
         assert np.array_equal(stored.to_numpy(), expected.data)

@@ -42,7 +42,7 @@ from toggle_cosim.cosim.execution.system_loop import (
     system_library,
     system_library_reason,
 )
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.cosim.plant_inputs import input_samples, plant_settings
 from toggle_cosim.cosim.systems import assemble, pair_connections
 from toggle_cosim.experiments.scenario import load_scenario
@@ -190,7 +190,7 @@ def test_the_pair_as_a_system_in_c_gives_the_master_s_trace_bit_for_bit(
     with pair_system(plant_fmu, fmu, jacobi=coupling == "jacobi") as pair:
         assert pair.plan.order == ("plant", "controller")
         assert pair.loop.run(0, pair.run.steps + 1) == (DONE, pair.run.steps + 1)
-        master = simulate(pair.run, check_plant(plant_fmu), coupling=coupling)
+        master = check_and_simulate(pair.run, check_plant(plant_fmu), coupling=coupling)
         assert master.complete, master.reason
         assert np.array_equal(pair.trace[:, 0], master.trace.time)
         shared = 0
@@ -211,7 +211,7 @@ def test_stretches_resume_where_the_last_one_stopped(plant_fmu: Path, toggle_vsc
         assert pair.loop.run(0, 1000) == (DONE, 1000)
         assert np.isnan(pair.trace[1000:, 1]).all()
         assert pair.loop.run(1000, n + 1) == (DONE, n + 1)
-        master = simulate(pair.run, check_plant(plant_fmu))
+        master = check_and_simulate(pair.run, check_plant(plant_fmu))
         assert np.array_equal(_column(pair, "plant.x_B"), master.trace.column("x_B"))
         with pytest.raises(ValueError, match="not within"):
             pair.loop.run(0, n + 2)
@@ -235,7 +235,7 @@ def test_a_converted_connection_delivers_factor_times_value_plus_offset(
         # the last value the FMU was sent: sample n's (Gauss-Seidel sets it early), n - 1's (Jacobi: late)
         last = n if coupling == "gauss-seidel" else n - 1
         assert pair.slaves[1].getReal([pair.controller.fmu.references["theta1"]]) == [sent[last]]
-        master = simulate(pair.run, check_plant(plant_fmu), coupling=coupling)
+        master = check_and_simulate(pair.run, check_plant(plant_fmu), coupling=coupling)
         assert np.array_equal(_column(pair, "plant.x_B"), master.trace.column("x_B"))
 
 

@@ -19,14 +19,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from system_runs import simulate_system
 
 from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.lti import DiscreteSystemController
 from toggle_cosim.cosim import systems
 from toggle_cosim.cosim.controllers import controller_for
 from toggle_cosim.cosim.execution.system_loop import system_library, system_library_reason
-from toggle_cosim.cosim.master import simulate
-from toggle_cosim.cosim.systems import pair_connections, simulate_system
+from toggle_cosim.cosim.master import check_and_simulate
+from toggle_cosim.cosim.systems import pair_connections
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.runs.definition import Run
@@ -74,7 +75,7 @@ def test_every_referenced_scenario_as_a_system_runs_the_law_in_c_with_the_pair_s
     pair sets it)."""
     plant = check_plant(no_gravity_fmu if scenario == "swap_no_gravity" else plant_fmu)
     for run in load_scenario(ROOT / "scenarios" / f"{scenario}.yaml"):
-        pair = simulate(run, plant)
+        pair = check_and_simulate(run, plant)
         system = simulate_system(_as_system(run, _measured(run)), plant)
         assert pair.complete and system.complete, (pair.reason, system.reason)
         assert system.record["loop"]["kind"] == "system, compiled"
@@ -93,7 +94,7 @@ def test_a_python_control_pid_runs_in_c_inside_a_system_with_the_pair_s_bits(var
     every column with the pair loop's bits."""
     plant = check_plant(plant_fmu)
     run = dataclasses.replace(_pid_runs()[variant], t_end=0.3)
-    pair = simulate(run, plant)
+    pair = check_and_simulate(run, plant)
     system = simulate_system(_as_system(run, ("x_B",)), plant)
     assert pair.complete and system.complete, (pair.reason, system.reason)
     assert system.record["loop"]["reason"].endswith(NATIVE), system.record["loop"]

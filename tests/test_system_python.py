@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from system_runs import simulate_system
 from test_system_retries import _c, _refusing_part
 
 from toggle_cosim.control.controller import VSCController
@@ -97,10 +98,10 @@ def _both(
     """The run with a fresh controller from `make()` in the compiled loop, then in the Python
     execution (no compiled loop made), a checkpoint every `interval` samples: the two outcomes."""
     options = CheckpointOptions(interval=interval)
-    compiled = systems.simulate_system(run, plant, controller=make(), coupling=coupling, checkpoints=options)
+    compiled = simulate_system(run, plant, controller=make(), coupling=coupling, checkpoints=options)
     with monkeypatch.context() as patch:
         patch.setattr(systems, "compiled_system", lambda *args, **kwargs: "the Python form, for the comparison")
-        python = systems.simulate_system(run, plant, controller=make(), coupling=coupling, checkpoints=options)
+        python = simulate_system(run, plant, controller=make(), coupling=coupling, checkpoints=options)
     assert compiled.record["loop"]["kind"] == "system, compiled"
     assert CALLED_BACK in compiled.record["loop"]["reason"], compiled.record["loop"]
     assert python.record["loop"]["kind"] == "system, python"

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from system_runs import simulate_system
 
 from toggle_cosim.cosim import systems
 from toggle_cosim.experiments.scenario import load_scenario
@@ -87,11 +88,11 @@ def _simulate(
     if options:
         from toggle_cosim.cosim.execution.system_retry import CheckpointOptions
 
-        outcome = systems.simulate_system(
+        outcome = simulate_system(
             run, plant, coupling=coupling, checkpoints=CheckpointOptions(**options), controller=controller
         )
     else:
-        outcome = systems.simulate_system(run, plant, coupling=coupling, controller=controller)
+        outcome = simulate_system(run, plant, coupling=coupling, controller=controller)
     assert outcome.record["loop"]["kind"] == f"system, {engine}"
     return outcome
 
@@ -294,7 +295,7 @@ def test_a_python_controllers_state_is_put_back_with_the_parts(
     and the compiled loop and the Python execution give the same retries and the same trace."""
     refused = _run(refusing, refuse_from=START, refuse_until=START + 2.5 * T_S, pass_below=T_S / 2)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "1")
-    clean = systems.simulate_system(_run(refusing), plant, controller=_Integrating(), coupling=coupling)
+    clean = simulate_system(_run(refusing), plant, controller=_Integrating(), coupling=coupling)
     outcomes = {
         engine: _simulate(refused, plant, engine, monkeypatch, coupling, interval=25, controller=_Integrating())
         for engine in ("compiled", "python")

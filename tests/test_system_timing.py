@@ -86,14 +86,16 @@ def test_a_system_run_records_the_pairs_trace_in_every_column(
     path, t_end = LOADS[load]
     run = load_scenario(path or _sine_load(tmp_path))[0]
     run = dataclasses.replace(run, t_end=t_end, coupling=coupling)
-    pair = master.simulate(run, plant)
+    pair = master.check_and_simulate(run, plant)
     assert pair.complete, pair.reason
     # the load changes inside the window, so its timing is what the comparison checks
     assert np.unique(pair.trace.column("F_E")).size > 1
     ports = [(name, _system_port(name, run, plant)) for name in pair.trace.names[1:]]
     if engine == "python":
         monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    system = master.simulate(dataclasses.replace(run, system=Wiring(record=tuple(port for _, port in ports))), plant)
+    system = master.check_and_simulate(
+        dataclasses.replace(run, system=Wiring(record=tuple(port for _, port in ports))), plant
+    )
     assert system.complete, system.reason
     assert system.record["loop"]["kind"] == f"system, {engine}"
     assert system.trace.names == ("time", *(str(port) for _, port in ports))

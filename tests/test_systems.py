@@ -85,9 +85,9 @@ def test_the_plan_sets_inputs_from_later_components_after_every_output() -> None
     assert plan.feed_source[3] == 5 and plan.feed_source[4] == SIGNAL and plan.feed_source[6] == 0
     # iq_ref late (its source comes later), F_E late (a signal: sent after the outputs at t_k are
     # read, as the pair sends it); ctrl.x early (the plant is read before it)
-    assert plan.early == ((), (0,)) and plan.late(0) == (0, 1)
+    assert plan.early == ((), (0,)) and plan.late[0] == (0, 1)
     # initialisation sets the signal before the first outputs are read
-    assert plan.init_early == ((1,), (0,)) and plan.late(0, initial=True) == (0,)
+    assert plan.init_early == ((1,), (0,)) and plan.init_late[0] == (0,)
     jacobi = build_plan(("plant", "ctrl"), interfaces, wires, [Port("plant", "F_E")], None, jacobi=True)
     assert jacobi.early == ((), ()) and jacobi.init_early == plan.init_early
     assert plan.names == ("time", "plant.x_B", "plant.v_B", "plant.P", "plant.iq_ref", "plant.F_E", "ctrl.u", "ctrl.x")
@@ -154,11 +154,11 @@ def test_the_pair_as_a_system_gives_the_fixed_loops_bits(
     run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], coupling=coupling)
     if law == "fmu":
         run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
-    fixed = master.simulate(run, plant)
+    fixed = master.check_and_simulate(run, plant)
     if engine == "python":
         monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
     wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
-    system = master.simulate(dataclasses.replace(run, system=wired), plant)
+    system = master.check_and_simulate(dataclasses.replace(run, system=wired), plant)
     assert fixed.complete and system.complete, system.reason
     assert system.record["loop"]["kind"] == f"system, {engine}"
     kinds = [component.get("kind", "") for component in system.record["system"]["components"]]
@@ -185,12 +185,12 @@ def test_a_system_at_another_sample_time_gives_the_pairs_bits(plant, vsc_fmu: Pa
     run = _short(load_scenario(ROOT / "scenarios" / "fig5_external_force.yaml")[0], T_s=0.001)
     if law == "fmu":
         run = dataclasses.replace(run, controller=dataclasses.replace(run.controller, fmu=vsc_fmu))
-    fixed = master.simulate(run, plant)
+    fixed = master.check_and_simulate(run, plant)
     assert fixed.complete, fixed.reason
     wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
     recorded = Wiring(record=(Port("plant", "x_B"), Port("controller", "iq_ref")))
     for wiring in (wired, recorded):
-        system = master.simulate(dataclasses.replace(run, system=wiring), plant)
+        system = master.check_and_simulate(dataclasses.replace(run, system=wiring), plant)
         assert system.complete, system.reason
         assert system.record["loop"]["kind"] == "system, compiled"
         assert len(system.trace.time) == 301 and system.trace.time[1] == 0.001
@@ -210,7 +210,7 @@ def test_a_crossed_wiring_changes_the_trace(plant, vsc_fmu: Path) -> None:
         )
     )
     with pytest.raises(systems.SystemError_, match="different dimensions"):
-        master.simulate(dataclasses.replace(run, system=crossed), plant)
+        master.check_and_simulate(dataclasses.replace(run, system=crossed), plant)
     # the command wired into the load input (A into N: refused as well)
     into_load = Wiring(
         connections=(
@@ -220,11 +220,11 @@ def test_a_crossed_wiring_changes_the_trace(plant, vsc_fmu: Path) -> None:
         )
     )
     with pytest.raises(systems.SystemError_, match="different dimensions"):
-        master.simulate(dataclasses.replace(run, system=into_load), plant)
+        master.check_and_simulate(dataclasses.replace(run, system=into_load), plant)
     # no command at all: the plant's iq_ref keeps its start value (0 A), the slider never gets there
     open_loop = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("plant.v_B -> controller.v_B")))
-    outcome = master.simulate(dataclasses.replace(run, system=open_loop), plant)
-    fixed = master.simulate(run, plant)
+    outcome = master.check_and_simulate(dataclasses.replace(run, system=open_loop), plant)
+    fixed = master.check_and_simulate(run, plant)
     assert outcome.complete
     assert not np.array_equal(outcome.trace.column("plant.x_B"), fixed.trace.column("x_B"))
     assert "plant.iq_ref" not in outcome.trace.names  # an input nothing feeds is not a connector of the run
@@ -234,8 +234,8 @@ def test_a_crossed_wiring_changes_the_trace(plant, vsc_fmu: Path) -> None:
 def test_record_selects_variables_of_any_component(plant) -> None:
     run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
     chosen = (Port("plant", "lambda1"), Port("plant", "x_B"), Port("controller", "S"), Port("plant", "theta1"))
-    outcome = master.simulate(dataclasses.replace(run, system=Wiring(record=chosen)), plant)
-    fixed = master.simulate(run, plant)
+    outcome = master.check_and_simulate(dataclasses.replace(run, system=Wiring(record=chosen)), plant)
+    fixed = master.check_and_simulate(run, plant)
     assert outcome.trace.names == ("time", "plant.lambda1", "plant.x_B", "controller.S", "plant.theta1")
     for name in ("lambda1", "x_B", "S", "theta1"):
         assert np.array_equal(
@@ -244,11 +244,11 @@ def test_record_selects_variables_of_any_component(plant) -> None:
         )
     # any variable of an FMU component, not only its connectors: a parameter reads back as set
     chosen = (Port("plant", "x_B"), Port("plant", "m_B"))
-    outcome = master.simulate(dataclasses.replace(run, system=Wiring(record=chosen)), plant)
+    outcome = master.check_and_simulate(dataclasses.replace(run, system=Wiring(record=chosen)), plant)
     assert np.all(outcome.trace.column("plant.m_B") == run.plant.m_B)
     assert outcome.record["units"]["plant.m_B"] == "kg" and outcome.record["units"]["plant.x_B"] == "m"
     with pytest.raises(systems.SystemError_, match="not a variable of the system"):
-        master.simulate(dataclasses.replace(run, system=Wiring(record=(Port("plant", "nope"),))), plant)
+        master.check_and_simulate(dataclasses.replace(run, system=Wiring(record=(Port("plant", "nope"),))), plant)
 
 
 # -- the scenario keys --------------------------------------------------------------------------
@@ -362,14 +362,14 @@ def test_a_python_controller_reads_its_connected_inputs_only(plant) -> None:
     names: with x_B and v_B connected it gives the pair's Python loop bit for bit; with v_B left
     unconnected its read of v_B fails the run naming the name, never a silent 0."""
     run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
-    fixed = master.simulate(run, plant, controller=_PD())
+    fixed = master.check_and_simulate(run, plant, controller=_PD())
     wired = Wiring(connections=systems.pair_connections(Wiring(), ("x_B", "v_B")))
-    system = master.simulate(dataclasses.replace(run, system=wired), plant, controller=_PD())
+    system = master.check_and_simulate(dataclasses.replace(run, system=wired), plant, controller=_PD())
     assert fixed.complete and system.complete, system.reason
     assert np.array_equal(fixed.trace.column("x_B"), system.trace.column("plant.x_B"))
     assert np.array_equal(fixed.trace.column("iq_ref"), system.trace.column("controller.iq_ref"))
     half = Wiring(connections=(_c("plant.x_B -> controller.x_B"), _c("controller.iq_ref -> plant.iq_ref")))
-    failed = master.simulate(dataclasses.replace(run, system=half), plant, controller=_PD())
+    failed = master.check_and_simulate(dataclasses.replace(run, system=half), plant, controller=_PD())
     assert not failed.complete and "KeyError" in failed.reason and "'v_B'" in failed.reason
 
 
@@ -489,7 +489,7 @@ def test_integer_and_boolean_variables_are_recorded_with_their_type(
         Port.parse(p) for p in ("shared.count", "shared.flag", "shared.y", "plant.x_B", "plant.solver.steps")
     )
     wiring = Wiring(parts=(Part("shared", typed_part),), connections=wires, record=chosen)
-    outcome = master.simulate(dataclasses.replace(run, system=wiring), plant)
+    outcome = master.check_and_simulate(dataclasses.replace(run, system=wiring), plant)
     assert outcome.complete, outcome.reason
     assert outcome.record["loop"]["kind"] == f"system, {engine}"
     k = np.arange(21)
@@ -525,7 +525,7 @@ def test_a_part_whose_binary_lacks_a_function_fails_naming_it(plant, tmp_path: P
     run = _short(load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0])
     wires = (*systems.pair_connections(Wiring(), ("x_B", "v_B")), _c("plant.x_B -> shared.x"))
     wiring = Wiring(parts=(Part("shared", part),), connections=wires)
-    outcome = master.simulate(dataclasses.replace(run, system=wiring), plant)
+    outcome = master.check_and_simulate(dataclasses.replace(run, system=wiring), plant)
     assert not outcome.complete
     assert outcome.reason.startswith("component 'shared' (SharedRefs.fmu): its binary could not be loaded (")
     assert "fmi2CancelStep" in outcome.reason
@@ -683,7 +683,7 @@ def test_one_fmu_used_by_many_components_is_unzipped_once(
         t_end=0.01,
         system=Wiring(parts=sensors, connections=wires, record=(Port("plant", "x_B"), Port(f"s{n - 1}", "x_m"))),
     )
-    outcome = master.simulate(run, plant)
+    outcome = master.check_and_simulate(run, plant)
     assert outcome.complete, outcome.reason
     assert outcome.trace.column(f"s{n - 1}.x_m")[-1] > 0.2  # the last sensor ran, reading x_B
     assert used and 5 << 20 < max(used) < 2 * (5 << 20)

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from reference_dynamics import reference_accelerations
 
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario
 from toggle_cosim.physics.mechanism import theta1_from_xB
 from toggle_cosim.physics.motor import thrust_constant
@@ -38,7 +38,7 @@ VARIANT = "theta1_external_force_stick_slip"
 @pytest.fixture(scope="module")
 def theta1_run(plant_fmu: Path):
     run = next(r for r in load_scenario(ROOT / "scenarios" / "friction_models.yaml") if r.variant == VARIANT)
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert outcome.complete, outcome.reason
     return run, outcome
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.plant.contract import check_plant
 from toggle_cosim.signals.definitions import Step, sample
@@ -46,9 +46,9 @@ def step_runs(plant) -> dict:
     run = _run(STEP)
     with pytest.MonkeyPatch.context() as patch:
         patch.delenv("TOGGLE_COSIM_KERNEL", raising=False)
-        compiled = simulate(run, plant)
+        compiled = check_and_simulate(run, plant)
         patch.setenv("TOGGLE_COSIM_KERNEL", "0")
-        python = simulate(run, plant)
+        python = check_and_simulate(run, plant)
     return {"run": run, "compiled": compiled, "python": python}
 
 
@@ -81,9 +81,9 @@ def test_compiled_and_python_loops_give_the_same_trace_bit_for_bit(step_runs: di
     run = _run(PULSES)
     with pytest.MonkeyPatch.context() as patch:
         patch.delenv("TOGGLE_COSIM_KERNEL", raising=False)
-        a = simulate(run, plant)
+        a = check_and_simulate(run, plant)
         patch.setenv("TOGGLE_COSIM_KERNEL", "0")
-        b = simulate(run, plant)
+        b = check_and_simulate(run, plant)
     assert a.complete and np.array_equal(a.trace.data, b.trace.data)
     assert np.array_equal(a.trace.column("F_E"), sample(run.plant.F_E, run.steps, T_S))
 
@@ -91,7 +91,7 @@ def test_compiled_and_python_loops_give_the_same_trace_bit_for_bit(step_runs: di
 def test_jacobi_delays_the_command_but_sends_the_load_of_its_own_sample(step_runs: dict, plant) -> None:
     """Jacobi: the plant gets iq_ref of sample k − 1, and the load u(t_k) (a signal needs no
     exchange: its value at t_k is known at t_k)."""
-    outcome = simulate(step_runs["run"], plant, coupling="jacobi")
+    outcome = check_and_simulate(step_runs["run"], plant, coupling="jacobi")
     assert outcome.complete
     assert np.array_equal(outcome.trace.column("F_E"), step_runs["compiled"].trace.column("F_E"))
     E, F, x = (outcome.trace.column(name) for name in ("E_load", "F_E", "x_B"))
@@ -100,8 +100,8 @@ def test_jacobi_delays_the_command_but_sends_the_load_of_its_own_sample(step_run
 
 
 def test_a_constant_load_as_a_number_or_as_a_step_at_zero_gives_the_same_bits(plant) -> None:
-    number = simulate(_run(100.0, t_end=0.1), plant)
-    step = simulate(_run({"kind": "step", "start_time": 0.0, "height": 100.0}, t_end=0.1), plant)
+    number = check_and_simulate(_run(100.0, t_end=0.1), plant)
+    step = check_and_simulate(_run({"kind": "step", "start_time": 0.0, "height": 100.0}, t_end=0.1), plant)
     assert np.array_equal(number.trace.data, step.trace.data)
 
 

@@ -28,7 +28,7 @@ from click.testing import CliRunner
 from toggle_cosim.cli import main
 from toggle_cosim.control.trajectory import ProfileSpec, SampledReference, build, evaluate, sample
 from toggle_cosim.cosim.controllers import builtin_controller
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import ScenarioError, runs_from_document
 from toggle_cosim.experiments.sweep import load_sweep
 from toggle_cosim.plant.contract import check_plant
@@ -224,7 +224,10 @@ def tracking(plant_fmu: Path) -> dict:
         without = dataclasses.replace(
             controller, reference=SampledReference(controller.reference.trajectory, T_S, values)
         )
-        outcomes[law] = (simulate(run, plant, controller=controller), simulate(run, plant, controller=without))
+        outcomes[law] = (
+            check_and_simulate(run, plant, controller=controller),
+            check_and_simulate(run, plant, controller=without),
+        )
     return {"outcomes": outcomes, "end": build(ProfileSpec("trapezoid", X0, X1, 0.2, 2.0)).end}
 
 
@@ -262,9 +265,9 @@ def test_python_and_compiled_loops_agree_bit_for_bit_on_a_trajectory(
     plant = check_plant(plant_fmu)
     spec = {"kind": "scurve", "v_max": 0.2, "a_max": 2.0, "j_max": 40.0}
     run = runs_from_document({**_document(spec, law="integral"), "t_end": 0.7})[0]
-    compiled = simulate(run, plant)
+    compiled = check_and_simulate(run, plant)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    python = simulate(run, plant)
+    python = check_and_simulate(run, plant)
     assert compiled.record["loop"]["kind"] == "compiled" and python.record["loop"]["kind"] == "python"
     assert compiled.complete and python.complete
     bits = np.ascontiguousarray(compiled.trace.data).view(np.int64)
@@ -291,11 +294,11 @@ def test_the_controller_fmu_tracks_the_trajectory_with_the_built_in_laws_bits_in
     plant = check_plant(plant_fmu)
     spec = {"kind": "trapezoid", "v_max": 0.2, "a_max": 2.0}
     document = {**_document(spec, law=law), "t_end": 0.7, "coupling": coupling}
-    builtin = simulate(runs_from_document(document)[0], plant)
+    builtin = check_and_simulate(runs_from_document(document)[0], plant)
     with_fmu = {**document, "controller": {"law": law, "fmu": str(toggle_vsc)}}
-    compiled = simulate(runs_from_document(with_fmu)[0], plant)
+    compiled = check_and_simulate(runs_from_document(with_fmu)[0], plant)
     monkeypatch.setenv("TOGGLE_COSIM_KERNEL", "0")
-    python = simulate(runs_from_document(with_fmu)[0], plant)
+    python = check_and_simulate(runs_from_document(with_fmu)[0], plant)
     assert compiled.record["loop"]["kind"] == "compiled" and python.record["loop"]["kind"] == "python"
     assert builtin.complete and compiled.complete and python.complete
     for name in ("x_B", "v_B", "iq_ref", "S", "phase", "e"):

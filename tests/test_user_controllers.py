@@ -30,7 +30,7 @@ from toggle_cosim.control.controller import VSCController
 from toggle_cosim.control.protocol import ControlStep
 from toggle_cosim.cosim.controllers import builtin_controller
 from toggle_cosim.cosim.isolation.supervision import simulate_supervised
-from toggle_cosim.cosim.master import simulate
+from toggle_cosim.cosim.master import check_and_simulate
 from toggle_cosim.experiments.scenario import load_scenario, runs_from_document
 from toggle_cosim.experiments.sweep import read_results, run_sweep
 from toggle_cosim.files.traces import read_csv
@@ -134,13 +134,13 @@ def test_sweep_runs_each_user_law(tmp_path: Path, plant_fmu: Path) -> None:
         case["controller"] = {**case["controller"], **document["variants"][row["variant"]]["controller"]}
         (run,) = runs_from_document(case, base)
         run = dataclasses.replace(run, variant=row["variant"])
-        outcome = simulate(run, plant)
+        outcome = check_and_simulate(run, plant)
         _check_user_law(run, outcome.trace, outcome.record)
         assert row["peak_iq_ref_A"] == outcome.summary.peak_iq_ref_A
         assert row["final_error_m"] == outcome.summary.final_error_m
     builtin_doc = {k: v for k, v in document.items() if k != "variants"}
     builtin_doc["plant"] = {**builtin_doc["plant"], "F_E": 30.0}
-    builtin = simulate(runs_from_document(builtin_doc)[0], plant)
+    builtin = check_and_simulate(runs_from_document(builtin_doc)[0], plant)
     limited = table[table["variant"] == "limited_vsc"].iloc[0]
     assert builtin.summary.peak_iq_ref_A > 3.1 and limited["peak_iq_ref_A"] == 3.0
 
@@ -339,7 +339,7 @@ def test_live_controllers_passed_to_simulate(plant_fmu: Path, supervised: bool) 
     go = (
         (lambda c: simulate_supervised(run, plant, controller=c))
         if supervised
-        else (lambda c: simulate(run, plant, controller=c))
+        else (lambda c: check_and_simulate(run, plant, controller=c))
     )
     bang = go(Bang(run.x_target))
     assert bang.complete and bang.trace.names[-4:] == ("iq_ref", "F_E", "e", "count")

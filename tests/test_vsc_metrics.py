@@ -109,14 +109,14 @@ def test_the_shipped_invariants_hold_and_a_moved_one_fails_compare(runs, tmp_pat
 
 def test_references_check_the_invariants_and_update_re_measures_them(plant_fmu, tmp_path):
     from toggle_cosim.analysis.invariants import update_invariants
-    from toggle_cosim.cosim.master import simulate
+    from toggle_cosim.cosim.master import check_and_simulate
     from toggle_cosim.experiments import references
     from toggle_cosim.plant.contract import check_plant
 
     shutil.copytree(REFERENCES / "fig4_nominal", tmp_path / "fig4_nominal")
     shutil.copy(REFERENCES / "tolerances.yaml", tmp_path / "tolerances.yaml")
     run = tc.load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")["no_friction"]
-    outcome = simulate(run, check_plant(plant_fmu))
+    outcome = check_and_simulate(run, check_plant(plant_fmu))
     assert references.check(outcome, tmp_path).passed
     path = tmp_path / "fig4_nominal" / "no_friction_ref_invariants.yaml"
     path.write_text("invariants:\n  reaching_time_s: {value: 0.040, atol: 0.002}\n")  # T_h itself: 37 ms

@@ -123,7 +123,7 @@ def _outcome(
         from toggle_cosim.cosim.isolation.supervision import in_process_folder
 
         with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
-            return master.simulate(run, plant, progress, controller=controller, checked=checked)
+            return master.check_and_simulate(run, plant, progress, controller=controller, checked=checked)
     from toggle_cosim.cosim.isolation.supervision import remove_stale_folders, simulate_supervised
 
     remove_stale_folders()

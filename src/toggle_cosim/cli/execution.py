@@ -185,12 +185,12 @@ def _simulate(run, plant, time_limit: float | None, progress=None, checked=None)
     run as `load_runs` checked it (None: checked now)."""
     if not _supervised():
         from toggle_cosim.cosim.isolation.supervision import in_process_folder
-        from toggle_cosim.cosim.master import simulate
+        from toggle_cosim.cosim.master import check_and_simulate
 
         here = os.open(".", os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         try:
             with in_process_folder():  # the unzipped FMUs: removed after, or by the next command after a crash
-                return simulate(run, plant, progress, checked=checked)
+                return check_and_simulate(run, plant, progress, checked=checked)
         finally:  # a plant that changed directory must not move the relative paths that follow
             with contextlib.suppress(OSError):
                 os.fchdir(here)

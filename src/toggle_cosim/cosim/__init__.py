@@ -9,7 +9,8 @@ parts, built from parts, in three tiers (each imports only from the tiers below 
         system_python        a Python controller called back from that loop
         system_retry         checkpoints every N samples; restore, replay, substeps on a failure
         instance_pool        FMU instances kept loaded from run to run (sweeps, tuning)
-    master.simulate          one run: checked (checked.check_run), then its system executed
+    master                   one run: check (checked.check_run, in the process that starts it), then
+                             simulate (its system instantiated and stepped: systems.execute)
     checked                  a run checked before anything is loaded: CheckedRun
     systems                  a checked run's components instantiated and stepped (execute)
     pair_execution           the plain pair as the two-part system it is, with the pair's trace and run.json

@@ -1,7 +1,7 @@
 """A run checked before anything is loaded: `check_run` turns (run, plant, controller) into a
 `CheckedRun`, everything the run's execution needs that can be known before instantiation.
 
-One check, in the process that starts the run (`master.simulate`; under supervision the
+One check, in the process that starts the run (`master.check`; under supervision the
 parent, before the fork: `supervision`). It loads no FMU binary and runs no code of the
 user's; the run's child inherits the result and only instantiates and steps it (`systems.execute`).
 What it holds:
@@ -51,6 +51,7 @@ from toggle_cosim.control.protocol import COMMAND_COLUMNS, Controller, Controlle
 from toggle_cosim.controller_fmu.variables import REFERENCE_INPUTS
 from toggle_cosim.cosim.controllers import ControllerFmuPart, builds_in_child, check_user_controller, own_controller
 from toggle_cosim.cosim.execution.fmi_pointers import RECORDED_TYPES
+from toggle_cosim.cosim.execution.guard import FiniteGuard, controller_guard
 from toggle_cosim.cosim.plant_inputs import input_samples, other_inputs, plant_settings
 from toggle_cosim.cosim.user_code import check_owned
 from toggle_cosim.plant.contract import ContractError, FmuArchive, PlantInterface, read_fmu
@@ -116,7 +117,8 @@ class CheckedRun:
     controller (None: controller.python, built in the run's child: `built`), its components in
     `component_names` order (the controller's None until it is built), and once `complete` the
     checked connections, the stepping order, the plan, the signal table, the trace's columns
-    (`names`) and units, and run.json's components."""
+    (`names`) and units, run.json's components, the components' ids and the execution's
+    finiteness guard."""
 
     run: Run
     plant: PlantInterface
@@ -131,6 +133,8 @@ class CheckedRun:
     names: tuple[str, ...] = ()
     units: Mapping[str, str] = dataclasses.field(default_factory=dict)
     records: tuple[dict[str, Any], ...] = ()
+    ids: tuple[int, ...] = ()  # each component's id (`component_names`), in stepping order
+    guard: FiniteGuard | None = None  # a controller FMU's finiteness guard (`guard.controller_guard`)
 
     @property
     def complete(self) -> bool:
@@ -440,6 +444,8 @@ def _wired(checked: CheckedRun) -> CheckedRun:
             units[column] = unit
     names = ("time", *(port.variable for port in wiring.record)) if checked.pair else plan.names
     records = tuple(_component_record(component, order) for component in components.values())
+    listed = component_names(checked.wiring)
+    control = components[wiring.controller]
     return dataclasses.replace(
         checked,
         wiring=wiring,
@@ -450,6 +456,8 @@ def _wired(checked: CheckedRun) -> CheckedRun:
         names=tuple(names),
         units=units,
         records=records,
+        ids=tuple(listed.index(name) + 1 for name in order),
+        guard=controller_guard(plan, control.name, COMMAND) if isinstance(control, FmuComponent) else None,
     )
 
 

@@ -155,12 +155,13 @@ def simulate_pair_as_system(
     count: np.ndarray | None = None,
     calling: np.ndarray | None = None,
     pool: InstancePool | None = None,
+    checkpoints: CheckpointOptions | None = None,
     started: float | None = None,
 ) -> RunOutcome:
     """Run the plain pair, checked (`checked.check_run`: its trace the pair's columns,
     `CheckedRun.pair`), in the execution with the pair's trace and run.json (module docstring);
-    arguments as `systems.execute`'s. Never raises for a plant or controller fault: see
-    RunOutcome."""
+    arguments as `systems.execute`'s (the checkpoints' `lead` is the pair's: 1). Never raises
+    for a plant or controller fault: see RunOutcome."""
     run = checked.run
     outcome = execute(
         checked,
@@ -168,7 +169,7 @@ def simulate_pair_as_system(
         buffer,
         count,
         calling,
-        checkpoints=CheckpointOptions(lead=1),
+        checkpoints=dataclasses.replace(checkpoints or CheckpointOptions(), lead=1),
         pool=pool,
         words=PlantWords(run.system.plant, run.system.controller),
         started=started,

@@ -16,14 +16,13 @@ Either loop runs in stretches between checkpoints (`system_retry.SystemCheckpoin
 component's refused step is retried from the last one, and run.json lists each retry
 (`retries`) and says whether retries are on (`system.checkpoints`).
 
-A controller FMU runs with the execution's finiteness guard (`guard.controller_guard`): a value
-it would measure that is not finite, or a command it gives that is not, ends the run at that
-sample, in both loops, as a native controller's own check does.
+A controller FMU runs with the execution's finiteness guard (`guard.controller_guard`, made by
+the check): a value it would measure that is not finite, or a command it gives that is not, ends
+the run at that sample, in both loops, as a native controller's own check does.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time as clock
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -31,9 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from toggle_cosim.control.protocol import Controller, ControllerError
+from toggle_cosim.control.protocol import Controller
 from toggle_cosim.cosim.checked import (
-    COMMAND,
     CheckedRun,
     FmuComponent,
     SystemError_,
@@ -46,13 +44,12 @@ from toggle_cosim.cosim.checked import (
 from toggle_cosim.cosim.controllers import user_controller
 from toggle_cosim.cosim.execution.algorithm import Execution, TraceObserver
 from toggle_cosim.cosim.execution.budget import BudgetExceeded, WorkBudget
-from toggle_cosim.cosim.execution.guard import controller_guard
 from toggle_cosim.cosim.execution.instance_pool import InstancePool
 from toggle_cosim.cosim.execution.slaves import ControllerSlave, FmuSlave, Slave, SlaveError
 from toggle_cosim.cosim.execution.system_loop import FMI_FAILED, HAND_BACK, NOT_FINITE, SystemLoop, compiled_system
 from toggle_cosim.cosim.execution.system_retry import CheckpointOptions, FailureWords, SystemCheckpoints
 from toggle_cosim.cosim.figures import run_figures
-from toggle_cosim.cosim.outcome import RunOutcome, Stepping, refused_outcome, run_record
+from toggle_cosim.cosim.outcome import RunOutcome, Stepping, run_record
 from toggle_cosim.files.traces import Trace
 from toggle_cosim.messages import bounded_text
 from toggle_cosim.plant.contract import PlantInterface
@@ -69,7 +66,6 @@ __all__ = [
     "instantiate",
     "pair_connections",
     "ready",
-    "simulate_system",
     "system_columns",
     "unit_conversion",
 ]
@@ -234,32 +230,6 @@ def loop_words(stepping: Stepping, components: int, plan: Plan, T_s: float) -> d
     }
 
 
-def simulate_system(
-    run: Run,
-    plant: PlantInterface,
-    progress: Callable[[float], None] | None = None,
-    buffer: np.ndarray | None = None,
-    controller: Controller | None = None,
-    coupling: str | None = None,
-    count: np.ndarray | None = None,
-    calling: np.ndarray | None = None,
-    checkpoints: CheckpointOptions | None = None,
-    pool: InstancePool | None = None,
-    words: FailureWords | None = None,
-) -> RunOutcome:
-    """Check (`checked.check_run`), build a controller.python here (`ready`) and run a system
-    (`execute`); a controller that cannot be built or checked fails the run (`outcome.refused_outcome`).
-    SystemError_ for a system that cannot run as written."""
-    started = clock.perf_counter()
-    try:
-        checked = ready(check_run(run, plant, controller, coupling))
-    except ControllerError as error:
-        if coupling is not None and coupling != run.coupling:
-            run = dataclasses.replace(run, coupling=coupling)
-        return refused_outcome(run, plant, str(error), started)
-    return execute(checked, progress, buffer, count, calling, checkpoints, pool, words, started)
-
-
 def execute(
     checked: CheckedRun,
     progress: Callable[[float], None] | None = None,
@@ -292,10 +262,7 @@ def execute(
         every = max(n // 100, 1)
         hooks.append(lambda k: progress(k * run.T_s / run.t_end) if k % every == 0 else None)
     calling = calling if calling is not None else np.zeros(1, dtype=np.int64)
-    names = component_names(checked.wiring)
-    ids = [names.index(name) + 1 for name in plan.order]
-    control = next(c for c in checked.components if c is not None and c.name == run.system.controller)
-    guard = controller_guard(plan, control.name, COMMAND) if isinstance(control, FmuComponent) else None
+    ids, guard = checked.ids, checked.guard
     execution = Execution(
         plan, assembly.slaves, assembly.signals, n, run.T_s, run.t_end, [observer], hooks, calling, ids, guard
     )

@@ -2,7 +2,7 @@
 in a Dask worker) drives a plant host (`cosim.isolation.plant_host`), a child process that unzips each FMU
 and loads its binary once, then runs case after case on one instance of each component (the
 plant, a controller FMU, a system's parts), kept by its FMU's SHA-256 and its name in the host's
-pool (`cosim.execution.instance_pool`, `master.simulate(..., pool=)`) and reset between cases; after a
+pool (`cosim.execution.instance_pool`, `master.check_and_simulate(..., pool=)`) and reset between cases; after a
 failed case the instances are freed and the next one gets new ones.
 A case that crashes, aborts or hangs the host is a failed row with the reason (and how far it
 got); the runner starts a new host for the next case. A case never sees what another left: the
@@ -10,9 +10,9 @@ same case gives the same numbers alone, first in a host, after a failed case or 
 complete one.
 
 Each case is checked once, in the process that drives the host (`checked.check_run`, the
-same check `master.simulate` makes: `check_case`), and sent to the host with the request,
+same check `master.check` makes: `check_case`), and sent to the host with the request,
 pickled with its plant left out (`pack_checked`: the host has it); the host only instantiates
-(from its pool) and steps what was checked (`simulate(..., checked=)`).
+(from its pool) and steps what was checked (`check_and_simulate(..., checked=)`).
 
 The host loads the FMU from a private copy (in its own folder, created 0700) of bytes whose
 SHA-256 it has checked against the sweep's: a file changed, or swapped, after the sweep checked
@@ -156,7 +156,7 @@ def _case_run(payload: Mapping[str, Any]) -> Any:
 
 
 def check_case(payload: Mapping[str, Any], plant: Any) -> CheckedRun:
-    """The case checked as `master.simulate` checks a run (`checked.check_run`: its controller,
+    """The case checked as `master.check` checks a run (`checked.check_run`: its controller,
     without running the user's code, its parts, connections, units, plan and signal table;
     nothing loaded), in the process that drives its host. Raises what `check_run` raises."""
     from toggle_cosim.cosim.checked import check_run
@@ -361,7 +361,7 @@ class CaseServer:
         return self.loaded
 
     def __call__(self, payload: Mapping[str, Any], buffer: np.ndarray, count: np.ndarray) -> dict[str, Any]:
-        from toggle_cosim.cosim.master import simulate
+        from toggle_cosim.cosim.master import check_and_simulate
 
         started = time.perf_counter()
         row = _empty_row(payload, self.sha256)
@@ -379,7 +379,7 @@ class CaseServer:
                     # without it (a case its runner's check refused), the case as simulate checks it: the same refusal
                     run = checked.run if checked is not None else _case_run(payload)
                     view = case_view(buffer, run.steps + 1, len(case_columns(payload, self.plant)))
-                    outcome = simulate(
+                    outcome = check_and_simulate(
                         run, plant, buffer=view, count=count, calling=self.calling, pool=self.pool, checked=checked
                     )
                 except Exception as error:  # noqa: BLE001 - any failure is the case's result

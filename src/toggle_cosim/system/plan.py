@@ -50,8 +50,11 @@ class Plan:
     names in `output_names[c]`, `input_names[c]`), `early[c]` the positions in inputs[c] set
     before its outputs are read (a signal's only for a reference, module docstring). `feed_source[s]`,
     `feed_factor[s]`, `feed_offset[s]` feed the input slot s (an output slot, or SIGNAL - j for
-    signal column j; factor 1 and offset 0: a copy). `record` are the slots recorded in trace
-    columns 1 .., named `names[1:]`."""
+    signal column j; factor 1 and offset 0: a copy). `late[c]` the positions in inputs[c] set
+    after every output of the sample is known (`init_early[c]`, `init_late[c]`: of the
+    initialisation pass); `fed_by[c]` what feeds each of inputs[c], in words ("component
+    'plant': its output x_B", "the signal fed to plant.F_E"). `record` are the slots recorded in
+    trace columns 1 .., named `names[1:]`."""
 
     order: tuple[str, ...]
     output_names: tuple[tuple[str, ...], ...]
@@ -71,12 +74,9 @@ class Plan:
     # initialisation runs one Gauss-Seidel pass, so every connected input starts from its
     # source's initial output (the fixed point libcosim's initialisation iterates to)
     init_early: tuple[tuple[int, ...], ...] = ()
-
-    def late(self, c: int, initial: bool = False) -> tuple[int, ...]:
-        """Positions in inputs[c] set after every output of the sample (initial: of the
-        initialisation pass) is known."""
-        early = set(self.init_early[c] if initial else self.early[c])
-        return tuple(i for i in range(len(self.inputs[c])) if i not in early)
+    late: tuple[tuple[int, ...], ...] = ()
+    init_late: tuple[tuple[int, ...], ...] = ()
+    fed_by: tuple[tuple[str, ...], ...] = ()
 
     def slot(self, port: Port) -> int:
         """The buffer slot of a component's output or fed input."""
@@ -153,6 +153,16 @@ def build_plan(
             own_early = sorted(own_early + paced)
         init_early.append(tuple(own_init))
         early.append(() if jacobi else tuple(own_early))
+    fed_by = []
+    for c, name in enumerate(order):
+        words = []
+        for variable in input_names[c]:
+            feed = fed[Port(name, variable)]
+            if isinstance(feed, Connection):
+                words.append(f"component {feed.start.component!r}: its output {feed.start.variable}")
+            else:
+                words.append(f"the signal fed to {Port(name, variable)}")
+        fed_by.append(tuple(words))
     if record is None:
         chosen = [Port(name, v) for c, name in enumerate(order) for v in (*output_names[c], *input_names[c])]
     else:
@@ -173,4 +183,12 @@ def build_plan(
         size=size,
         jacobi=jacobi,
         init_early=tuple(init_early),
+        late=tuple(_others(len(input_names[c]), early[c]) for c in range(len(order))),
+        init_late=tuple(_others(len(input_names[c]), init_early[c]) for c in range(len(order))),
+        fed_by=tuple(fed_by),
     )
+
+
+def _others(count: int, chosen: Sequence[int]) -> tuple[int, ...]:
+    """The positions 0 .. count - 1 not in `chosen`, in order."""
+    return tuple(i for i in range(count) if i not in set(chosen))

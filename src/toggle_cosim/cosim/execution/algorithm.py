@@ -33,7 +33,7 @@ from typing import Protocol
 
 import numpy as np
 
-from toggle_cosim.cosim.execution.guard import FiniteGuard, feed_words, refusal
+from toggle_cosim.cosim.execution.guard import FiniteGuard, refusal
 from toggle_cosim.cosim.execution.slaves import Slave, SlaveError
 from toggle_cosim.system.plan import SIGNAL, Plan
 
@@ -109,7 +109,7 @@ class Execution:
             slave.bind(plan.input_names[c], plan.output_names[c])
             fed_from = getattr(slave, "fed_from", None)
             if callable(fed_from):
-                fed_from([feed_words(plan, slot) for slot in plan.inputs[c]])
+                fed_from(list(plan.fed_by[c]))
         self._out = [(ctypes.c_double * max(len(slots), 1))() for slots in plan.outputs]
         source = plan.feed_source
         self._feeds = [
@@ -117,10 +117,9 @@ class Execution:
             for slots in plan.inputs
         ]
         self._early = plan.early
-        self._late = tuple(plan.late(c) for c in range(len(self.slaves)))
-        guarded = [guard.component(plan, c) for c in range(len(self.slaves))] if guard is not None else []
-        self._guard_in = tuple(frozenset(inputs) for inputs, _ in guarded) or (frozenset(),) * len(self.slaves)
-        self._guard_out = tuple(outputs for _, outputs in guarded) or ((),) * len(self.slaves)
+        self._late = plan.late
+        self._guard_in = guard.inputs if guard is not None else (frozenset(),) * len(self.slaves)
+        self._guard_out = guard.outputs if guard is not None else ((),) * len(self.slaves)
 
     def _check(self, c: int, positions: Sequence[int], values: Sequence[float], t: float) -> None:
         """The guard (`guard`) on the inputs `positions` of component c about to be set to `values`."""
@@ -185,7 +184,7 @@ class Execution:
         for c, slave in enumerate(self.slaves):
             self.calling[0] = self.ids[c]
             slave.enter_initialization()
-        late = tuple(self.plan.late(c, initial=True) for c in range(len(self.slaves)))
+        late = self.plan.init_late
         self._set_late(0.0, late, self._pass(0, 0.0, self.plan.init_early, late))
         for c, slave in enumerate(self.slaves):
             self.calling[0] = self.ids[c]

@@ -20,22 +20,18 @@ from toggle_cosim.control.protocol import command_not_finite
 from toggle_cosim.cosim.execution.slaves import SlaveError, measured_not_finite
 from toggle_cosim.system.plan import SIGNAL, Plan
 
-__all__ = ["FiniteGuard", "controller_guard", "feed_words", "refusal"]
+__all__ = ["FiniteGuard", "controller_guard", "refusal"]
 
 
 @dataclass(frozen=True)
 class FiniteGuard:
-    """The guarded slots of a plan (module docstring): fed input slots and output slots."""
+    """The guarded slots of a plan (module docstring): `slots`, its fed input slots and output
+    slots; per component in stepping order, `inputs[c]` the guarded positions in plan.inputs[c]
+    and `outputs[c]` those in plan.outputs[c]."""
 
     slots: frozenset[int]
-
-    def component(self, plan: Plan, c: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
-        """Component c's guarded inputs (positions in plan.inputs[c]) and outputs (positions in
-        plan.outputs[c])."""
-        return (
-            tuple(i for i, slot in enumerate(plan.inputs[c]) if slot in self.slots),
-            tuple(j for j, slot in enumerate(plan.outputs[c]) if slot in self.slots),
-        )
+    inputs: tuple[frozenset[int], ...]
+    outputs: tuple[tuple[int, ...], ...]
 
 
 def controller_guard(plan: Plan, controller: str, command: str) -> FiniteGuard:
@@ -45,25 +41,19 @@ def controller_guard(plan: Plan, controller: str, command: str) -> FiniteGuard:
     slots = {slot for slot in plan.inputs[c] if plan.feed_source[slot] > SIGNAL}
     if command in plan.output_names[c]:
         slots.add(plan.outputs[c][plan.output_names[c].index(command)])
-    return FiniteGuard(frozenset(slots))
-
-
-def feed_words(plan: Plan, slot: int) -> str:
-    """What feeds the input slot, in words: "component 'plant': its output x_B", or a signal."""
-    source = int(plan.feed_source[slot])
-    if source <= SIGNAL:
-        return f"the signal fed to {plan.signals[SIGNAL - source]}"
-    for c, outputs in enumerate(plan.outputs):
-        if source in outputs:
-            return f"component {plan.order[c]!r}: its output {plan.output_names[c][outputs.index(source)]}"
-    return f"buffer slot {source}"
+    return FiniteGuard(
+        frozenset(slots),
+        tuple(frozenset(i for i, slot in enumerate(inputs) if slot in slots) for inputs in plan.inputs),
+        tuple(tuple(j for j, slot in enumerate(outputs) if slot in slots) for outputs in plan.outputs),
+    )
 
 
 def refusal(plan: Plan, c: int, slot: int, value: float, t: float) -> SlaveError:
     """The error of component c's guarded `slot` holding `value` (not finite) at t: a measured
-    input's names its source (`not_finite`: the run's words say what it measures); the command's
-    is the protocol's ("the controller's command at t = ... is nan, not a finite float")."""
+    input's names its source (`Plan.fed_by`; `not_finite`: the run's words say what it
+    measures); the command's is the protocol's ("the controller's command at t = ... is nan, not
+    a finite float")."""
     name = plan.order[c]
     if slot in plan.outputs[c]:
         return SlaveError(f"component {name!r}: {command_not_finite(value, t)}", name)
-    return measured_not_finite(feed_words(plan, slot), value, t, name, "controller FMU")
+    return measured_not_finite(plan.fed_by[c][plan.inputs[c].index(slot)], value, t, name, "controller FMU")

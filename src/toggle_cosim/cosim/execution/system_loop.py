@@ -335,7 +335,7 @@ class SystemLoop:
             if outputs and outputs != tuple(range(outputs[0], outputs[0] + len(outputs))):
                 raise ValueError(f"component {plan.order[c]}: its output slots are not contiguous")
             early = plan.early[c]
-            late = plan.late(c)
+            late = plan.late[c]
             if isinstance(calls, NativeController):
                 native, held = _native_entry(calls, early, late, len(outputs), keep)
                 natives.append(_NativeSlot(c, calls, native, *held[2:5]))

@@ -279,7 +279,6 @@ def _build_controller(checked: CheckedRun, buffer_fd: int, write_fd: int) -> tup
 
 
 def _plant_process(
-    run: Run,
     checked: CheckedRun,
     buffer: np.ndarray | None,
     progress_slot: np.ndarray | None,
@@ -290,8 +289,8 @@ def _plant_process(
     calling: np.ndarray | None = None,
 ) -> None:
     """The plant's process: build the user's controller.python where the parent checked the run
-    without it (`_build_controller`), run what the parent checked (`master.simulate(...,
-    checked=)`: nothing is checked again), send the outcome (no trace) back, exit without
+    without it (`_build_controller`), run what the parent checked (`master.simulate`: nothing is
+    checked again), send the outcome (no trace) back, exit without
     cleanup. Its stdout and stderr are the parent's relay (`relay.OutputRelay`)."""
     code = 0
     try:
@@ -316,14 +315,7 @@ def _plant_process(
                 _send(write_fd, ("probed",))
                 os._exit(0)
         outcome = master.simulate(
-            run,
-            checked.plant,
-            progress if progress_slot is not None else None,
-            buffer=buffer,
-            controller=checked.controller,
-            count=count,
-            calling=calling,
-            checked=checked,
+            checked, progress if progress_slot is not None else None, buffer=buffer, count=count, calling=calling
         )
         if outcome.interrupted:  # SIGINT is ignored here: user code raised KeyboardInterrupt itself
             reason = "the run's code raised KeyboardInterrupt (not an interrupt of the command)"
@@ -475,7 +467,7 @@ class SupervisedRun:
         self.buffer = np.full((0, len(self.names)), np.nan)
         self.count = np.zeros(1, dtype=np.int64)  # the samples the child recorded (`shared_count`)
         self.progress_slot: np.ndarray | None = None
-        # a system's run writes here which component it calls (`systems.simulate_system`)
+        # a system's run writes here which component it calls (`systems.execute`)
         self.calling: np.ndarray | None = None
         self.deadline = math.inf
         self._with_progress = with_progress
@@ -525,7 +517,6 @@ class SupervisedRun:
             self.relay.in_child()
             plant_process = functools.partial(
                 _plant_process,
-                self.run,
                 self.checked,
                 None if self.deferred else self.buffer,
                 self.progress_slot,
@@ -758,8 +749,9 @@ def simulate_supervised(
     controller: Controller | None = None,
     checked: CheckedRun | None = None,
 ) -> outcomes.RunOutcome:
-    """`master.simulate` in a supervised child process; never raises for anything the plant or
-    the controller does. `controller`: as for `master.simulate` (the child inherits it); None:
+    """`master.check_and_simulate` supervised: the run checked here, simulated in a child process
+    (`master.simulate`); never raises for anything the plant or the controller does.
+    `controller`: as for `master.check` (the child inherits it); None:
     the run's own, built in the child. `checked`: the run as `checked.check_run` checked it with
     `controller`, by a caller that checked it before (None: checked here, before the fork).
     What the child prints is written to this process's sys.stdout and sys.stderr once the run
