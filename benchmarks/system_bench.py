@@ -363,18 +363,23 @@ def both_loops(run, plant, times: dict[str, list[float]], label: str) -> tuple[n
 
 def measure(plant, controller: Path, folder: Path, repetitions: int, parts: dict[str, Path] | None = None) -> dict:  # noqa: ANN001
     """Best per-sample times of the pair and the three-FMU system (compiled, Python,
-    the C master), and with `parts`, of the press system (compiled, Python, its FMUs replayed)."""
+    the C master; for the pair, the built-in law's fig4_nominal/friction by `full_loop` too,
+    each repetition right after the C master's run), and with `parts`, of the press system
+    (compiled, Python, its FMUs replayed)."""
     folder.mkdir(parents=True, exist_ok=True)
     binary = compile_master(folder)
     figures: dict = {}
+    builtin = next(r for r in paper_runs() if r.label == "fig4_nominal/friction")
     for key, monitor in (("pair", False), ("three", True)):
         run = fig4_with(controller, plant, monitor)
-        times: dict[str, list[float]] = {"compiled": [], "python": [], "c_master": []}
+        times: dict[str, list[float]] = {"compiled": [], "python": [], "c_master": [], "builtin": []}
         for _ in range(repetitions):
             trace, names = both_loops(run, plant, times, key)
             if binary is not None:
                 master = c_master(binary, run, plant, 2 if monitor else 1, 1, folder / key)  # one run, as the loop
                 times["c_master"].append(master["per_step_s"])
+                if not monitor:  # the built-in law in the execution beside it, for their ratio
+                    times["builtin"].append(full_loop(plant, builtin)["per_step"])
         result = {k: min(v) for k, v in times.items() if v}
         result["columns"] = len(names) - 1
         if binary is not None:
@@ -415,12 +420,13 @@ def section(table, figures: dict, plant, controller: Path | None, folder: Path, 
     figures["systems"] = {**got, "builtin_loop_s": builtin_s}
     table.add("built-in law through the execution (full_loop)", us(builtin_s), "as above; natively in C")
     if "c_master" in got["pair"]:
-        ratio = builtin_s / got["pair"]["c_master"]
+        beside = got["pair"]["builtin"]  # measured in turn with the C master, so a burst of load hits both
+        ratio = beside / got["pair"]["c_master"]
         figures["systems"]["builtin_over_c_master"] = ratio
         table.check(
             "built-in law through the execution <= 1.05 x a plain C master of the plant and controller FMUs",
             ratio <= 1.05,
-            f"{us(builtin_s)} / {us(got['pair']['c_master'])} = {ratio:.2f}",
+            f"{us(beside)} / {us(got['pair']['c_master'])} = {ratio:.3f}, the two measured in turn",
         )
     for key, what in (("pair", "plant + controller FMU"), ("three", "pair + monitor FMU")):
         r = got[key]
