@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -144,3 +145,120 @@ def test_without_the_block_the_same_child_dies_in_its_start_up() -> None:
         """
     )
     assert done.stdout.split() == ["child", "died", "True"], done.stderr
+
+
+WAITS = ["toggle_cosim.cosim.isolation.plant_host:wait_for_hosts", "toggle_cosim.cosim.isolation.supervision:wait_for"]
+
+WAIT_FOR_A_SILENT_CHILD = """
+import importlib, os, signal, threading, time
+
+module, name = WAIT.split(":")
+wait = getattr(importlib.import_module(module), name)
+read, write = os.pipe()
+
+class SilentHost:  # a busy host (or run) that never answers, with a far deadline
+    busy, polls, done = True, False, False
+    deadline = time.monotonic() + 600
+    def watched(self):
+        return [read]
+    def service(self, ready):
+        return None
+
+main = threading.get_native_id()
+
+def selecting():  # the main thread asleep in select (select, pselect6: x86-64; pselect6: arm64)
+    with open(f"/proc/self/task/{main}/syscall") as stream:
+        return stream.read().split()[0] in ("23", "270", "72")
+
+def guard():  # a main thread still asleep 20 s after the interrupt is woken through the pipe
+    limit = time.monotonic() + 20
+    while selecting() and time.monotonic() < limit:
+        time.sleep(0.01)
+    if selecting():
+        print("still asleep", flush=True)
+        os.write(write, b"x")
+"""
+
+
+@pytest.mark.parametrize("wait", WAITS)
+def test_an_interrupt_another_thread_receives_ends_the_wait_for_children(wait: str) -> None:
+    """The kernel gives a process's signal to any thread that does not block it: to another
+    thread (tqdm's monitor in a sweep) while the main thread blocks it, as it does while it
+    starts a child. That thread only notes the signal for the main thread. A main thread already
+    asleep in the wait for its plant hosts or supervised runs, whose deadline is a time limit,
+    must wake and be interrupted now, not when the deadline comes. Here the signal goes to the
+    other thread once the main thread sleeps in select; if it is still asleep 20 s later, the
+    other thread wakes it through the host's pipe (a hang guard) and says so."""
+    done = _program(
+        """
+        def other():
+            while not selecting():
+                time.sleep(0.001)
+            signal.pthread_kill(threading.get_ident(), signal.SIGINT)  # to this thread, not the main one
+            guard()
+
+        threading.Thread(target=other, daemon=True).start()
+        try:
+            wait([SilentHost()])
+            print("returned", flush=True)
+        except KeyboardInterrupt as error:
+            print("interrupted", error, flush=True)
+        """,
+        setup=f"WAIT = {wait!r}\n{WAIT_FOR_A_SILENT_CHILD}",
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["interrupted SIGINT"], (done.stdout, done.stderr)
+
+
+@pytest.mark.parametrize("wait", WAITS)
+def test_an_interrupt_some_code_dropped_is_raised_by_the_next_wait(wait: str) -> None:
+    """C code that calls Python and clears what it raised drops a KeyboardInterrupt (lxml's
+    import did, inside `abc.register`, and the sweep ran on to its held case and hung there):
+    here the interrupt lands in code that drops it. The command's next wait for its children
+    must raise it at once instead of sleeping to the deadline (the guard as above)."""
+    done = _program(
+        """
+        try:
+            signal.raise_signal(signal.SIGTERM)  # lands here, and is dropped
+        except KeyboardInterrupt:
+            pass
+        threading.Thread(target=guard, daemon=True).start()
+        try:
+            wait([SilentHost()])
+            print("returned", flush=True)
+        except KeyboardInterrupt as error:
+            print("interrupted", error, flush=True)
+        """,
+        setup=f"WAIT = {wait!r}\n{WAIT_FOR_A_SILENT_CHILD}",
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["interrupted SIGTERM"], (done.stdout, done.stderr)
+
+
+def test_a_command_that_dropped_an_interrupt_ends_as_interrupted(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A command whose interrupt some C code dropped, and which then had nothing to wait for,
+    still ends with exit status 130 and the interrupt's line, not as if no one had pressed
+    Ctrl-C: `toggle-cosim init`, with an interrupt raised and dropped while it copies."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from toggle_cosim.cli import init_command, main
+
+    copytree = shutil.copytree
+
+    def copy_with_a_dropped_interrupt(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            pass  # as C code that clears what the Python it called raised
+        return copytree(*args, **kwargs)
+
+    monkeypatch.setattr(init_command.shutil, "copytree", copy_with_a_dropped_interrupt)
+    result = CliRunner().invoke(main, ["init", str(tmp_path / "work")])
+    assert result.exit_code == 130, result.output
+    assert "interrupted (exit 130)" in result.output

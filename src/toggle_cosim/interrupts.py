@@ -5,20 +5,36 @@
 raised when the block ends, so a file is either whole or not there. The command line turns
 KeyboardInterrupt into exit status 130 (`cli`).
 
+A raised KeyboardInterrupt can still be lost: C code that calls Python and then clears whatever
+it raised drops it (a sweep's lazy import of lxml, whose module set-up registers classes with
+`abc`, did, and the sweep ran on to its held case). So an interrupt, once it arrived, stays
+noted for the command (`noted`): the command's waits raise it again before they block
+(`select_readable`), and a command that ends without having acted on it ends as interrupted.
+
 Child processes (plants, sweep workers, figure workers) are started inside
 `starting_children()` and call `as_child()` first thing: Ctrl-C, which a terminal sends to the
 whole process group, is the command's alone to act on, and cannot hit a child while it starts.
+
+Python runs a signal's handler in the main thread, but the kernel may deliver the signal to any
+thread that does not block it: to another thread (tqdm's monitor, pyarrow's pool) whenever the
+main thread blocks it, as it does while it starts a child. That thread only notes the signal for
+the main thread, which acts on it when it next runs Python: a main thread already waiting in
+`select` would wait on, up to its timeout (a sweep case's time limit). So `install()` has every
+signal's number written to a pipe as well (`signal.set_wakeup_fd`), and the waits of the
+command's main thread select on it too (`select_readable`): they return at once, and the
+handler runs.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import select
 import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 EXIT_INTERRUPTED = 130
 RESEND_DELAY_S = 0.002  # an interrupt lost in a callback is sent again after this
@@ -30,6 +46,9 @@ _program = False  # running as the toggle-cosim program (not imported by a test 
 _in_hook = False  # inside _unraisable, where a raised interrupt would be dropped again
 _lost = signal.SIGINT  # the interrupt _unraisable is sending again
 _child = False  # a child process (`as_child`): SIGINT is ignored, so no KeyboardInterrupt is an interrupt
+_wakeup: tuple[int, int] | None = None  # the pipe signals are written to (`install`), read end first
+_noted: int | None = None  # the interrupt that arrived during the command, until it ends (`noted`)
+_WAKEUP_KEY = -2  # where `install` keeps the wakeup descriptor it replaced, among the old handlers
 
 
 def raised_by_code(error: BaseException) -> bool:
@@ -43,10 +62,11 @@ def raised_by_code(error: BaseException) -> bool:
 
 
 def _handler(signum: int, frame: object) -> None:
-    global _pending, _lost
+    global _pending, _lost, _noted
     if _starting:
         os.write(2, b"interrupted (exit 130) while starting; nothing was written\n")
         os._exit(EXIT_INTERRUPTED)
+    _noted = signum
     if _depth > 0:
         _pending = signum
         return
@@ -98,26 +118,72 @@ def _send_after_hook() -> None:
 
 def install() -> dict[int, object]:
     """SIGINT and SIGTERM raise KeyboardInterrupt (main thread only); returns the old handlers."""
-    global _starting
+    global _starting, _noted
     if threading.current_thread() is not threading.main_thread():
         return {}
     if _program:
         sys.unraisablehook = _unraisable
     _starting = False
+    _noted = None
     old = {}
     for number in _SIGNALS:
         old[number] = signal.signal(number, _handler)
+    old[_WAKEUP_KEY] = signal.set_wakeup_fd(_wakeup_pipe()[1], warn_on_full_buffer=False)
     return old
 
 
 def restore(old: dict[int, object]) -> None:
+    global _noted
+    _noted = None
     for number, handler in old.items():
-        signal.signal(number, handler)  # type: ignore[arg-type]
+        if number == _WAKEUP_KEY:
+            signal.set_wakeup_fd(handler)  # type: ignore[arg-type]
+        else:
+            signal.signal(number, handler)  # type: ignore[arg-type]
+
+
+def _wakeup_pipe() -> tuple[int, int]:
+    """The pipe every signal's number is written to (module docstring), made once per process."""
+    global _wakeup
+    if _wakeup is None:
+        _wakeup = os.pipe2(os.O_NONBLOCK | os.O_CLOEXEC)
+    return _wakeup
+
+
+def select_readable(fds: Sequence[int], timeout: float) -> list[int]:
+    """`select` for reading on `fds` for up to `timeout` s, returning early when a signal arrives
+    in this process (module docstring), whichever thread the kernel gave it to; the handler then
+    runs as this returns. An interrupt noted before (module docstring) is raised at once, outside
+    `deferred()`. The descriptors among `fds` that are ready."""
+    raise_if_noted()
+    wakeup = _wakeup[0] if _wakeup is not None else -1
+    ready, _, _ = select.select([*fds, wakeup] if wakeup >= 0 else list(fds), [], [], timeout)
+    if wakeup >= 0 and wakeup in ready:
+        with contextlib.suppress(OSError):
+            while os.read(wakeup, 512):
+                pass
+    return [fd for fd in ready if fd != wakeup]
+
+
+def noted() -> int | None:
+    """The interrupt (its signal number) that arrived during the command so far, acted on or not;
+    None if none did."""
+    return _noted
+
+
+def raise_if_noted() -> None:
+    """Raise KeyboardInterrupt if an interrupt arrived during the command (`noted`), outside
+    `deferred()` (there it is raised when the block ends)."""
+    if _noted is not None and _depth == 0:
+        raise KeyboardInterrupt(signal.Signals(_noted).name)
 
 
 def ignore() -> None:
     """From here on the process is ending: further signals change nothing (main thread only), and
-    helper threads that fail while it ends (a process pool whose workers were killed) stay quiet."""
+    helper threads that fail while it ends (a process pool whose workers were killed) stay quiet.
+    An interrupt noted before is no longer raised again (`raise_if_noted`)."""
+    global _noted
+    _noted = None
     if not _program:  # imported (a test, a notebook): the caller's handlers come back afterwards
         return
     if threading.current_thread() is threading.main_thread():
@@ -189,8 +255,15 @@ def as_child(on_terminate: object = signal.SIG_DFL) -> None:
     """The signals of a child process started by a toggle-cosim command: SIGINT is the parent's
     to handle (ignored here, a pending one discarded), SIGTERM does `on_terminate` (the parent
     stopping this child); then both are unblocked (`starting_children()` blocked them)."""
-    global _child
+    global _child, _wakeup
     _child = True
+    if _wakeup is not None:  # the parent's pipe: this process's signals are its own
+        with contextlib.suppress(ValueError):  # set only from the main thread
+            signal.set_wakeup_fd(-1)
+        for fd in _wakeup:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        _wakeup = None
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, on_terminate)  # type: ignore[arg-type]
     signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)

@@ -100,6 +100,7 @@ class _Commands(click.Group):
         try:
             try:
                 result = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+                interrupts.raise_if_noted()  # an interrupt some C code dropped: the command still ends as interrupted
             except SystemExit:
                 interrupts.ignore()  # done: a signal during the interpreter's teardown changes nothing
                 raise

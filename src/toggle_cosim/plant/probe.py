@@ -12,7 +12,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
-import select
 import shutil
 import signal
 import sys
@@ -22,7 +21,7 @@ import warnings
 import zipfile
 from pathlib import Path
 
-from toggle_cosim import process_tree
+from toggle_cosim import interrupts, process_tree
 from toggle_cosim.plant.contract import PlantInterface, platform_binary_folders
 
 PROBE_SECONDS = 10.0
@@ -104,7 +103,7 @@ def _wait(pid: int, read_fd: int, deadline: float) -> tuple[bytes, bool]:
                 ended = False
                 break
             watched = [read_fd] + ([pidfd] if pidfd >= 0 else [])
-            ready, _, _ = select.select(watched, [], [], min(left, 0.05 if pidfd < 0 else left))
+            ready = interrupts.select_readable(watched, min(left, 0.05 if pidfd < 0 else left))
             if read_fd in ready:
                 answer += _read_available(read_fd)
     finally:

@@ -27,7 +27,6 @@ import math
 import mmap
 import os
 import pickle
-import select
 import shutil
 import struct
 import sys
@@ -308,7 +307,7 @@ def wait_for_hosts(hosts: Sequence[PlantHost], poll: float | None = None) -> lis
     wait = max(0.0, min(host.deadline for host in busy) - clock.monotonic())
     if poll is not None or any(host.polls for host in busy):
         wait = min(wait, poll if poll is not None else 0.1)
-    ready, _, _ = select.select([fd for host in busy for fd in host.watched()], [], [], wait)
+    ready = interrupts.select_readable([fd for host in busy for fd in host.watched()], wait)
     answers = []
     for host in busy:
         answer = host.service(ready)

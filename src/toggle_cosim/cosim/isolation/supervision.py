@@ -39,7 +39,6 @@ import math
 import mmap
 import os
 import pickle
-import select
 import shutil
 import struct
 import sys
@@ -734,7 +733,7 @@ def wait_for(children: list[SupervisedRun], poll: float | None = None) -> None:
     wait = max(0.0, min(child.deadline for child in active) - clock.monotonic())
     if poll is not None or any(child.polls for child in active):
         wait = min(wait, poll if poll is not None else 0.1)
-    ready, _, _ = select.select([fd for child in active for fd in child.watched()], [], [], wait)
+    ready = interrupts.select_readable([fd for child in active for fd in child.watched()], wait)
     for child in active:
         child.service(ready)
 
