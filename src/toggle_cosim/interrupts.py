@@ -117,18 +117,20 @@ def _send_after_hook() -> None:
 
 
 def install() -> dict[int, object]:
-    """SIGINT and SIGTERM raise KeyboardInterrupt (main thread only); returns the old handlers."""
+    """SIGINT and SIGTERM raise KeyboardInterrupt (main thread only); returns the old handlers.
+    The start-up mode (`install_for_start_up`) ends last: an interrupt while this runs exits 130
+    at once, as during the imports, rather than raising in the middle of it."""
     global _starting, _noted
     if threading.current_thread() is not threading.main_thread():
         return {}
     if _program:
         sys.unraisablehook = _unraisable
-    _starting = False
     _noted = None
     old = {}
     for number in _SIGNALS:
         old[number] = signal.signal(number, _handler)
     old[_WAKEUP_KEY] = signal.set_wakeup_fd(_wakeup_pipe()[1], warn_on_full_buffer=False)
+    _starting = False
     return old
 
 

@@ -96,8 +96,9 @@ class _Commands(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):  # noqa: ANN001, ANN201
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
-        old_handlers = interrupts.install()
+        old_handlers: dict[int, object] = {}
         try:
+            old_handlers = interrupts.install()  # inside: an interrupt right after it is handled below
             try:
                 result = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
                 interrupts.raise_if_noted()  # an interrupt some C code dropped: the command still ends as interrupted
