@@ -226,3 +226,13 @@ def test_the_run_command_checks_each_run_once_in_its_process(
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.output
     assert log.read_text(encoding="utf-8").split() == [str(os.getpid())] * 3
+
+
+def test_simulate_refuses_a_run_that_was_not_checked(plant) -> None:
+    """`master.simulate` takes what `master.check` returns; given a scenario's run (as its
+    earlier form took), it says which call to make instead."""
+    from toggle_cosim.cosim import master
+
+    run = load_scenario(ROOT / "scenarios" / "fig4_nominal.yaml")[0]
+    with pytest.raises(TypeError, match=r"master\.check_and_simulate\(run, plant"):
+        master.simulate(run, plant)

@@ -96,6 +96,11 @@ def simulate(
     caller. `checkpoints`: how a refused step is retried (`system_retry.CheckpointOptions`;
     None: every 200 samples, in 10 substeps). `started`: the run's perf_counter() start (None:
     now)."""
+    if not isinstance(run, CheckedRun):
+        raise TypeError(
+            f"simulate takes a checked run (master.check), not {type(run).__name__}: "
+            "for a run and its plant, call master.check_and_simulate(run, plant, ...)"
+        )
     if run.pair:
         return simulate_pair_as_system(run, progress, buffer, count, calling, pool, checkpoints, started)
     return execute(run, progress, buffer, count, calling, checkpoints, pool, started=started)
