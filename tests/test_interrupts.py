@@ -177,7 +177,21 @@ def guard():  # a main thread still asleep 20 s after the interrupt is woken thr
     if selecting():
         print("still asleep", flush=True)
         os.write(write, b"x")
+
+def wait_and_say():
+    try:
+        wait([SilentHost()])
+        print("returned", flush=True)
+    except KeyboardInterrupt as error:
+        print("interrupted", error, flush=True)
 """
+
+
+def _waited(wait: str, source: str) -> list[str]:
+    """What the program `source` printed, run after WAIT_FOR_A_SILENT_CHILD with `wait`."""
+    done = _program(source, setup=f"WAIT = {wait!r}\n{WAIT_FOR_A_SILENT_CHILD}", timeout=60)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.splitlines()
 
 
 @pytest.mark.parametrize("wait", WAITS)
@@ -189,7 +203,8 @@ def test_an_interrupt_another_thread_receives_ends_the_wait_for_children(wait: s
     must wake and be interrupted now, not when the deadline comes. Here the signal goes to the
     other thread once the main thread sleeps in select; if it is still asleep 20 s later, the
     other thread wakes it through the host's pipe (a hang guard) and says so."""
-    done = _program(
+    said = _waited(
+        wait,
         """
         def other():
             while not selecting():
@@ -198,17 +213,10 @@ def test_an_interrupt_another_thread_receives_ends_the_wait_for_children(wait: s
             guard()
 
         threading.Thread(target=other, daemon=True).start()
-        try:
-            wait([SilentHost()])
-            print("returned", flush=True)
-        except KeyboardInterrupt as error:
-            print("interrupted", error, flush=True)
+        wait_and_say()
         """,
-        setup=f"WAIT = {wait!r}\n{WAIT_FOR_A_SILENT_CHILD}",
-        timeout=60,
     )
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.splitlines() == ["interrupted SIGINT"], (done.stdout, done.stderr)
+    assert said == ["interrupted SIGINT"]
 
 
 @pytest.mark.parametrize("wait", WAITS)
@@ -217,24 +225,18 @@ def test_an_interrupt_some_code_dropped_is_raised_by_the_next_wait(wait: str) ->
     import did, inside `abc.register`, and the sweep ran on to its held case and hung there):
     here the interrupt lands in code that drops it. The command's next wait for its children
     must raise it at once instead of sleeping to the deadline (the guard as above)."""
-    done = _program(
+    said = _waited(
+        wait,
         """
         try:
             signal.raise_signal(signal.SIGTERM)  # lands here, and is dropped
         except KeyboardInterrupt:
             pass
         threading.Thread(target=guard, daemon=True).start()
-        try:
-            wait([SilentHost()])
-            print("returned", flush=True)
-        except KeyboardInterrupt as error:
-            print("interrupted", error, flush=True)
+        wait_and_say()
         """,
-        setup=f"WAIT = {wait!r}\n{WAIT_FOR_A_SILENT_CHILD}",
-        timeout=60,
     )
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.splitlines() == ["interrupted SIGTERM"], (done.stdout, done.stderr)
+    assert said == ["interrupted SIGTERM"]
 
 
 def test_a_command_that_dropped_an_interrupt_ends_as_interrupted(
