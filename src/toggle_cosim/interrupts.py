@@ -8,7 +8,7 @@ KeyboardInterrupt into exit status 130 (`cli`).
 A raised KeyboardInterrupt can still be lost: C code that calls Python and then clears whatever
 it raised drops it (a sweep's lazy import of lxml, whose module set-up registers classes with
 `abc`, did, and the sweep ran on to its held case). So an interrupt, once it arrived, stays
-noted for the command (`noted`): the command's waits raise it again before they block
+noted for the command (`raise_if_noted`): the command's waits raise it again before they block
 (`select_readable`), and a command that ends without having acted on it ends as interrupted.
 
 Child processes (plants, sweep workers, figure workers) are started inside
@@ -47,7 +47,7 @@ _in_hook = False  # inside _unraisable, where a raised interrupt would be droppe
 _lost = signal.SIGINT  # the interrupt _unraisable is sending again
 _child = False  # a child process (`as_child`): SIGINT is ignored, so no KeyboardInterrupt is an interrupt
 _wakeup: tuple[int, int] | None = None  # the pipe signals are written to (`install`), read end first
-_noted: int | None = None  # the interrupt that arrived during the command, until it ends (`noted`)
+_noted: int | None = None  # the interrupt that arrived during the command, until it ends (`raise_if_noted`)
 _WAKEUP_KEY = -2  # where `install` keeps the wakeup descriptor it replaced, among the old handlers
 
 
@@ -167,15 +167,9 @@ def select_readable(fds: Sequence[int], timeout: float) -> list[int]:
     return [fd for fd in ready if fd != wakeup]
 
 
-def noted() -> int | None:
-    """The interrupt (its signal number) that arrived during the command so far, acted on or not;
-    None if none did."""
-    return _noted
-
-
 def raise_if_noted() -> None:
-    """Raise KeyboardInterrupt if an interrupt arrived during the command (`noted`), outside
-    `deferred()` (there it is raised when the block ends)."""
+    """Raise KeyboardInterrupt if an interrupt arrived during the command, acted on or not (module
+    docstring), outside `deferred()` (there it is raised when the block ends)."""
     if _noted is not None and _depth == 0:
         raise KeyboardInterrupt(signal.Signals(_noted).name)
 
