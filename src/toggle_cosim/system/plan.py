@@ -131,9 +131,9 @@ def build_plan(
     source = np.zeros(size, dtype=np.int64)
     factor = np.ones(size, dtype=np.float64)
     offset = np.zeros(size, dtype=np.float64)
-    early, init_early = [], []
+    early, init_early, fed_by = [], [], []
     for c, name in enumerate(order):
-        own_early, own_init, measured, paced = [], [], [], []
+        own_early, own_init, measured, paced, words = [], [], [], [], []
         for i, variable in enumerate(input_names[c]):
             port = Port(name, variable)
             feed, slot = fed[port], slots[port]
@@ -144,24 +144,17 @@ def build_plan(
                 if measured[-1]:
                     own_early.append(i)
                     own_init.append(i)
+                words.append(f"component {feed.start.component!r}: its output {feed.start.variable}")
             else:
                 source[slot] = SIGNAL - feed
                 own_init.append(i)  # a signal: set early only in the initialisation pass
                 if port in references:
                     paced.append(i)
+                words.append(f"the signal fed to {port}")
         if paced and measured and all(measured):  # a reference goes with the measurements
             own_early = sorted(own_early + paced)
         init_early.append(tuple(own_init))
         early.append(() if jacobi else tuple(own_early))
-    fed_by = []
-    for c, name in enumerate(order):
-        words = []
-        for variable in input_names[c]:
-            feed = fed[Port(name, variable)]
-            if isinstance(feed, Connection):
-                words.append(f"component {feed.start.component!r}: its output {feed.start.variable}")
-            else:
-                words.append(f"the signal fed to {Port(name, variable)}")
         fed_by.append(tuple(words))
     if record is None:
         chosen = [Port(name, v) for c, name in enumerate(order) for v in (*output_names[c], *input_names[c])]
@@ -191,4 +184,5 @@ def build_plan(
 
 def _others(count: int, chosen: Sequence[int]) -> tuple[int, ...]:
     """The positions 0 .. count - 1 not in `chosen`, in order."""
-    return tuple(i for i in range(count) if i not in set(chosen))
+    taken = set(chosen)
+    return tuple(i for i in range(count) if i not in taken)
