@@ -289,8 +289,8 @@ def _plant_process(
 ) -> None:
     """The plant's process: build the user's controller.python where the parent checked the run
     without it (`_build_controller`), run what the parent checked (`master.simulate`: nothing is
-    checked again), send the outcome (no trace) back, exit without
-    cleanup. Its stdout and stderr are the parent's relay (`relay.OutputRelay`)."""
+    checked again), send the outcome (no trace) back, exit without cleanup. Its stdout and stderr
+    are the parent's relay (`relay.OutputRelay`)."""
     code = 0
     try:
         limit_memory()
