@@ -966,7 +966,12 @@ def main() -> int:
         if driver is not None:
             const_run = dataclasses.replace(run, plant=dataclasses.replace(run.plant, F_E=FIXED_INPUTS[1]))
             overheads = [python_loop_overhead(plant, const_run, driver) for _ in range(reps)]
-            own = min(overheads, key=lambda o: o["own_s"])
+            # the best of each figure over the repetitions, then the difference: the repetition with
+            # the least own cost would be the one whose plant share a burst of load inflated
+            own = {
+                key: min(o[key] for o in overheads) for key in ("loop_s", "three_calls_s", "plant_s", "python_calls_s")
+            }
+            own["own_s"] = own["loop_s"] - own["plant_s"]
             figures["python_loop_overhead"] = own
             table.add(
                 "Python controller, a step returning a constant (fig4_nominal/friction, F_E = 0)",
